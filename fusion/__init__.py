@@ -1,0 +1,31 @@
+"""hilnav's pure numerical navigation core.
+
+Conventions (they hold everywhere in hilnav; other packages refer here)
+-----------------------------------------------------------------------
+Frames
+    ``e``  Earth-centred Earth-fixed (ECEF), WGS-84.
+    ``n``  local navigation frame North-East-Down (NED) at the vehicle.
+    ``b``  body frame Forward-Right-Down (FRD).
+    ``i``  inertial frame (for rates: ``omega_ie`` is the Earth rate, ``omega_ib`` what a gyro
+    measures).
+Naming
+    ``vec_a`` is a vector expressed in frame ``a`` (``v_n``, ``f_b``); ``mat_ab`` maps vectors
+    from ``b`` to ``a`` (``C_nb @ f_b`` is ``f_n``). ``omega_ab_c`` is the rate of ``b`` w.r.t.
+    ``a`` expressed in ``c``.
+Attitude
+    Hamilton quaternion, scalar first ``[w, x, y, z]``; ``q_nb`` rotates body to NED (the same
+    convention as MAVLink's ATTITUDE_QUATERNION and HIL_STATE_QUATERNION). Euler angles are
+    3-2-1 (yaw, pitch, roll), radians.
+Units
+    SI and radians everywhere inside. Human units (deg/h, mg, ug/sqrt(Hz), hPa, degE7) live
+    only in YAML configuration and in ``hil.codec``; they are converted once, at load.
+    Boundary field names carry units: ``lat_rad``, ``alt_msl_m``, ``v_ned_mps``, ``time_us``.
+Position
+    Geodetic latitude / longitude (rad) on WGS-84 and height above mean sea level (m). hilnav
+    treats MSL height as the navigation height; the geoid undulation only matters to the
+    barometric calibration (paper P4) and is handled there explicitly.
+Randomness
+    Never drawn here: ``fusion`` is deterministic. Simulators take a ``numpy.random.Generator``.
+
+``fusion`` imports nothing of hilnav but itself and performs no I/O, no clock reads.
+"""

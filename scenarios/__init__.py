@@ -1,0 +1,1 @@
+"""Scenario schema, runner, metrics, reports and campaigns."""

@@ -1,0 +1,105 @@
+"""Truth and sensor samples, SI units, frames in the field names.
+
+These small frozen dataclasses are what the simulator produces, what ``hil.codec`` encodes
+and decodes, and what ``fusion.NavFilter`` consumes (structurally, through the protocols in
+``fusion.samples``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+Vec3 = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class Truth:
+    """True vehicle state at ``time_us`` (simulated time).
+
+    Attributes
+    ----------
+    lat_rad, lon_rad : geodetic latitude / longitude, rad (WGS-84).
+    alt_msl_m : altitude above mean sea level, m.
+    v_ned_mps : (3,) velocity in NED, m/s.
+    q_nb : (4,) Hamilton quaternion [w, x, y, z], body FRD -> NED.
+    omega_b_rps : (3,) body angular rate w.r.t. inertial space, expressed in body, rad/s.
+    specific_force_b_mps2 : (3,) specific force at the IMU, body FRD, m/s^2 (≈ [0, 0, -9.8]
+        in level flight).
+    static_pressure_pa, temperature_k : ambient static pressure and temperature.
+    airspeed_mps : true airspeed; ``indicated_airspeed_mps`` calibrated/indicated airspeed.
+    """
+
+    time_us: int
+    lat_rad: float
+    lon_rad: float
+    alt_msl_m: float
+    v_ned_mps: Vec3
+    q_nb: NDArray[np.float64]
+    omega_b_rps: Vec3
+    specific_force_b_mps2: Vec3
+    static_pressure_pa: float
+    temperature_k: float
+    airspeed_mps: float
+    indicated_airspeed_mps: float
+
+
+@dataclass(frozen=True, slots=True)
+class ImuSample:
+    """One IMU output: specific force and angular rate in body FRD, averaged over ``dt_s``.
+
+    ``time_us`` is the end of the averaging interval; ``dt_s`` its length.
+    """
+
+    time_us: int
+    dt_s: float
+    specific_force_b_mps2: Vec3
+    angular_rate_b_rps: Vec3
+    temperature_k: float = 288.15
+    sensor_id: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class GnssFix:
+    """One GNSS receiver fix. ``time_us`` is the time of validity (not of arrival).
+
+    ``eph_m`` / ``epv_m`` are the receiver's reported 1-sigma horizontal / vertical position
+    accuracy (see ``hil.codec`` for how they map to HIL_GPS). ``fix_type`` follows
+    GPS_FIX_TYPE (0-1 no fix, 2 = 2D, 3 = 3D, ...).
+    """
+
+    time_us: int
+    lat_rad: float
+    lon_rad: float
+    alt_msl_m: float
+    v_ned_mps: Vec3
+    eph_m: float
+    epv_m: float
+    speed_accuracy_mps: float
+    fix_type: int = 3
+    satellites_visible: int = 12
+    sensor_id: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class BaroSample:
+    """Static pressure and the sensor's temperature."""
+
+    time_us: int
+    pressure_pa: float
+    temperature_k: float
+    sensor_id: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class MagSample:
+    """Magnetic flux density in body FRD, tesla."""
+
+    time_us: int
+    field_b_tesla: Vec3
+    sensor_id: int = 0
+
+
+Sample = ImuSample | GnssFix | BaroSample | MagSample
