@@ -1,0 +1,463 @@
+"""Standard and non-standard atmosphere: pressure, temperature and density versus altitude.
+
+Pure functions, SI units. Every function accepts a Python float or a NumPy array and returns
+the same kind (a float for a float, an array of the same shape for an array).
+
+Model
+-----
+*Standard atmosphere*: the ICAO / US Standard Atmosphere 1976 layers from -5 km to 47 km
+geopotential altitude (troposphere, tropopause, two lower-stratosphere layers). The
+altitude argument of the ``isa_*`` functions is **geopotential** altitude ``H``; convert a
+geometric height above mean sea level with :func:`geopotential_from_geometric` (the two differ
+by ``h²/r0``: 0.16 m at 1 km, 16 m at 10 km). Within the troposphere the inverse is exactly
+the pressure-altitude formula of paper P4::
+
+    Hp = (T0 / L) * ((Ps / P0) ** (-L * R / g) - 1) + H0,   L = -0.0065 K/m, H0 = 0.
+
+*Non-standard atmosphere* (paper P4): with sea-level temperature and pressure offsets
+``dT``, ``dP`` from standard, the true altitude ``H`` and the pressure altitude ``Hp`` are
+related by::
+
+    H = Hp + s * (Hp - H0) + b,   s = dT / T0,   b = (R * T0 / g) * (dP / P0).
+
+hilnav *defines* its simulated non-standard atmosphere by this relation, used in both
+directions: the pressure at altitude ``H`` is the standard pressure at
+``Hp = (H - b + s * H0) / (1 + s)``, so :func:`pressure_from_altitude` and
+:func:`altitude_from_pressure` round-trip exactly and a fusion filter that inverts P4's
+relation sees no model error beyond the sensor's own. The temperature that keeps this
+atmosphere hydrostatic (``dp/dH = -p g / (R T)``) is ``T(H) = T_isa(Hp) * (1 + s)``, which is
+``T0 + dT`` at sea level when ``dP = 0``; with ``dP`` ≠ 0 it is ``T0 + dT - L*b`` there (P4's
+bias shifts the whole profile by ``b``: 0.5 K for 9 hPa). The relation is exact for a pure
+temperature offset (same lapse rate, warmer sea level) and first-order in ``dP / P0`` for a
+pressure offset: against an atmosphere with the same lapse rate and a sea-level pressure
+10 hPa higher it differs by 0.3 m at sea level, 2 m at 1 km and 6 m at 3 km.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TypeVar, cast
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatOrArray = TypeVar("FloatOrArray", float, NDArray[np.float64])
+
+# Constants of the US Standard Atmosphere 1976 / ISO 2533.
+G0_MPS2 = 9.80665
+"""Standard gravity, m/s²."""
+R_AIR_JPKGK = 287.05287
+"""Specific gas constant of dry air, J/(kg·K)."""
+T0_K = 288.15
+"""Sea-level standard temperature, K."""
+P0_PA = 101325.0
+"""Sea-level standard pressure, Pa."""
+L0_KPM = -0.0065
+"""Tropospheric temperature gradient dT/dH, K/m (P4's ``L``)."""
+H0_M = 0.0
+"""Reference (base) altitude of the standard atmosphere, m (P4's ``H0``)."""
+R0_GEOPOTENTIAL_M = 6356766.0
+"""Earth radius used for geopotential altitude in the US Standard Atmosphere 1976, m."""
+
+# Layers: base geopotential altitude (m), temperature gradient (K/m). Base temperatures and
+# pressures follow from continuity and are computed once below.
+_LAYER_BASE_M = (0.0, 11000.0, 20000.0, 32000.0)
+_LAYER_LAPSE_KPM = (L0_KPM, 0.0, 0.001, 0.0028)
+H_MIN_M = -5000.0
+"""Lowest geopotential altitude of the model, m (the ICAO table starts at -5 km)."""
+H_MAX_M = 47000.0
+"""Highest geopotential altitude of the model, m (top of the second stratospheric layer)."""
+
+
+def _layer_bases() -> tuple[tuple[float, ...], tuple[float, ...]]:
+    temps = [T0_K]
+    pressures = [P0_PA]
+    for i in range(1, len(_LAYER_BASE_M)):
+        dh = _LAYER_BASE_M[i] - _LAYER_BASE_M[i - 1]
+        lapse = _LAYER_LAPSE_KPM[i - 1]
+        t_prev, p_prev = temps[-1], pressures[-1]
+        t_next = t_prev + lapse * dh
+        if lapse == 0.0:
+            p_next = p_prev * math.exp(-G0_MPS2 * dh / (R_AIR_JPKGK * t_prev))
+        else:
+            p_next = p_prev * (t_next / t_prev) ** (-G0_MPS2 / (lapse * R_AIR_JPKGK))
+        temps.append(t_next)
+        pressures.append(p_next)
+    return tuple(temps), tuple(pressures)
+
+
+_LAYER_T_K, _LAYER_P_PA = _layer_bases()
+P_MAX_PA = P0_PA * ((T0_K + L0_KPM * H_MIN_M) / T0_K) ** (-G0_MPS2 / (L0_KPM * R_AIR_JPKGK))
+"""Pressure at :data:`H_MIN_M`, Pa (highest pressure the model accepts)."""
+P_MIN_PA = _LAYER_P_PA[-1] * (
+    (_LAYER_T_K[-1] + _LAYER_LAPSE_KPM[-1] * (H_MAX_M - _LAYER_BASE_M[-1])) / _LAYER_T_K[-1]
+) ** (-G0_MPS2 / (_LAYER_LAPSE_KPM[-1] * R_AIR_JPKGK))
+"""Pressure at :data:`H_MAX_M`, Pa (lowest pressure the model accepts)."""
+
+
+def _as_array(x: float | NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
+    arr = np.asarray(x, dtype=np.float64)
+    return arr, arr.ndim == 0
+
+
+def _back(arr: NDArray[np.float64], scalar: bool) -> float | NDArray[np.float64]:
+    return float(arr) if scalar else arr
+
+
+def _check_altitude(h: NDArray[np.float64], name: str) -> None:
+    if not np.all(np.isfinite(h)):
+        raise ValueError(f"{name} must be finite")
+    if np.any(h < H_MIN_M) or np.any(h > H_MAX_M):
+        raise ValueError(
+            f"{name} outside the atmosphere model range [{H_MIN_M:.0f}, {H_MAX_M:.0f}] m "
+            f"(got {float(np.min(h)):.1f} .. {float(np.max(h)):.1f} m)"
+        )
+
+
+def _check_pressure(p: NDArray[np.float64]) -> None:
+    if not np.all(np.isfinite(p)):
+        raise ValueError("pressure must be finite")
+    if np.any(p <= 0.0):
+        raise ValueError(f"pressure must be > 0 Pa (got {float(np.min(p))!r})")
+    if np.any(p < P_MIN_PA) or np.any(p > P_MAX_PA):
+        raise ValueError(
+            f"pressure outside the atmosphere model range [{P_MIN_PA:.1f}, {P_MAX_PA:.1f}] Pa "
+            f"(got {float(np.min(p)):.1f} .. {float(np.max(p)):.1f} Pa)"
+        )
+
+
+def _layer_index(h: NDArray[np.float64]) -> NDArray[np.intp]:
+    # Altitudes below 0 use the tropospheric layer (extended down to H_MIN_M).
+    idx = np.searchsorted(np.asarray(_LAYER_BASE_M), h, side="right") - 1
+    return np.clip(idx, 0, len(_LAYER_BASE_M) - 1)
+
+
+def geopotential_from_geometric(h_m: FloatOrArray) -> FloatOrArray:
+    """Geopotential altitude from geometric height above mean sea level.
+
+    Parameters
+    ----------
+    h_m : float or ndarray, any shape
+        Geometric height above MSL, m.
+
+    Returns
+    -------
+    float or ndarray, same shape
+        Geopotential altitude ``r0 * h / (r0 + h)``, m (r0 = 6 356 766 m).
+    """
+    return cast(FloatOrArray, R0_GEOPOTENTIAL_M * h_m / (R0_GEOPOTENTIAL_M + h_m))
+
+
+def geometric_from_geopotential(h_gp_m: FloatOrArray) -> FloatOrArray:
+    """Inverse of :func:`geopotential_from_geometric`, m -> m (any shape)."""
+    return cast(FloatOrArray, R0_GEOPOTENTIAL_M * h_gp_m / (R0_GEOPOTENTIAL_M - h_gp_m))
+
+
+def isa_temperature_k(h_gp_m: FloatOrArray) -> FloatOrArray:
+    """Standard-atmosphere temperature.
+
+    Parameters
+    ----------
+    h_gp_m : float or ndarray, any shape
+        Geopotential altitude, m, within [-5000, 47000].
+
+    Returns
+    -------
+    float or ndarray, same shape
+        Temperature, K.
+
+    Raises
+    ------
+    ValueError
+        Altitude outside the model range or not finite.
+    """
+    h, scalar = _as_array(h_gp_m)
+    _check_altitude(h, "altitude")
+    i = _layer_index(h)
+    t = np.asarray(_LAYER_T_K)[i] + np.asarray(_LAYER_LAPSE_KPM)[i] * (
+        h - np.asarray(_LAYER_BASE_M)[i]
+    )
+    return cast(FloatOrArray, _back(t, scalar))
+
+
+def isa_pressure_pa(h_gp_m: FloatOrArray) -> FloatOrArray:
+    """Standard-atmosphere static pressure.
+
+    Parameters
+    ----------
+    h_gp_m : float or ndarray, any shape
+        Geopotential altitude, m, within [-5000, 47000].
+
+    Returns
+    -------
+    float or ndarray, same shape
+        Static pressure, Pa (101325 at 0 m, 22632.04 at 11 000 m).
+
+    Raises
+    ------
+    ValueError
+        Altitude outside the model range or not finite.
+    """
+    h, scalar = _as_array(h_gp_m)
+    _check_altitude(h, "altitude")
+    i = _layer_index(h)
+    base_h = np.asarray(_LAYER_BASE_M)[i]
+    base_t = np.asarray(_LAYER_T_K)[i]
+    base_p = np.asarray(_LAYER_P_PA)[i]
+    lapse = np.asarray(_LAYER_LAPSE_KPM)[i]
+    dh = h - base_h
+    isothermal = lapse == 0.0
+    safe_lapse = np.where(isothermal, 1.0, lapse)
+    p_grad = base_p * ((base_t + lapse * dh) / base_t) ** (-G0_MPS2 / (safe_lapse * R_AIR_JPKGK))
+    p_iso = base_p * np.exp(-G0_MPS2 * dh / (R_AIR_JPKGK * base_t))
+    p = np.where(isothermal, p_iso, p_grad)
+    return cast(FloatOrArray, _back(p, scalar))
+
+
+def pressure_altitude_m(pressure_pa: FloatOrArray) -> FloatOrArray:
+    """Pressure altitude: the standard-atmosphere geopotential altitude of a pressure.
+
+    In the troposphere this is P4's formula
+    ``Hp = (T0/L)·((Ps/P0)^(−L·R/g) − 1) + H0``; above 11 km the matching layer formula.
+
+    Parameters
+    ----------
+    pressure_pa : float or ndarray, any shape
+        Static pressure, Pa.
+
+    Returns
+    -------
+    float or ndarray, same shape
+        Pressure altitude ``Hp``, m (geopotential).
+
+    Raises
+    ------
+    ValueError
+        Pressure ≤ 0, not finite, or outside the model range (about 111 Pa .. 177.7 kPa).
+    """
+    p, scalar = _as_array(pressure_pa)
+    _check_pressure(p)
+    # Layer index from the (decreasing) base pressures.
+    base_p_all = np.asarray(_LAYER_P_PA)
+    i = np.clip(np.searchsorted(-base_p_all, -p, side="right") - 1, 0, len(base_p_all) - 1)
+    base_h = np.asarray(_LAYER_BASE_M)[i]
+    base_t = np.asarray(_LAYER_T_K)[i]
+    base_p = base_p_all[i]
+    lapse = np.asarray(_LAYER_LAPSE_KPM)[i]
+    isothermal = lapse == 0.0
+    safe_lapse = np.where(isothermal, 1.0, lapse)
+    h_grad = base_h + (base_t / safe_lapse) * (
+        (p / base_p) ** (-safe_lapse * R_AIR_JPKGK / G0_MPS2) - 1.0
+    )
+    h_iso = base_h - (R_AIR_JPKGK * base_t / G0_MPS2) * np.log(p / base_p)
+    h = np.where(isothermal, h_iso, h_grad) + H0_M
+    return cast(FloatOrArray, _back(h, scalar))
+
+
+def nonstandard_scale_bias(sea_level_dt_k: float, sea_level_dp_pa: float) -> tuple[float, float]:
+    """P4's scale and bias of the non-standard atmosphere.
+
+    Parameters
+    ----------
+    sea_level_dt_k : float
+        Sea-level temperature offset from standard ``dT``, K (> −T0).
+    sea_level_dp_pa : float
+        Sea-level pressure offset from standard ``dP``, Pa.
+
+    Returns
+    -------
+    s : float
+        Scale ``dT / T0``, dimensionless.
+    b : float
+        Bias ``(R·T0/g)·(dP/P0)``, m.
+
+    Raises
+    ------
+    ValueError
+        Offsets not finite, or ``dT ≤ −T0`` (the relation would fold).
+    """
+    if not (math.isfinite(sea_level_dt_k) and math.isfinite(sea_level_dp_pa)):
+        raise ValueError("sea-level temperature and pressure offsets must be finite")
+    if sea_level_dt_k <= -T0_K:
+        raise ValueError(f"sea-level temperature offset must be > {-T0_K} K")
+    s = sea_level_dt_k / T0_K
+    b = (R_AIR_JPKGK * T0_K / G0_MPS2) * (sea_level_dp_pa / P0_PA)
+    return s, b
+
+
+def altitude_from_pressure_altitude(
+    pressure_altitude: FloatOrArray, sea_level_dt_k: float = 0.0, sea_level_dp_pa: float = 0.0
+) -> FloatOrArray:
+    """True altitude from pressure altitude in the non-standard atmosphere (P4).
+
+    ``H = Hp + s·(Hp − H0) + b``.
+
+    Parameters
+    ----------
+    pressure_altitude : float or ndarray, any shape
+        Pressure altitude ``Hp``, m.
+    sea_level_dt_k, sea_level_dp_pa : float
+        Sea-level temperature (K) and pressure (Pa) offsets from standard.
+
+    Returns
+    -------
+    float or ndarray, same shape
+        Altitude ``H``, m (geopotential).
+    """
+    s, b = nonstandard_scale_bias(sea_level_dt_k, sea_level_dp_pa)
+    return cast(FloatOrArray, pressure_altitude + s * (pressure_altitude - H0_M) + b)
+
+
+def pressure_altitude_from_altitude(
+    altitude_m: FloatOrArray, sea_level_dt_k: float = 0.0, sea_level_dp_pa: float = 0.0
+) -> FloatOrArray:
+    """Inverse of :func:`altitude_from_pressure_altitude`: ``Hp = (H − b + s·H0)/(1 + s)``.
+
+    Parameters
+    ----------
+    altitude_m : float or ndarray, any shape
+        Altitude ``H``, m (geopotential).
+    sea_level_dt_k, sea_level_dp_pa : float
+        Sea-level temperature (K) and pressure (Pa) offsets from standard.
+
+    Returns
+    -------
+    float or ndarray, same shape
+        Pressure altitude ``Hp``, m.
+    """
+    s, b = nonstandard_scale_bias(sea_level_dt_k, sea_level_dp_pa)
+    return cast(FloatOrArray, (altitude_m - b + s * H0_M) / (1.0 + s))
+
+
+def pressure_from_altitude(
+    altitude_m: FloatOrArray, sea_level_dt_k: float = 0.0, sea_level_dp_pa: float = 0.0
+) -> FloatOrArray:
+    """Static pressure at an altitude in the (non-)standard atmosphere.
+
+    Parameters
+    ----------
+    altitude_m : float or ndarray, any shape
+        Geopotential altitude ``H``, m.
+    sea_level_dt_k, sea_level_dp_pa : float
+        Sea-level temperature (K) and pressure (Pa) offsets from standard; zero gives ISA.
+
+    Returns
+    -------
+    float or ndarray, same shape
+        Static pressure, Pa.
+
+    Raises
+    ------
+    ValueError
+        The implied pressure altitude is outside the model range, or bad offsets.
+    """
+    hp = pressure_altitude_from_altitude(altitude_m, sea_level_dt_k, sea_level_dp_pa)
+    return isa_pressure_pa(hp)
+
+
+def altitude_from_pressure(
+    pressure_pa: FloatOrArray, sea_level_dt_k: float = 0.0, sea_level_dp_pa: float = 0.0
+) -> FloatOrArray:
+    """Altitude of a static pressure in the (non-)standard atmosphere (P4, both steps).
+
+    Parameters
+    ----------
+    pressure_pa : float or ndarray, any shape
+        Static pressure, Pa (> 0).
+    sea_level_dt_k, sea_level_dp_pa : float
+        Sea-level temperature (K) and pressure (Pa) offsets from standard.
+
+    Returns
+    -------
+    float or ndarray, same shape
+        Geopotential altitude ``H``, m.
+
+    Raises
+    ------
+    ValueError
+        Pressure ≤ 0 or outside the model range, or bad offsets.
+    """
+    hp = pressure_altitude_m(pressure_pa)
+    return altitude_from_pressure_altitude(hp, sea_level_dt_k, sea_level_dp_pa)
+
+
+def temperature_from_altitude(
+    altitude_m: FloatOrArray, sea_level_dt_k: float = 0.0, sea_level_dp_pa: float = 0.0
+) -> FloatOrArray:
+    """Air temperature of the (non-)standard atmosphere, ``T_isa(Hp)·(1 + dT/T0)``.
+
+    This is the temperature that makes the P4 atmosphere hydrostatic; at sea level it is
+    ``T0 + dT`` when ``dP = 0`` and ``T0 + dT − L·b`` otherwise (the bias ``b`` shifts the
+    whole profile).
+
+    Parameters
+    ----------
+    altitude_m : float or ndarray, any shape
+        Geopotential altitude ``H``, m.
+    sea_level_dt_k, sea_level_dp_pa : float
+        Sea-level temperature (K) and pressure (Pa) offsets from standard.
+
+    Returns
+    -------
+    float or ndarray, same shape
+        Temperature, K.
+    """
+    s, _ = nonstandard_scale_bias(sea_level_dt_k, sea_level_dp_pa)
+    hp = pressure_altitude_from_altitude(altitude_m, sea_level_dt_k, sea_level_dp_pa)
+    return cast(FloatOrArray, isa_temperature_k(hp) * (1.0 + s))
+
+
+def density_from_altitude(
+    altitude_m: FloatOrArray, sea_level_dt_k: float = 0.0, sea_level_dp_pa: float = 0.0
+) -> FloatOrArray:
+    """Air density ``p / (R·T)`` of the (non-)standard atmosphere.
+
+    Parameters
+    ----------
+    altitude_m : float or ndarray, any shape
+        Geopotential altitude ``H``, m.
+    sea_level_dt_k, sea_level_dp_pa : float
+        Sea-level temperature (K) and pressure (Pa) offsets from standard.
+
+    Returns
+    -------
+    float or ndarray, same shape
+        Density, kg/m³ (1.225 at sea level, ISA).
+    """
+    p = pressure_from_altitude(altitude_m, sea_level_dt_k, sea_level_dp_pa)
+    t = temperature_from_altitude(altitude_m, sea_level_dt_k, sea_level_dp_pa)
+    return cast(FloatOrArray, p / (R_AIR_JPKGK * t))
+
+
+class TroposphereBaro:
+    """Fast scalar pressure / temperature for the barometer's hot loop.
+
+    Same model as :func:`pressure_from_altitude` / :func:`temperature_from_altitude` with
+    fixed ``dT``; ``dP`` may change per call (a weather front). Uses ``math`` on floats, and
+    falls back to the array functions outside the troposphere.
+
+    Parameters
+    ----------
+    sea_level_dt_k : float
+        Sea-level temperature offset from standard, K.
+    """
+
+    __slots__ = ("_exp", "_s", "_t_scale")
+
+    def __init__(self, sea_level_dt_k: float) -> None:
+        s, _ = nonstandard_scale_bias(sea_level_dt_k, 0.0)
+        self._s = s
+        self._exp = -G0_MPS2 / (L0_KPM * R_AIR_JPKGK)
+        self._t_scale = 1.0 + s
+
+    def pressure_temperature(
+        self, altitude_m: float, sea_level_dp_pa: float
+    ) -> tuple[float, float]:
+        """Pressure (Pa) and temperature (K) at geopotential altitude ``altitude_m`` (m)."""
+        b = (R_AIR_JPKGK * T0_K / G0_MPS2) * (sea_level_dp_pa / P0_PA)
+        hp = (altitude_m - b + self._s * H0_M) / self._t_scale
+        if 0.0 <= hp < _LAYER_BASE_M[1] or (H_MIN_M <= hp < 0.0):
+            t_isa = T0_K + L0_KPM * (hp - H0_M)
+            return P0_PA * (t_isa / T0_K) ** self._exp, t_isa * self._t_scale
+        # Outside the troposphere (or out of range: the array function raises).
+        return float(isa_pressure_pa(hp)), float(isa_temperature_k(hp)) * self._t_scale

@@ -1,0 +1,291 @@
+"""Named sensor configurations, with where their numbers come from.
+
+Every preset is a validated, frozen configuration; derive variants with
+``imu_preset("tactical").model_copy(update={"gyro": {"turn_on_bias_deg_per_h": 0.0}})``
+(validated: a negative value raises a ``ValidationError`` naming the field).
+
+"Datasheet class" means: the figures a public datasheet of the named part gives (quoted from
+its feature list / specification table), rounded; where a datasheet gives no figure (bias
+correlation time, rate random walk, and a few others marked *class value*) a value typical of
+the sensor class is chosen and marked as such. Tolerances that datasheets give as "±x" are used
+as 1σ. None of this claims to reproduce a particular unit.
+
+Conversions used: ``N[°/√h] = 60·density[°/s/√Hz]``; ``VRW[m/s/√h] = 5.884e-4 ·
+density[µg/√Hz]``; cross-axis sensitivity 1 % ≈ 10 mrad.
+"""
+
+from __future__ import annotations
+
+from typing import TypeVar
+
+from sim.baro import BaroConfig
+from sim.gnss import GnssConfig
+from sim.imu import AccelConfig, GyroConfig, ImuConfig
+from sim.mag import MagConfig
+from sim.sensors import SensorSuiteConfig
+
+T = TypeVar("T")
+
+_IMU_PRESETS: dict[str, ImuConfig] = {
+    # Phone / drone class: TDK InvenSense ICM-42688-P datasheet (DS-000347) figures.
+    "consumer-mems": ImuConfig(
+        gyro=GyroConfig(
+            range_dps=2000.0,  # ±2000 °/s full scale
+            angle_random_walk_deg_per_rth=0.17,  # 0.0028 °/s/√Hz noise density × 60
+            bias_instability_deg_per_h=5.0,  # class value (not on the datasheet)
+            bias_correlation_time_s=100.0,  # class value
+            rate_random_walk_deg_per_h_per_rth=5.0,  # class value
+            turn_on_bias_deg_per_h=1800.0,  # ZRO tolerance ±0.5 °/s (uncalibrated part)
+            scale_factor_ppm=5000.0,  # sensitivity tolerance ±0.5 %
+            misalignment_mrad=12.5,  # cross-axis sensitivity ±1.25 %
+            resolution_dps=1.0 / 131.0,  # 20-bit high-resolution FIFO, 131 LSB/(°/s)
+        ),
+        accel=AccelConfig(
+            range_g=16.0,  # ±16 g full scale
+            velocity_random_walk_mps_per_rth=0.041,  # 70 µg/√Hz noise density
+            bias_instability_ug=50.0,  # class value
+            bias_correlation_time_s=100.0,  # class value
+            rate_random_walk_ug_per_rth=30.0,  # class value
+            turn_on_bias_mg=20.0,  # zero-g offset ±20 mg
+            scale_factor_ppm=5000.0,  # sensitivity tolerance ±0.5 %
+            misalignment_mrad=10.0,  # cross-axis sensitivity ±1 %
+            resolution_mg=1000.0 / 8192.0,  # high-resolution FIFO, 8192 LSB/g
+        ),
+    ),
+    # Industrial MEMS: Analog Devices ADIS16465-1 datasheet feature list (range of the -2
+    # variant so aerobatic rates do not clip).
+    "industrial-mems": ImuConfig(
+        gyro=GyroConfig(
+            range_dps=500.0,  # ADIS16465-2 ±500 °/s
+            angle_random_walk_deg_per_rth=0.15,  # 0.15 °/√h ARW
+            bias_instability_deg_per_h=2.0,  # 2 °/h in-run bias stability (Allan floor)
+            bias_correlation_time_s=100.0,  # class value
+            rate_random_walk_deg_per_h_per_rth=1.0,  # class value
+            turn_on_bias_deg_per_h=180.0,  # class value (0.05 °/s bias repeatability)
+            scale_factor_ppm=1000.0,  # class value (factory-calibrated, ~0.1 %)
+            misalignment_mrad=0.87,  # ±0.05° axis-to-axis misalignment
+            resolution_dps=0.0,  # 32-bit outputs: quantisation negligible
+        ),
+        accel=AccelConfig(
+            range_g=8.0,  # ±8 g
+            velocity_random_walk_mps_per_rth=0.012,  # datasheet class, from memory of the table
+            bias_instability_ug=3.6,  # 3.6 µg in-run bias stability (Allan floor)
+            bias_correlation_time_s=100.0,  # class value
+            rate_random_walk_ug_per_rth=3.0,  # class value
+            turn_on_bias_mg=1.5,  # class value
+            scale_factor_ppm=1000.0,  # class value
+            misalignment_mrad=0.87,  # ±0.05° axis-to-axis misalignment
+            resolution_mg=0.0,  # 32-bit outputs
+        ),
+    ),
+    # Tactical grade (≈1 °/h): Honeywell HG1700-AG58 class figures (RLG gyros, pendulous
+    # accelerometers): gyro bias 1 °/h, ARW 0.125 °/√h, gyro scale factor 150 ppm,
+    # accelerometer bias 1 mg, accelerometer scale factor 300 ppm.
+    "tactical": ImuConfig(
+        gyro=GyroConfig(
+            range_dps=1000.0,  # ±1000 °/s
+            angle_random_walk_deg_per_rth=0.125,
+            bias_instability_deg_per_h=1.0,
+            bias_correlation_time_s=300.0,  # class value (floor near 10 min)
+            rate_random_walk_deg_per_h_per_rth=0.3,  # class value
+            turn_on_bias_deg_per_h=1.0,
+            scale_factor_ppm=150.0,
+            misalignment_mrad=0.5,  # class value
+        ),
+        accel=AccelConfig(
+            range_g=37.0,  # ±37 g
+            velocity_random_walk_mps_per_rth=0.03,  # class value
+            bias_instability_ug=50.0,  # class value
+            bias_correlation_time_s=300.0,  # class value
+            rate_random_walk_ug_per_rth=10.0,  # class value
+            turn_on_bias_mg=1.0,
+            scale_factor_ppm=300.0,
+            misalignment_mrad=0.5,  # class value
+        ),
+    ),
+    # Paper P2 (papers/README.md): "gyro drift 0.1 °/h as first-order Markov, correlation
+    # time 100 s". P2 states nothing else about the IMU; the rest is the smallest
+    # plausible companion of such a gyro, marked assumption.
+    "paper-p2": ImuConfig(
+        gyro=GyroConfig(
+            range_dps=500.0,  # assumption
+            angle_random_walk_deg_per_rth=0.005,  # assumption (negligible over 900 s)
+            bias_instability_deg_per_h=0.1,  # P2
+            bias_instability_spec="gm_sigma",  # P2 gives the Markov process sigma
+            bias_correlation_time_s=100.0,  # P2
+        ),
+        accel=AccelConfig(
+            range_g=10.0,  # assumption
+            velocity_random_walk_mps_per_rth=0.005,  # assumption
+            bias_instability_ug=100.0,  # assumption: the 1e-4 g customarily paired with 0.1 °/h
+            bias_instability_spec="gm_sigma",
+            bias_correlation_time_s=100.0,  # assumption (same Markov model as the gyro)
+        ),
+    ),
+}
+
+_GNSS_PRESETS: dict[str, GnssConfig] = {
+    # Modern single-frequency multi-constellation receiver (u-blox M8/M9 class: 1.5-2.0 m
+    # CEP horizontal, 0.05 m/s velocity accuracy). Per-axis 1σ horizontal ≈ 1.5 m, mostly
+    # slowly varying (atmosphere / orbit errors: class value τ = 120 s) plus receiver noise.
+    "modern": GnssConfig(
+        rate_hz=5.0,
+        latency_s=0.1,  # class value (fix output some 50-100 ms after its epoch)
+        fix_type=3,
+        satellites_visible=14,
+        horizontal_gm_sigma_m=1.4,
+        horizontal_gm_tau_s=120.0,
+        horizontal_white_sigma_m=0.5,  # total sqrt(1.4² + 0.5²) = 1.49 m per axis
+        vertical_gm_sigma_m=2.4,
+        vertical_gm_tau_s=120.0,
+        vertical_white_sigma_m=0.8,  # total 2.53 m (vertical ≈ 1.7 × horizontal)
+        velocity_gm_sigma_mps=0.02,
+        velocity_gm_tau_s=10.0,
+        velocity_white_sigma_mps=0.045,  # total 0.049 m/s
+        vertical_velocity_gm_sigma_mps=0.03,
+        vertical_velocity_white_sigma_mps=0.07,
+    ),
+    # Paper P2: position error 20 m with correlation time 10 s, velocity error 0.1 m/s with
+    # correlation time 5 s (all axes; P2 gives no white part). Rate: P2 gives none; 5 Hz as P0.
+    "paper-p2": GnssConfig(
+        rate_hz=5.0,
+        latency_s=0.0,
+        horizontal_gm_sigma_m=20.0,
+        horizontal_gm_tau_s=10.0,
+        horizontal_white_sigma_m=0.0,
+        vertical_gm_sigma_m=20.0,
+        vertical_gm_tau_s=10.0,
+        vertical_white_sigma_m=0.0,
+        velocity_gm_sigma_mps=0.1,
+        velocity_gm_tau_s=5.0,
+        velocity_white_sigma_mps=0.0,
+        vertical_velocity_gm_sigma_mps=0.1,
+        vertical_velocity_white_sigma_mps=0.0,
+    ),
+}
+
+_BARO_PRESETS: dict[str, BaroConfig] = {
+    # TE MS5611-01BA03 class: RMS resolution 0.012 mbar at OSR 4096, output in 0.01 mbar,
+    # temperature in 0.01 °C. Slow bias (thermal / package drift, P4's Gauss-Markov baro
+    # bias): class value 10 Pa (≈ 0.8 m), 10 min. Standard atmosphere, no weather.
+    "ms5611": BaroConfig(
+        noise_pa=1.2,
+        resolution_pa=1.0,
+        lag_time_constant_s=0.0,
+        bias_gm_sigma_pa=10.0,
+        bias_gm_tau_s=600.0,
+        temperature_noise_k=0.01,
+        temperature_resolution_k=0.01,
+    ),
+    # Noise-free: exactly the (non-)standard atmosphere; for tests and model studies.
+    "ideal": BaroConfig(noise_pa=0.0),
+}
+
+_MAG_PRESETS: dict[str, MagConfig] = {
+    # AKM AK09916 class (0.15 µT/LSB); noise class value 0.2 µT; hard-iron residual after a
+    # typical in-field calibration, class value of about 1 µT.
+    "consumer": MagConfig(noise_ut=0.2, resolution_ut=0.15, hard_iron_ut=(1.0, -0.6, 0.8)),
+    "ideal": MagConfig(noise_ut=0.0),
+}
+
+
+def _lookup(kind: str, table: dict[str, T], name: str) -> T:
+    try:
+        return table[name]
+    except (KeyError, TypeError):
+        choices = ", ".join(sorted(table))
+        raise ValueError(f"unknown {kind} preset {name!r}; valid choices: {choices}") from None
+
+
+def available_imu_presets() -> list[str]:
+    """Names accepted by :func:`imu_preset`, sorted."""
+    return sorted(_IMU_PRESETS)
+
+
+def available_gnss_presets() -> list[str]:
+    """Names accepted by :func:`gnss_preset`, sorted."""
+    return sorted(_GNSS_PRESETS)
+
+
+def available_baro_presets() -> list[str]:
+    """Names accepted by :func:`baro_preset`, sorted."""
+    return sorted(_BARO_PRESETS)
+
+
+def available_mag_presets() -> list[str]:
+    """Names accepted by :func:`mag_preset`, sorted."""
+    return sorted(_MAG_PRESETS)
+
+
+def imu_preset(name: str) -> ImuConfig:
+    """IMU configuration by name (see :func:`available_imu_presets`).
+
+    Raises
+    ------
+    ValueError
+        Unknown name; the message lists the valid choices.
+    """
+    return _lookup("IMU", _IMU_PRESETS, name)
+
+
+def gnss_preset(name: str) -> GnssConfig:
+    """GNSS configuration by name (see :func:`available_gnss_presets`).
+
+    Raises
+    ------
+    ValueError
+        Unknown name; the message lists the valid choices.
+    """
+    return _lookup("GNSS", _GNSS_PRESETS, name)
+
+
+def baro_preset(name: str) -> BaroConfig:
+    """Barometer configuration by name (see :func:`available_baro_presets`).
+
+    Raises
+    ------
+    ValueError
+        Unknown name; the message lists the valid choices.
+    """
+    return _lookup("barometer", _BARO_PRESETS, name)
+
+
+def mag_preset(name: str) -> MagConfig:
+    """Magnetometer configuration by name (see :func:`available_mag_presets`).
+
+    Raises
+    ------
+    ValueError
+        Unknown name; the message lists the valid choices.
+    """
+    return _lookup("magnetometer", _MAG_PRESETS, name)
+
+
+def suite_config(
+    imu: str = "industrial-mems",
+    gnss: str = "modern",
+    baro: str = "ms5611",
+    mag: str = "consumer",
+    *,
+    imu_rate_hz: float | None = None,
+    baro_rate_hz: float = 50.0,
+    mag_rate_hz: float = 50.0,
+) -> SensorSuiteConfig:
+    """A :class:`~sim.sensors.SensorSuiteConfig` assembled from preset names.
+
+    Raises
+    ------
+    ValueError
+        Unknown preset name.
+    pydantic.ValidationError
+        Bad rate.
+    """
+    return SensorSuiteConfig(
+        imu=imu_preset(imu),
+        gnss=gnss_preset(gnss),
+        baro=baro_preset(baro),
+        mag=mag_preset(mag),
+        imu_rate_hz=imu_rate_hz,
+        baro_rate_hz=baro_rate_hz,
+        mag_rate_hz=mag_rate_hz,
+    )
