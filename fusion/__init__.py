@@ -29,3 +29,18 @@ Randomness
 
 ``fusion`` imports nothing of hilnav but itself and performs no I/O, no clock reads.
 """
+
+__all__ = ["FilterConfig", "NavEstimate", "NavFilter"]
+
+
+def __getattr__(name: str) -> object:
+    # Lazy exports: ``import fusion.earth`` must not pull in pydantic and the whole filter.
+    if name == "FilterConfig":
+        from fusion.config import FilterConfig
+
+        return FilterConfig
+    if name in ("NavEstimate", "NavFilter"):
+        from fusion import filter as _filter
+
+        return getattr(_filter, name)
+    raise AttributeError(f"module 'fusion' has no attribute {name!r}")

@@ -1,0 +1,302 @@
+"""GNSS position and velocity aiding (loosely coupled).
+
+*How* — :func:`position_model`, :func:`velocity_model`: the INS state at the fix's time of
+validity, moved to the antenna by the lever arm, minus the fix::
+
+    z_pos = [dN, dE, dD](INS - fix) + C_nb l_b                        (metres NED)
+    z_vel = v_n + C_nb (omega_ib_b × l_b) - omega_in_n × (C_nb l_b) - v_fix   (m/s NED)
+
+``eph_m`` is used as the 1-sigma of *each* horizontal axis (as PX4's ekf2 does), ``epv_m`` for
+down, ``speed_accuracy_mps`` for each velocity axis, each floored by the configuration.
+
+Latency: the fix is compared with the INS state buffered at its time of validity (corrected for
+every feedback applied since, see :mod:`fusion.history`), while the error state lives at the
+current time. Over the delay ``d`` (<= ``max_delay_s``) ``dr(t_fix) ≈ dr(now) - dv d``; that
+term is in ``H``; the other couplings over a fraction of a second (attitude into velocity,
+~g phi d) are neglected, which keeps the update a plain one-epoch update.
+
+*When* — :class:`GnssControl`: quality checks (3-D fix, finite, accuracy), outage detection
+(no fused fix for ``outage_timeout_s``), re-acquisition after ``reacquire_fixes`` consecutive
+good fixes, and reset requests (re-acquisition after a real outage that the gate rejects, or
+good-quality fixes rejected for ``reset_after_rejected_s``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fusion import earth
+from fusion.aiding import Observation
+from fusion.config import GnssConfig
+from fusion.error_model import StateLayout
+from fusion.samples import GnssFix
+from fusion.strapdown import InsState, dcm_from_quat
+
+
+def _cross(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float, float]:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _rotate(c: tuple[float, ...], v: tuple[float, ...]) -> tuple[float, float, float]:
+    return (
+        c[0] * v[0] + c[1] * v[1] + c[2] * v[2],
+        c[3] * v[0] + c[4] * v[1] + c[5] * v[2],
+        c[6] * v[0] + c[7] * v[1] + c[8] * v[2],
+    )
+
+
+def position_model(
+    layout: StateLayout,
+    ins: InsState,
+    fix_lat_rad: float,
+    fix_lon_rad: float,
+    fix_alt_m: float,
+    sigma_h_m: float,
+    sigma_v_m: float,
+    lever_arm_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    delay_s: float = 0.0,
+) -> Observation | None:
+    """GNSS position observation (antenna position, metres NED).
+
+    Parameters
+    ----------
+    layout : StateLayout
+    ins : InsState
+        INS state at the fix's time of validity.
+    fix_lat_rad, fix_lon_rad, fix_alt_m : float
+        Fix position.
+    sigma_h_m, sigma_v_m : float
+        1-sigma per horizontal axis and vertical, m.
+    lever_arm_b_m : 3 floats
+        Antenna w.r.t. IMU in body FRD, m.
+    delay_s : float
+        Current time minus the fix's time of validity, s (>= 0).
+
+    Returns
+    -------
+    Observation or None
+        ``None`` when the inputs are not finite or the sigmas not positive.
+    """
+    vals = (fix_lat_rad, fix_lon_rad, fix_alt_m, sigma_h_m, sigma_v_m)
+    if not all(math.isfinite(v) for v in vals) or sigma_h_m <= 0.0 or sigma_v_m <= 0.0:
+        return None
+    c_nb = dcm_from_quat(ins.q_nb)
+    arm_n = _rotate(c_nb, lever_arm_b_m)
+    d = earth.ned_offset_m(
+        ins.lat_rad, ins.lon_rad, ins.alt_msl_m, fix_lat_rad, fix_lon_rad, fix_alt_m
+    )
+    z = np.array([d[0] + arm_n[0], d[1] + arm_n[1], d[2] + arm_n[2]])
+    H = np.zeros((3, layout.n))
+    p, v, a = layout.POS, layout.VEL, layout.ATT
+    for i in range(3):
+        H[i, p + i] = 1.0
+        # dr(t_fix) = dr(now) - dv * delay
+        H[i, v + i] = -delay_s
+    # d(C l) = [phi×] C l = -[(C l)×] phi
+    H[0, a + 1], H[0, a + 2] = arm_n[2], -arm_n[1]
+    H[1, a], H[1, a + 2] = -arm_n[2], arm_n[0]
+    H[2, a], H[2, a + 1] = arm_n[1], -arm_n[0]
+    sh2, sv2 = sigma_h_m * sigma_h_m, sigma_v_m * sigma_v_m
+    R = np.array([[sh2, 0.0, 0.0], [0.0, sh2, 0.0], [0.0, 0.0, sv2]])
+    return Observation(z, H, R)
+
+
+def velocity_model(
+    layout: StateLayout,
+    ins: InsState,
+    omega_ib_b_rps: tuple[float, float, float],
+    fix_v_ned_mps: np.ndarray,
+    sigma_mps: float,
+    lever_arm_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> Observation | None:
+    """GNSS velocity observation (antenna velocity, NED).
+
+    Parameters
+    ----------
+    layout : StateLayout
+    ins : InsState
+        INS state at the fix's time of validity.
+    omega_ib_b_rps : 3 floats
+        Bias-corrected body rate, rad/s (for the lever-arm velocity).
+    fix_v_ned_mps : ndarray, shape (3,)
+        Fix velocity, m/s.
+    sigma_mps : float
+        1-sigma per axis, m/s.
+    lever_arm_b_m : 3 floats
+        Antenna w.r.t. IMU in body FRD, m.
+
+    Returns
+    -------
+    Observation or None
+    """
+    v_fix = np.asarray(fix_v_ned_mps, dtype=float)
+    if v_fix.shape != (3,) or not np.all(np.isfinite(v_fix)) or not sigma_mps > 0.0:
+        return None
+    c_nb = dcm_from_quat(ins.q_nb)
+    arm_b = lever_arm_b_m
+    arm_n = _rotate(c_nb, arm_b)
+    t = earth.local_terms(ins.lat_rad, ins.alt_msl_m)
+    vn, ve, vd = ins.v_ned_mps
+    w_in = (
+        earth.RATE * t.cos_lat + ve / t.rho_e_m,
+        -vn / t.rho_n_m,
+        -earth.RATE * t.sin_lat - ve * t.sin_lat / t.cos_lat / t.rho_e_m,
+    )
+    rot_n = _rotate(c_nb, _cross(omega_ib_b_rps, arm_b))
+    w_arm = _cross(w_in, arm_n)
+    fv = v_fix.tolist()
+    z = np.array([
+        vn + rot_n[0] - w_arm[0] - fv[0],
+        ve + rot_n[1] - w_arm[1] - fv[1],
+        vd + rot_n[2] - w_arm[2] - fv[2],
+    ])  # fmt: skip
+    H = np.zeros((3, layout.n))
+    v, a, g = layout.VEL, layout.ATT, layout.BG
+    for i in range(3):
+        H[i, v + i] = 1.0
+    if any(arm_b):
+        # attitude: -[(C (w × l))×] + [w_in×][(C l)×] = -[r×] + (C l) w_in^T - (w_in . C l) I
+        dot = w_in[0] * arm_n[0] + w_in[1] * arm_n[1] + w_in[2] * arm_n[2]
+        m = [[arm_n[i] * w_in[j] - (dot if i == j else 0.0) for j in range(3)] for i in range(3)]
+        r = rot_n
+        m[0][1] += r[2]
+        m[0][2] -= r[1]
+        m[1][0] -= r[2]
+        m[1][2] += r[0]
+        m[2][0] += r[1]
+        m[2][1] -= r[0]
+        H[:, a : a + 3] = m
+        # gyro bias: omega^ = omega - dbg, C (-dbg × l) = C [l×] dbg
+        lx, ly, lz = arm_b
+        c = c_nb
+        H[:, g : g + 3] = [
+            [c[3 * i + 1] * lz - c[3 * i + 2] * ly,
+             -c[3 * i] * lz + c[3 * i + 2] * lx,
+             c[3 * i] * ly - c[3 * i + 1] * lx]
+            for i in range(3)
+        ]  # fmt: skip
+    s2 = sigma_mps * sigma_mps
+    R = np.array([[s2, 0.0, 0.0], [0.0, s2, 0.0], [0.0, 0.0, s2]])
+    return Observation(z, H, R)
+
+
+def fix_quality(fix: GnssFix, cfg: GnssConfig) -> str | None:
+    """Why a fix cannot be used (``"no_fix"``, ``"invalid"``, ``"inaccurate"``), or ``None``."""
+    if fix.fix_type < 3:
+        return "no_fix"
+    scalars = (
+        fix.lat_rad,
+        fix.lon_rad,
+        fix.alt_msl_m,
+        fix.eph_m,
+        fix.epv_m,
+        fix.speed_accuracy_mps,
+    )
+    if not all(math.isfinite(float(v)) for v in scalars):
+        return "invalid"
+    v = np.asarray(fix.v_ned_mps, dtype=float)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        return "invalid"
+    if abs(fix.lat_rad) > 0.5 * math.pi or fix.eph_m < 0.0 or fix.epv_m < 0.0:
+        return "invalid"
+    if fix.eph_m > cfg.max_eph_m:
+        return "inaccurate"
+    return None
+
+
+def fix_sigmas(fix: GnssFix, cfg: GnssConfig) -> tuple[float, float, float]:
+    """Per-axis sigmas ``(horizontal m, vertical m, velocity m/s)`` with the configured floors."""
+    return (
+        max(float(fix.eph_m), cfg.pos_noise_floor_m),
+        max(float(fix.epv_m), cfg.pos_noise_floor_m),
+        max(float(fix.speed_accuracy_mps), cfg.vel_noise_floor_mps),
+    )
+
+
+class GnssControl:
+    """When to fuse GNSS: outage detection, re-acquisition and reset logic.
+
+    Parameters
+    ----------
+    cfg : GnssConfig
+    """
+
+    def __init__(self, cfg: GnssConfig) -> None:
+        self.cfg = cfg
+        self._timeout_us = round(cfg.outage_timeout_s * 1e6)
+        self._reset_us = round(cfg.reset_after_rejected_s * 1e6)
+        self.last_fused_us: int | None = None
+        self.last_good_us: int | None = None
+        self.good_streak = 0
+        self.reacquiring = False
+        self._after_true_outage = False
+        self._rejected_since_us: dict[str, int | None] = {"pos": None, "vel": None}
+
+    def is_active(self, now_us: int) -> bool:
+        """GNSS is aiding: a fix was fused within ``outage_timeout_s``."""
+        return self.last_fused_us is not None and now_us - self.last_fused_us <= self._timeout_us
+
+    def time_since_fused_s(self, now_us: int) -> float:
+        """Seconds since the last fused fix (``inf`` before the first)."""
+        if self.last_fused_us is None:
+            return math.inf
+        return (now_us - self.last_fused_us) * 1e-6
+
+    def start(self, time_us: int) -> None:
+        """The filter was initialised from GNSS at ``time_us``: aiding is active."""
+        self.last_fused_us = time_us
+        self.last_good_us = time_us
+        self.good_streak = self.cfg.reacquire_fixes
+        self.reacquiring = self._after_true_outage = False
+
+    def on_bad_fix(self) -> None:
+        """A fix failed the quality checks: the consecutive-good count restarts."""
+        self.good_streak = 0
+
+    def on_good_fix(self, time_us: int, now_us: int) -> bool:
+        """A fix passed the quality checks. Returns True if it should be fused now."""
+        real_gap = self.last_good_us is None or time_us - self.last_good_us > self._timeout_us
+        self.good_streak = 1 if real_gap else self.good_streak + 1
+        self.last_good_us = time_us
+        if self.is_active(now_us):
+            return True
+        if real_gap:
+            # An outage without usable fixes: when fixes come back, a gate rejection means the
+            # INS drifted, not that the fix is bad.
+            self._after_true_outage = True
+        if self.good_streak >= self.cfg.reacquire_fixes:
+            self.reacquiring = self._after_true_outage
+            return True
+        return False
+
+    def on_result(self, part: str, time_us: int, accepted: bool) -> bool:
+        """Record the gate's verdict for ``part`` (``"pos"`` or ``"vel"``).
+
+        Returns
+        -------
+        bool
+            True when that part should be reset to the fix instead.
+        """
+        if accepted:
+            self.last_fused_us = (
+                time_us if self.last_fused_us is None else max(self.last_fused_us, time_us)
+            )
+            self._rejected_since_us[part] = None
+            if part == "pos":
+                self.reacquiring = self._after_true_outage = False
+            return False
+        since = self._rejected_since_us[part]
+        if since is None:
+            self._rejected_since_us[part] = since = time_us
+        if self.reacquiring or time_us - since >= self._reset_us:
+            return True
+        return False
+
+    def on_reset(self, part: str, time_us: int) -> None:
+        """The filter reset ``part`` to the fix."""
+        self._rejected_since_us[part] = None
+        self.last_fused_us = time_us
+        if part == "pos":
+            self.reacquiring = self._after_true_outage = False

@@ -1,0 +1,130 @@
+"""Magnetometer heading aiding: what makes yaw observable in straight flight (paper P3 fuses the
+magnetometer in its EKF for the same reason).
+
+*How* — :func:`heading_model`. The body field is rotated into NED with the estimated attitude,
+``m^_n = C^_nb m_b`` (tilt compensation with the filter's own roll and pitch), and its heading
+``atan2(m^_E, m^_N)`` is compared with the reference field's (the declination)::
+
+    z = wrap(atan2(m^_E, m^_N) - atan2(m_ref_E, m_ref_N))
+
+With ``C^_nb = (I + [phi×]) C_nb``, ``m^_n = (I + [phi×]) m_n`` and to first order
+``z = phi_D - m_D (m_N phi_N + m_E phi_E) / (m_N^2 + m_E^2)``: mostly yaw error, plus the tilt
+error through the (large, at mid latitudes) vertical field. The noise is a generous heading
+sigma from the configuration; soft/hard-iron residuals are not modelled.
+
+*When* — :class:`MagControl`: fuse at most ``fuse_rate_hz``; reference field from the
+configuration or learned: once the filter's yaw sigma is below ``learn_yaw_sigma_rad`` (GNSS
+manoeuvres made heading observable), the mean of ``C^_nb m_b`` over ``LEARN_SAMPLES`` samples
+becomes the reference. Learning at the in-flight alignment itself would freeze the alignment's
+heading error (a crabbing aircraft's track is not its heading) into the reference.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fusion.aiding import Observation
+from fusion.config import MagConfig
+from fusion.error_model import StateLayout
+
+LEARN_SAMPLES = 10
+
+
+def wrap_pi(angle_rad: float) -> float:
+    """Angle wrapped to [-pi, pi)."""
+    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def heading_model(
+    layout: StateLayout,
+    c_nb: NDArray[np.float64],
+    field_b: NDArray[np.float64],
+    reference_field_n: NDArray[np.float64],
+    heading_noise_rad: float,
+    min_horizontal_field: float = 0.0,
+) -> Observation | None:
+    """Magnetic heading observation.
+
+    Parameters
+    ----------
+    layout : StateLayout
+    c_nb : ndarray, shape (3, 3)
+        Estimated attitude.
+    field_b : ndarray, shape (3,)
+        Measured field in body FRD (any unit, e.g. T).
+    reference_field_n : ndarray, shape (3,)
+        Earth field in NED, same unit.
+    heading_noise_rad : float
+        1-sigma, rad.
+    min_horizontal_field : float
+        Below this horizontal magnitude (same unit) heading is meaningless: returns ``None``.
+
+    Returns
+    -------
+    Observation or None
+    """
+    m = c_nb @ np.asarray(field_b, dtype=float)
+    if not np.all(np.isfinite(m)):
+        return None
+    mn, me, md = float(m[0]), float(m[1]), float(m[2])
+    h2 = mn * mn + me * me
+    ref = np.asarray(reference_field_n, dtype=float)
+    if h2 <= min_horizontal_field**2 or h2 == 0.0 or float(ref[0] ** 2 + ref[1] ** 2) == 0.0:
+        return None
+    z = np.array([wrap_pi(math.atan2(me, mn) - math.atan2(float(ref[1]), float(ref[0])))])
+    H = np.zeros((1, layout.n))
+    a = layout.ATT
+    H[0, a] = -md * mn / h2
+    H[0, a + 1] = -md * me / h2
+    H[0, a + 2] = 1.0
+    return Observation(z, H, np.array([[heading_noise_rad**2]]))
+
+
+class MagControl:
+    """When to fuse magnetometer heading; owns the (configured or learned) reference field.
+
+    Parameters
+    ----------
+    cfg : MagConfig
+    """
+
+    def __init__(self, cfg: MagConfig) -> None:
+        self.cfg = cfg
+        self._period_us = round(1e6 / cfg.fuse_rate_hz)
+        self.last_fused_us: int | None = None
+        self._last_attempt_us: int | None = None
+        self.reference_n: NDArray[np.float64] | None = (
+            None
+            if cfg.reference_field_n_tesla is None
+            else np.asarray(cfg.reference_field_n_tesla, dtype=float)
+        )
+        self._learn: list[NDArray[np.float64]] = []
+
+    @property
+    def learned(self) -> bool:
+        """The reference came from learning (not from the configuration)."""
+        return self.cfg.reference_field_n_tesla is None and self.reference_n is not None
+
+    def due(self, time_us: int) -> bool:
+        """Rate limit: True when a sample at ``time_us`` should be used."""
+        if self._last_attempt_us is not None and time_us - self._last_attempt_us < self._period_us:
+            return False
+        self._last_attempt_us = time_us
+        return True
+
+    def learn(self, field_n: NDArray[np.float64], yaw_sigma_rad: float) -> None:
+        """Offer ``C^_nb m_b`` for the learned reference (used only when heading is good)."""
+        if self.reference_n is not None or yaw_sigma_rad > self.cfg.learn_yaw_sigma_rad:
+            return
+        self._learn.append(np.asarray(field_n, dtype=float))
+        if len(self._learn) >= LEARN_SAMPLES:
+            self.reference_n = np.mean(self._learn, axis=0)
+            self._learn.clear()
+
+    def on_result(self, time_us: int, accepted: bool) -> None:
+        """Record the gate's verdict."""
+        if accepted:
+            self.last_fused_us = time_us

@@ -1,0 +1,326 @@
+"""Initial alignment: in flight from GNSS, or static (levelling + magnetometer / gyrocompass).
+
+In flight (fixed wing, coordinated flight), from good fixes 1 and 2 spanning ``window_s`` (and
+no gap longer than ``max_fix_interval_s`` between them):
+
+- the specific force in NED over the interval comes from GNSS:
+  ``f_n = (v2 - v1) / (t2 - t1) - g_n + (2 omega_ie + omega_en) × v``;
+- the specific force in body is the mean accelerometer output over the same interval;
+- the heading comes from the velocity track: body x (forward) is taken along ``v_n`` (zero
+  sideslip and angle of attack assumed);
+- TRIAD with ``f`` as the exact primary vector and the track as the secondary one: ``f``
+  fixes roll and pitch (in unaccelerated flight this reduces to the usual levelling
+  ``roll = atan2(-f_y, -f_z)``, ``pitch = atan2(f_x, sqrt(f_y^2 + f_z^2))``, and, unlike it,
+  stays right in a steady turn); the track fixes only the rotation about ``f``, i.e. heading.
+
+The track-derived heading is off by the crab angle in wind; the initial yaw sigma
+(``InitConfig.yaw_sigma_rad``) covers it and the filter converges in turns or with the
+magnetometer. The attitude found is that of the interval's middle; it is carried to the current
+time with the buffered gyro increments.
+
+Static: mean specific force over ``static_duration_s`` (levelling), heading from the
+tilt-compensated mean magnetometer field against the configured reference field, or, without
+one, gyrocompassing (horizontal Earth rate; only meaningful for gyros far better than the
+Earth rate, its yaw sigma is derived from the gyro bias).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fusion import earth
+from fusion.config import GnssConfig, ImuConfig, InitConfig, MagConfig
+from fusion.rotations import dcm_to_quat, euler_to_dcm, quat_multiply, rotvec_to_quat
+from fusion.samples import GnssFix
+from fusion.strapdown import InsState
+
+FloatArray = NDArray[np.float64]
+
+
+class AlignmentResult(NamedTuple):
+    """An initial INS state and its 1-sigma uncertainties."""
+
+    time_us: int
+    state: InsState
+    sigma_pos_ned_m: tuple[float, float, float]
+    sigma_vel_mps: float
+    sigma_att_ned_rad: tuple[float, float, float]
+    method: str
+    """``in_flight``, ``static_mag`` or ``static_gyrocompass``."""
+
+
+def triad(v1_b: FloatArray, v1_n: FloatArray, v2_b: FloatArray, v2_n: FloatArray) -> FloatArray:
+    """Rotation ``C_nb`` from two vector pairs: ``v1`` matched exactly, ``v2`` only fixes the
+    rotation about ``v1``.
+
+    Parameters
+    ----------
+    v1_b, v1_n, v2_b, v2_n : ndarray, shape (3,)
+        The same two physical directions expressed in body and in NED.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+    """
+
+    def frame(a: FloatArray, b: FloatArray) -> FloatArray:
+        t1 = a / np.linalg.norm(a)
+        t2 = np.cross(a, b)
+        norm = np.linalg.norm(t2)
+        if norm < 1e-9 * np.linalg.norm(a) * np.linalg.norm(b):
+            raise ValueError("TRIAD vectors are parallel")
+        t2 = t2 / norm
+        return np.column_stack([t1, t2, np.cross(t1, t2)])
+
+    return frame(v1_n, v2_n) @ frame(v1_b, v2_b).T
+
+
+def level_from_specific_force(f_b: FloatArray) -> tuple[float, float]:
+    """Roll and pitch (rad) of a body at rest (or in unaccelerated flight) from its specific
+    force ``f_b`` (≈ ``[0, 0, -g]`` when level)."""
+    fx, fy, fz = (float(v) for v in f_b)
+    return math.atan2(-fy, -fz), math.atan2(fx, math.hypot(fy, fz))
+
+
+def _ins_from_antenna(
+    lat: float, lon: float, alt: float, c_nb: FloatArray, lever_arm_b: tuple[float, float, float]
+) -> tuple[float, float, float]:
+    arm_n = c_nb @ np.asarray(lever_arm_b, dtype=float)
+    t = earth.local_terms(lat, alt)
+    return (
+        lat - float(arm_n[0]) / t.rho_n_m,
+        lon - float(arm_n[1]) / (t.rho_e_m * t.cos_lat),
+        alt + float(arm_n[2]),
+    )
+
+
+class _Imu(NamedTuple):
+    time_us: int
+    dt_s: float
+    f_b: tuple[float, float, float]
+    w_b: tuple[float, float, float]
+
+
+class _Fix(NamedTuple):
+    time_us: int
+    lat: float
+    lon: float
+    alt: float
+    v: FloatArray
+    eph: float
+    sacc: float
+
+
+class InFlightAlignment:
+    """Collects IMU samples and good fixes until an in-flight alignment is possible.
+
+    Parameters
+    ----------
+    init : InitConfig
+    gnss : GnssConfig
+    """
+
+    def __init__(self, init: InitConfig, gnss: GnssConfig) -> None:
+        self.init = init
+        self.gnss = gnss
+        self._imu: deque[_Imu] = deque(maxlen=8192)
+        self._fixes: deque[_Fix] = deque(maxlen=64)
+
+    def add_imu(
+        self,
+        time_us: int,
+        dt_s: float,
+        f_b: tuple[float, float, float],
+        w_b: tuple[float, float, float],
+    ) -> None:
+        """A valid IMU sample (interval mean specific force and rate)."""
+        self._imu.append(_Imu(time_us, dt_s, f_b, w_b))
+        # keep only what the next alignment can use
+        horizon = round((self.init.window_s + self.init.max_fix_interval_s + 1.0) * 1e6)
+        while self._imu and self._imu[0].time_us < time_us - horizon:
+            self._imu.popleft()
+
+    def add_fix(self, fix: GnssFix) -> None:
+        """A fix that passed the quality checks (a gap longer than ``max_fix_interval_s`` since
+        the previous one restarts the collection)."""
+        v = np.asarray(fix.v_ned_mps, dtype=float)
+        if self._fixes and (
+            fix.time_us - self._fixes[-1].time_us > self.init.max_fix_interval_s * 1e6
+            or fix.time_us <= self._fixes[-1].time_us
+        ):
+            self._fixes.clear()
+        self._fixes.append(
+            _Fix(
+                int(fix.time_us), float(fix.lat_rad), float(fix.lon_rad), float(fix.alt_msl_m), v,
+                float(fix.eph_m), float(fix.speed_accuracy_mps),
+            )
+        )  # fmt: skip
+
+    def poll(self) -> AlignmentResult | None:
+        """Try to align now (at the newest IMU sample's time)."""
+        if len(self._fixes) < 2 or not self._imu:
+            return None
+        f2 = self._fixes[-1]
+        # the oldest fix at least window_s before the newest (GNSS velocity noise / window is
+        # the specific-force noise: 0.15 m/s over 0.2 s would be ~6 deg of tilt, over 1 s ~1)
+        f1 = next(
+            (f for f in reversed(self._fixes)
+             if (f2.time_us - f.time_us) * 1e-6 >= self.init.window_s - 1e-6),
+            None,
+        )  # fmt: skip
+        if f1 is None:
+            return None
+        now_us = self._imu[-1].time_us
+        dt_fix = (f2.time_us - f1.time_us) * 1e-6
+        if now_us < f2.time_us or self._imu[0].time_us > f1.time_us:
+            return None
+        v_mid = 0.5 * (f1.v + f2.v)
+        speed = float(np.linalg.norm(v_mid[:2]))
+        window_fixes = [f for f in self._fixes if f.time_us >= f1.time_us]
+        if (
+            speed < self.init.min_speed_mps
+            or min(float(np.linalg.norm(f.v[:2])) for f in window_fixes) < self.init.min_speed_mps
+        ):
+            return None
+        window = [s for s in self._imu if f1.time_us < s.time_us <= f2.time_us]
+        if len(window) < 2:
+            return None
+        f_b = np.mean([s.f_b for s in window], axis=0)
+        lat_mid, alt_mid = 0.5 * (f1.lat + f2.lat), 0.5 * (f1.alt + f2.alt)
+        w_ie = earth.earth_rate_n(lat_mid)
+        w_en = earth.transport_rate_n(lat_mid, alt_mid, v_mid)
+        g_n = np.array([0.0, 0.0, float(earth.gravity(lat_mid, alt_mid))])
+        f_n = (f2.v - f1.v) / dt_fix - g_n + np.cross(2.0 * w_ie + w_en, v_mid)
+        try:
+            c_nb = triad(f_b, f_n, np.array([1.0, 0.0, 0.0]), v_mid)
+        except ValueError:
+            return None
+        # carry the attitude from the interval's middle to now with the gyro increments
+        t_mid = 0.5 * (f1.time_us + f2.time_us)
+        q = dcm_to_quat(c_nb)
+        for s in self._imu:
+            if s.time_us > t_mid:
+                dt = min(s.dt_s, (s.time_us - t_mid) * 1e-6)
+                q = quat_multiply(q, rotvec_to_quat(np.asarray(s.w_b) * dt))
+        q = q / np.linalg.norm(q)
+        from fusion.rotations import quat_to_dcm
+
+        c_now = quat_to_dcm(q)
+        # position/velocity carried from fix 2 to now with the GNSS velocity and acceleration
+        lag = (now_us - f2.time_us) * 1e-6
+        acc = (f2.v - f1.v) / dt_fix
+        t = earth.local_terms(f2.lat, f2.alt)
+        lat_a = f2.lat + float(f2.v[0]) * lag / t.rho_n_m
+        lon_a = f2.lon + float(f2.v[1]) * lag / (t.rho_e_m * t.cos_lat)
+        alt_a = f2.alt - float(f2.v[2]) * lag
+        lat, lon, alt = _ins_from_antenna(lat_a, lon_a, alt_a, c_now, self.gnss.lever_arm_b_m)
+        v_now = f2.v + acc * lag
+        state = InsState.from_arrays(lat, lon, alt, v_now, q)
+        sig_h = max(self.init.pos_sigma_m, f2.eph)
+        sig_v = max(self.init.vel_sigma_mps, f2.sacc)
+        rp = self.init.roll_pitch_sigma_rad
+        return AlignmentResult(
+            now_us, state, (sig_h, sig_h, sig_h), sig_v, (rp, rp, self.init.yaw_sigma_rad),
+            "in_flight",
+        )  # fmt: skip
+
+
+class StaticAlignment:
+    """Levelling plus magnetometer (or gyrocompass) heading for a vehicle at rest.
+
+    Parameters
+    ----------
+    init : InitConfig
+    gnss : GnssConfig
+    mag : MagConfig
+    imu : ImuConfig
+    """
+
+    def __init__(self, init: InitConfig, gnss: GnssConfig, mag: MagConfig, imu: ImuConfig) -> None:
+        self.init = init
+        self.gnss = gnss
+        self.mag = mag
+        self.imu = imu
+        self._restart()
+        self._fix: _Fix | None = None
+
+    def _restart(self) -> None:
+        self._t0_us: int | None = None
+        self._t1_us = 0
+        self._sum_f = np.zeros(3)
+        self._sum_w = np.zeros(3)
+        self._n = 0
+        self._sum_m = np.zeros(3)
+        self._n_m = 0
+
+    def add_imu(
+        self,
+        time_us: int,
+        dt_s: float,
+        f_b: tuple[float, float, float],
+        w_b: tuple[float, float, float],
+    ) -> None:
+        """A valid IMU sample; a rate above ``static_max_rate_rps`` restarts the window."""
+        if max(abs(w) for w in w_b) > self.init.static_max_rate_rps:
+            self._restart()
+            return
+        if self._t0_us is None:
+            self._t0_us = time_us
+        self._t1_us = time_us
+        self._sum_f += f_b
+        self._sum_w += w_b
+        self._n += 1
+
+    def add_fix(self, fix: GnssFix) -> None:
+        """A fix that passed the quality checks (gives the position)."""
+        self._fix = _Fix(
+            int(fix.time_us), float(fix.lat_rad), float(fix.lon_rad), float(fix.alt_msl_m),
+            np.asarray(fix.v_ned_mps, dtype=float), float(fix.eph_m), float(fix.speed_accuracy_mps),
+        )  # fmt: skip
+
+    def add_mag(self, field_b: FloatArray) -> None:
+        """A valid magnetometer sample."""
+        if self._t0_us is not None:
+            self._sum_m += field_b
+            self._n_m += 1
+
+    def poll(self) -> AlignmentResult | None:
+        """Align when the window is full and a fix is known."""
+        if self._t0_us is None or self._fix is None or self._n < 2:
+            return None
+        if (self._t1_us - self._t0_us) * 1e-6 < self.init.static_duration_s:
+            return None
+        f_b = self._sum_f / self._n
+        roll, pitch = level_from_specific_force(f_b)
+        c_lev = euler_to_dcm(np.array([roll, pitch, 0.0]))
+        fix = self._fix
+        ref = self.mag.reference_field_n_tesla
+        if ref is not None and self._n_m > 0:
+            m_lev = c_lev @ (self._sum_m / self._n_m)
+            yaw = math.atan2(ref[1], ref[0]) - math.atan2(float(m_lev[1]), float(m_lev[0]))
+            sig_yaw = self.init.static_yaw_sigma_rad
+            method = "static_mag"
+        else:
+            # the Earth rate's horizontal part points north: in the levelled frame it is at -yaw
+            w_lev = c_lev @ (self._sum_w / self._n)
+            yaw = math.atan2(-float(w_lev[1]), float(w_lev[0]))
+            horiz = earth.RATE * math.cos(fix.lat)
+            sig_yaw = min(
+                math.pi, max(self.init.static_yaw_sigma_rad, self.imu.gyro_bias_sigma_rps / horiz)
+            )
+            method = "static_gyrocompass"
+        yaw = (yaw + math.pi) % (2.0 * math.pi) - math.pi
+        c_nb = euler_to_dcm(np.array([roll, pitch, yaw]))
+        lat, lon, alt = _ins_from_antenna(fix.lat, fix.lon, fix.alt, c_nb, self.gnss.lever_arm_b_m)
+        state = InsState.from_arrays(lat, lon, alt, np.zeros(3), dcm_to_quat(c_nb))
+        sig_h = max(self.init.pos_sigma_m, fix.eph)
+        rp = self.init.roll_pitch_sigma_rad
+        return AlignmentResult(
+            self._t1_us, state, (sig_h, sig_h, sig_h), self.init.vel_sigma_mps, (rp, rp, sig_yaw),
+            method,
+        )  # fmt: skip

@@ -1,0 +1,449 @@
+"""Error-state model of the NED strapdown INS: named state layout, F, Q, Phi, feedback.
+
+Error definitions (every error is *estimated minus true*):
+
+- ``dr`` (POS): position error in metres North / East / Down,
+  ``dr = [(L^ - L)(R_M + h), (l^ - l)(R_N + h) cos L, -(h^ - h)]``;
+- ``dv`` (VEL): ``v^_n - v_n``, m/s;
+- ``phi`` (ATT): attitude error in the n frame, ``C^_nb = (I + [phi×]) C_nb`` (the small rotation
+  that takes the true attitude to the estimate), rad;
+- ``dba`` (BA), ``dbg`` (BG): accelerometer / gyro bias errors in the body frame, m/s^2, rad/s;
+- ``dbb`` (BARO): barometric height bias error, m (see :mod:`fusion.aiding.baro`);
+- optional ``dsa`` (SA) / ``dsg`` (SG): accelerometer / gyro scale-factor errors (dimensionless).
+
+Sensor model: ``f~ = (1 + s_a) f + b_a + w_a``, ``omega~ = (1 + s_g) omega + b_g + w_g``; biases,
+scale factors and the baro bias are first-order Gauss-Markov, ``b' = -b / tau + w``.
+
+Continuous error dynamics ``dx' = F dx + G w`` (Titterton & Weston ch. 12, Groves ch. 14.2,
+same structure as KF-GINS ``gi_engine.cpp`` with our sign of ``phi``)::
+
+    dr'   = F_rr dr + dv
+    dv'   = F_vr dr + F_vv dv - [f_n×] phi - C_nb dba - C_nb diag(f_b) dsa + C_nb w_a
+    phi'  = -(N_ie + N_en) dr - N_env dv - [omega_in_n×] phi - C_nb dbg - C_nb diag(omega_b) dsg
+            + C_nb w_g
+    dba'  = -dba / tau_a + w_ba       (likewise dbg, dbb, dsa, dsg)
+
+with ``N_ie``, ``N_en`` the derivatives of ``omega_ie_n``, ``omega_en_n`` w.r.t. position error
+and ``N_env`` that of ``omega_en_n`` w.r.t. velocity error; ``F_vr = [v×](2 N_ie + N_en) + dg``,
+``F_vv = [v×] N_env - [(2 omega_ie + omega_en)×]``. Radius-of-curvature derivatives are
+neglected (e^2-small). Every block is checked against a numerically propagated, perturbed INS in
+``tests/test_error_model.py``.
+
+Feedback (after each measurement update the error estimate is moved into the INS and reset to
+zero): position, velocity and biases are corrected by subtraction; attitude by
+``q_nb <- q(-phi) ⊗ q_nb``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fusion import earth
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Named offsets of the error-state blocks (the only place that knows them).
+
+    Use the slices (``layout.pos``, ``layout.att`` ...) instead of bare numbers; ``None`` means
+    the block is not in this layout. Two layouts exist: :data:`INS16` and :data:`INS22`.
+    """
+
+    name: str
+    n: int
+    pos: slice
+    vel: slice
+    att: slice
+    ba: slice
+    bg: slice
+    baro: slice
+    sa: slice | None
+    sg: slice | None
+    labels: tuple[str, ...]
+
+    @property
+    def POS(self) -> int:
+        """Offset of the position block."""
+        return int(self.pos.start)
+
+    @property
+    def VEL(self) -> int:
+        """Offset of the velocity block."""
+        return int(self.vel.start)
+
+    @property
+    def ATT(self) -> int:
+        """Offset of the attitude block."""
+        return int(self.att.start)
+
+    @property
+    def BA(self) -> int:
+        """Offset of the accelerometer-bias block."""
+        return int(self.ba.start)
+
+    @property
+    def BG(self) -> int:
+        """Offset of the gyro-bias block."""
+        return int(self.bg.start)
+
+    @property
+    def BARO(self) -> int:
+        """Offset of the baro-bias state."""
+        return int(self.baro.start)
+
+
+_LABELS16 = (
+    "pos_n_m", "pos_e_m", "pos_d_m",
+    "vel_n_mps", "vel_e_mps", "vel_d_mps",
+    "att_n_rad", "att_e_rad", "att_d_rad",
+    "accel_bias_x_mps2", "accel_bias_y_mps2", "accel_bias_z_mps2",
+    "gyro_bias_x_rps", "gyro_bias_y_rps", "gyro_bias_z_rps",
+    "baro_bias_m",
+)  # fmt: skip
+
+#: 16 states: position, velocity, attitude, accelerometer bias, gyro bias, baro bias.
+_BASE = dict(
+    pos=slice(0, 3), vel=slice(3, 6), att=slice(6, 9), ba=slice(9, 12), bg=slice(12, 15),
+    baro=slice(15, 16),
+)  # fmt: skip
+INS16 = StateLayout(name="ins16", n=16, **_BASE, sa=None, sg=None, labels=_LABELS16)
+#: 22 states: :data:`INS16` plus accelerometer and gyro scale factors.
+INS22 = StateLayout(
+    name="ins22",
+    n=22,
+    **_BASE,
+    sa=slice(16, 19),
+    sg=slice(19, 22),
+    labels=(
+        *_LABELS16,
+        "accel_scale_x", "accel_scale_y", "accel_scale_z",
+        "gyro_scale_x", "gyro_scale_y", "gyro_scale_z",
+    ),
+)  # fmt: skip
+
+LAYOUTS = {INS16.name: INS16, INS22.name: INS22}
+
+
+@dataclass(frozen=True)
+class ProcessNoise:
+    """Continuous-time noise and correlation times of the sensor error model, SI.
+
+    ``gyro_noise`` / ``accel_noise`` are white-noise densities (rad/s/sqrt(Hz), m/s^2/sqrt(Hz)),
+    the same on the three axes; ``*_sigma`` are the steady-state standard deviations of the
+    Gauss-Markov states and ``*_tau_s`` their correlation times.
+    """
+
+    gyro_noise: float
+    accel_noise: float
+    gyro_bias_sigma: float
+    gyro_bias_tau_s: float
+    accel_bias_sigma: float
+    accel_bias_tau_s: float
+    baro_bias_sigma: float
+    baro_bias_tau_s: float
+    gyro_scale_sigma: float = 0.0
+    gyro_scale_tau_s: float = 3600.0
+    accel_scale_sigma: float = 0.0
+    accel_scale_tau_s: float = 3600.0
+
+
+class ErrorModel:
+    """F, Phi and Q for one layout and one noise model.
+
+    The variable entries of F are written into a preallocated matrix through one fancy-index
+    assignment (about 60 floats computed in plain Python), which is what keeps the covariance
+    propagation cheap enough for 100 Hz in pure Python.
+
+    Parameters
+    ----------
+    layout : StateLayout
+    noise : ProcessNoise
+    """
+
+    def __init__(self, layout: StateLayout, noise: ProcessNoise) -> None:
+        self.layout = layout
+        self.noise = noise
+        n = layout.n
+        self._eye = np.eye(n)
+        f0 = np.zeros((n, n))
+        p, v = layout.POS, layout.VEL
+        for i in range(3):
+            f0[p + i, v + i] = 1.0
+        self._taus = self._gm_taus()
+        for idx, tau in self._taus:
+            f0[idx, idx] = -1.0 / tau
+        self._f0 = f0
+        self._var_idx = self._variable_indices()
+        self._q_cache: dict[float, FloatArray] = {}
+        self._phi_base: dict[float, FloatArray] = {}
+
+    # --- layout-dependent index bookkeeping -------------------------------------------------
+    def _gm_taus(self) -> list[tuple[int, float]]:
+        lay, nz = self.layout, self.noise
+        out = [(lay.BA + i, nz.accel_bias_tau_s) for i in range(3)]
+        out += [(lay.BG + i, nz.gyro_bias_tau_s) for i in range(3)]
+        out += [(lay.BARO, nz.baro_bias_tau_s)]
+        if lay.sa is not None:
+            out += [(int(lay.sa.start) + i, nz.accel_scale_tau_s) for i in range(3)]
+        if lay.sg is not None:
+            out += [(int(lay.sg.start) + i, nz.gyro_scale_tau_s) for i in range(3)]
+        return out
+
+    def _variable_indices(self) -> NDArray[np.intp]:
+        lay = self.layout
+        p, v, a, ba, bg = lay.POS, lay.VEL, lay.ATT, lay.BA, lay.BG
+        rows: list[int] = []
+        cols: list[int] = []
+
+        def block(r0: int, c0: int, entries: list[tuple[int, int]]) -> None:
+            for i, j in entries:
+                rows.append(r0 + i)
+                cols.append(c0 + j)
+
+        full = [(i, j) for i in range(3) for j in range(3)]
+        off = [(0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)]
+        cols02 = [(i, j) for i in range(3) for j in (0, 2)]
+        block(p, p, [(0, 0), (0, 2), (1, 0), (1, 1), (1, 2)])  # F_rr
+        block(v, p, cols02)  # F_vr
+        block(v, v, full)  # F_vv
+        block(v, a, off)  # F_vphi
+        block(v, ba, full)  # F_v,ba
+        block(a, p, cols02)  # F_phi,r
+        block(a, v, [(0, 1), (1, 0), (2, 1)])  # F_phi,v
+        block(a, a, off)  # F_phi,phi
+        block(a, bg, full)  # F_phi,bg
+        if lay.sa is not None:
+            block(v, int(lay.sa.start), full)  # C_nb diag(f_b)
+        if lay.sg is not None:
+            block(a, int(lay.sg.start), full)  # C_nb diag(omega_b)
+        return np.ravel_multi_index((np.array(rows), np.array(cols)), (lay.n, lay.n))
+
+    # --- F -----------------------------------------------------------------------------------
+    def _fill(
+        self,
+        lat_rad: float,
+        alt_m: float,
+        v_ned_mps: tuple[float, float, float],
+        c_nb: tuple[float, ...],
+        f_n_mps2: tuple[float, float, float],
+        f_b_mps2: tuple[float, float, float],
+        omega_ib_b_rps: tuple[float, float, float],
+        k: float,
+        one: float,
+        terms: earth.LocalTerms | None = None,
+    ) -> list[float]:
+        """The variable entries of ``k F + one I`` in the order of ``self._var_idx`` (``k = 1``,
+        ``one = 0``: F itself; ``k = dt``, ``one = 1``: the first-order transition, scaled here
+        on a few base quantities rather than by a loop over 60 entries).
+
+        Parameters
+        ----------
+        lat_rad, alt_m : float
+            Position of the INS.
+        v_ned_mps : 3 floats
+            INS velocity, m/s.
+        c_nb : 9 floats
+            ``C_nb`` row-major.
+        f_n_mps2 : 3 floats
+            Specific force in NED (mean over the propagation interval), m/s^2.
+        f_b_mps2, omega_ib_b_rps : 3 floats
+            Mean body specific force and angular rate; used only by the scale-factor blocks.
+        k, one : float
+            Scale of F and the value added on its diagonal.
+        terms : LocalTerms, optional
+            ``earth.local_terms(lat_rad, alt_m)`` if the caller has it already.
+        """
+        t = terms if terms is not None else earth.local_terms(lat_rad, alt_m)
+        rn, re = t.rho_n_m, t.rho_e_m
+        s, c = t.sin_lat, t.cos_lat
+        tan = s / c
+        sec2 = 1.0 / (c * c)
+        vn, ve, vd = v_ned_mps
+        fn, fe, fd = f_n_mps2
+        om = earth.RATE
+        dg_dlat, dg_dh = earth.gravity_gradient(lat_rad, alt_m)
+        # Earth / transport rates and their derivatives w.r.t. dr_N (col 0) and dr_D (col 2)
+        wie_n, wie_d = om * c, -om * s
+        wen_n, wen_e, wen_d = ve / re, -vn / rn, -ve * tan / re
+        # d omega_ie / d dr_N ; d omega_en / d dr_N ; d omega_en / d dr_D
+        die_n0, die_d0 = -om * s / rn, -om * c / rn
+        den_d0 = -ve * sec2 / (re * rn)
+        den_n2, den_e2, den_d2 = ve / (re * re), -vn / (rn * rn), -ve * tan / (re * re)
+        # W = 2 N_ie + N_en (columns 0 and 2), rows n, e, d
+        w_n0, w_e0, w_d0 = 2.0 * die_n0, 0.0, 2.0 * die_d0 + den_d0
+        w_n2, w_e2, w_d2 = den_n2, den_e2, den_d2
+        # [v×] W : row i = (v × W_col)_i
+        fvr_00 = ve * w_d0 - vd * w_e0
+        fvr_10 = vd * w_n0 - vn * w_d0
+        fvr_20 = vn * w_e0 - ve * w_n0 + dg_dlat / rn
+        fvr_02 = ve * w_d2 - vd * w_e2
+        fvr_12 = vd * w_n2 - vn * w_d2
+        fvr_22 = vn * w_e2 - ve * w_n2 - dg_dh
+        # F_vv = [v×] N_env - [c×], c = 2 omega_ie + omega_en,
+        # N_env = [[0, a01, 0], [a10, 0, 0], [0, a21, 0]] (d omega_en / d dv)
+        cx, cy, cz = 2.0 * wie_n + wen_n, wen_e, 2.0 * wie_d + wen_d
+        a01, a10, a21 = 1.0 / re, -1.0 / rn, -tan / re
+        fvv_00, fvv_01, fvv_02 = -vd * a10, ve * a21 + cz, -cy
+        fvv_10, fvv_11, fvv_12 = -cz, vd * a01 - vn * a21, cx
+        fvv_20, fvv_21, fvv_22 = vn * a10 + cy, -ve * a01 - cx, 0.0
+        # -C_nb, f_n, omega_in and N_env pre-scaled by k
+        m = -k
+        c00, c01, c02 = m * c_nb[0], m * c_nb[1], m * c_nb[2]
+        c10, c11, c12 = m * c_nb[3], m * c_nb[4], m * c_nb[5]
+        c20, c21, c22 = m * c_nb[6], m * c_nb[7], m * c_nb[8]
+        fn, fe, fd = k * fn, k * fe, k * fd
+        win_n, win_e, win_d = k * (wie_n + wen_n), k * wen_e, k * (wie_d + wen_d)
+        a01, a10, a21 = k * a01, k * a10, k * a21
+        vals = [
+            # F_rr
+            -vd / rn * k + one, vn / rn * k,
+            ve * tan / rn * k, -(vd / re + vn * tan / rn) * k + one, ve / re * k,
+            # F_vr (cols 0, 2)
+            fvr_00 * k, fvr_02 * k, fvr_10 * k, fvr_12 * k, fvr_20 * k, fvr_22 * k,
+            # F_vv
+            fvv_00 * k + one, fvv_01 * k, fvv_02 * k,
+            fvv_10 * k, fvv_11 * k + one, fvv_12 * k,
+            fvv_20 * k, fvv_21 * k, fvv_22 * k + one,
+            # F_vphi = -[f_n×] (off-diagonal: (0,1), (0,2), (1,0), (1,2), (2,0), (2,1))
+            fd, -fe, -fd, fn, fe, -fn,
+            # F_v,ba = -C_nb
+            c00, c01, c02, c10, c11, c12, c20, c21, c22,
+            # F_phi,r = -(N_ie + N_en) (cols 0, 2)
+            -die_n0 * k, -den_n2 * k, 0.0, -den_e2 * k, -(die_d0 + den_d0) * k, -den_d2 * k,
+            # F_phi,v = -N_env
+            -a01, -a10, -a21,
+            # F_phi,phi = -[omega_in×]
+            win_d, -win_e, -win_d, win_n, win_e, -win_n,
+            # F_phi,bg = -C_nb
+            c00, c01, c02, c10, c11, c12, c20, c21, c22,
+        ]  # fmt: skip
+        lay = self.layout
+        if lay.sa is not None:
+            # -C_nb diag(f_b)
+            fx, fy, fz = f_b_mps2
+            vals += [
+                c00 * fx, c01 * fy, c02 * fz,
+                c10 * fx, c11 * fy, c12 * fz,
+                c20 * fx, c21 * fy, c22 * fz,
+            ]  # fmt: skip
+        if lay.sg is not None:
+            # -C_nb diag(omega_b)
+            wx, wy, wz = omega_ib_b_rps
+            vals += [
+                c00 * wx, c01 * wy, c02 * wz,
+                c10 * wx, c11 * wy, c12 * wz,
+                c20 * wx, c21 * wy, c22 * wz,
+            ]  # fmt: skip
+        return vals
+
+    def continuous_matrix(
+        self,
+        lat_rad: float,
+        alt_m: float,
+        v_ned_mps: tuple[float, float, float],
+        c_nb: tuple[float, ...],
+        f_n_mps2: tuple[float, float, float],
+        f_b_mps2: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        omega_ib_b_rps: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ) -> FloatArray:
+        """Continuous error-dynamics matrix ``F`` (n, n) at one operating point.
+
+        Parameters
+        ----------
+        lat_rad, alt_m : float
+            Position of the INS.
+        v_ned_mps : 3 floats
+            INS velocity, m/s.
+        c_nb : 9 floats
+            ``C_nb`` row-major.
+        f_n_mps2 : 3 floats
+            Specific force in NED (mean over the propagation interval), m/s^2.
+        f_b_mps2, omega_ib_b_rps : 3 floats
+            Mean body specific force and angular rate; used only by the scale-factor blocks.
+
+        Returns
+        -------
+        ndarray, shape (n, n)
+        """
+        f = self._f0.copy()
+        f.put(
+            self._var_idx,
+            self._fill(
+                lat_rad, alt_m, v_ned_mps, c_nb, f_n_mps2, f_b_mps2, omega_ib_b_rps, 1.0, 0.0
+            ),
+        )
+        return f
+
+    def first_order_transition(
+        self,
+        lat_rad: float,
+        alt_m: float,
+        v_ned_mps: tuple[float, float, float],
+        c_nb: tuple[float, ...],
+        f_n_mps2: tuple[float, float, float],
+        dt_s: float,
+        f_b_mps2: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        omega_ib_b_rps: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        terms: earth.LocalTerms | None = None,
+    ) -> FloatArray:
+        """``Phi = I + F T`` built in place (the filter's per-propagation path, P0's
+        ``Phi ≈ I + F Ts``); same arguments as :meth:`continuous_matrix` plus ``dt_s``.
+        The neglected ``(F T)^2 / 2`` is ~1e-3 of the first-order terms at 100 Hz."""
+        base = self._phi_base.get(dt_s)
+        if base is None:
+            base = self._eye + self._f0 * dt_s
+            if len(self._phi_base) < 64:
+                self._phi_base[dt_s] = base
+        phi = base.copy()
+        # put() replaces the identity on the diagonal entries of F: _fill adds it back
+        phi.put(
+            self._var_idx,
+            self._fill(
+                lat_rad, alt_m, v_ned_mps, c_nb, f_n_mps2, f_b_mps2, omega_ib_b_rps, dt_s, 1.0,
+                terms,
+            ),
+        )  # fmt: skip
+        return phi
+
+    def transition_matrix(self, f: FloatArray, dt_s: float) -> FloatArray:
+        """Discrete transition ``Phi = I + F T + (F T)^2 / 2`` (second-order Taylor series)."""
+        ft = f * dt_s
+        return self._eye + ft + 0.5 * (ft @ ft)
+
+    def process_noise(self, dt_s: float) -> FloatArray:
+        """Discrete process noise ``Q_d`` (n, n), diagonal, for an interval ``dt_s``.
+
+        White sensor noise enters velocity and attitude as ``C_nb w``; with the same density on
+        the three axes ``C_nb (q I) C_nb^T = q I``, so ``Q_d`` does not depend on the attitude:
+        ``q_vel = accel_noise^2 T``, ``q_att = gyro_noise^2 T``; Gauss-Markov states get their
+        exact discrete variance ``sigma^2 (1 - exp(-2 T / tau))``. Cached per ``dt`` (treat the
+        returned array as read-only).
+        """
+        cached = self._q_cache.get(dt_s)
+        if cached is not None:
+            return cached
+        lay, nz = self.layout, self.noise
+        q = np.zeros(lay.n)
+        q[lay.vel] = nz.accel_noise**2 * dt_s
+        q[lay.att] = nz.gyro_noise**2 * dt_s
+
+        def gm(sigma: float, tau: float) -> float:
+            return sigma * sigma * (1.0 - math.exp(-2.0 * dt_s / tau))
+
+        q[lay.ba] = gm(nz.accel_bias_sigma, nz.accel_bias_tau_s)
+        q[lay.bg] = gm(nz.gyro_bias_sigma, nz.gyro_bias_tau_s)
+        q[lay.baro] = gm(nz.baro_bias_sigma, nz.baro_bias_tau_s)
+        if lay.sa is not None:
+            q[lay.sa] = gm(nz.accel_scale_sigma, nz.accel_scale_tau_s)
+        if lay.sg is not None:
+            q[lay.sg] = gm(nz.gyro_scale_sigma, nz.gyro_scale_tau_s)
+        qd = np.diag(q)
+        if len(self._q_cache) < 64:
+            self._q_cache[dt_s] = qd
+        return qd

@@ -1,0 +1,1115 @@
+"""NavFilter: the loosely coupled INS/GNSS error-state EKF, sequencing the pure pieces.
+
+Per IMU sample: validate, integrate the strapdown INS (:mod:`fusion.strapdown`), accumulate time
+for the covariance propagation (:mod:`fusion.error_model`, at ``covariance_rate_hz``), store the
+INS state for delayed measurements (:mod:`fusion.history`), fuse the GNSS fixes that became due,
+watch for GNSS outages, consult the bridging strategy during one, and emit an estimate at
+``output_rate_hz``. GNSS / baro / magnetometer samples go through their control (*when*) and
+model (*how*) in :mod:`fusion.aiding`; each accepted update (Joseph form, chi-square gated,
+:mod:`fusion.kalman`) is fed back into the INS at once and the error state reset to zero.
+
+Bad input never raises and is never integrated: non-finite or out-of-range IMU samples are
+replaced by the last good one (zero-order hold over their interval); duplicated or backwards
+timestamps are dropped; a forward IMU time jump larger than ``ImuConfig.time_jump_s`` is not
+integrated (the INS coasts at constant velocity over the gap and the covariance grows by the
+process noise); GNSS fixes without a 3-D fix, with non-finite fields or a poor accuracy are
+not fused. Everything is counted in :class:`Health`.
+
+The pieces are small on purpose: this module only sequences calls and keeps counters.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from fusion import earth, kalman, strapdown
+from fusion.aiding import Observation
+from fusion.aiding import baro as baro_aid
+from fusion.aiding import gnss as gnss_aid
+from fusion.aiding import mag as mag_aid
+from fusion.alignment import AlignmentResult, InFlightAlignment, StaticAlignment
+from fusion.bridge import (
+    Bridge,
+    BridgeEpoch,
+    InsError,
+    NoBridge,
+    OutputCorrection,
+    PseudoGnss,
+)
+from fusion.config import FilterConfig
+from fusion.error_model import LAYOUTS, ErrorModel, ProcessNoise, StateLayout
+from fusion.history import InsHistory, span_capacity
+from fusion.rotations import quat_to_dcm
+from fusion.samples import BaroSample, GnssFix, ImuSample, MagSample
+from fusion.strapdown import InsState, dcm_from_quat, rotvec_quat
+
+FloatArray = NDArray[np.float64]
+_ZERO3 = (0.0, 0.0, 0.0)
+
+MODE_INITIALIZING = "initializing"
+MODE_GNSS = "gnss"
+MODE_FREE_INERTIAL = "free-inertial"
+MODE_BRIDGING = "bridging"
+
+
+@dataclass(frozen=True)
+class Health:
+    """Counters since construction (or :meth:`NavFilter.reset`)."""
+
+    imu_ok: int = 0
+    """IMU samples integrated as received."""
+    imu_nan: int = 0
+    """IMU samples with NaN/Inf (or unreadable) fields: replaced by the last good sample."""
+    imu_out_of_range: int = 0
+    """IMU samples beyond the configured sensor range: replaced by the last good sample."""
+    time_backwards: int = 0
+    """Samples (any sensor) older than the previous one of the same sensor: dropped."""
+    time_jump: int = 0
+    """IMU forward time steps above ``time_jump_s``: the gap was not integrated."""
+    duplicates: int = 0
+    """Samples (any sensor) with the same timestamp as the previous one: dropped."""
+    gnss_fused: int = 0
+    """Fixes whose position and velocity both passed the gate."""
+    gnss_rejected: int = 0
+    """Fixes with the position or the velocity rejected by the gate."""
+    gnss_no_fix: int = 0
+    """Fixes with ``fix_type < 3``."""
+    gnss_invalid: int = 0
+    """Fixes with non-finite or impossible fields."""
+    gnss_inaccurate: int = 0
+    """Fixes with ``eph_m`` above ``max_eph_m``."""
+    gnss_too_old: int = 0
+    """Fixes older than ``max_delay_s`` (or than the INS history) when due."""
+    gnss_resets: int = 0
+    """Position or velocity resets to GNSS (after an outage or a long rejection)."""
+    gnss_outages: int = 0
+    """Transitions from GNSS-aided to free-inertial / bridging."""
+    baro_fused: int = 0
+    baro_rejected: int = 0
+    baro_invalid: int = 0
+    baro_resets: int = 0
+    """Baro-bias re-initialisations after a long rejection."""
+    mag_fused: int = 0
+    mag_rejected: int = 0
+    mag_invalid: int = 0
+    """Magnetometer samples non-finite or with too weak a horizontal field."""
+    bridge_updates: int = 0
+    """Pseudo-GNSS updates fused or output corrections applied by the bridging strategy."""
+
+
+_HEALTH_FIELDS = tuple(f.name for f in fields(Health))
+
+
+class _Counters:
+    """Mutable twin of :class:`Health` (plain attribute increments in the hot path)."""
+
+    imu_ok: int
+    imu_nan: int
+    imu_out_of_range: int
+    time_backwards: int
+    time_jump: int
+    duplicates: int
+    gnss_fused: int
+    gnss_rejected: int
+    gnss_no_fix: int
+    gnss_invalid: int
+    gnss_inaccurate: int
+    gnss_too_old: int
+    gnss_resets: int
+    gnss_outages: int
+    baro_fused: int
+    baro_rejected: int
+    baro_invalid: int
+    baro_resets: int
+    mag_fused: int
+    mag_rejected: int
+    mag_invalid: int
+    bridge_updates: int
+
+    def __init__(self) -> None:
+        for name in _HEALTH_FIELDS:
+            setattr(self, name, 0)
+
+    def snapshot(self) -> Health:
+        # Health is frozen: fill its __dict__ directly (4x faster than __init__ with 22
+        # arguments; this runs at the output rate)
+        health = object.__new__(Health)
+        health.__dict__.update(self.__dict__)
+        return health
+
+
+@dataclass(frozen=True, slots=True)
+class TestRatios:
+    """Last innovation test ratios (normalised innovation squared over the chi-square gate, as
+    ESTIMATOR_STATUS reports them: > 1 means rejected). NaN before the first test."""
+
+    __test__ = False  # not a pytest class
+
+    gnss_pos: float = math.nan
+    gnss_vel: float = math.nan
+    baro_hgt: float = math.nan
+    mag_hdg: float = math.nan
+
+
+@dataclass(frozen=True, slots=True)
+class NavEstimate:
+    """Filter output at one IMU epoch (SI, NED; position errors in metres N/E/D).
+
+    Attributes
+    ----------
+    time_us : int
+        INS time (the IMU sample's time).
+    lat_rad, lon_rad, alt_msl_m : float
+        Position of the IMU.
+    v_ned_mps : ndarray, shape (3,)
+    q_nb : ndarray, shape (4,)
+        Attitude body -> NED, scalar first.
+    euler_rad : ndarray, shape (3,)
+        Roll, pitch, yaw.
+    P_diag : ndarray, shape (n,)
+        Error-state variances in the layout ``state_layout`` (``fusion.error_model``): position
+        m^2 (N, E, D), velocity (m/s)^2, attitude rad^2, biases SI^2, baro bias m^2; as of the
+        last covariance propagation (at most ``1 / covariance_rate_hz`` old).
+    mode : str
+        ``"initializing"``, ``"gnss"``, ``"free-inertial"`` or ``"bridging"``.
+    accel_bias_b, gyro_bias_b : ndarray, shape (3,)
+        Estimated sensor biases, m/s^2 and rad/s.
+    baro_bias_m : float
+        Estimated baro height bias (ISA pressure height minus navigation height), m.
+    health : Health
+    test_ratios : TestRatios
+    time_since_gnss_s : float
+        Seconds since the last fused fix (``inf`` if none yet).
+    state_layout : str
+        ``"ins16"`` or ``"ins22"``.
+    """
+
+    time_us: int
+    lat_rad: float
+    lon_rad: float
+    alt_msl_m: float
+    v_ned_mps: FloatArray
+    q_nb: FloatArray
+    euler_rad: FloatArray
+    P_diag: FloatArray
+    mode: str
+    accel_bias_b: FloatArray
+    gyro_bias_b: FloatArray
+    baro_bias_m: float
+    health: Health
+    test_ratios: TestRatios
+    time_since_gnss_s: float
+    state_layout: str
+
+
+def _vec3(a: Any) -> tuple[float, float, float]:
+    """Three floats from an array or sequence (``ValueError``/``TypeError`` if it is not 3)."""
+    try:
+        x, y, z = a.tolist()
+    except AttributeError:
+        x, y, z = a
+    return float(x), float(y), float(z)
+
+
+class NavFilter:
+    """Loosely coupled INS/GNSS/baro/mag error-state EKF (see module docstring).
+
+    Parameters
+    ----------
+    config : FilterConfig, optional
+        Defaults to ``FilterConfig()``.
+    bridge : Bridge, optional
+        GNSS-outage bridging strategy; defaults to :class:`fusion.bridge.NoBridge`.
+
+    Examples
+    --------
+    >>> nav = NavFilter()
+    >>> for sample in samples:                # IMU, GNSS, baro, mag, in time order
+    ...     for est in nav.step(sample):      # at the configured output rate
+    ...         publish(est)
+    """
+
+    def __init__(self, config: FilterConfig | None = None, *, bridge: Bridge | None = None) -> None:
+        self.config = config if config is not None else FilterConfig()
+        self.bridge: Bridge = bridge if bridge is not None else NoBridge()
+        cfg = self.config
+        self.layout: StateLayout = LAYOUTS[cfg.state_layout]
+        imu = cfg.imu
+        self._noise = ProcessNoise(
+            gyro_noise=imu.gyro_noise_density_rps_rthz,
+            accel_noise=imu.accel_noise_density_mps2_rthz,
+            gyro_bias_sigma=imu.gyro_bias_sigma_rps,
+            gyro_bias_tau_s=imu.gyro_bias_tau_s,
+            accel_bias_sigma=imu.accel_bias_sigma_mps2,
+            accel_bias_tau_s=imu.accel_bias_tau_s,
+            baro_bias_sigma=cfg.baro.bias_sigma_m,
+            baro_bias_tau_s=cfg.baro.bias_tau_s,
+            gyro_scale_sigma=imu.gyro_scale_sigma,
+            gyro_scale_tau_s=imu.gyro_scale_tau_s,
+            accel_scale_sigma=imu.accel_scale_sigma,
+            accel_scale_tau_s=imu.accel_scale_tau_s,
+        )
+        self._model = ErrorModel(self.layout, self._noise)
+        self._scale = self.layout.sa is not None
+        n = self.layout.n
+        self._x0 = np.zeros(n)
+        rc = cfg.rates
+        self._cov_period_s = 0.0 if rc.covariance_rate_hz is None else 1.0 / rc.covariance_rate_hz
+        self._out_period_us = round(1e6 / rc.output_rate_hz)
+        self._bridge_period_us = round(1e6 / cfg.bridge.rate_hz)
+        self._gate3 = kalman.chi2_gate(3, cfg.gnss.gate_probability)
+        self._gate_baro = kalman.chi2_gate(1, cfg.baro.gate_probability)
+        self._gate_mag = kalman.chi2_gate(1, cfg.mag.gate_probability)
+        self._accel_range = imu.accel_range_mps2
+        self._gyro_range = imu.gyro_range_rps
+        self._max_dt = imu.max_dt_s
+        self._time_jump_s = imu.time_jump_s
+        self._max_lead_us = round(imu.max_sensor_lead_s * 1e6)
+        self._tau_a, self._tau_g = imu.accel_bias_tau_s, imu.gyro_bias_tau_s
+        self._tau_b = cfg.baro.bias_tau_s
+        self._tau_sa, self._tau_sg = imu.accel_scale_tau_s, imu.gyro_scale_tau_s
+        self._handlers: dict[type, Callable[[Any], list[NavEstimate]]] = {}
+        self.reset()
+
+    # ------------------------------------------------------------------ public API
+    def reset(self) -> None:
+        """Forget everything learned: back to ``initializing`` (configuration kept)."""
+        cfg = self.config
+        n = self.layout.n
+        self._ins: InsState | None = None
+        self._t_us = 0
+        self._last_imu_us: int | None = None
+        self._last_us: dict[str, int] = {}
+        self._prev_dth: tuple[float, float, float] = _ZERO3
+        self._prev_dv: tuple[float, float, float] = _ZERO3
+        self._last_dt = 0.0
+        self._good_fw: tuple[float, float, float, float, float, float] | None = None
+        self._ba = [0.0, 0.0, 0.0]
+        self._bg = [0.0, 0.0, 0.0]
+        self._sa = [0.0, 0.0, 0.0]
+        self._sg = [0.0, 0.0, 0.0]
+        self._bb = 0.0
+        self._P = np.zeros((n, n))
+        self._acc_dt = 0.0
+        self._acc_v0: tuple[float, float, float] = _ZERO3
+        self._acc_f = [0.0, 0.0, 0.0]
+        self._acc_w = [0.0, 0.0, 0.0]
+        self._f_n: tuple[float, float, float] = (0.0, 0.0, -earth.GE)
+        self._decay_cache: dict[float, tuple[float, ...]] = {}
+        self._history = InsHistory(span_capacity(cfg.gnss.max_delay_s))
+        self._pending: deque[GnssFix] = deque()
+        self._gnss_ctl = gnss_aid.GnssControl(cfg.gnss)
+        self._baro_ctl = baro_aid.BaroControl(cfg.baro)
+        self._mag_ctl = mag_aid.MagControl(cfg.mag)
+        self._aligner: InFlightAlignment | StaticAlignment = (
+            InFlightAlignment(cfg.init, cfg.gnss)
+            if cfg.init.mode == "in_flight"
+            else StaticAlignment(cfg.init, cfg.gnss, cfg.mag, cfg.imu)
+        )
+        self.alignment_method: str | None = None
+        self._c = _Counters()
+        self._ratios = [math.nan] * 4
+        self._next_out_us = 0
+        self._timeout_us = round(cfg.gnss.outage_timeout_s * 1e6)
+        self._in_outage = False
+        self._bridge_active = False
+        self._next_bridge_us = 0
+        self._out_corr: OutputCorrection | None = None
+
+    def step(self, sample: ImuSample | GnssFix | BaroSample | MagSample) -> list[NavEstimate]:
+        """Process one sample of any kind (in time order per sensor).
+
+        Parameters
+        ----------
+        sample : ImuSample | GnssFix | BaroSample | MagSample
+            Anything with the attributes of one of the :mod:`fusion.samples` protocols.
+
+        Returns
+        -------
+        list of NavEstimate
+            Estimates due at the output rate (empty for most samples and before alignment).
+
+        Raises
+        ------
+        TypeError
+            If ``sample`` matches none of the four sample kinds.
+        """
+        handler = self._handlers.get(type(sample))
+        if handler is None:
+            handler = self._classify(sample)
+        return handler(sample)
+
+    def estimate(self) -> NavEstimate | None:
+        """The current estimate (``None`` before alignment)."""
+        if self._ins is None:
+            return None
+        return self._make_estimate()
+
+    @property
+    def health(self) -> Health:
+        """Counters snapshot."""
+        return self._c.snapshot()
+
+    @property
+    def mode(self) -> str:
+        """``initializing`` | ``gnss`` | ``free-inertial`` | ``bridging``."""
+        if self._ins is None:
+            return MODE_INITIALIZING
+        if self._gnss_ctl.is_active(self._t_us):
+            return MODE_GNSS
+        return MODE_BRIDGING if self._bridge_active else MODE_FREE_INERTIAL
+
+    @property
+    def ins_state(self) -> InsState | None:
+        """The INS state (IMU position, velocity, attitude) at the current time."""
+        return self._ins
+
+    @property
+    def covariance(self) -> FloatArray:
+        """Copy of the error-state covariance (propagated to the current time)."""
+        self._flush()
+        return self._P.copy()
+
+    @property
+    def time_us(self) -> int:
+        """INS time (0 before alignment)."""
+        return self._t_us
+
+    def initialize(
+        self,
+        time_us: int,
+        lat_rad: float,
+        lon_rad: float,
+        alt_msl_m: float,
+        v_ned_mps: ArrayLike,
+        q_nb: ArrayLike,
+        *,
+        covariance: ArrayLike | None = None,
+        accel_bias_b: ArrayLike | None = None,
+        gyro_bias_b: ArrayLike | None = None,
+        baro_bias_m: float | None = None,
+    ) -> None:
+        """Start the filter from a known state (instead of the automatic alignment).
+
+        Parameters
+        ----------
+        time_us : int
+            Time of the state; the next IMU sample must be later.
+        lat_rad, lon_rad, alt_msl_m : float
+        v_ned_mps : array_like, shape (3,)
+        q_nb : array_like, shape (4,)
+        covariance : array_like, shape (n,) or (n, n), optional
+            Initial error covariance (diagonal or full) in the layout; default from
+            ``InitConfig`` and the IMU bias sigmas.
+        accel_bias_b, gyro_bias_b : array_like, shape (3,), optional
+            Initial bias estimates (default zero).
+        baro_bias_m : float, optional
+            Initial baro bias; default: set from the first baro sample.
+        """
+        n = self.layout.n
+        state = InsState.from_arrays(lat_rad, lon_rad, alt_msl_m, v_ned_mps, q_nb)
+        if covariance is None:
+            cov = np.diag(self._default_p0_diag())
+        else:
+            cov = np.asarray(covariance, dtype=float)
+            if cov.shape == (n,):
+                cov = np.diag(cov)
+            if cov.shape != (n, n) or not np.all(np.isfinite(cov)):
+                raise ValueError(f"covariance must be finite with shape ({n},) or ({n}, {n})")
+        for name, b in (("accel_bias_b", accel_bias_b), ("gyro_bias_b", gyro_bias_b)):
+            if b is not None and np.asarray(b, dtype=float).shape != (3,):
+                raise ValueError(f"{name} must have shape (3,)")
+        self._start(int(time_us), state, cov)
+        if accel_bias_b is not None:
+            self._ba = [float(v) for v in np.asarray(accel_bias_b, dtype=float)]
+        if gyro_bias_b is not None:
+            self._bg = [float(v) for v in np.asarray(gyro_bias_b, dtype=float)]
+        if baro_bias_m is not None:
+            self._bb = float(baro_bias_m)
+            self._baro_ctl.on_bias_init()
+        self.alignment_method = "given"
+
+    # ------------------------------------------------------------------ dispatch
+    def _classify(self, sample: object) -> Callable[[Any], list[NavEstimate]]:
+        handler: Callable[[Any], list[NavEstimate]]
+        if hasattr(sample, "angular_rate_b_rps") and hasattr(sample, "specific_force_b_mps2"):
+            handler = self._on_imu
+        elif hasattr(sample, "fix_type") and hasattr(sample, "eph_m"):
+            handler = self._on_gnss
+        elif hasattr(sample, "pressure_pa"):
+            handler = self._on_baro
+        elif hasattr(sample, "field_b_tesla"):
+            handler = self._on_mag
+        else:
+            raise TypeError(
+                f"{type(sample).__name__} is not an IMU, GNSS, baro or magnetometer sample"
+            )
+        self._handlers[type(sample)] = handler
+        return handler
+
+    def _check_order(self, kind: str, time_us: Any) -> int | None:
+        """Per-sensor time order. Returns the time, or None (and counts) when the timestamp is
+        unreadable (``<kind>_invalid``), repeats (``duplicates``), goes backwards
+        (``time_backwards``) or lies more than ``max_sensor_lead_s`` ahead of the IMU
+        (``time_jump``: it would otherwise block its stream until the IMU caught up)."""
+        c = self._c
+        try:
+            t = int(time_us)
+        except (TypeError, ValueError, OverflowError):
+            setattr(c, f"{kind}_invalid", getattr(c, f"{kind}_invalid") + 1)
+            return None
+        last = self._last_us.get(kind)
+        if last is not None and t <= last:
+            if t == last:
+                c.duplicates += 1
+            else:
+                c.time_backwards += 1
+            return None
+        imu = self._last_imu_us
+        if imu is not None and t - imu > self._max_lead_us:
+            c.time_jump += 1
+            return None
+        self._last_us[kind] = t
+        return t
+
+    # ------------------------------------------------------------------ IMU
+    def _on_imu(self, s: ImuSample) -> list[NavEstimate]:
+        c = self._c
+        try:
+            t = int(s.time_us)
+        except (TypeError, ValueError, OverflowError):
+            c.imu_nan += 1
+            return []
+        last = self._last_imu_us
+        if last is not None and t <= last:
+            if t == last:
+                c.duplicates += 1
+            else:
+                c.time_backwards += 1
+            return []
+        try:
+            try:  # fast path: numpy arrays
+                fx, fy, fz = s.specific_force_b_mps2.tolist()
+                wx, wy, wz = s.angular_rate_b_rps.tolist()
+            except AttributeError:
+                fx, fy, fz = _vec3(s.specific_force_b_mps2)
+                wx, wy, wz = _vec3(s.angular_rate_b_rps)
+            dt_s = float(s.dt_s)
+            # x * 0 is 0 for finite x, NaN for NaN/Inf: one test for all seven fields
+            finite = (fx + fy + fz + wx + wy + wz + dt_s) * 0.0 == 0.0
+        except (TypeError, ValueError, AttributeError):
+            finite = False
+        good = False
+        if not finite:
+            c.imu_nan += 1
+        else:
+            ar = self._accel_range
+            gr = self._gyro_range
+            if (
+                abs(fx) > ar or abs(fy) > ar or abs(fz) > ar
+                or abs(wx) > gr or abs(wy) > gr or abs(wz) > gr
+            ):  # fmt: skip
+                c.imu_out_of_range += 1
+            else:
+                c.imu_ok += 1
+                good = True
+                self._good_fw = (fx, fy, fz, wx, wy, wz)
+        if not good:
+            if self._good_fw is None:
+                self._last_imu_us = t
+                return []
+            fx, fy, fz, wx, wy, wz = self._good_fw
+        if last is None:
+            self._last_imu_us = t
+            if not (good and 0.0 < dt_s <= self._max_dt):
+                return []
+            dt = dt_s
+        else:
+            dt = (t - last) * 1e-6
+            self._last_imu_us = t
+            if dt > self._time_jump_s:
+                c.time_jump += 1
+                if self._ins is not None:
+                    self._coast(t, dt)
+                return self._outputs(t) if self._ins is not None else []
+
+        if self._ins is None:
+            if good:
+                self._aligner.add_imu(t, dt, (fx, fy, fz), (wx, wy, wz))
+                self._try_align()
+            return []
+
+        ba, bg = self._ba, self._bg
+        if self._scale:
+            sa, sg = self._sa, self._sg
+            dth = (
+                (wx - bg[0]) / (1.0 + sg[0]) * dt,
+                (wy - bg[1]) / (1.0 + sg[1]) * dt,
+                (wz - bg[2]) / (1.0 + sg[2]) * dt,
+            )
+            dv = (
+                (fx - ba[0]) / (1.0 + sa[0]) * dt,
+                (fy - ba[1]) / (1.0 + sa[1]) * dt,
+                (fz - ba[2]) / (1.0 + sa[2]) * dt,
+            )
+            af, aw = self._acc_f, self._acc_w
+            af[0] += dv[0]
+            af[1] += dv[1]
+            af[2] += dv[2]
+            aw[0] += dth[0]
+            aw[1] += dth[1]
+            aw[2] += dth[2]
+        else:
+            dth = ((wx - bg[0]) * dt, (wy - bg[1]) * dt, (wz - bg[2]) * dt)
+            dv = ((fx - ba[0]) * dt, (fy - ba[1]) * dt, (fz - ba[2]) * dt)
+        ins = strapdown.update(self._ins, dth, dv, self._prev_dth, self._prev_dv, dt)
+        self._ins = ins
+        self._prev_dth = dth
+        self._prev_dv = dv
+        self._last_dt = dt
+        self._t_us = t
+        self._acc_dt += dt
+        if self._acc_dt >= self._cov_period_s - 1e-9:
+            self._propagate()
+        self._history.push(t, ins)
+        if self._pending and self._pending[0].time_us <= t:
+            self._drain_pending()
+        return self._outputs(t)
+
+    def _outputs(self, t: int) -> list[NavEstimate]:
+        """Outage bookkeeping, bridging epochs and the output clock (after every IMU epoch)."""
+        last_fused = self._gnss_ctl.last_fused_us
+        if not self._in_outage and last_fused is not None and t - last_fused > self._timeout_us:
+            self._in_outage = True
+            self._c.gnss_outages += 1
+            self._next_bridge_us = t
+        if self._in_outage and t >= self._next_bridge_us:
+            self._bridge_step(t)
+        if t >= self._next_out_us:
+            self._next_out_us += self._out_period_us
+            if self._next_out_us <= t:
+                self._next_out_us = t + self._out_period_us
+            return [self._make_estimate()]
+        return []
+
+    def _try_align(self) -> None:
+        res = self._aligner.poll()
+        if res is not None:
+            self._start_from_alignment(res)
+
+    def default_initial_variances(self) -> FloatArray:
+        """Initial error variances (n,) from ``InitConfig`` and the sensor sigmas (what
+        :meth:`initialize` uses when no covariance is given)."""
+        return self._default_p0_diag()
+
+    def _default_p0_diag(self) -> FloatArray:
+        lay, cfg = self.layout, self.config
+        d = np.zeros(lay.n)
+        d[lay.pos] = cfg.init.pos_sigma_m**2
+        d[lay.vel] = cfg.init.vel_sigma_mps**2
+        d[lay.att] = [cfg.init.roll_pitch_sigma_rad**2] * 2 + [cfg.init.yaw_sigma_rad**2]
+        d[lay.ba] = cfg.imu.accel_bias_sigma_mps2**2
+        d[lay.bg] = cfg.imu.gyro_bias_sigma_rps**2
+        d[lay.baro] = cfg.baro.bias_sigma_m**2
+        if lay.sa is not None and lay.sg is not None:
+            d[lay.sa] = cfg.imu.accel_scale_sigma**2
+            d[lay.sg] = cfg.imu.gyro_scale_sigma**2
+        return d
+
+    def _start_from_alignment(self, res: AlignmentResult) -> None:
+        lay = self.layout
+        d = self._default_p0_diag()
+        d[lay.pos] = np.square(res.sigma_pos_ned_m)
+        d[lay.vel] = res.sigma_vel_mps**2
+        d[lay.att] = np.square(res.sigma_att_ned_rad)
+        self._start(res.time_us, res.state, np.diag(d))
+        self.alignment_method = res.method
+
+    def _start(self, time_us: int, state: InsState, cov: FloatArray) -> None:
+        self._ins = state
+        self._t_us = time_us
+        if self._last_imu_us is None or self._last_imu_us < time_us:
+            self._last_imu_us = time_us
+        self._P = 0.5 * (cov + cov.T)
+        self._prev_dth = self._prev_dv = _ZERO3
+        self._acc_dt = 0.0
+        self._acc_v0 = state.v_ned_mps
+        self._acc_f = [0.0, 0.0, 0.0]
+        self._acc_w = [0.0, 0.0, 0.0]
+        self._history.clear()
+        self._history.push(time_us, state)
+        self._gnss_ctl.start(time_us)
+        self._next_out_us = time_us
+        self._in_outage = False
+
+    def _coast(self, t: int, gap_s: float) -> None:
+        """IMU data missing for ``gap_s``: constant-velocity dead reckoning, covariance grown by
+        the process model over the gap, coning/sculling memory cleared."""
+        self._flush()
+        ins = self._ins
+        assert ins is not None
+        lt = earth.local_terms(ins.lat_rad, ins.alt_msl_m)
+        vn, ve, vd = ins.v_ned_mps
+        self._ins = InsState(
+            ins.lat_rad + vn * gap_s / lt.rho_n_m,
+            ins.lon_rad + ve * gap_s / (lt.rho_e_m * lt.cos_lat),
+            ins.alt_msl_m - vd * gap_s,
+            ins.v_ned_mps,
+            ins.q_nb,
+        )
+        # first-order Phi is fine for 10 ms, not for seconds: propagate in sub-steps
+        n_sub = min(100, max(1, math.ceil(gap_s / 0.1)))
+        for _ in range(n_sub):
+            self._acc_v0 = ins.v_ned_mps
+            self._acc_dt = gap_s / n_sub
+            self._propagate()
+        # the sensors did not see what the vehicle did meanwhile: unknown manoeuvres
+        imu, lay = self.config.imu, self.layout
+        sa, sw = imu.gap_accel_sigma_mps2, imu.gap_rate_sigma_rps
+        P = self._P.copy()
+        idx = np.arange(3)
+        P[lay.POS + idx, lay.POS + idx] += (0.5 * sa * gap_s * gap_s) ** 2
+        P[lay.VEL + idx, lay.VEL + idx] += (sa * gap_s) ** 2
+        P[lay.POS + idx, lay.VEL + idx] += 0.5 * sa * sa * gap_s**3
+        P[lay.VEL + idx, lay.POS + idx] += 0.5 * sa * sa * gap_s**3
+        P[lay.ATT + idx, lay.ATT + idx] += (sw * gap_s) ** 2
+        self._P = P
+        self._prev_dth = self._prev_dv = _ZERO3
+        self._t_us = t
+        self._history.push(t, self._ins)
+        if self._pending:
+            self._drain_pending()
+
+    # ------------------------------------------------------------------ covariance
+    def _decay(self, dt: float) -> tuple[float, ...]:
+        k = self._decay_cache.get(dt)
+        if k is None:
+            k = tuple(
+                math.exp(-dt / tau)
+                for tau in (self._tau_a, self._tau_g, self._tau_b, self._tau_sa, self._tau_sg)
+            )
+            if len(self._decay_cache) < 64:
+                self._decay_cache[dt] = k
+        return k
+
+    def _propagate(self) -> None:
+        """P <- Phi P Phi^T + Q over the accumulated interval; Gauss-Markov decay of the bias
+        estimates over the same interval."""
+        T = self._acc_dt
+        ins = self._ins
+        assert ins is not None
+        lat, h = ins.lat_rad, ins.alt_msl_m
+        vn, ve, vd = ins.v_ned_mps
+        v0 = self._acc_v0
+        lt = earth.local_terms(lat, h)
+        tan = lt.sin_lat / lt.cos_lat
+        cx = 2.0 * earth.RATE * lt.cos_lat + ve / lt.rho_e_m
+        cy = -vn / lt.rho_n_m
+        cz = -2.0 * earth.RATE * lt.sin_lat - ve * tan / lt.rho_e_m
+        # mean specific force in NED: v' = f + g - (2 w_ie + w_en) × v
+        f_n = (
+            (vn - v0[0]) / T + (cy * vd - cz * ve),
+            (ve - v0[1]) / T + (cz * vn - cx * vd),
+            (vd - v0[2]) / T - lt.gravity_mps2 + (cx * ve - cy * vn),
+        )
+        self._f_n = f_n
+        c_nb = dcm_from_quat(ins.q_nb)
+        if self._scale:
+            af, aw = self._acc_f, self._acc_w
+            f_b = (af[0] / T, af[1] / T, af[2] / T)
+            w_b = (aw[0] / T, aw[1] / T, aw[2] / T)
+            self._acc_f = [0.0, 0.0, 0.0]
+            self._acc_w = [0.0, 0.0, 0.0]
+        else:
+            f_b = w_b = _ZERO3
+        Phi = self._model.first_order_transition(
+            lat, h, ins.v_ned_mps, c_nb, f_n, T, f_b, w_b, terms=lt
+        )
+        # P = Phi P Phi^T + Q  (Q diagonal: white sensor noise and Gauss-Markov driving noise)
+        P = Phi @ self._P @ Phi.T
+        P += self._model.process_noise(T)
+        self._P = P
+        ka, kg, kb, ksa, ksg = self._decay(T)
+        ba, bg = self._ba, self._bg
+        self._ba = [ba[0] * ka, ba[1] * ka, ba[2] * ka]
+        self._bg = [bg[0] * kg, bg[1] * kg, bg[2] * kg]
+        self._bb *= kb
+        if self._scale:
+            self._sa = [v * ksa for v in self._sa]
+            self._sg = [v * ksg for v in self._sg]
+        self._acc_dt = 0.0
+        self._acc_v0 = ins.v_ned_mps
+
+    def _flush(self) -> None:
+        if self._acc_dt > 0.0 and self._ins is not None:
+            self._propagate()
+
+    # ------------------------------------------------------------------ updates
+    def _correct(self, obs: Observation, gate: float) -> kalman.Correction:
+        """Gated Joseph-form update; on acceptance the error estimate is fed back at once."""
+        self._flush()
+        res = kalman.correct(self._x0, self._P, obs.z, obs.H, obs.R, gate)
+        if res.test_ratio <= 1.0:
+            self._P = res.P
+            self._feedback(res.x)
+        return res
+
+    def _feedback(self, dx: FloatArray) -> None:
+        """Move the error estimate into the INS (subtract: errors are estimated minus true)."""
+        ins = self._ins
+        assert ins is not None
+        lay = self.layout
+        d = dx.tolist()
+        p, v, a = lay.POS, lay.VEL, lay.ATT
+        lt = earth.local_terms(ins.lat_rad, ins.alt_msl_m)
+        vn, ve, vd = ins.v_ned_mps
+        qw, qx, qy, qz = ins.q_nb
+        # q <- q(-phi) ⊗ q
+        pw, px, py, pz = rotvec_quat(-d[a], -d[a + 1], -d[a + 2])
+        rw = pw * qw - px * qx - py * qy - pz * qz
+        rx = pw * qx + px * qw + py * qz - pz * qy
+        ry = pw * qy - px * qz + py * qw + pz * qx
+        rz = pw * qz + px * qy - py * qx + pz * qw
+        norm = math.sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
+        if rw < 0.0:
+            norm = -norm
+        self._ins = InsState(
+            ins.lat_rad - d[p] / lt.rho_n_m,
+            ins.lon_rad - d[p + 1] / (lt.rho_e_m * lt.cos_lat),
+            ins.alt_msl_m + d[p + 2],
+            (vn - d[v], ve - d[v + 1], vd - d[v + 2]),
+            (rw / norm, rx / norm, ry / norm, rz / norm),
+        )
+        ba, bg, b, g = self._ba, self._bg, lay.BA, lay.BG
+        self._ba = [ba[0] - d[b], ba[1] - d[b + 1], ba[2] - d[b + 2]]
+        self._bg = [bg[0] - d[g], bg[1] - d[g + 1], bg[2] - d[g + 2]]
+        self._bb -= d[lay.BARO]
+        if lay.sa is not None and lay.sg is not None:
+            b = int(lay.sa.start)
+            self._sa = [self._sa[i] - d[b + i] for i in range(3)]
+            b = int(lay.sg.start)
+            self._sg = [self._sg[i] - d[b + i] for i in range(3)]
+        self._history.add_correction(d[p : p + 3] + d[v : v + 3] + d[a : a + 3])
+        self._acc_v0 = self._ins.v_ned_mps
+
+    def _reset_block(self, block: slice, z: FloatArray, variances: FloatArray) -> None:
+        """Set a block of the INS to the measurement (dx = z on that block), decorrelate it."""
+        self._flush()
+        dx = np.zeros(self.layout.n)
+        dx[block] = z
+        self._feedback(dx)
+        P = self._P.copy()
+        P[block, :] = 0.0
+        P[:, block] = 0.0
+        P[block, block] = np.diag(variances)
+        self._P = P
+
+    # ------------------------------------------------------------------ GNSS
+    def _on_gnss(self, fix: GnssFix) -> list[NavEstimate]:
+        t = self._check_order("gnss", fix.time_us)
+        if t is None:
+            return []
+        c = self._c
+        try:
+            reason = gnss_aid.fix_quality(fix, self.config.gnss)
+        except (TypeError, ValueError, AttributeError):
+            reason = "invalid"
+        if reason is not None:
+            if reason == "no_fix":
+                c.gnss_no_fix += 1
+            elif reason == "invalid":
+                c.gnss_invalid += 1
+            else:
+                c.gnss_inaccurate += 1
+            self._gnss_ctl.on_bad_fix()
+            return []
+        if self._ins is None:
+            self._aligner.add_fix(fix)
+            self._try_align()
+            return []
+        if t > self._t_us:
+            self._pending.append(fix)
+            return []
+        self._fuse_gnss(fix)
+        return []
+
+    def _drain_pending(self) -> None:
+        while self._pending and self._pending[0].time_us <= self._t_us:
+            self._fuse_gnss(self._pending.popleft())
+
+    def _past_state(self, time_us: int) -> InsState | None:
+        if time_us >= self._t_us:
+            return self._ins
+        return self._history.at(time_us)
+
+    def _omega_b(self) -> tuple[float, float, float]:
+        dt = self._last_dt
+        if dt <= 0.0:
+            return _ZERO3
+        a = self._prev_dth
+        return (a[0] / dt, a[1] / dt, a[2] / dt)
+
+    def _fuse_gnss(self, fix: GnssFix) -> None:
+        c, cfg, ctl, lay = self._c, self.config.gnss, self._gnss_ctl, self.layout
+        t = int(fix.time_us)
+        now = self._t_us
+        past = self._past_state(t)
+        if past is None or now - t > round(cfg.max_delay_s * 1e6):
+            c.gnss_too_old += 1
+            return
+        if not ctl.on_good_fix(t, now):
+            return
+        sig_h, sig_v, sig_vel = gnss_aid.fix_sigmas(fix, cfg)
+        delay = (now - t) * 1e-6
+        lat, lon, alt = float(fix.lat_rad), float(fix.lon_rad), float(fix.alt_msl_m)
+        obs = gnss_aid.position_model(
+            lay, past, lat, lon, alt, sig_h, sig_v, cfg.lever_arm_b_m, delay
+        )
+        if obs is None:
+            c.gnss_invalid += 1
+            return
+        res = self._correct(obs, self._gate3)
+        pos_ok = res.test_ratio <= 1.0
+        self._ratios[0] = res.test_ratio
+        z_pos = obs.z
+        if not pos_ok and ctl.on_result("pos", t, False):
+            self._reset_block(lay.pos, obs.z, np.diag(obs.R))
+            ctl.on_reset("pos", t)
+            c.gnss_resets += 1
+        elif pos_ok:
+            ctl.on_result("pos", t, True)
+        past = self._past_state(t)
+        assert past is not None
+        v_fix = np.asarray(fix.v_ned_mps, dtype=float)
+        obs_v = gnss_aid.velocity_model(
+            lay, past, self._omega_b(), v_fix, sig_vel, cfg.lever_arm_b_m
+        )
+        if obs_v is None:
+            c.gnss_invalid += 1
+            return
+        res_v = self._correct(obs_v, self._gate3)
+        vel_ok = res_v.test_ratio <= 1.0
+        self._ratios[1] = res_v.test_ratio
+        if not vel_ok and ctl.on_result("vel", t, False):
+            self._reset_block(lay.vel, obs_v.z, np.diag(obs_v.R))
+            ctl.on_reset("vel", t)
+            c.gnss_resets += 1
+        elif vel_ok:
+            ctl.on_result("vel", t, True)
+        if pos_ok and vel_ok:
+            c.gnss_fused += 1
+        else:
+            c.gnss_rejected += 1
+        zp, zv = z_pos.tolist(), obs_v.z.tolist()
+        self.bridge.on_gnss(
+            self._epoch(t, past),
+            InsError((zp[0], zp[1], zp[2]), (zv[0], zv[1], zv[2]), pos_ok, vel_ok),
+        )
+        if self._in_outage and ctl.is_active(now):
+            self._leave_outage(now)
+
+    # ------------------------------------------------------------------ bridging
+    def _epoch(self, time_us: int, state: InsState) -> BridgeEpoch:
+        qw, qx, qy, qz = state.q_nb
+        return BridgeEpoch(
+            time_us=time_us,
+            lat_rad=state.lat_rad,
+            lon_rad=state.lon_rad,
+            alt_msl_m=state.alt_msl_m,
+            v_ned_mps=state.v_ned_mps,
+            euler_rad=_euler(qw, qx, qy, qz),
+            f_n_mps2=self._f_n,
+            omega_ib_b_rps=self._omega_b(),
+            time_since_gnss_s=max(0.0, self._gnss_ctl.time_since_fused_s(time_us)),
+        )
+
+    def _bridge_step(self, t: int) -> None:
+        self._next_bridge_us = max(self._next_bridge_us + self._bridge_period_us, t + 1)
+        ins = self._ins
+        assert ins is not None
+        action = self.bridge.on_outage(self._epoch(t, ins))
+        if action is None:
+            return
+        if isinstance(action, OutputCorrection):
+            self._out_corr = action
+            self._bridge_active = True
+            self._c.bridge_updates += 1
+        elif isinstance(action, PseudoGnss):
+            lay, cfg = self.layout, self.config.gnss
+            obs = gnss_aid.position_model(
+                lay, ins, action.lat_rad, action.lon_rad, action.alt_msl_m,
+                action.sigma_pos_m, action.sigma_pos_m, cfg.lever_arm_b_m,
+            )  # fmt: skip
+            if obs is not None:
+                self._correct(obs, self._gate3)
+            ins = self._ins
+            assert ins is not None
+            obs_v = gnss_aid.velocity_model(
+                lay, ins, self._omega_b(), np.asarray(action.v_ned_mps, dtype=float),
+                action.sigma_vel_mps, cfg.lever_arm_b_m,
+            )  # fmt: skip
+            if obs_v is not None:
+                self._correct(obs_v, self._gate3)
+            self._bridge_active = True
+            self._c.bridge_updates += 1
+
+    def _leave_outage(self, t: int) -> None:
+        self._in_outage = False
+        self._bridge_active = False
+        self._out_corr = None
+        ins = self._ins
+        assert ins is not None
+        self.bridge.on_gnss_restored(self._epoch(t, ins))
+
+    # ------------------------------------------------------------------ baro, mag
+    def _on_baro(self, s: BaroSample) -> list[NavEstimate]:
+        t = self._check_order("baro", s.time_us)
+        if t is None:
+            return []
+        c = self._c
+        try:
+            p = float(s.pressure_pa)
+        except (TypeError, ValueError):
+            p = math.nan
+        h_baro = baro_aid.pressure_to_height(p)
+        if not math.isfinite(h_baro):
+            c.baro_invalid += 1
+            return []
+        if self._ins is None:
+            return []
+        ctl = self._baro_ctl
+        batch = ctl.add_sample(t, h_baro)
+        if batch is None:
+            return []
+        t_mean, h_mean, count = batch
+        past = self._past_state(t_mean)
+        if past is None:
+            past = self._ins
+        if ctl.need_bias_init(t_mean):
+            self._init_baro_bias(h_mean - past.alt_msl_m)
+            ctl.on_bias_init()
+            return []
+        obs = baro_aid.height_model(
+            self.layout, past.alt_msl_m, self._bb, h_mean,
+            self.config.baro.noise_m / math.sqrt(count),
+        )  # fmt: skip
+        if obs is None:
+            c.baro_invalid += 1
+            return []
+        res = self._correct(obs, self._gate_baro)
+        self._ratios[2] = res.test_ratio
+        ok = res.test_ratio <= 1.0
+        if ok:
+            c.baro_fused += 1
+        else:
+            c.baro_rejected += 1
+        if ctl.on_result(t_mean, ok):
+            self._init_baro_bias(h_mean - past.alt_msl_m)
+            ctl.on_bias_init()
+            c.baro_resets += 1
+        return []
+
+    def _init_baro_bias(self, bias_m: float) -> None:
+        """b^ = h_baro - h^: the bias error is dr_D + noise, so its covariance row is that of
+        the down-position error plus the baro noise on the diagonal."""
+        self._flush()
+        self._bb = bias_m
+        lay = self.layout
+        d, b = lay.POS + 2, lay.BARO
+        P = self._P.copy()
+        row = P[d, :].copy()
+        row[b] = P[d, d] + self.config.baro.noise_m**2
+        P[b, :] = row
+        P[:, b] = row
+        self._P = P
+
+    def _on_mag(self, s: MagSample) -> list[NavEstimate]:
+        t = self._check_order("mag", s.time_us)
+        if t is None:
+            return []
+        c = self._c
+        try:
+            m = np.array(_vec3(s.field_b_tesla))
+        except (TypeError, ValueError, AttributeError):
+            m = np.full(3, math.nan)
+        if not np.all(np.isfinite(m)):
+            c.mag_invalid += 1
+            return []
+        if self._ins is None:
+            if isinstance(self._aligner, StaticAlignment):
+                self._aligner.add_mag(m)
+                self._try_align()
+            return []
+        ctl = self._mag_ctl
+        if not ctl.due(t):
+            return []
+        c_nb = quat_to_dcm(self._ins.q_nb)
+        if ctl.reference_n is None:
+            self._flush()
+            ctl.learn(c_nb @ m, math.sqrt(self._P[self.layout.ATT + 2, self.layout.ATT + 2]))
+            return []
+        cfg = self.config.mag
+        obs = mag_aid.heading_model(
+            self.layout, c_nb, m, ctl.reference_n, cfg.heading_noise_rad,
+            cfg.min_horizontal_field_tesla,
+        )  # fmt: skip
+        if obs is None:
+            c.mag_invalid += 1
+            return []
+        res = self._correct(obs, self._gate_mag)
+        self._ratios[3] = res.test_ratio
+        ok = res.test_ratio <= 1.0
+        ctl.on_result(t, ok)
+        if ok:
+            c.mag_fused += 1
+        else:
+            c.mag_rejected += 1
+        return []
+
+    # ------------------------------------------------------------------ output
+    def _make_estimate(self) -> NavEstimate:
+        ins = self._ins
+        assert ins is not None
+        lat, lon, alt = ins.lat_rad, ins.lon_rad, ins.alt_msl_m
+        v = ins.v_ned_mps
+        corr = self._out_corr
+        if corr is not None:
+            lt = earth.local_terms(lat, alt)
+            dn, de, dd = corr.pos_ned_m
+            lat -= dn / lt.rho_n_m
+            lon -= de / (lt.rho_e_m * lt.cos_lat)
+            alt += dd
+            cv = corr.vel_ned_mps
+            v = (v[0] - cv[0], v[1] - cv[1], v[2] - cv[2])
+        q = ins.q_nb
+        # one read-only array, the vector fields are views of it (output-rate cost matters)
+        buf = np.array((*v, *q, *_euler(*q), *self._ba, *self._bg))
+        buf.flags.writeable = False
+        p_diag = self._P.diagonal().copy()
+        p_diag.flags.writeable = False
+        r = self._ratios
+        t = self._t_us
+        # positional arguments: this runs at the output rate and keywords cost 50 % more
+        return NavEstimate(
+            t, lat, lon, alt,
+            buf[0:3], buf[3:7], buf[7:10],  # v_ned_mps, q_nb, euler_rad
+            p_diag, self.mode,
+            buf[10:13], buf[13:16], self._bb,  # accel_bias_b, gyro_bias_b, baro_bias_m
+            self._c.snapshot(), TestRatios(r[0], r[1], r[2], r[3]),
+            self._gnss_ctl.time_since_fused_s(t), self.layout.name,
+        )  # fmt: skip
+
+
+def _euler(qw: float, qx: float, qy: float, qz: float) -> tuple[float, float, float]:
+    """Roll, pitch, yaw of a unit quaternion (scalar path of ``rotations.quat_to_euler``)."""
+    roll = math.atan2(2.0 * (qy * qz + qw * qx), qw * qw - qx * qx - qy * qy + qz * qz)
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (qw * qy - qx * qz))))
+    yaw = math.atan2(2.0 * (qx * qy + qw * qz), qw * qw + qx * qx - qy * qy - qz * qz)
+    return roll, pitch, yaw

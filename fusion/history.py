@@ -1,0 +1,140 @@
+"""Short buffer of past INS states, for fusing delayed measurements (GNSS latency).
+
+Each IMU epoch stores the INS state (an immutable tuple: storing it costs one list slot) and the
+running sum of the feedback corrections applied so far. A past state read back later is
+corrected by every feedback applied *after* it was stored — ``x_past - (sum_now - sum_then)`` —
+so a measurement at its time of validity is compared with an INS history consistent with the
+current, corrected INS (corrections are small and are carried unchanged over the fraction of a
+second the buffer spans).
+"""
+
+from __future__ import annotations
+
+import math
+
+from fusion import earth
+from fusion.strapdown import InsState, rotvec_quat
+
+Correction9 = tuple[float, float, float, float, float, float, float, float, float]
+_ZERO9: Correction9 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+class InsHistory:
+    """Ring buffer of ``(time_us, InsState, cumulative correction)``.
+
+    Parameters
+    ----------
+    capacity : int
+        Number of epochs kept (e.g. 0.5 s at 400 Hz -> 200).
+    """
+
+    def __init__(self, capacity: int) -> None:
+        if capacity < 2:
+            raise ValueError(f"capacity must be >= 2, got {capacity}")
+        self._cap = capacity
+        self._t: list[int] = [0] * capacity
+        self._s: list[InsState | None] = [None] * capacity
+        self._c: list[Correction9] = [_ZERO9] * capacity
+        self._head = -1
+        self._count = 0
+        self._cum: Correction9 = _ZERO9
+
+    def clear(self) -> None:
+        """Forget every stored state (the running correction sum restarts too)."""
+        self._head = -1
+        self._count = 0
+        self._cum = _ZERO9
+        self._s = [None] * self._cap
+
+    def push(self, time_us: int, state: InsState) -> None:
+        """Store the INS state of epoch ``time_us`` (times must increase)."""
+        i = self._head + 1
+        if i == self._cap:
+            i = 0
+        self._t[i] = time_us
+        self._s[i] = state
+        self._c[i] = self._cum
+        self._head = i
+        if self._count < self._cap:
+            self._count += 1
+
+    def add_correction(self, dx9: list[float]) -> None:
+        """Record a feedback ``[dr_ned m, dv_ned m/s, phi rad]`` just subtracted from the INS."""
+        c, d = self._cum, dx9
+        self._cum = (
+            c[0] + d[0], c[1] + d[1], c[2] + d[2], c[3] + d[3], c[4] + d[4], c[5] + d[5],
+            c[6] + d[6], c[7] + d[7], c[8] + d[8],
+        )  # fmt: skip
+
+    @property
+    def oldest_us(self) -> int | None:
+        """Time of the oldest stored epoch."""
+        if self._count == 0:
+            return None
+        i = (self._head - self._count + 1) % self._cap
+        return self._t[i]
+
+    def _corrected(self, i: int) -> InsState:
+        s = self._s[i]
+        assert s is not None
+        c0 = self._c[i]
+        c1 = self._cum
+        if c0 is c1:
+            return s
+        d = [b - a for a, b in zip(c0, c1, strict=True)]
+        t = earth.local_terms(s.lat_rad, s.alt_msl_m)
+        vn, ve, vd = s.v_ned_mps
+        qw, qx, qy, qz = s.q_nb
+        # q <- q(-phi) ⊗ q
+        pw, px, py, pz = rotvec_quat(-d[6], -d[7], -d[8])
+        q = (
+            pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw,
+        )
+        return InsState(
+            s.lat_rad - d[0] / t.rho_n_m,
+            s.lon_rad - d[1] / (t.rho_e_m * t.cos_lat),
+            s.alt_msl_m + d[2],
+            (vn - d[3], ve - d[4], vd - d[5]),
+            q,
+        )
+
+    def at(self, time_us: int) -> InsState | None:
+        """Corrected INS state at ``time_us`` (linear interpolation of position and velocity,
+        nearest attitude), or ``None`` when outside the stored span."""
+        if self._count == 0:
+            return None
+        cap = self._cap
+        i = self._head
+        if time_us > self._t[i]:
+            return None
+        for _ in range(self._count):
+            ti = self._t[i]
+            if ti <= time_us:
+                if ti == time_us:
+                    return self._corrected(i)
+                j = i + 1 if i + 1 < cap else 0
+                a = self._corrected(i)
+                b = self._corrected(j)
+                w = (time_us - ti) / (self._t[j] - ti)
+                va, vb = a.v_ned_mps, b.v_ned_mps
+                return InsState(
+                    a.lat_rad + w * (b.lat_rad - a.lat_rad),
+                    a.lon_rad + w * (b.lon_rad - a.lon_rad),
+                    a.alt_msl_m + w * (b.alt_msl_m - a.alt_msl_m),
+                    (
+                        va[0] + w * (vb[0] - va[0]),
+                        va[1] + w * (vb[1] - va[1]),
+                        va[2] + w * (vb[2] - va[2]),
+                    ),
+                    a.q_nb if w < 0.5 else b.q_nb,
+                )
+            i = i - 1 if i > 0 else cap - 1
+        return None
+
+
+def span_capacity(max_delay_s: float, max_rate_hz: float = 400.0) -> int:
+    """Buffer size that covers ``max_delay_s`` at ``max_rate_hz`` with a margin."""
+    return max(8, math.ceil(max_delay_s * max_rate_hz * 1.25) + 4)

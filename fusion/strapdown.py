@@ -1,0 +1,292 @@
+"""Strapdown mechanisation in the local-level NED frame (paper P0's INS), stateless.
+
+One call advances the INS state ``(lat, lon, h, v_n, q_nb)`` over one IMU interval from the
+gyro and accelerometer *increments* (``dtheta = ∫ omega_ib_b dt``, ``dv = ∫ f_b dt``),
+the two-sample way (Savage; the same structure as KF-GINS ``insmech.cpp``):
+
+1. attitude: body rotation ``phi = dtheta + dtheta_prev × dtheta / 12`` (coning), n-frame
+   rotation ``zeta = omega_in_n dt``; ``q_nb(k) = q(-zeta) ⊗ q_nb(k-1) ⊗ q(phi)``;
+2. velocity: ``dv_f_n = (I - [zeta×]/2) C_nb(k-1) (dv + dtheta × dv / 2 + (dtheta_prev × dv +
+   dv_prev × dtheta) / 12)`` (rotation + sculling), then
+   ``v(k) = v(k-1) + dv_f_n + (g_n - (2 omega_ie_n + omega_en_n) × v_mid) dt`` with gravity,
+   Earth and transport rates at the interval's midpoint (Coriolis and transport terms, P0);
+3. position: ``h' = -vD``, ``L' = vN / (R_M + h)``, ``l' = vE / ((R_N + h) cos L)`` integrated
+   with the trapezoidal velocity.
+
+The velocity step uses the attitude at the start of the interval with the ``(I - [zeta×]/2)``
+and ``dtheta × dv / 2`` terms, which is the mid-interval attitude to second order; the order of
+the three updates (attitude, velocity, position) does not change the result.
+
+The hot loop runs at up to 400 Hz in pure Python, so it works on plain floats and tuples (numpy's
+per-call overhead would dominate on 3-vectors). Accuracy: errors are third order in the step
+(see ``tests/test_strapdown.py``: an analytic coordinated turn and climb is reproduced to
+centimetres over minutes at 50-400 Hz).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from fusion import earth
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+
+_ZERO3: Vec3 = (0.0, 0.0, 0.0)
+
+
+class InsState(NamedTuple):
+    """INS navigation state, plain floats (hot-loop friendly).
+
+    Attributes
+    ----------
+    lat_rad, lon_rad : float
+        Geodetic latitude / longitude, rad.
+    alt_msl_m : float
+        Height, m (navigation height, see :mod:`fusion`).
+    v_ned_mps : tuple of 3 floats
+        Velocity w.r.t. Earth in NED, m/s.
+    q_nb : tuple of 4 floats
+        Attitude quaternion body -> NED, scalar first.
+    """
+
+    lat_rad: float
+    lon_rad: float
+    alt_msl_m: float
+    v_ned_mps: Vec3
+    q_nb: Quat
+
+    @classmethod
+    def from_arrays(
+        cls, lat_rad: float, lon_rad: float, alt_msl_m: float, v_ned_mps: ArrayLike, q_nb: ArrayLike
+    ) -> InsState:
+        """Build from array-likes (validates shapes, normalises the quaternion)."""
+        v = np.asarray(v_ned_mps, dtype=float)
+        q = np.asarray(q_nb, dtype=float)
+        if v.shape != (3,):
+            raise ValueError(f"v_ned_mps must have shape (3,), got {v.shape}")
+        if q.shape != (4,):
+            raise ValueError(f"q_nb must have shape (4,), got {q.shape}")
+        norm = float(np.linalg.norm(q))
+        if not np.isfinite(norm) or norm < 1e-6:
+            raise ValueError("q_nb must be a finite non-zero quaternion")
+        qn = q / norm
+        return cls(
+            float(lat_rad),
+            float(lon_rad),
+            float(alt_msl_m),
+            (float(v[0]), float(v[1]), float(v[2])),
+            (float(qn[0]), float(qn[1]), float(qn[2]), float(qn[3])),
+        )
+
+
+def rotvec_quat(x: float, y: float, z: float) -> Quat:
+    """Quaternion of a rotation vector; Taylor series for the usual tiny per-sample angles."""
+    a2 = x * x + y * y + z * z
+    if a2 < 1e-4:
+        # error of the truncated series < a^6 / 46080 < 3e-17 for a < 1e-2
+        w = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
+        k = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
+    else:
+        a = math.sqrt(a2)
+        w = math.cos(0.5 * a)
+        k = math.sin(0.5 * a) / a
+    return (w, k * x, k * y, k * z)
+
+
+def dcm_from_quat(q: Sequence[float]) -> tuple[float, ...]:
+    """``C_nb`` of ``q_nb`` as 9 floats, row-major (scalar path of ``rotations.quat_to_dcm``)."""
+    qw, qx, qy, qz = q
+    ww, xx, yy, zz = qw * qw, qx * qx, qy * qy, qz * qz
+    return (
+        ww + xx - yy - zz, 2.0 * (qx * qy - qw * qz), 2.0 * (qx * qz + qw * qy),
+        2.0 * (qx * qy + qw * qz), ww - xx + yy - zz, 2.0 * (qy * qz - qw * qx),
+        2.0 * (qx * qz - qw * qy), 2.0 * (qy * qz + qw * qx), ww - xx - yy + zz,
+    )  # fmt: skip
+
+
+def update(
+    state: InsState,
+    dtheta_b: Sequence[float],
+    dv_b: Sequence[float],
+    dtheta_prev_b: Sequence[float],
+    dv_prev_b: Sequence[float],
+    dt_s: float,
+) -> InsState:
+    """Advance the INS over one IMU interval.
+
+    Parameters
+    ----------
+    state : InsState
+        State at the start of the interval.
+    dtheta_b, dv_b : sequence of 3 floats
+        Gyro increment ``∫ omega_ib_b dt`` (rad) and accelerometer increment ``∫ f_b dt`` (m/s)
+        over this interval, bias-corrected.
+    dtheta_prev_b, dv_prev_b : sequence of 3 floats
+        The same for the previous interval (coning / sculling); zeros on the first sample.
+    dt_s : float
+        Interval length, s.
+
+    Returns
+    -------
+    InsState
+        State at the end of the interval.
+    """
+    lat, lon, h = state.lat_rad, state.lon_rad, state.alt_msl_m
+    vn, ve, vd = state.v_ned_mps
+    qw, qx, qy, qz = state.q_nb
+    ax, ay, az = dtheta_b
+    ux, uy, uz = dv_b
+    pax, pay, paz = dtheta_prev_b
+    pux, puy, puz = dv_prev_b
+
+    # Earth terms at mid-interval height (lat moves ~1e-7 rad per sample: start value is enough).
+    h_mid = h - 0.5 * vd * dt_s
+    s_lat = math.sin(lat)
+    c_lat = math.cos(lat)
+    sin2 = s_lat * s_lat
+    x = 1.0 - earth.E2 * sin2
+    root = math.sqrt(x)
+    r_n = earth.A / root
+    rho_e = r_n + h_mid
+    rho_n = r_n * (1.0 - earth.E2) / x + h_mid
+    g = (
+        earth.GE
+        * (1.0 + earth.K_SOMIGLIANA * sin2)
+        / root
+        * (
+            1.0
+            - 2.0 / earth.A * (1.0 + earth.F + earth.M_RATIO - 2.0 * earth.F * sin2) * h_mid
+            + 3.0 * h_mid * h_mid / (earth.A * earth.A)
+        )
+    )
+    tan_lat = s_lat / c_lat
+    wie_n = earth.RATE * c_lat
+    wie_d = -earth.RATE * s_lat
+
+    # rotation (dtheta × dv / 2) and sculling ((dtheta_prev × dv + dv_prev × dtheta) / 12)
+    wx = ux + 0.5 * (ay * uz - az * uy) + ((pay * uz - paz * uy) + (puy * az - puz * ay)) / 12.0
+    wy = uy + 0.5 * (az * ux - ax * uz) + ((paz * ux - pax * uz) + (puz * ax - pux * az)) / 12.0
+    wz = uz + 0.5 * (ax * uy - ay * ux) + ((pax * uy - pay * ux) + (pux * ay - puy * ax)) / 12.0
+    # C_nb(k-1) from the start-of-interval quaternion
+    ww, xx, yy, zz2 = qw * qw, qx * qx, qy * qy, qz * qz
+    c00 = ww + xx - yy - zz2
+    c01 = 2.0 * (qx * qy - qw * qz)
+    c02 = 2.0 * (qx * qz + qw * qy)
+    c10 = 2.0 * (qx * qy + qw * qz)
+    c11 = ww - xx + yy - zz2
+    c12 = 2.0 * (qy * qz - qw * qx)
+    c20 = 2.0 * (qx * qz - qw * qy)
+    c21 = 2.0 * (qy * qz + qw * qx)
+    c22 = ww - xx - yy + zz2
+    dn = c00 * wx + c01 * wy + c02 * wz
+    de = c10 * wx + c11 * wy + c12 * wz
+    dd = c20 * wx + c21 * wy + c22 * wz
+    # Mid-interval velocity (Coriolis neglected, it is ~1e-4 of the rest) for the transport rate
+    # and Coriolis terms: using the start value instead makes the whole scheme first order.
+    mvn = vn + 0.5 * dn
+    mve = ve + 0.5 * de
+    mvd = vd + 0.5 * (dd + g * dt_s)
+    wen_n = mve / rho_e
+    wen_e = -mvn / rho_n
+    wen_d = -mve * tan_lat / rho_e
+
+    # ---- 1. attitude -------------------------------------------------------------------
+    # coning: phi = dtheta + (dtheta_prev × dtheta) / 12
+    phx = ax + (pay * az - paz * ay) / 12.0
+    phy = ay + (paz * ax - pax * az) / 12.0
+    phz = az + (pax * ay - pay * ax) / 12.0
+    bw, bx, by, bz = rotvec_quat(phx, phy, phz)
+    zx = (wie_n + wen_n) * dt_s
+    zy = wen_e * dt_s
+    zz = (wie_d + wen_d) * dt_s
+    nw, nx, ny, nz = rotvec_quat(-zx, -zy, -zz)
+    # t = q_nb ⊗ q_b
+    tw = qw * bw - qx * bx - qy * by - qz * bz
+    tx = qw * bx + qx * bw + qy * bz - qz * by
+    ty = qw * by - qx * bz + qy * bw + qz * bx
+    tz = qw * bz + qx * by - qy * bx + qz * bw
+    # q_new = q_n ⊗ t
+    rw = nw * tw - nx * tx - ny * ty - nz * tz
+    rx = nw * tx + nx * tw + ny * tz - nz * ty
+    ry = nw * ty - nx * tz + ny * tw + nz * tx
+    rz = nw * tz + nx * ty - ny * tx + nz * tw
+    norm = math.sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
+    if rw < 0.0:
+        norm = -norm
+    q_new = (rw / norm, rx / norm, ry / norm, rz / norm)
+
+    # ---- 2. velocity -------------------------------------------------------------------
+    # (I - [zeta×]/2): the n frame turns during the interval
+    fn = dn - 0.5 * (zy * dd - zz * de)
+    fe = de - 0.5 * (zz * dn - zx * dd)
+    fd = dd - 0.5 * (zx * de - zy * dn)
+    cx = 2.0 * wie_n + wen_n
+    cy = wen_e
+    cz = 2.0 * wie_d + wen_d
+    vn_new = vn + fn - (cy * mvd - cz * mve) * dt_s
+    ve_new = ve + fe - (cz * mvn - cx * mvd) * dt_s
+    vd_new = vd + fd + (g - (cx * mve - cy * mvn)) * dt_s
+
+    # ---- 3. position -------------------------------------------------------------------
+    h_new = h - 0.5 * (vd + vd_new) * dt_s
+    h_avg = 0.5 * (h + h_new)
+    rho_n_avg = rho_n - h_mid + h_avg
+    rho_e_avg = rho_e - h_mid + h_avg
+    dlat = 0.5 * (vn + vn_new) * dt_s / rho_n_avg
+    # cos of the mid-interval latitude, first-order expansion
+    c_mid = c_lat - 0.5 * s_lat * dlat
+    lon_new = lon + 0.5 * (ve + ve_new) * dt_s / (rho_e_avg * c_mid)
+    return InsState(lat + dlat, lon_new, h_new, (vn_new, ve_new, vd_new), q_new)
+
+
+def integrate(
+    state: InsState,
+    dtheta_b: ArrayLike,
+    dv_b: ArrayLike,
+    dt_s: ArrayLike,
+) -> list[InsState]:
+    """Run :func:`update` over a sequence of increments (pure INS; for tests and tools).
+
+    Parameters
+    ----------
+    state : InsState
+        Initial state.
+    dtheta_b, dv_b : array_like, shape (N, 3)
+        Gyro / accelerometer increments, rad and m/s.
+    dt_s : float or array_like, shape (N,)
+        Interval lengths, s.
+
+    Returns
+    -------
+    list of InsState, length N + 1
+        The initial state followed by the state after every interval.
+    """
+    dth = np.asarray(dtheta_b, dtype=float)
+    dvb = np.asarray(dv_b, dtype=float)
+    dts: NDArray[np.float64] = np.broadcast_to(np.asarray(dt_s, dtype=float), (len(dth),))
+    if dth.shape != dvb.shape or dth.ndim != 2 or dth.shape[1] != 3:
+        raise ValueError(f"dtheta_b and dv_b must both be (N, 3), got {dth.shape}, {dvb.shape}")
+    out = [state]
+    prev_th: Sequence[float] = _ZERO3
+    prev_dv: Sequence[float] = _ZERO3
+    for th, dv, dt in zip(dth.tolist(), dvb.tolist(), dts.tolist(), strict=True):
+        state = update(state, th, dv, prev_th, prev_dv, dt)
+        out.append(state)
+        prev_th, prev_dv = th, dv
+    return out
+
+
+def states_to_arrays(
+    states: Sequence[InsState],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Stack states: ``lla (N, 3)`` (rad, rad, m), ``v_ned (N, 3)`` (m/s), ``q_nb (N, 4)``."""
+    lla = np.array([(s.lat_rad, s.lon_rad, s.alt_msl_m) for s in states])
+    v = np.array([s.v_ned_mps for s in states])
+    q = np.array([s.q_nb for s in states])
+    return lla, v, q

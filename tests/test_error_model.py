@@ -1,0 +1,214 @@
+"""fusion.error_model: the analytic F against a numerically propagated, perturbed INS."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from helpers.nav_synth import Flight
+
+from fusion import earth, strapdown
+from fusion.error_model import INS16, INS22, LAYOUTS, ErrorModel, ProcessNoise, StateLayout
+from fusion.rotations import dcm_to_rotvec, quat_multiply, quat_to_dcm, rotvec_to_quat
+from fusion.trajectory import ImuIncrements, ideal_increments
+
+NOISE = ProcessNoise(
+    gyro_noise=1e-4, accel_noise=1e-3,
+    gyro_bias_sigma=5e-5, gyro_bias_tau_s=300.0,
+    accel_bias_sigma=1e-2, accel_bias_tau_s=200.0,
+    baro_bias_sigma=5.0, baro_bias_tau_s=500.0,
+    gyro_scale_sigma=1e-3, gyro_scale_tau_s=1000.0,
+    accel_scale_sigma=1e-3, accel_scale_tau_s=800.0,
+)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def segment() -> tuple[ImuIncrements, object]:
+    """2 s of a climbing, accelerating 0.12 rad/s turn at 60 deg N, ideal IMU at 100 Hz."""
+    flight = Flight(
+        duration_s=30.0, turns=[(5.0, 25.0, 0.12)], climbs=[(5.0, 25.0, 4.0)],
+        speed_wave_mps=3.0, lat0_rad=math.radians(60.0),
+    )  # fmt: skip
+    traj = flight.truth()
+    edges = 12.0 + np.arange(0, 201) / 100.0
+    return ideal_increments(traj, edges), traj(edges[:1])
+
+
+def start_state(kin0: object, dx: np.ndarray) -> strapdown.InsState:
+    """True start state plus navigation error ``dx[:9]`` (estimated minus true)."""
+    lat, lon, h = kin0.lla[0]  # type: ignore[attr-defined]
+    t = earth.local_terms(lat, h)
+    return strapdown.InsState.from_arrays(
+        lat + dx[0] / t.rho_n_m,
+        lon + dx[1] / (t.rho_e_m * t.cos_lat),
+        h - dx[2],
+        kin0.v_ned_mps[0] + dx[3:6],  # type: ignore[attr-defined]
+        quat_multiply(rotvec_to_quat(dx[6:9]), kin0.q_nb[0]),  # type: ignore[attr-defined]
+    )
+
+
+def perturbed_run(
+    layout: StateLayout, inc: ImuIncrements, kin0: object, dx: np.ndarray
+) -> strapdown.InsState:
+    """Run the INS from the true start plus error ``dx`` (estimated minus true); sensor-error
+    estimates wrong by ``dx`` decay like the Gauss-Markov model says."""
+    state = start_state(kin0, dx)
+    prev = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    for k, dt in enumerate(inc.dt_s.tolist()):
+        tk = (k + 0.5) * dt
+        dv = inc.dv_b[k] - dx[layout.ba] * math.exp(-tk / NOISE.accel_bias_tau_s) * dt
+        th = inc.dtheta_b[k] - dx[layout.bg] * math.exp(-tk / NOISE.gyro_bias_tau_s) * dt
+        if layout.sa is not None and layout.sg is not None:
+            dv = dv / (1.0 + dx[layout.sa] * math.exp(-tk / NOISE.accel_scale_tau_s))
+            th = th / (1.0 + dx[layout.sg] * math.exp(-tk / NOISE.gyro_scale_tau_s))
+        th_t, dv_t = tuple(th.tolist()), tuple(dv.tolist())
+        state = strapdown.update(state, th_t, dv_t, *prev, dt)
+        prev = (th_t, dv_t)
+    return state
+
+
+def nav_error(a: strapdown.InsState, b: strapdown.InsState) -> np.ndarray:
+    e = np.zeros(9)
+    e[0:3] = earth.ned_offset_m(
+        a.lat_rad, a.lon_rad, a.alt_msl_m, b.lat_rad, b.lon_rad, b.alt_msl_m
+    )
+    e[3:6] = np.subtract(a.v_ned_mps, b.v_ned_mps)
+    e[6:9] = dcm_to_rotvec(quat_to_dcm(a.q_nb) @ quat_to_dcm(b.q_nb).T)
+    return e
+
+
+def analytic_transition(model: ErrorModel, inc: ImuIncrements, kin0: object) -> np.ndarray:
+    """Product of per-step transitions along the nominal INS path."""
+    lay = model.layout
+    states = [start_state(kin0, np.zeros(lay.n))]
+    prev = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    phi = np.eye(lay.n)
+    for k, dt in enumerate(inc.dt_s.tolist()):
+        th, dv = tuple(inc.dtheta_b[k].tolist()), tuple(inc.dv_b[k].tolist())
+        s0 = states[-1]
+        s1 = strapdown.update(s0, th, dv, *prev, dt)
+        prev = (th, dv)
+        states.append(s1)
+        t = earth.local_terms(s1.lat_rad, s1.alt_msl_m)
+        vn, ve, vd = s1.v_ned_mps
+        tan = t.sin_lat / t.cos_lat
+        cx = 2.0 * earth.RATE * t.cos_lat + ve / t.rho_e_m
+        cy = -vn / t.rho_n_m
+        cz = -2.0 * earth.RATE * t.sin_lat - ve * tan / t.rho_e_m
+        v0 = s0.v_ned_mps
+        f_n = (
+            (vn - v0[0]) / dt + (cy * vd - cz * ve),
+            (ve - v0[1]) / dt + (cz * vn - cx * vd),
+            (vd - v0[2]) / dt - t.gravity_mps2 + (cx * ve - cy * vn),
+        )
+        f = model.continuous_matrix(
+            s1.lat_rad, s1.alt_msl_m, s1.v_ned_mps, strapdown.dcm_from_quat(s1.q_nb), f_n,
+            tuple((inc.dv_b[k] / dt).tolist()), tuple((inc.dtheta_b[k] / dt).tolist()),
+        )  # fmt: skip
+        phi = model.transition_matrix(f, dt) @ phi
+    return phi
+
+
+# perturbation sizes: small enough to stay linear, large enough to beat rounding
+EPS = [10.0] * 3 + [0.1] * 3 + [1e-3] * 3 + [1e-2] * 3 + [1e-4] * 3 + [1.0] + [1e-3] * 6
+
+
+@pytest.mark.parametrize("layout", [INS16, INS22], ids=lambda lay: lay.name)
+def test_F_matches_numerical_propagation_of_a_perturbed_ins(layout: StateLayout, segment) -> None:
+    inc, kin0 = segment
+    model = ErrorModel(layout, NOISE)
+    phi = analytic_transition(model, inc, kin0)
+    nominal = perturbed_run(layout, inc, kin0, np.zeros(layout.n))
+    eye = np.eye(layout.n)
+    for j in range(layout.n):
+        dx = np.zeros(layout.n)
+        dx[j] = EPS[j]
+        # central difference of the navigation error after 2 s
+        num = (
+            nav_error(perturbed_run(layout, inc, kin0, dx), nominal)
+            - nav_error(perturbed_run(layout, inc, kin0, -dx), nominal)
+        ) / (2.0 * EPS[j])
+        col_scale = np.abs(phi[:9, j]).max()
+        for blk in (slice(0, 3), slice(3, 6), slice(6, 9)):
+            # compare Phi - I per block so that small couplings (transport rate, gravity
+            # gradient, Earth rate) are checked against their own size, not against the 1s
+            an = phi[blk, j] - eye[blk, j]
+            nm = num[blk] - eye[blk, j]
+            tol = 1e-2 * np.abs(an).max() + 1e-9 * col_scale
+            np.testing.assert_allclose(
+                nm, an, rtol=0.0, atol=tol, err_msg=f"{layout.labels[j]} -> rows {blk}"
+            )
+    # Gauss-Markov sensor-error states decay with their correlation times
+    tau = {layout.BA: NOISE.accel_bias_tau_s, layout.BG: NOISE.gyro_bias_tau_s,
+           layout.BARO: NOISE.baro_bias_tau_s}  # fmt: skip
+    for i, t in tau.items():
+        assert phi[i, i] == pytest.approx(math.exp(-2.0 / t), rel=1e-6)
+
+
+def test_layouts_are_contiguous_and_named() -> None:
+    for layout in LAYOUTS.values():
+        covered = []
+        for name in ("pos", "vel", "att", "ba", "bg", "baro", "sa", "sg"):
+            sl = getattr(layout, name)
+            if sl is not None:
+                covered += list(range(layout.n))[sl]
+        assert sorted(covered) == list(range(layout.n))
+        assert len(layout.labels) == layout.n
+    assert (INS16.POS, INS16.VEL, INS16.ATT, INS16.BA, INS16.BG, INS16.BARO) == (0, 3, 6, 9, 12, 15)
+    assert INS16.sa is None and INS22.sa == slice(16, 19) and INS22.sg == slice(19, 22)
+
+
+def test_first_order_transition_and_process_noise() -> None:
+    model = ErrorModel(INS22, NOISE)
+    args = (0.9, 800.0, (40.0, -10.0, 2.0), (1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0), (0.5, -1.0, -9.7),
+            0.01, (0.3, 0.2, -9.8), (0.01, 0.02, 0.1))  # fmt: skip
+    f = model.continuous_matrix(*args[:5], *args[6:])
+    np.testing.assert_allclose(
+        model.first_order_transition(*args), np.eye(22) + 0.01 * f, atol=1e-15
+    )
+    q = np.diag(model.process_noise(0.01))
+    lay = INS22
+    np.testing.assert_allclose(q[lay.vel], NOISE.accel_noise**2 * 0.01)
+    np.testing.assert_allclose(q[lay.att], NOISE.gyro_noise**2 * 0.01)
+    gm = NOISE.gyro_bias_sigma**2 * (1.0 - math.exp(-0.02 / NOISE.gyro_bias_tau_s))
+    np.testing.assert_allclose(q[lay.bg], gm)
+    assert q[lay.POS] == 0.0
+
+
+@pytest.mark.parametrize("lat_deg", [0.0, 47.0, -75.0])
+def test_position_and_velocity_couplings_match_the_continuous_equations(lat_deg: float) -> None:
+    """F_vr, F_vv, F_phi,r, F_phi,v against finite differences of v' = f + g - (2 w_ie + w_en) × v
+    and of -omega_in (the attitude error picks up -d omega_in)."""
+    lat, h = math.radians(lat_deg), 1200.0
+    v = np.array([45.0, -30.0, 3.0])
+    f_n = (0.5, -1.0, -9.7)
+    model = ErrorModel(INS16, NOISE)
+    c_nb = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+    F = model.continuous_matrix(lat, h, tuple(v), c_nb, f_n)
+    lay = INS16
+
+    def rates(dr: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r_m, _ = earth.principal_radii(lat)
+        la, hh, vv = lat + dr[0] / (r_m + h), h - dr[2], v + dv
+        w_ie = earth.earth_rate_n(la)
+        w_en = earth.transport_rate_n(la, hh, vv)
+        g_n = np.array([0.0, 0.0, earth.gravity(la, hh)])
+        v_dot = np.array(f_n) + g_n - np.cross(2 * w_ie + w_en, vv)
+        return v_dot, -(w_ie + w_en)
+
+    for blk, eps in ((lay.pos, 1.0), (lay.vel, 1e-3)):
+        for i in range(3):
+            d = np.zeros(3)
+            d[i] = eps
+            args_p = (d, np.zeros(3)) if blk == lay.pos else (np.zeros(3), d)
+            args_m = (-d, np.zeros(3)) if blk == lay.pos else (np.zeros(3), -d)
+            vp, wp = rates(*args_p)
+            vm, wm = rates(*args_m)
+            col = blk.start + i
+            for rows, num in ((lay.vel, (vp - vm) / (2 * eps)), (lay.att, (wp - wm) / (2 * eps))):
+                an = F[rows, col]
+                scale = max(np.abs(F[rows, blk]).max(), 1e-15)
+                np.testing.assert_allclose(
+                    an, num, rtol=0.0, atol=1e-2 * scale, err_msg=f"rows {rows} col {col}"
+                )

@@ -1,0 +1,498 @@
+"""fusion.filter.NavFilter: statistical consistency and GIVEN/WHEN/THEN scenarios on synthetic
+flights whose sensor errors follow the filter's own model exactly (tests/helpers/nav_synth.py)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import typing
+from collections.abc import Iterable
+
+import numpy as np
+import pytest
+from helpers.nav_synth import (
+    FIELD_N_T,
+    Flight,
+    Prepared,
+    Scenario,
+    SensorErrors,
+    make_scenario,
+    prepare,
+    run_nees,
+)
+from scipy.stats import chi2
+
+import fusion.samples as proto
+import sim.samples as simsamples
+from fusion import earth
+from fusion.bridge import BridgeAction, BridgeEpoch, InsError, OutputCorrection, PseudoGnss
+from fusion.config import FilterConfig, GnssConfig, InitConfig, MagConfig, RatesConfig
+from fusion.filter import NavEstimate, NavFilter
+from fusion.rotations import quat_multiply, rotvec_to_quat
+from sim.samples import BaroSample, GnssFix, ImuSample, MagSample
+
+CFG = FilterConfig()
+ERRORS = SensorErrors.from_config(CFG)
+
+
+@pytest.fixture(scope="module")
+def racetrack() -> Prepared:
+    """45 s: straight, a 120 deg right turn, a climb, a left turn; 10 deg of crab (wind)."""
+    return prepare(
+        Flight(
+            duration_s=45.0,
+            crab_rad=math.radians(10.0),
+            turns=[(12.0, 24.0, 0.2), (33.0, 43.0, -0.2)],
+            climbs=[(25.0, 33.0, 3.0)],
+        )
+    )
+
+
+@pytest.fixture(scope="module")
+def straight() -> Prepared:
+    """30 s straight and level with 10 deg of crab: heading unobservable from GNSS alone."""
+    return prepare(Flight(duration_s=30.0, crab_rad=math.radians(10.0)))
+
+
+def run(nav: NavFilter, samples: Iterable[object]) -> list[NavEstimate]:
+    out: list[NavEstimate] = []
+    for s in samples:
+        out.extend(nav.step(s))
+    return out
+
+
+def errors_at(sc: Scenario, est: NavEstimate) -> tuple[np.ndarray, np.ndarray, float]:
+    """Position (NED m) and velocity errors and the yaw error (rad) of an estimate."""
+    kin = sc.traj(np.array([est.time_us * 1e-6]))
+    pos = np.array(earth.ned_offset_m(est.lat_rad, est.lon_rad, est.alt_msl_m, *kin.lla[0]))
+    vel = est.v_ned_mps - kin.v_ned_mps[0]
+    from fusion.rotations import quat_to_euler
+
+    yaw_true = quat_to_euler(kin.q_nb[0])[2]
+    dyaw = (est.euler_rad[2] - yaw_true + math.pi) % (2 * math.pi) - math.pi
+    return pos, vel, float(dyaw)
+
+
+# --------------------------------------------------------------------------- consistency
+@pytest.mark.slow
+def test_filter_is_consistent_nees_over_20_seeds() -> None:
+    # GIVEN 20 runs of 35 s of turns, climbs and speed changes with IMU noise and Gauss-Markov
+    # biases drawn from the filter's own model, GNSS 5 Hz, baro 25 Hz, IMU 100 Hz, and initial
+    # errors drawn from the initial covariance
+    cfg = FilterConfig(
+        init=InitConfig(pos_sigma_m=2.0, vel_sigma_mps=0.2, roll_pitch_sigma_rad=math.radians(1.0),
+                        yaw_sigma_rad=math.radians(3.0)),
+        rates=RatesConfig(covariance_rate_hz=None),
+    )  # fmt: skip
+    duration = 35.0
+    prep = prepare(
+        Flight(duration_s=duration, turns=[(5.0, 15.0, 0.1), (20.0, 30.0, -0.1)],
+               climbs=[(3.0, 14.0, 3.0), (19.0, 30.0, -3.0)], speed_wave_mps=2.0),
+    )  # fmt: skip
+    errors = SensorErrors.from_config(cfg)
+    evals = np.arange(2.0, duration - 0.5, 1.0)
+    n_seeds = 20
+    all_e, all_p = [], []
+    for seed in range(n_seeds):
+        rng = np.random.default_rng(seed)
+        sc = make_scenario(prep, rng, errors)
+        nav = NavFilter(cfg)
+        lay = nav.layout
+        p0 = np.diag(nav.default_initial_variances())
+        x0 = rng.multivariate_normal(np.zeros(lay.n), p0)
+        kin = sc.traj(np.array([0.0]))
+        lat, lon, h = kin.lla[0]
+        t = earth.local_terms(lat, h)
+        ba, bg, _ = sc.true_bias_at(0.0)
+        nav.initialize(
+            0, lat + x0[0] / t.rho_n_m, lon + x0[1] / (t.rho_e_m * t.cos_lat), h - x0[2],
+            kin.v_ned_mps[0] + x0[lay.vel], quat_multiply(rotvec_to_quat(x0[lay.att]), kin.q_nb[0]),
+            covariance=p0, accel_bias_b=ba + x0[lay.ba], gyro_bias_b=bg + x0[lay.bg],
+        )  # fmt: skip
+        e, p = run_nees(nav, sc, evals)
+        all_e.append(e)
+        all_p.append(p)
+    err = np.array(all_e)  # (seeds, epochs, n)
+    cov = np.array(all_p)
+    n = err.shape[-1]
+    nees = np.einsum("sei,seij,sej->se", err, np.linalg.inv(cov), err)
+    avg = nees.mean(axis=0)
+    # WHEN the NEES is averaged over the seeds
+    lo, hi = chi2.ppf([0.025, 0.975], n * n_seeds) / n_seeds
+    # THEN its time average lies in the chi-square 95 % band (measured 15.6 for n = 16 in
+    # [13.6, 18.6]) and so do nearly all epochs
+    assert lo < avg.mean() < hi, f"ANEES {avg.mean():.2f} outside [{lo:.2f}, {hi:.2f}]"
+    assert np.mean((avg > lo) & (avg < hi)) > 0.85
+    # AND rms(error / sigma) is near 1 for every state group
+    z = err / np.sqrt(np.einsum("seii->sei", cov))
+    lay = NavFilter(cfg).layout
+    for name in ("pos", "vel", "att", "ba", "bg", "baro"):
+        rms = np.sqrt(np.mean(z[:, :, getattr(lay, name)] ** 2))
+        assert 0.6 < rms < 1.5, f"{name}: rms(err/sigma) = {rms:.2f}"
+
+
+# --------------------------------------------------------------------------- alignment
+def test_in_flight_alignment_converges_from_a_10_deg_heading_error_in_turns(
+    racetrack: Prepared,
+) -> None:
+    # GIVEN a crabbing aircraft (track 10 deg off heading) and no magnetometer
+    sc = make_scenario(racetrack, np.random.default_rng(1), ERRORS)
+    nav = NavFilter(CFG)
+    # WHEN the filter aligns in flight from GNSS and flies the racetrack
+    est = run(nav, sc.samples)
+    # THEN it started with the track heading (10 deg off) and a sigma covering it
+    assert nav.alignment_method == "in_flight"
+    first = est[0]
+    assert abs(math.degrees(errors_at(sc, first)[2])) == pytest.approx(10.0, abs=1.5)
+    assert math.degrees(math.sqrt(first.P_diag[8])) > 10.0
+    # AND the first turn made heading observable: < 0.5 deg after it and to the end
+    after_turn = [e for e in est if e.time_us >= 26_000_000]
+    yaw_err = np.degrees([abs(errors_at(sc, e)[2]) for e in after_turn])
+    assert yaw_err.max() < 0.5
+    assert math.degrees(math.sqrt(after_turn[-1].P_diag[8])) < 0.5
+    assert all(e.mode == "gnss" for e in est)
+
+
+def test_magnetometer_makes_heading_observable_in_straight_flight(straight: Prepared) -> None:
+    # GIVEN straight flight, 10 deg of crab, a magnetometer and the local reference field
+    sc = make_scenario(straight, np.random.default_rng(2), ERRORS, mag_rate_hz=10.0)
+    cfg = CFG.model_copy(update={"mag": MagConfig(reference_field_n_tesla=tuple(FIELD_N_T))})
+    nav = NavFilter(cfg)
+    # WHEN it flies 30 s
+    est = run(nav, sc.samples)
+    # THEN heading converges to well under a degree within 15 s
+    late = [e for e in est if e.time_us >= 15_000_000]
+    assert max(abs(math.degrees(errors_at(sc, e)[2])) for e in late) < 1.0
+    assert nav.health.mag_fused > 100 and nav.health.mag_rejected < 5
+    assert math.isfinite(late[-1].test_ratios.mag_hdg) and late[-1].test_ratios.mag_hdg < 1.0
+
+
+def test_learned_magnetometer_reference_after_the_heading_converged(racetrack: Prepared) -> None:
+    # GIVEN no configured reference field: it is learned once a turn made heading observable
+    sc = make_scenario(racetrack, np.random.default_rng(3), ERRORS, mag_rate_hz=10.0)
+    nav = NavFilter(CFG)
+    run(nav, sc.samples)
+    assert nav._mag_ctl.learned
+    ref = nav._mag_ctl.reference_n
+    assert ref is not None
+    decl = math.degrees(math.atan2(ref[1], ref[0]) - math.atan2(FIELD_N_T[1], FIELD_N_T[0]))
+    assert abs(decl) < 1.0
+    assert nav.health.mag_fused > 50
+
+
+def test_static_alignment_levelling_and_mag_heading() -> None:
+    # GIVEN a vehicle at rest (pitch 3 deg, heading 57 deg), a magnetometer and a 3-D fix
+    prep = prepare(Flight(duration_s=8.0, speed_mps=0.0, heading0_rad=1.0, aoa_rad=0.05))
+    sc = make_scenario(prep, np.random.default_rng(4), ERRORS, mag_rate_hz=10.0)
+    cfg = FilterConfig(
+        init=InitConfig(mode="static"), mag=MagConfig(reference_field_n_tesla=tuple(FIELD_N_T))
+    )
+    nav = NavFilter(cfg)
+    # WHEN the static alignment window (2 s) has passed
+    est = run(nav, sc.samples)
+    # THEN roll/pitch come from levelling and heading from the magnetometer
+    assert nav.alignment_method == "static_mag"
+    assert est[0].time_us == pytest.approx(2_010_000, abs=20_000)
+    kin = sc.traj(np.array([est[0].time_us * 1e-6]))
+    from fusion.rotations import quat_to_euler
+
+    d = np.degrees(est[0].euler_rad - quat_to_euler(kin.q_nb[0]))
+    assert abs(d[0]) < 0.2 and abs(d[1]) < 0.2 and abs(d[2]) < 2.0
+    assert np.linalg.norm(errors_at(sc, est[-1])[0]) < 3.0
+
+
+def test_static_gyrocompassing_with_a_perfect_imu() -> None:
+    prep = prepare(Flight(duration_s=4.0, speed_mps=0.0, heading0_rad=-2.0, aoa_rad=0.0))
+    sc = make_scenario(prep, np.random.default_rng(5), None)
+    nav = NavFilter(FilterConfig(init=InitConfig(mode="static")))
+    est = run(nav, sc.samples)
+    assert nav.alignment_method == "static_gyrocompass"
+    assert abs(math.degrees(errors_at(sc, est[0])[2])) < 0.1
+
+
+# --------------------------------------------------------------------------- GNSS
+def test_a_5_sigma_gnss_jump_is_rejected_where_it_appears(racetrack: Prepared) -> None:
+    # GIVEN a fix at t = 30 s displaced 5 sigma (7.5 m) north of the truth
+    sc = make_scenario(
+        racetrack, np.random.default_rng(6), ERRORS, gnss_glitches={149: np.array([7.5, 0, 0])}
+    )
+    nav = NavFilter(CFG)
+    glitch = next(s for s in sc.samples if isinstance(s, GnssFix) and s.time_us == 30_000_000)
+    before = None
+    for s in sc.samples:
+        if s is glitch:
+            before = nav.health
+        nav.step(s)
+        if s is glitch:
+            break
+    assert before is not None
+    # WHEN it is processed
+    after = nav.health
+    est = nav.estimate()
+    assert est is not None
+    # THEN it is rejected in that very update, with a position test ratio > 1
+    assert est.test_ratios.gnss_pos > 1.0
+    assert after.gnss_rejected == before.gnss_rejected + 1
+    assert np.linalg.norm(errors_at(sc, est)[0]) < 1.5
+    # AND the next fixes are fused again
+    rest = run(nav, sc.samples[sc.samples.index(glitch) + 1 :])
+    assert rest[-1].test_ratios.gnss_pos < 1.0
+    assert nav.health.gnss_resets == 0
+
+
+def test_gnss_latency_is_compensated(racetrack: Prepared) -> None:
+    # GIVEN fixes delivered 200 ms after their time of validity (8 m of travel at 40 m/s)
+    sc = make_scenario(racetrack, np.random.default_rng(7), ERRORS, gnss_latency_s=0.2)
+    nav = NavFilter(CFG)
+    # WHEN the filter fuses them against its buffered past states
+    est = run(nav, sc.samples)
+    # THEN the position has no along-track lag
+    pos = np.array([errors_at(sc, e)[0] for e in est if e.time_us > 10_000_000])
+    assert np.sqrt(np.mean(np.sum(pos[:, :2] ** 2, axis=1))) < 1.0
+    assert nav.health.gnss_too_old == 0 and nav.health.gnss_fused > 200
+
+
+def test_lever_arm(racetrack: Prepared) -> None:
+    arm = (0.5, 0.3, -0.8)
+    sc = make_scenario(racetrack, np.random.default_rng(8), ERRORS, lever_arm_b_m=arm)
+    nav = NavFilter(CFG.model_copy(update={"gnss": GnssConfig(lever_arm_b_m=arm)}))
+    est = run(nav, sc.samples)
+    pos = np.array([errors_at(sc, e)[0] for e in est if e.time_us > 26_000_000])
+    assert np.abs(pos).max() < 1.5
+    assert nav.health.gnss_rejected < 10
+
+
+def test_outage_free_inertial_and_reacquisition(racetrack: Prepared) -> None:
+    # GIVEN no GNSS between 20 and 35 s
+    sc = make_scenario(racetrack, np.random.default_rng(9), ERRORS, gnss_outages=[(20.0, 35.0)])
+    nav = NavFilter(CFG)
+    est = run(nav, sc.samples)
+    modes = {round(e.time_us * 1e-6, 2): e.mode for e in est}
+    # THEN gnss until 1 s after the last fix, free-inertial during, gnss again after 3 good fixes
+    assert modes[20.5] == "gnss"
+    assert modes[21.0] == "free-inertial" and modes[34.0] == "free-inertial"
+    assert modes[35.2] == "free-inertial" and modes[35.5] == "gnss"
+    assert nav.health.gnss_outages == 1
+    mid = next(e for e in est if e.time_us == 30_000_000)
+    assert mid.time_since_gnss_s == pytest.approx(10.2, abs=0.05)
+    before = next(e for e in est if e.time_us == 19_000_000)
+    assert mid.P_diag[0] > 4.0 * before.P_diag[0]  # sigma at least doubled during the outage
+    assert np.linalg.norm(errors_at(sc, mid)[0]) < 30.0
+    assert np.linalg.norm(errors_at(sc, est[-1])[0]) < 2.0
+
+
+def test_reset_to_gnss_when_the_ins_drifted_beyond_the_gate(racetrack: Prepared) -> None:
+    # GIVEN an outage after which the GNSS solution is 60 m away (e.g. a new datum)
+    jump = {k: np.array([60.0, -40.0, 0.0]) for k in range(150, 225)}
+    sc = make_scenario(
+        racetrack,
+        np.random.default_rng(10),
+        ERRORS,
+        gnss_outages=[(20.0, 30.0)],
+        gnss_glitches=jump,
+    )
+    nav = NavFilter(CFG)
+    est = run(nav, sc.samples)
+    # THEN the first re-acquired fix resets the position instead of being rejected forever
+    assert nav.health.gnss_resets >= 1
+    assert est[-1].mode == "gnss"
+    pos = errors_at(sc, est[-1])[0]
+    np.testing.assert_allclose(pos[:2], [60.0, -40.0], atol=3.0)
+
+
+# --------------------------------------------------------------------------- bad input
+def test_bad_input_is_counted_never_integrated(racetrack: Prepared) -> None:
+    sc = make_scenario(racetrack, np.random.default_rng(11), ERRORS, mag_rate_hz=5.0)
+    samples: list[object] = []
+    nan3 = np.array([math.nan, 0.0, 0.0])
+    for s in sc.samples:
+        if isinstance(s, ImuSample) and 6_000_000 <= s.time_us < 7_500_000:
+            continue  # a 1.5 s hole in straight flight: time jump
+        samples.append(s)
+        if isinstance(s, ImuSample):
+            if s.time_us == 10_000_000:
+                samples.append(s)  # duplicate
+            if s.time_us == 11_000_000:
+                samples.append(dataclasses.replace(s, time_us=s.time_us - 30_000))  # backwards
+            if s.time_us in (12_000_000, 12_010_000):
+                samples[-1] = dataclasses.replace(s, specific_force_b_mps2=nan3)
+            if s.time_us == 13_000_000:
+                samples[-1] = dataclasses.replace(s, angular_rate_b_rps=np.array([0.0, 1e3, 0.0]))
+            if s.time_us == 14_000_000:
+                samples[-1] = dataclasses.replace(s, dt_s=math.inf)
+        if isinstance(s, GnssFix) and s.time_us == 16_000_000:
+            samples[-1] = dataclasses.replace(s, fix_type=2)
+        if isinstance(s, GnssFix) and s.time_us == 17_000_000:
+            samples[-1] = dataclasses.replace(s, lat_rad=math.nan)
+        if isinstance(s, BaroSample) and s.time_us == 18_000_000:
+            samples[-1] = dataclasses.replace(s, pressure_pa=math.nan)
+        if isinstance(s, BaroSample) and s.time_us == 18_040_000:
+            samples[-1] = dataclasses.replace(s, time_us=math.nan)  # type: ignore[arg-type]
+        if isinstance(s, GnssFix) and s.time_us == 20_000_000:
+            samples[-1] = dataclasses.replace(s, time_us=s.time_us + 3_600_000_000)  # +1 h
+        if isinstance(s, MagSample) and s.time_us == 19_000_000:
+            samples[-1] = dataclasses.replace(s, field_b_tesla=np.array([math.inf, 0.0, 0.0]))
+    nav = NavFilter(CFG)
+    est = run(nav, samples)
+    h = nav.health
+    assert h.imu_nan == 3 and h.imu_out_of_range == 1
+    assert h.duplicates == 1 and h.time_backwards == 1 and h.time_jump == 2
+    assert h.gnss_no_fix == 1 and h.gnss_invalid == 1
+    assert h.baro_invalid == 2 and h.mag_invalid == 1
+    assert h.imu_ok == len([s for s in samples if isinstance(s, ImuSample)]) - 6
+    for e in est:
+        assert np.all(np.isfinite(e.v_ned_mps)) and np.all(np.isfinite(e.P_diag))
+    # the held samples and the coasted gap did not spoil the solution
+    assert max(np.linalg.norm(errors_at(sc, e)[0]) for e in est if e.time_us > 3_000_000) < 5.0
+    assert h.gnss_resets == 0
+    # the fix stamped an hour ahead did not block the GNSS stream
+    assert est[-1].mode == "gnss" and h.gnss_fused > 180
+
+
+def test_health_counters_cover_every_field() -> None:
+    from fusion.filter import _HEALTH_FIELDS, _Counters
+
+    assert set(_Counters.__annotations__) == set(_HEALTH_FIELDS)
+    assert NavFilter().health == type(NavFilter().health)()
+
+
+def test_unknown_sample_type_raises_and_nothing_before_alignment() -> None:
+    nav = NavFilter()
+    assert nav.estimate() is None and nav.mode == "initializing"
+    with pytest.raises(TypeError, match="not an IMU"):
+        nav.step(object())  # type: ignore[arg-type]
+    assert nav.step(ImuSample(1000, 0.01, np.zeros(3), np.zeros(3))) == []
+
+
+# --------------------------------------------------------------------------- rates, layouts
+def test_covariance_at_100_hz_with_imu_at_200_hz_matches_every_sample() -> None:
+    prep = prepare(Flight(duration_s=20.0, turns=[(8.0, 18.0, 0.15)]), imu_rate_hz=200.0)
+    sc = make_scenario(prep, np.random.default_rng(12), ERRORS)
+    every = NavFilter(CFG.model_copy(update={"rates": RatesConfig(covariance_rate_hz=None)}))
+    accum = NavFilter(CFG)  # 100 Hz
+    e1, e2 = run(every, sc.samples), run(accum, sc.samples)
+    assert len(e1) == len(e2) == pytest.approx(50 * 19, abs=15)  # 50 Hz from the alignment
+    np.testing.assert_allclose(e2[-1].P_diag, e1[-1].P_diag, rtol=0.05)
+    p1 = np.array([errors_at(sc, e)[0] for e in e1])
+    p2 = np.array([errors_at(sc, e)[0] for e in e2])
+    assert np.abs(p1 - p2).max() < 0.1
+
+
+def test_output_rate_and_estimate_fields(racetrack: Prepared) -> None:
+    sc = make_scenario(racetrack, np.random.default_rng(13), ERRORS)
+    nav = NavFilter(CFG.model_copy(update={"rates": RatesConfig(output_rate_hz=10.0)}))
+    est = run(nav, sc.samples)
+    assert len(est) == pytest.approx(10 * 44, abs=12)
+    assert np.all(np.diff([e.time_us for e in est]) >= 100_000 - 10_000)
+    e = est[-1]
+    assert e.P_diag.shape == (16,) and e.state_layout == "ins16"
+    assert e.q_nb.shape == (4,) and abs(np.linalg.norm(e.q_nb) - 1.0) < 1e-12
+    with pytest.raises(ValueError):
+        e.v_ned_mps[0] = 1.0  # read-only
+    assert e == est[-1] and e.health.imu_ok > 0
+
+
+def test_scale_factor_layout_runs(racetrack: Prepared) -> None:
+    sc = make_scenario(racetrack, np.random.default_rng(14), ERRORS)
+    nav = NavFilter(FilterConfig(state_layout="ins22"))
+    est = run(nav, sc.samples)
+    assert est[-1].P_diag.shape == (22,) and est[-1].state_layout == "ins22"
+    assert np.linalg.norm(errors_at(sc, est[-1])[0]) < 1.5
+    assert abs(math.degrees(errors_at(sc, est[-1])[2])) < 0.5
+
+
+# --------------------------------------------------------------------------- bridging hooks
+class RecordingBridge:
+    """Learns nothing; records the calls and returns a fixed action during outages."""
+
+    name = "recording"
+
+    def __init__(self, action: typing.Callable[[BridgeEpoch], BridgeAction | None]) -> None:
+        self.action = action
+        self.pairs: list[tuple[BridgeEpoch, InsError]] = []
+        self.outage_calls = 0
+        self.restored = 0
+
+    def on_gnss(self, epoch: BridgeEpoch, error: InsError) -> None:
+        self.pairs.append((epoch, error))
+
+    def on_outage(self, epoch: BridgeEpoch) -> BridgeAction | None:
+        self.outage_calls += 1
+        return self.action(epoch)
+
+    def on_gnss_restored(self, epoch: BridgeEpoch) -> None:
+        self.restored += 1
+
+
+def test_bridge_output_correction(racetrack: Prepared) -> None:
+    sc = make_scenario(racetrack, np.random.default_rng(15), ERRORS, gnss_outages=[(20.0, 30.0)])
+    corr = OutputCorrection((3.0, -2.0, 1.0), (0.1, 0.0, 0.0))
+    bridge = RecordingBridge(lambda epoch: corr)
+    nav = NavFilter(CFG, bridge=bridge)
+    est = []
+    shifts = []
+    for s in sc.samples:
+        for e in nav.step(s):
+            est.append(e)
+            ins = nav.ins_state
+            assert ins is not None
+            shifts.append(earth.ned_offset_m(e.lat_rad, e.lon_rad, e.alt_msl_m, ins.lat_rad,
+                                             ins.lon_rad, ins.alt_msl_m))  # fmt: skip
+    # training pairs while GNSS is good: features at the fix epoch and INS - GNSS
+    assert len(bridge.pairs) == nav.health.gnss_fused + nav.health.gnss_rejected
+    epoch, error = bridge.pairs[10]
+    assert epoch.time_since_gnss_s < 0.3 and np.linalg.norm(error.pos_ned_m) < 10.0
+    # during the outage: consulted at 5 Hz, output shifted by -correction, mode "bridging"
+    assert bridge.outage_calls == pytest.approx(5 * 9.8, abs=3)
+    during = [i for i, e in enumerate(est) if 22_000_000 <= e.time_us <= 29_000_000]
+    assert all(est[i].mode == "bridging" for i in during)
+    np.testing.assert_allclose(shifts[during[0]], [-3.0, 2.0, -1.0], atol=1e-6)
+    assert bridge.restored == 1 and est[-1].mode == "gnss"
+    np.testing.assert_allclose(shifts[-1], 0.0, atol=1e-9)
+
+
+def test_bridge_pseudo_gnss_keeps_the_filter_updating(racetrack: Prepared) -> None:
+    sc = make_scenario(racetrack, np.random.default_rng(16), ERRORS, gnss_outages=[(20.0, 40.0)])
+
+    def oracle(epoch: BridgeEpoch) -> BridgeAction:
+        kin = sc.traj(np.array([epoch.time_us * 1e-6]))
+        lat, lon, h = kin.lla[0]
+        return PseudoGnss(lat, lon, h, tuple(kin.v_ned_mps[0]), 3.0, 0.3)
+
+    free = NavFilter(CFG)
+    bridged = NavFilter(CFG, bridge=RecordingBridge(oracle))
+    e_free, e_br = run(free, sc.samples), run(bridged, sc.samples)
+    at = next(i for i, e in enumerate(e_free) if e.time_us == 39_000_000)
+    err_free = np.linalg.norm(errors_at(sc, e_free[at])[0])
+    err_br = np.linalg.norm(errors_at(sc, e_br[at])[0])
+    assert e_br[at].mode == "bridging" and bridged.health.bridge_updates > 50
+    assert err_br < 3.0 and err_br < err_free
+
+
+# --------------------------------------------------------------------------- interfaces
+@pytest.mark.parametrize(
+    "protocol, dataclass_",
+    [
+        (proto.ImuSample, simsamples.ImuSample),
+        (proto.GnssFix, simsamples.GnssFix),
+        (proto.BaroSample, simsamples.BaroSample),
+        (proto.MagSample, simsamples.MagSample),
+    ],
+)
+def test_sim_samples_satisfy_the_fusion_protocols(protocol: type, dataclass_: type) -> None:
+    wanted = {n for n in vars(protocol) if not n.startswith("_")}
+    have = {f.name for f in dataclasses.fields(dataclass_)}
+    assert wanted <= have, wanted - have
+
+
+def test_config_rejects_unknown_keys_and_bad_values() -> None:
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError, match="gps"):
+        FilterConfig.model_validate({"gps": {}})
+    with pytest.raises(ValidationError, match="gate_probability"):
+        GnssConfig(gate_probability=1.5)
+    with pytest.raises(ValidationError, match="gyro_noise_density_rps_rthz"):
+        FilterConfig.model_validate({"imu": {"gyro_noise_density_rps_rthz": -1.0}})
+    with pytest.raises(ValueError, match="covariance"):
+        NavFilter().initialize(0, 0.8, 0.1, 100.0, np.zeros(3), [1, 0, 0, 0], covariance=np.eye(3))
