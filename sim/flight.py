@@ -1,0 +1,686 @@
+"""JSBSim flight adapter: loads an aircraft, starts it trimmed in the air, flies a plan, and
+returns truth in SI.
+
+This is the only module that knows JSBSim's units (feet, slugs, lbf, psf, Rankine); every
+property is converted once, here.
+
+What the truth fields are, and why (checked against JSBSim 1.3.3's source and by the
+kinematic-consistency test in ``tests/test_flight.py``):
+
+* Position: ``position/lat-geod-rad``, ``position/long-gc-rad`` (WGS-84 geodetic) and
+  ``position/h-sl-meters``. JSBSim's "sea level" *is* the WGS-84 ellipsoid (it has no geoid),
+  so ``alt_msl_m`` is the ellipsoidal height; hilnav treats it as MSL.
+* Velocity: ``velocities/v-{north,east,down}-fps``, Earth-relative, in JSBSim's local frame,
+  which in 1.3.3 is the geodetic NED frame (verified: level flight due north gives
+  ``v_down`` = ``-h_dot`` to 1e-3 m/s, not the 0.17 m/s a geocentric frame would give).
+* Attitude: ``attitude/{phi,theta,psi}-rad`` (3-2-1 Euler, body w.r.t. that NED frame) turned
+  into the Hamilton scalar-first quaternion ``q_nb`` (body FRD -> NED).
+* Body rates: ``velocities/{p,q,r}i-rad_sec``, the rate w.r.t. *inertial* space (what a gyro
+  measures), not ``velocities/{p,q,r}-rad_sec`` (w.r.t. the Earth).
+* Specific force: ``forces/fb{x,y,z}-total-lbs / inertia/mass-slugs``, i.e. the sum of all
+  non-gravitational forces (aero, propulsion, ground, external) over mass, body FRD, at the
+  CG. JSBSim 1.3.3 runs Propagate *first* in ``FGFDMExec::Run`` and the force models after it,
+  so after ``run()`` these forces belong to the state just propagated: the same instant as the
+  position, velocity and attitude read with them (the kinematic test finds residuals of
+  ~1e-4 m/s^2 RMS, 4e-3 m/s^2 at most, this way; pairing them with the state before the step
+  gives ~4e-3 m/s^2 RMS). ``accelerations/N{x,y,z}`` is
+  computed by FGAuxiliary *before* the forces of the frame and lags one step;
+  ``accelerations/a-pilot-*`` is at the pilot's eye point. Neither is used.
+* Atmosphere: ``atmosphere/P-psf`` and ``atmosphere/T-R`` (static, at the aircraft);
+  airspeeds ``velocities/vtrue-fps`` (true) and ``velocities/vc-fps`` (calibrated, reported
+  as ``indicated_airspeed_mps``).
+
+All of a truth sample is instantaneous at ``time_us``. JSBSim integrates the velocity with
+Adams-Bashforth 2 and the attitude with a rectangular (Euler) step using the body rate at the
+start of the step; a strapdown fed with these samples reproduces JSBSim's trajectory best when
+it integrates the same way (the differences telescope and do not accumulate).
+
+Gravity inside JSBSim is its WGS-84 J2 gravitation plus the centrifugal term (the test file
+has the exact formula), not the Somigliana normal gravity; the two differ by ~1e-5 m/s^2.
+
+Aircraft files may declare CSV outputs into the working directory, output sockets and
+listening input sockets; the adapter loads a private copy of the aircraft without those
+directives, so a flight writes no files and opens no sockets.
+
+Start: the aircraft is placed in the air at the requested state, the gear is retracted, every
+engine gets full mixture and is started (``propulsion/set-running = -1``), and JSBSim's full
+trim (``do_trim(1)``) is run. JSBSim 1.3.3's trim does not refresh FCS-driven propulsion
+inputs in its engine steady-state search (JSBSim issue #1440), which makes it fail for
+aircraft such as the c310 unless the throttle is already near its trimmed value; when the
+first trim fails the adapter therefore flies the start condition with the guidance law for up
+to two minutes, puts the aircraft back at the requested state with the settled controls, and
+trims again. Only if that fails too does it raise ``ValueError``.
+
+Turbulence: ``FlightConfig.turbulence`` in [0, 1] drives JSBSim's MIL-F-8785C (Dryden,
+``atmosphere/turb-type = 3``) model: probability-of-exceedance index ``ceil(7 t)`` (about
+0.43 light, 0.57 moderate, 0.86 severe) above 2000 ft AGL, and a 20-ft wind of ``52.5 t``
+knots for the low-altitude model below 1000 ft; JSBSim blends the two in between. JSBSim's
+random generator is seeded with ``FlightConfig.seed`` (``simulation/randomseed``), so the
+same configuration gives bit-identical truth.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import math
+import os
+import re
+import shutil
+import sys
+import tempfile
+from collections.abc import Iterator
+from functools import lru_cache
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import jsbsim
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from sim.guidance import Controls, Guidance, GuidanceGains, GuidanceInput, TrimPoint
+from sim.plans import FlightPlan, Leg
+from sim.samples import Truth
+
+# --- unit conversions (exact definitions) ---------------------------------------------------
+FT_M = 0.3048
+LBF_N = 4.4482216152605
+SLUG_KG = LBF_N / FT_M  # 1 lbf / (1 ft/s^2)
+PSF_PA = LBF_N / FT_M**2
+RANKINE_K = 5.0 / 9.0
+KT_MPS = 1852.0 / 3600.0
+
+# WGS-84 ellipsoid, for the local north/east offsets the guidance law uses
+_A_M = 6378137.0
+_E2 = 6.69437999014e-3
+
+# The wheel aircraft this adapter offers: each was checked (jsbsim 1.3.3, 50 Hz, cruise plan)
+# to load, trim and hold straight and level flight for 60 s (altitude within 20 m, airspeed
+# within 3 m/s, bank within 5 deg) when started at the (altitude m, true airspeed m/s) given
+# here, which ``suggested_start`` returns. c172x and c310 also fly every packaged plan.
+# Not offered: non-aeroplanes (ball, ballx, blank, mk82, weather-balloon, Submarine_Scout,
+# ZLT-NT, F450, ah1s, paraglider, pogo-jsbsim, Pterosaur), gliders and rocket planes that
+# cannot hold level flight (SGS, sgs126, sgs233, minisgs, Shuttle, X15, x24b), aircraft that
+# reference FlightGear-only properties and fail to initialise stand-alone (dr1, f104,
+# fokker50, fokker100, L17), and aircraft that did not trim or did not hold level flight in
+# that check (listed with the measured outcome in the hilnav report).
+_VERIFIED: dict[str, tuple[float, float]] = {
+    "737": (3000.0, 140.0),
+    "787-8": (3000.0, 140.0),
+    "A320": (3000.0, 140.0),
+    "A4": (3000.0, 100.0),
+    "B747": (3000.0, 100.0),
+    "Boeing314": (1000.0, 50.0),
+    "c172p": (1000.0, 50.0),
+    "c172r": (1000.0, 50.0),
+    "c172x": (1000.0, 50.0),
+    "c182": (1000.0, 50.0),
+    "c310": (1000.0, 50.0),
+    "DHC6": (1000.0, 50.0),
+    "f15": (3000.0, 100.0),
+    "f16": (3000.0, 100.0),
+    "F4N": (3000.0, 100.0),
+    "F80C": (3000.0, 100.0),
+    "global5000": (3000.0, 100.0),
+    "J3Cub": (1000.0, 25.0),
+    "OV10": (1000.0, 70.0),
+    "pa28": (1000.0, 50.0),
+    "Short_S23": (1000.0, 50.0),
+    "T37": (1000.0, 50.0),
+    "T38": (3000.0, 140.0),
+    "t6texan2": (1000.0, 50.0),
+}
+
+_STALL_PERSIST_S = 0.5
+
+# Aircraft files may declare data outputs (CSV files written into the working directory,
+# sockets to localhost) and network inputs (listening sockets). A simulator library must do
+# neither, so these top-level elements -- the ones with attributes; FCS components use bare
+# <input>/<output> tags -- are dropped from a private copy of the aircraft before loading.
+_IO_ELEMENT = re.compile(
+    r"<(input|output)\s+[^>]*?(?:/>|>.*?</\1\s*>)", flags=re.DOTALL | re.IGNORECASE
+)
+
+# Properties read after every step, in this order (JSBSim units).
+_READ = (
+    "position/lat-geod-rad",
+    "position/long-gc-rad",
+    "position/h-sl-meters",
+    "position/h-agl-ft",
+    "velocities/v-north-fps",
+    "velocities/v-east-fps",
+    "velocities/v-down-fps",
+    "attitude/phi-rad",
+    "attitude/theta-rad",
+    "attitude/psi-rad",
+    "velocities/pi-rad_sec",
+    "velocities/qi-rad_sec",
+    "velocities/ri-rad_sec",
+    "velocities/p-rad_sec",
+    "velocities/q-rad_sec",
+    "velocities/r-rad_sec",
+    "forces/fbx-total-lbs",
+    "forces/fby-total-lbs",
+    "forces/fbz-total-lbs",
+    "inertia/mass-slugs",
+    "atmosphere/P-psf",
+    "atmosphere/T-R",
+    "velocities/vtrue-fps",
+    "velocities/vc-fps",
+    "aero/alpha-rad",
+    "aero/beta-rad",
+    "aero/qbar-psf",
+    "gear/wow",
+)
+(
+    _ILAT, _ILON, _IH, _IHAGL, _IVN, _IVE, _IVD, _IPHI, _ITHETA, _IPSI,
+    _IPI, _IQI, _IRI, _IP, _IQ, _IR, _IFX, _IFY, _IFZ, _IMASS,
+    _IPS, _ITR, _IVT, _IVC, _IALPHA, _IBETA, _IQBAR, _IWOW,
+) = range(len(_READ))  # fmt: skip
+
+
+class StartState(BaseModel):
+    """Where and how the aircraft starts: in the air, wings level, on ``heading_deg``."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    lat_deg: float = Field(default=47.0, ge=-85.0, le=85.0)
+    lon_deg: float = Field(default=8.0, ge=-180.0, le=180.0)
+    alt_msl_m: float = Field(default=1000.0, ge=100.0, le=15000.0)
+    heading_deg: float = Field(default=0.0, ge=-360.0, le=360.0)
+    airspeed_mps: float = Field(default=50.0, gt=10.0, le=350.0)
+
+
+class FlightConfig(BaseModel):
+    """Aircraft, rate, start state and atmosphere of a flight.
+
+    ``turbulence`` is a severity in [0, 1] (see the module docstring for the mapping to
+    JSBSim's MIL-F-8785C model); ``seed`` seeds JSBSim's random generator.
+    ``stall_alpha_deg``: an angle of attack above it for 0.5 s ends the flight as a stall
+    (c172x and c310 reach their maximum lift near 14-16 deg; the guidance law itself stays
+    below ``guidance.alpha_max_rad``, 12 deg by default).
+    ``guidance``: gains of the guidance law (defaults tuned on c172x and c310).
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    aircraft: str = "c172x"
+    rate_hz: float = Field(default=200.0, ge=50.0, le=400.0)
+    start: StartState = StartState()
+    wind_ned_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    turbulence: float = Field(default=0.0, ge=0.0, le=1.0)
+    seed: int = Field(default=0, ge=0, le=2**31 - 1)
+    stall_alpha_deg: float = Field(default=15.0, gt=5.0, le=60.0)
+    guidance: GuidanceGains = GuidanceGains()
+
+
+class FlightEnded(RuntimeError):
+    """The aircraft stalled, hit the ground or departed controlled flight.
+
+    Attributes
+    ----------
+    reason : what happened, one line.
+    time_s : simulated time at which it happened.
+    """
+
+    def __init__(self, reason: str, time_s: float) -> None:
+        super().__init__(f"flight ended at t = {time_s:.2f} s: {reason}")
+        self.reason = reason
+        self.time_s = time_s
+
+
+@lru_cache(maxsize=1)
+def _aircraft_dir() -> Path:
+    return Path(jsbsim.get_default_root_dir()) / "aircraft"
+
+
+def available_aircraft() -> list[str]:
+    """Aircraft of the installed jsbsim wheel this adapter offers, sorted (case-insensitive).
+
+    These are the wheel's aircraft checked to load, trim and fly straight and level (see
+    ``suggested_start``); c172x (the default) and c310 are tuned to fly every plan.
+    """
+    root = _aircraft_dir()
+    return sorted(
+        (name for name in _VERIFIED if (root / name / f"{name}.xml").is_file()), key=str.lower
+    )
+
+
+def suggested_start(aircraft: str, **overrides: float) -> StartState:
+    """A start state at which ``aircraft`` trims (altitude and airspeed), plus ``overrides``.
+
+    Raises
+    ------
+    ValueError
+        Unknown aircraft; the message lists the valid ones.
+    """
+    if aircraft not in _VERIFIED:
+        raise ValueError(
+            f"unknown aircraft {aircraft!r}: valid aircraft are {', '.join(available_aircraft())}"
+        )
+    alt_m, airspeed_mps = _VERIFIED[aircraft]
+    return StartState(**{"alt_msl_m": alt_m, "airspeed_mps": airspeed_mps, **overrides})
+
+
+def _load_without_io(fdm: Any, aircraft: str) -> None:
+    """Load ``aircraft`` from the wheel's data, minus its data-output and network-input
+    directives (see ``_IO_ELEMENT``). The private copy is deleted once JSBSim has read it."""
+    root = Path(jsbsim.get_default_root_dir())
+    with tempfile.TemporaryDirectory(prefix="hilnav-jsbsim-") as tmp:
+        folder = Path(tmp) / aircraft
+        shutil.copytree(root / "aircraft" / aircraft, folder)
+        for xml in folder.glob("*.xml"):
+            text = xml.read_text(encoding="utf-8", errors="surrogateescape")
+            cleaned = _IO_ELEMENT.sub("", text)
+            if cleaned != text:
+                xml.write_text(cleaned, encoding="utf-8", errors="surrogateescape")
+        try:
+            with _console_silenced():  # load-time warnings of some wheel aircraft
+                loaded = fdm.load_model_with_paths(
+                    aircraft, tmp, str(root / "engine"), str(root / "systems"), True
+                )
+        except jsbsim.BaseError as error:
+            raise ValueError(f"JSBSim could not load aircraft {aircraft!r}: {error}") from None
+    if not loaded:
+        raise ValueError(f"JSBSim could not load aircraft {aircraft!r}")
+    fdm.disable_output()
+
+
+def _euler_to_quat(phi: float, theta: float, psi: float) -> np.ndarray:
+    """3-2-1 Euler angles (rad) -> Hamilton scalar-first quaternion body -> NED, w >= 0."""
+    cr, sr = math.cos(0.5 * phi), math.sin(0.5 * phi)
+    cp, sp = math.cos(0.5 * theta), math.sin(0.5 * theta)
+    cy, sy = math.cos(0.5 * psi), math.sin(0.5 * psi)
+    w = cr * cp * cy + sr * sp * sy
+    x = sr * cp * cy - cr * sp * sy
+    y = cr * sp * cy + sr * cp * sy
+    z = cr * cp * sy - sr * sp * cy
+    if w < 0.0:
+        return np.array((-w, -x, -y, -z))
+    return np.array((w, x, y, z))
+
+
+@contextlib.contextmanager
+def _console_silenced() -> Iterator[None]:
+    """Discard what C/C++ code writes to fds 1 and 2 (JSBSim's trim reports) meanwhile.
+
+    JSBSim prints trim diagnostics through std::cout whatever its debug level; they would
+    corrupt a CLI's or a test's output. The descriptors are restored before returning.
+    """
+    libc = ctypes.CDLL(None)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    try:
+        with tempfile.TemporaryFile() as sink:
+            os.dup2(sink.fileno(), 1)
+            os.dup2(sink.fileno(), 2)
+            try:
+                yield
+            finally:
+                libc.fflush(None)
+                os.dup2(saved[0], 1)
+                os.dup2(saved[1], 2)
+    finally:
+        for fd in saved:
+            os.close(fd)
+
+
+class _Props:
+    """Cached JSBSim property nodes (name lookups once, then direct reads)."""
+
+    def __init__(self, fdm: Any) -> None:
+        self._pm = fdm.get_property_manager()
+
+    def node(self, name: str) -> Any:
+        node = self._pm.get_node(name)
+        if node is None:
+            raise KeyError(f"JSBSim property {name!r} does not exist")
+        return node
+
+
+class Flight:
+    """One JSBSim flight of ``plan`` under ``config``; steps at ``config.rate_hz``.
+
+    Construction loads the aircraft, sets the start state, starts the engines, trims and
+    engages the guidance law. Use as a context manager or call :meth:`close`.
+
+    Raises
+    ------
+    ValueError
+        Unknown aircraft (the message lists the valid ones) or a start state the aircraft
+        cannot be trimmed at.
+    """
+
+    def __init__(self, config: FlightConfig, plan: FlightPlan) -> None:
+        valid = available_aircraft()
+        if config.aircraft not in valid:
+            raise ValueError(
+                f"unknown aircraft {config.aircraft!r}: valid aircraft are {', '.join(valid)}"
+            )
+        self.config = config
+        self.plan = plan
+        self._dt = 1.0 / config.rate_hz
+        self._step = 0
+        self._ended: FlightEnded | None = None
+        self._stall_s = 0.0
+        # JSBSim prints a banner from the FGFDMExec constructor unless the (process-wide)
+        # debug level is 0 before construction.
+        jsbsim.FGJSBBase().debug_lvl = 0
+        self._fdm: Any = jsbsim.FGFDMExec(None)
+        self._fdm.set_debug_level(0)
+        _load_without_io(self._fdm, config.aircraft)
+        self._fdm.set_dt(self._dt)
+        self._fdm["simulation/randomseed"] = config.seed
+        self._bind()
+        self._set_wind()
+        self._origin = (math.radians(config.start.lat_deg), math.radians(config.start.lon_deg))
+        try:
+            trim = self._start()
+        except jsbsim.BaseError as error:
+            raise ValueError(
+                f"JSBSim could not initialise {config.aircraft!r} in the air: {error}"
+            ) from None
+        # turbulence after the trim: random gusts would upset the trim's equilibrium search
+        self._set_turbulence()
+        start = config.start
+        self._guidance = Guidance(
+            plan,
+            start_heading_rad=math.radians(start.heading_deg),
+            start_alt_m=start.alt_msl_m,
+            start_airspeed_mps=start.airspeed_mps,
+            trim=trim,
+            gains=config.guidance,
+        )
+        self._truth = self._read_truth()
+
+    # -- setup -----------------------------------------------------------------------------
+
+    def _bind(self) -> None:
+        p = _Props(self._fdm)
+        n = p.node
+        self._getters = [n(name).get_double_value for name in _READ]
+        self._raw: list[float] = self._sample()
+        self._n_ail = n("fcs/aileron-cmd-norm")
+        self._n_ele = n("fcs/elevator-cmd-norm")
+        self._n_rud = n("fcs/rudder-cmd-norm")
+        pm = self._fdm.get_property_manager()
+        count = 0
+        while pm.hasNode(f"propulsion/engine[{count}]"):
+            count += 1
+        self._n_thr = [n(f"fcs/throttle-cmd-norm[{i}]") for i in range(count)]
+        self._n_mix = [n(f"fcs/mixture-cmd-norm[{i}]") for i in range(count)]
+
+    def _sample(self) -> list[float]:
+        """Read every property the adapter uses, once (indices: the _I* constants)."""
+        return [get() for get in self._getters]
+
+    def _set_wind(self) -> None:
+        fdm = self._fdm
+        wn, we, wd = self.config.wind_ned_mps
+        fdm["atmosphere/wind-north-fps"] = wn / FT_M
+        fdm["atmosphere/wind-east-fps"] = we / FT_M
+        fdm["atmosphere/wind-down-fps"] = wd / FT_M
+
+    def _set_turbulence(self) -> None:
+        fdm = self._fdm
+        t = self.config.turbulence
+        if t > 0.0:
+            fdm["atmosphere/turb-type"] = 3  # MIL-F-8785C (Dryden)
+            fdm["atmosphere/turbulence/milspec/severity"] = min(7, math.ceil(7.0 * t))
+            fdm["atmosphere/turbulence/milspec/windspeed_at_20ft_AGL-fps"] = (
+                52.5 * t * KT_MPS / FT_M
+            )
+        else:
+            fdm["atmosphere/turb-type"] = 0
+
+    def _apply_ic(self, alpha_rad: float | None = None) -> None:
+        fdm = self._fdm
+        s = self.config.start
+        fdm["ic/lat-geod-deg"] = s.lat_deg
+        fdm["ic/long-gc-deg"] = s.lon_deg
+        fdm["ic/h-sl-ft"] = s.alt_msl_m / FT_M
+        fdm["ic/psi-true-deg"] = s.heading_deg % 360.0
+        fdm["ic/phi-deg"] = 0.0
+        fdm["ic/gamma-deg"] = 0.0
+        fdm["ic/vt-fps"] = s.airspeed_mps / FT_M
+        if alpha_rad is not None:
+            fdm["ic/alpha-rad"] = alpha_rad
+        fdm["gear/gear-cmd-norm"] = 0.0  # airborne start: gear up where it retracts
+        with _console_silenced():
+            fdm.run_ic()
+
+    def _start(self) -> TrimPoint:
+        self._apply_ic()
+        self._start_engines()
+        if not self._try_trim():
+            # JSBSim issue #1440: settle the engines and controls in flight, then retrim.
+            # A failed trim re-initialises JSBSim with the engines off: start them again.
+            self._start_engines()
+            alpha = self._settle()
+            self._apply_ic(alpha_rad=alpha)
+            if not self._try_trim():
+                s = self.config.start
+                raise ValueError(
+                    f"JSBSim cannot trim {self.config.aircraft} in level flight at "
+                    f"{s.alt_msl_m:.0f} m, {s.airspeed_mps:.1f} m/s true airspeed; "
+                    "try another start.airspeed_mps or start.alt_msl_m"
+                )
+        raw = self._raw = self._sample()
+        return TrimPoint(
+            controls=self._controls_now(),
+            theta_rad=raw[_ITHETA],
+            qbar_pa=raw[_IQBAR] * PSF_PA,
+            phi_rad=raw[_IPHI],
+        )
+
+    def _start_engines(self) -> None:
+        for node in self._n_mix:
+            node.set_double_value(1.0)
+        self._fdm["propulsion/set-running"] = -1
+
+    def _try_trim(self) -> bool:
+        try:
+            with _console_silenced():
+                self._fdm.do_trim(1)
+        except jsbsim.TrimFailureError:
+            return False
+        return all(math.isfinite(x) for x in self._sample())
+
+    def _controls_now(self) -> Controls:
+        return Controls(
+            aileron=self._n_ail.get_double_value(),
+            elevator=self._n_ele.get_double_value(),
+            rudder=self._n_rud.get_double_value(),
+            throttle=self._n_thr[0].get_double_value() if self._n_thr else 0.0,
+        )
+
+    def _settle(self, max_s: float = 120.0) -> float:
+        """Fly the start condition untrimmed for ``max_s``; return the final angle of attack."""
+        s = self.config.start
+        hold = FlightPlan(
+            name="settle", legs=(Leg(kind="heading", heading_deg=0.0, duration_s=max_s),)
+        )
+        guess = Controls(aileron=0.0, elevator=0.0, rudder=0.0, throttle=0.6)
+        self._write_controls(guess)
+        raw = self._raw = self._sample()
+        trim = TrimPoint(controls=guess, theta_rad=raw[_ITHETA], qbar_pa=raw[_IQBAR] * PSF_PA)
+        law = Guidance(
+            hold,
+            math.radians(s.heading_deg),
+            s.alt_msl_m,
+            s.airspeed_mps,
+            trim,
+            self.config.guidance,
+        )
+        for k in range(int(max_s / self._dt)):
+            self._write_controls(law.update(self._guidance_input(k * self._dt)))
+            self._fdm.run()
+            self._raw = self._sample()
+            if not math.isfinite(self._raw[_IH]):
+                break
+        return self._raw[_IALPHA]
+
+    # -- stepping --------------------------------------------------------------------------
+
+    @property
+    def dt_s(self) -> float:
+        """Step length, s."""
+        return self._dt
+
+    @property
+    def time_us(self) -> int:
+        """Simulated time of the current truth, microseconds since the start."""
+        return round(self._step * 1e6 / self.config.rate_hz)
+
+    @property
+    def time_s(self) -> float:
+        """Simulated time of the current truth, s."""
+        return self._step * self._dt
+
+    @property
+    def guidance(self) -> Guidance:
+        """The guidance law flying the plan (leg index, lap, current targets)."""
+        return self._guidance
+
+    def truth(self) -> Truth:
+        """Truth of the current state."""
+        return self._truth
+
+    def step(self) -> Truth:
+        """Advance one step of ``1 / rate_hz`` and return the new truth.
+
+        Raises
+        ------
+        FlightEnded
+            The aircraft stalled, hit the ground, departed controlled flight or the
+            simulation diverged (also on every later call).
+        """
+        self._advance()
+        self._truth = self._read_truth()
+        return self._truth
+
+    def run_for(self, duration_s: float) -> Truth:
+        """Step for ``duration_s`` of simulated time (whole steps) and return the last truth.
+
+        Faster than calling :meth:`step` in a loop: intermediate truth is not assembled.
+        Raises :class:`FlightEnded` like :meth:`step`.
+        """
+        for _ in range(round(duration_s * self.config.rate_hz)):
+            self._advance()
+        self._truth = self._read_truth()
+        return self._truth
+
+    def _advance(self) -> None:
+        if self._ended is not None:
+            raise self._ended
+        if self._fdm is None:
+            raise RuntimeError("the flight is closed")
+        self._write_controls(self._guidance.update(self._guidance_input(self.time_s)))
+        self._fdm.run()
+        self._step += 1
+        self._raw = self._sample()
+        self._check()
+
+    def close(self) -> None:
+        """Release the JSBSim instance."""
+        self._fdm = None
+
+    def __enter__(self) -> Flight:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    # -- internals -------------------------------------------------------------------------
+
+    def _write_controls(self, c: Controls) -> None:
+        self._n_ail.set_double_value(c.aileron)
+        self._n_ele.set_double_value(c.elevator)
+        self._n_rud.set_double_value(c.rudder)
+        for node in self._n_thr:
+            node.set_double_value(c.throttle)
+
+    def _guidance_input(self, time_s: float) -> GuidanceInput:
+        raw = self._raw
+        lat, h = raw[_ILAT], raw[_IH]
+        lat0, lon0 = self._origin
+        sin_lat = math.sin(lat0)
+        den = 1.0 - _E2 * sin_lat * sin_lat
+        r_n = _A_M / math.sqrt(den)
+        r_m = r_n * (1.0 - _E2) / den
+        dlon = (raw[_ILON] - lon0 + math.pi) % (2.0 * math.pi) - math.pi
+        return GuidanceInput(
+            time_s=time_s,
+            dt_s=self._dt,
+            north_m=(lat - lat0) * (r_m + h),
+            east_m=dlon * (r_n + h) * math.cos(lat0),
+            alt_m=h,
+            v_north_mps=raw[_IVN] * FT_M,
+            v_east_mps=raw[_IVE] * FT_M,
+            v_down_mps=raw[_IVD] * FT_M,
+            airspeed_mps=raw[_IVT] * FT_M,
+            phi_rad=raw[_IPHI],
+            theta_rad=raw[_ITHETA],
+            psi_rad=raw[_IPSI],
+            p_rps=raw[_IP],
+            q_rps=raw[_IQ],
+            r_rps=raw[_IR],
+            alpha_rad=raw[_IALPHA],
+            beta_rad=raw[_IBETA],
+            qbar_pa=raw[_IQBAR] * PSF_PA,
+        )
+
+    def _read_truth(self) -> Truth:
+        raw = self._raw
+        f_scale = FT_M / raw[_IMASS]  # lbf / slug = ft/s^2
+        return Truth(
+            time_us=self.time_us,
+            lat_rad=raw[_ILAT],
+            lon_rad=raw[_ILON],
+            alt_msl_m=raw[_IH],
+            v_ned_mps=np.array((raw[_IVN] * FT_M, raw[_IVE] * FT_M, raw[_IVD] * FT_M)),
+            q_nb=_euler_to_quat(raw[_IPHI], raw[_ITHETA], raw[_IPSI]),
+            omega_b_rps=np.array((raw[_IPI], raw[_IQI], raw[_IRI])),
+            specific_force_b_mps2=np.array(
+                (raw[_IFX] * f_scale, raw[_IFY] * f_scale, raw[_IFZ] * f_scale)
+            ),
+            static_pressure_pa=raw[_IPS] * PSF_PA,
+            temperature_k=raw[_ITR] * RANKINE_K,
+            airspeed_mps=raw[_IVT] * FT_M,
+            indicated_airspeed_mps=raw[_IVC] * FT_M,
+        )
+
+    def _check(self) -> None:
+        raw = self._raw
+        t = self.time_s
+        if not math.isfinite(math.fsum(raw)):  # any inf or nan makes the sum non-finite
+            self._end("the simulation diverged (non-finite state)", t)
+        if raw[_IHAGL] * FT_M < 1.0 or raw[_IWOW] > 0.5:
+            self._end(f"hit the ground at {raw[_IH]:.1f} m", t)
+        alpha_deg = math.degrees(raw[_IALPHA])
+        if alpha_deg > self.config.stall_alpha_deg:
+            self._stall_s += self._dt
+            if self._stall_s >= _STALL_PERSIST_S - 1e-9:
+                self._end(
+                    f"stall: angle of attack {alpha_deg:.1f} deg above "
+                    f"{self.config.stall_alpha_deg:.1f} deg at {raw[_IVT] * FT_M:.1f} m/s",
+                    t,
+                )
+        else:
+            self._stall_s = 0.0
+        phi, theta = math.degrees(raw[_IPHI]), math.degrees(raw[_ITHETA])
+        if abs(phi) > 100.0 or abs(theta) > 70.0:
+            self._end(f"loss of control: bank {phi:.0f} deg, pitch {theta:.0f} deg", t)
+        if raw[_IVT] * FT_M < 5.0:
+            self._end(f"airspeed lost ({raw[_IVT] * FT_M:.1f} m/s)", t)
+
+    def _end(self, reason: str, time_s: float) -> None:
+        self._ended = FlightEnded(reason, time_s)
+        raise self._ended

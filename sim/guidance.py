@@ -1,0 +1,361 @@
+"""A small, aircraft-agnostic guidance and control law that flies a :class:`FlightPlan`.
+
+Why our own law rather than JSBSim's autopilots: only some aircraft ship one (c172x's
+``c172ap.xml``, c310's ``c310ap.xml``), their property interfaces differ, and c172ap's sensor
+blocks draw noise from JSBSim's random generator. One generic law keeps every aircraft on the
+same plan semantics. It writes only the standard normalised FCS inputs every JSBSim aircraft
+has (``fcs/aileron-cmd-norm``, ``fcs/elevator-cmd-norm``, ``fcs/rudder-cmd-norm``,
+``fcs/throttle-cmd-norm[i]``); ``sim.flight`` does that, this module is pure arithmetic.
+
+Structure (SI, radians)::
+
+    plan leg --> course / bank target --> bank command --> roll PI + rate damping --> aileron
+             --> altitude target --> climb-rate command --> pitch command
+                  --> pitch-rate command (+ turn feed-forward) --> PI --> elevator
+             --> airspeed target --> throttle PI (feed-forward: trim throttle)
+    sideslip PI + yaw damper --> rudder
+
+Control-surface gains are scheduled with dynamic pressure (``qbar_trim / qbar``) so the same
+gains serve the trim condition of light and heavy aircraft alike. Sign conventions follow
+JSBSim's: +aileron rolls right, +elevator pitches nose down, +rudder yaws nose left.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from sim.plans import FlightPlan, Leg
+
+G0 = 9.80665
+
+
+def _wrap(angle_rad: float) -> float:
+    """Wrap an angle to [-pi, pi)."""
+    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
+
+
+class GuidanceGains(BaseModel):
+    """Gains and limits of the guidance law (SI / radians; tuned on c172x and c310)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    # outer loops
+    k_course: float = Field(default=0.25, gt=0, description="turn-rate per course error, 1/s")
+    lookahead_s: float = Field(default=8.0, gt=0, description="track lookahead, seconds of flight")
+    min_lookahead_m: float = Field(default=250.0, gt=0)
+    max_intercept_rad: float = Field(default=math.radians(60.0), gt=0)
+    k_alt: float = Field(default=0.15, gt=0, description="climb rate per altitude error, 1/s")
+    k_hdot: float = Field(default=0.02, ge=0, description="pitch per climb-rate error, rad s/m")
+    ki_hdot: float = Field(default=0.004, ge=0, description="rad/m")
+    pitch_min_rad: float = math.radians(-12.0)
+    pitch_max_rad: float = math.radians(15.0)
+    alpha_max_rad: float = Field(
+        default=math.radians(12.0), gt=0, description="angle of attack the law will not exceed"
+    )
+    k_alpha: float = Field(default=3.0, ge=0, description="pitch-rate cut per rad over alpha_max")
+    speed_guard_mps: float = Field(default=4.0, gt=0, description="under-speed before pitch gives")
+    k_speed_guard: float = Field(default=0.03, ge=0, description="pitch per m/s under/over speed")
+    # inner loops (at the trim dynamic pressure; scaled with qbar_trim / qbar)
+    k_phi: float = Field(default=4.0, ge=0, description="aileron per rad bank error")
+    ki_phi: float = Field(default=1.0, ge=0)
+    k_p: float = Field(default=1.0, ge=0, description="aileron per rad/s roll rate")
+    k_theta: float = Field(default=1.5, gt=0, description="pitch-rate command per pitch error, 1/s")
+    max_q_rps: float = Field(default=math.radians(10.0), gt=0)
+    k_q: float = Field(default=2.5, ge=0, description="elevator per rad/s pitch-rate error")
+    ki_theta: float = Field(default=1.0, ge=0, description="elevator per rad s pitch error")
+    k_beta: float = Field(default=1.5, ge=0, description="rudder per rad sideslip")
+    ki_beta: float = Field(default=0.5, ge=0)
+    k_r: float = Field(default=1.0, ge=0, description="rudder per rad/s yaw-rate (damper)")
+    k_v: float = Field(default=0.05, ge=0, description="throttle per m/s speed error")
+    ki_v: float = Field(default=0.01, ge=0)
+    default_bank_limit_rad: float = math.radians(30.0)
+    default_turn_bank_rad: float = math.radians(25.0)
+    default_climb_rate_mps: float = Field(default=2.5, gt=0)
+
+
+class GuidanceInput(NamedTuple):
+    """What the law needs of the aircraft state, in SI.
+
+    ``north_m`` / ``east_m`` are offsets from the start position; angles in rad, rates in
+    rad/s (body, relative to the Earth), ``qbar_pa`` the dynamic pressure. (A NamedTuple:
+    built at every step, it must be cheap.)
+    """
+
+    time_s: float
+    dt_s: float
+    north_m: float
+    east_m: float
+    alt_m: float
+    v_north_mps: float
+    v_east_mps: float
+    v_down_mps: float
+    airspeed_mps: float
+    phi_rad: float
+    theta_rad: float
+    psi_rad: float
+    p_rps: float
+    q_rps: float
+    r_rps: float
+    alpha_rad: float
+    beta_rad: float
+    qbar_pa: float
+
+
+class Controls(NamedTuple):
+    """Normalised control commands: aileron/elevator/rudder in [-1, 1], throttle in [0, 1]."""
+
+    aileron: float
+    elevator: float
+    rudder: float
+    throttle: float
+
+
+@dataclass(frozen=True, slots=True)
+class TrimPoint:
+    """The trimmed condition the law starts from (its integrators start at these values)."""
+
+    controls: Controls
+    theta_rad: float
+    qbar_pa: float
+    phi_rad: float = 0.0
+
+
+class Guidance:
+    """Flies ``plan`` leg by leg from a trimmed start.
+
+    Parameters
+    ----------
+    plan : the flight plan.
+    start_heading_rad : heading at the start; the "start" plan frame is rotated by it.
+    start_alt_m, start_airspeed_mps : start altitude (MSL) and true airspeed; plan altitudes
+        are relative to ``start_alt_m``.
+    trim : controls, pitch and dynamic pressure at the trimmed start.
+    gains : the law's gains and limits.
+    """
+
+    def __init__(
+        self,
+        plan: FlightPlan,
+        start_heading_rad: float,
+        start_alt_m: float,
+        start_airspeed_mps: float,
+        trim: TrimPoint,
+        gains: GuidanceGains | None = None,
+    ) -> None:
+        self.plan = plan
+        self.gains = gains or GuidanceGains()
+        self._frame_rot = start_heading_rad if plan.frame == "start" else 0.0
+        self._start_alt_m = start_alt_m
+        self._trim = trim
+        # current targets; legs that leave one out keep the previous value
+        self.alt_target_m = start_alt_m
+        self.airspeed_target_mps = start_airspeed_mps
+        self.climb_rate_mps = self.gains.default_climb_rate_mps
+        self._course_hold_rad = start_heading_rad
+        # leg bookkeeping
+        self.leg_index = 0
+        self.lap = 0
+        self.finished = False
+        self._leg_started = False
+        self._leg_t0 = 0.0
+        self._leg_p0 = (0.0, 0.0)
+        self._leg_course_prev = 0.0
+        self._leg_turned = 0.0
+        # loop integrators start at the trimmed controls / pitch
+        self._i_hdot = 0.0
+        self._i_phi = 0.0
+        self._i_theta = 0.0
+        self._i_beta = 0.0
+        self._i_v = 0.0
+
+    # -- plan geometry ---------------------------------------------------------------------
+
+    def _plan_to_ned(self, x_m: float, y_m: float) -> tuple[float, float]:
+        c, s = math.cos(self._frame_rot), math.sin(self._frame_rot)
+        return c * x_m - s * y_m, s * x_m + c * y_m
+
+    def _leg(self) -> Leg | None:
+        if self.finished:
+            return None
+        return self.plan.legs[self.leg_index]
+
+    def _start_leg(self, leg: Leg, s: GuidanceInput, course: float) -> None:
+        self._leg_started = True
+        self._leg_t0 = s.time_s
+        self._leg_p0 = (s.north_m, s.east_m)
+        self._leg_course_prev = course
+        self._leg_turned = 0.0
+        if leg.alt_m is not None:
+            self.alt_target_m = self._start_alt_m + leg.alt_m
+        if leg.airspeed_mps is not None:
+            self.airspeed_target_mps = leg.airspeed_mps
+        if leg.climb_rate_mps is not None:
+            self.climb_rate_mps = leg.climb_rate_mps
+
+    def _next_leg(self, course: float) -> None:
+        self._leg_started = False
+        self._course_hold_rad = course
+        self.leg_index += 1
+        if self.leg_index >= len(self.plan.legs):
+            if self.plan.repeat:
+                self.leg_index = 0
+                self.lap += 1
+            else:
+                self.finished = True
+                self.leg_index = len(self.plan.legs) - 1
+
+    def _course_error(self, leg: Leg | None, s: GuidanceInput, course: float) -> float | None:
+        """Course error to fly (rad), or None when the leg commands bank directly.
+
+        Advances to the next leg when the current one is complete.
+        """
+        if leg is None:
+            return _wrap(self._course_hold_rad - course)
+        if leg.kind == "heading":
+            assert leg.heading_deg is not None and leg.duration_s is not None
+            if s.time_s - self._leg_t0 >= leg.duration_s:
+                self._next_leg(course)
+            return _wrap(math.radians(leg.heading_deg) + self._frame_rot - course)
+        if leg.kind == "attitude":
+            assert leg.duration_s is not None
+            if s.time_s - self._leg_t0 >= leg.duration_s:
+                self._next_leg(course)
+            return None
+        if leg.kind == "turn":
+            assert leg.turn_deg is not None
+            self._leg_turned += _wrap(course - self._leg_course_prev)
+            self._leg_course_prev = course
+            remaining = math.radians(leg.turn_deg) - self._leg_turned
+            if abs(remaining) < math.radians(1.0) or remaining * leg.turn_deg < 0.0:
+                self._next_leg(course)
+            return remaining
+        # waypoint: follow the line from where the leg began to the target
+        assert leg.x_m is not None and leg.y_m is not None
+        tn, te = self._plan_to_ned(leg.x_m, leg.y_m)
+        n0, e0 = self._leg_p0
+        dn, de = tn - n0, te - e0
+        length = math.hypot(dn, de)
+        if length < 1.0:
+            self._next_leg(course)
+            return _wrap(self._course_hold_rad - course)
+        un, ue = dn / length, de / length
+        rn, re = s.north_m - n0, s.east_m - e0
+        along = rn * un + re * ue
+        cross = un * re - ue * rn  # > 0: right of the track
+        if along >= length:
+            self._next_leg(course)
+        g = self.gains
+        lookahead = max(g.min_lookahead_m, g.lookahead_s * max(s.airspeed_mps, 1.0))
+        intercept = _clip(math.atan2(cross, lookahead), -g.max_intercept_rad, g.max_intercept_rad)
+        return _wrap(math.atan2(ue, un) - intercept - course)
+
+    # -- the law ---------------------------------------------------------------------------
+
+    def update(self, s: GuidanceInput) -> Controls:
+        """One control step: advance the plan, return the commands to apply now."""
+        g = self.gains
+        dt = s.dt_s
+        v = max(s.airspeed_mps, 1.0)
+        ground_speed = math.hypot(s.v_north_mps, s.v_east_mps)
+        course = math.atan2(s.v_east_mps, s.v_north_mps) if ground_speed > 1.0 else s.psi_rad
+
+        leg = self._leg()
+        if leg is not None and not self._leg_started:
+            self._start_leg(leg, s, course)
+        course_err = self._course_error(leg, s, course)
+        leg = self._leg()  # may have advanced; the new leg starts on the next step
+        if leg is not None and not self._leg_started:
+            self._start_leg(leg, s, course)
+
+        # angle-of-attack guard: within 3 deg of alpha_max, bank and pull are cut back
+        pitch_direct = leg is not None and leg.kind == "attitude" and leg.pitch_deg is not None
+        alpha_margin = g.alpha_max_rad - s.alpha_rad
+        protect = 0.0 if pitch_direct else _clip(1.0 - alpha_margin / math.radians(3.0), 0.0, 1.0)
+
+        # lateral: course error -> turn rate -> bank (coordinated turn: tan(phi) = V r / g)
+        if course_err is None:
+            assert leg is not None
+            phi_cmd = math.radians(leg.bank_deg or 0.0)
+        else:
+            limit = g.default_bank_limit_rad
+            if leg is not None and leg.bank_deg is not None:
+                limit = math.radians(abs(leg.bank_deg))
+            elif leg is not None and leg.kind == "turn":
+                limit = g.default_turn_bank_rad
+            phi_cmd = _clip(math.atan(v * g.k_course * course_err / G0), -limit, limit)
+            # the trimmed bank (propeller torque, asymmetric thrust) is "wings level"
+            phi_cmd += self._trim.phi_rad
+        phi_cmd *= 1.0 - 0.5 * protect
+
+        # longitudinal: altitude -> climb rate -> pitch
+        hdot = -s.v_down_mps
+        speed_err = self.airspeed_target_mps - s.airspeed_mps
+        if pitch_direct:
+            assert leg is not None and leg.pitch_deg is not None
+            theta_cmd = math.radians(leg.pitch_deg)
+        else:
+            hdot_cmd = _clip(
+                g.k_alt * (self.alt_target_m - s.alt_m), -self.climb_rate_mps, self.climb_rate_mps
+            )
+            hdot_err = hdot_cmd - hdot
+            gamma_ff = math.asin(_clip(hdot_cmd / v, -0.5, 0.5))
+            theta_unsat = self._trim.theta_rad + gamma_ff + g.k_hdot * hdot_err + self._i_hdot
+            # speed guard: give up climb (or descent) rather than stall (or overspeed)
+            under = max(0.0, speed_err - g.speed_guard_mps)
+            over = max(0.0, -speed_err - 2.0 * g.speed_guard_mps)
+            theta_unsat += g.k_speed_guard * (over - under)
+            theta_cmd = _clip(theta_unsat, g.pitch_min_rad, g.pitch_max_rad)
+            if protect == 0.0 and (
+                theta_cmd == theta_unsat or (theta_cmd > theta_unsat) == (hdot_err > 0.0)
+            ):
+                self._i_hdot += g.ki_hdot * hdot_err * dt
+
+        # dynamic-pressure scheduling of the surface gains
+        sched = _clip(self._trim.qbar_pa / max(s.qbar_pa, 1.0), 0.5, 2.0)
+        trim = self._trim.controls
+
+        # roll: PI on bank error with roll-rate damping
+        phi_err = _wrap(phi_cmd - s.phi_rad)
+        aileron_unsat = trim.aileron + sched * (g.k_phi * phi_err - g.k_p * s.p_rps) + self._i_phi
+        aileron = _clip(aileron_unsat, -1.0, 1.0)
+        if aileron == aileron_unsat:
+            self._i_phi += sched * g.ki_phi * phi_err * dt
+
+        # pitch: rate command with coordinated-turn feed-forward, PI to elevator
+        q_turn = G0 / v * math.sin(s.phi_rad) * math.tan(_clip(s.phi_rad, -1.2, 1.2))
+        theta_err = theta_cmd - s.theta_rad
+        q_cmd = _clip(g.k_theta * theta_err, -g.max_q_rps, g.max_q_rps) + q_turn
+        if not pitch_direct and alpha_margin < 0.0:
+            q_cmd = min(q_cmd, g.k_alpha * alpha_margin)
+        pull = sched * g.k_q * (q_cmd - s.q_rps) + self._i_theta
+        elevator_unsat = trim.elevator - pull
+        elevator = _clip(elevator_unsat, -1.0, 1.0)
+        if elevator == elevator_unsat and (protect == 0.0 or theta_err < 0.0):
+            self._i_theta += sched * g.ki_theta * theta_err * dt
+
+        # yaw: sideslip PI and a yaw damper around the coordinated-turn yaw rate
+        r_turn = G0 / v * math.sin(s.phi_rad) * math.cos(s.theta_rad)
+        rudder_unsat = (
+            trim.rudder
+            - sched * (g.k_beta * s.beta_rad - g.k_r * (s.r_rps - r_turn))
+            + self._i_beta
+        )
+        rudder = _clip(rudder_unsat, -1.0, 1.0)
+        if rudder == rudder_unsat:
+            self._i_beta -= sched * g.ki_beta * s.beta_rad * dt
+
+        # speed: throttle PI around the trim throttle
+        throttle_unsat = trim.throttle + g.k_v * speed_err + self._i_v
+        throttle = _clip(throttle_unsat, 0.0, 1.0)
+        if throttle == throttle_unsat or (throttle > throttle_unsat) == (speed_err > 0.0):
+            self._i_v += g.ki_v * speed_err * dt
+
+        return Controls(aileron=aileron, elevator=elevator, rudder=rudder, throttle=throttle)
