@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, PositiveInt
+from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, PositiveFloat, PositiveInt
 
 Probability = float
 
@@ -33,6 +33,11 @@ class ImuConfig(_Frozen):
     accel_bias_sigma_mps2: PositiveFloat = 1e-3 * 9.80665
     """Steady-state sigma of the Gauss-Markov accelerometer bias, m/s^2."""
     accel_bias_tau_s: PositiveFloat = 600.0
+    gyro_turn_on_sigma_rps: NonNegativeFloat = math.radians(30.0) / 3600.0
+    """Turn-on (run-to-run) gyro bias sigma, a random constant: only widens the initial
+    covariance of the gyro bias state, rad/s."""
+    accel_turn_on_sigma_mps2: NonNegativeFloat = 2e-3 * 9.80665
+    """Turn-on (run-to-run) accelerometer bias sigma, m/s^2 (initial covariance only)."""
     gyro_scale_sigma: PositiveFloat = 1e-3
     """Scale-factor sigma (only with ``state_layout="ins22"``), dimensionless."""
     gyro_scale_tau_s: PositiveFloat = 3600.0
@@ -65,6 +70,12 @@ class GnssConfig(_Frozen):
     """Lower bound on the position sigma taken from ``eph_m`` / ``epv_m``, m."""
     vel_noise_floor_mps: PositiveFloat = 0.1
     """Lower bound on the velocity sigma taken from ``speed_accuracy_mps``, m/s."""
+    default_eph_m: PositiveFloat = 5.0
+    """Horizontal sigma used when a fix does not report ``eph`` (NaN), m."""
+    default_epv_m: PositiveFloat = 8.0
+    """Vertical sigma used when a fix does not report ``epv`` (NaN), m."""
+    default_speed_accuracy_mps: PositiveFloat = 0.3
+    """Velocity sigma used when a fix does not report speed accuracy (HIL_GPS never does), m/s."""
     max_eph_m: PositiveFloat = 25.0
     """Fixes reporting a larger horizontal accuracy are not used, m."""
     gate_probability: Probability = Field(default=0.995, gt=0.5, lt=1.0)

@@ -615,8 +615,10 @@ class NavFilter:
         d[lay.pos] = cfg.init.pos_sigma_m**2
         d[lay.vel] = cfg.init.vel_sigma_mps**2
         d[lay.att] = [cfg.init.roll_pitch_sigma_rad**2] * 2 + [cfg.init.yaw_sigma_rad**2]
-        d[lay.ba] = cfg.imu.accel_bias_sigma_mps2**2
-        d[lay.bg] = cfg.imu.gyro_bias_sigma_rps**2
+        # Initial bias uncertainty: the turn-on (repeatability) bias, a random constant, plus
+        # the in-run Gauss-Markov part.
+        d[lay.ba] = cfg.imu.accel_turn_on_sigma_mps2**2 + cfg.imu.accel_bias_sigma_mps2**2
+        d[lay.bg] = cfg.imu.gyro_turn_on_sigma_rps**2 + cfg.imu.gyro_bias_sigma_rps**2
         d[lay.baro] = cfg.baro.bias_sigma_m**2
         if lay.sa is not None and lay.sg is not None:
             d[lay.sa] = cfg.imu.accel_scale_sigma**2
@@ -736,14 +738,12 @@ class NavFilter:
         P = Phi @ self._P @ Phi.T
         P += self._model.process_noise(T)
         self._P = P
-        ka, kg, kb, ksa, ksg = self._decay(T)
-        ba, bg = self._ba, self._bg
-        self._ba = [ba[0] * ka, ba[1] * ka, ba[2] * ka]
-        self._bg = [bg[0] * kg, bg[1] * kg, bg[2] * kg]
-        self._bb *= kb
-        if self._scale:
-            self._sa = [v * ksa for v in self._sa]
-            self._sg = [v * ksg for v in self._sg]
+        # The IMU bias and scale-factor *estimates* are held, not decayed with the Gauss-Markov
+        # time constant: a real sensor's bias is a turn-on constant plus a zero-mean in-run
+        # process, and decaying the estimate of the constant part towards zero (tau ~ 100 s for
+        # MEMS datasheets) makes the filter forget what it learned and fight every GNSS fix.
+        # The covariance keeps the Gauss-Markov dynamics. The baro bias is a zero-mean process.
+        self._bb *= self._decay(T)[2]
         self._acc_dt = 0.0
         self._acc_v0 = ins.v_ned_mps
 

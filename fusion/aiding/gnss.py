@@ -190,15 +190,14 @@ def fix_quality(fix: GnssFix, cfg: GnssConfig) -> str | None:
         fix.lat_rad,
         fix.lon_rad,
         fix.alt_msl_m,
-        fix.eph_m,
-        fix.epv_m,
-        fix.speed_accuracy_mps,
     )
     if not all(math.isfinite(float(v)) for v in scalars):
         return "invalid"
     v = np.asarray(fix.v_ned_mps, dtype=float)
     if v.shape != (3,) or not np.all(np.isfinite(v)):
         return "invalid"
+    # NaN accuracies mean "not reported" (HIL_GPS has no speed accuracy; 65535 = unknown):
+    # the configured defaults stand in for them in fix_sigmas.
     if abs(fix.lat_rad) > 0.5 * math.pi or fix.eph_m < 0.0 or fix.epv_m < 0.0:
         return "invalid"
     if fix.eph_m > cfg.max_eph_m:
@@ -207,11 +206,16 @@ def fix_quality(fix: GnssFix, cfg: GnssConfig) -> str | None:
 
 
 def fix_sigmas(fix: GnssFix, cfg: GnssConfig) -> tuple[float, float, float]:
-    """Per-axis sigmas ``(horizontal m, vertical m, velocity m/s)`` with the configured floors."""
+    """Per-axis sigmas ``(horizontal m, vertical m, velocity m/s)`` with the configured floors.
+
+    An accuracy the receiver did not report (NaN) takes the configured default.
+    """
+    eph, epv, sacc = float(fix.eph_m), float(fix.epv_m), float(fix.speed_accuracy_mps)
     return (
-        max(float(fix.eph_m), cfg.pos_noise_floor_m),
-        max(float(fix.epv_m), cfg.pos_noise_floor_m),
-        max(float(fix.speed_accuracy_mps), cfg.vel_noise_floor_mps),
+        max(eph if math.isfinite(eph) else cfg.default_eph_m, cfg.pos_noise_floor_m),
+        max(epv if math.isfinite(epv) else cfg.default_epv_m, cfg.pos_noise_floor_m),
+        max(sacc if math.isfinite(sacc) else cfg.default_speed_accuracy_mps,
+            cfg.vel_noise_floor_mps),
     )
 
 

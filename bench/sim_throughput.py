@@ -1,0 +1,90 @@
+"""Benchmark: JSBSim alone vs the full simulator chain (JSBSim + sensor models + MAVLink encode).
+
+Both are timed in the same process at the same rate on the same flight plan. Writes JSON.
+Target (issue 2): full chain >= 100x real time at 200 Hz, within 3x of JSBSim alone.
+
+    python bench/sim_throughput.py --duration 300 --out bench/results/sim_throughput.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import time
+from pathlib import Path
+
+from hil.bridge import SensorBridge
+from sim import presets
+from sim.flight import Flight, FlightConfig
+from sim.plans import load_plan
+from sim.sensors import SensorSuite
+
+
+def time_jsbsim(cfg: FlightConfig, plan_name: str, duration_s: float) -> float:
+    plan = load_plan(plan_name)
+    with Flight(cfg, plan) as flight:
+        n = round(duration_s * cfg.rate_hz)
+        t0 = time.perf_counter()
+        for _ in range(n):
+            flight.step()
+        return time.perf_counter() - t0
+
+
+def time_chain(cfg: FlightConfig, plan_name: str, duration_s: float) -> tuple[float, int]:
+    plan = load_plan(plan_name)
+    suite = SensorSuite(presets.suite_config(), seed=1, sim_rate_hz=cfg.rate_hz)
+    bridge = SensorBridge()
+    frames = 0
+    with Flight(cfg, plan) as flight:
+        n = round(duration_s * cfg.rate_hz)
+        t0 = time.perf_counter()
+        for _ in range(n):
+            truth = flight.step()
+            frames += len(bridge.frames(truth, suite.step(truth)))
+        return time.perf_counter() - t0, frames
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--duration", type=float, default=300.0, help="simulated seconds per run")
+    ap.add_argument("--rate", type=float, default=200.0)
+    ap.add_argument("--plan", default="racetrack")
+    ap.add_argument("--out", type=Path, default=Path("bench/results/sim_throughput.json"))
+    args = ap.parse_args()
+    cfg = FlightConfig(rate_hz=args.rate)
+    wall_jsb = time_jsbsim(cfg, args.plan, args.duration)
+    wall_chain, frames = time_chain(cfg, args.plan, args.duration)
+    steps = round(args.duration * args.rate)
+    result = {
+        "benchmark": "sim_throughput",
+        "python": platform.python_version(),
+        "machine": platform.machine(),
+        "rate_hz": args.rate,
+        "plan": args.plan,
+        "sim_duration_s": args.duration,
+        "jsbsim_only": {
+            "wall_s": wall_jsb,
+            "us_per_step": wall_jsb / steps * 1e6,
+            "realtime_factor": args.duration / wall_jsb,
+        },
+        "full_chain": {
+            "wall_s": wall_chain,
+            "us_per_step": wall_chain / steps * 1e6,
+            "realtime_factor": args.duration / wall_chain,
+            "frames": frames,
+        },
+        "chain_over_jsbsim_time_ratio": wall_chain / wall_jsb,
+        "targets": {"full_chain_realtime_factor_min": 100.0, "time_ratio_max": 3.0},
+    }
+    result["meets_targets"] = (
+        result["full_chain"]["realtime_factor"] >= 100.0
+        and result["chain_over_jsbsim_time_ratio"] <= 3.0
+    )
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=2) + "\n")
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()

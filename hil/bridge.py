@@ -1,0 +1,148 @@
+"""Sensor bridge: one simulator step's truth and samples -> MAVLink 2 frames.
+
+The bridge is the only place where simulator output meets the wire. Per IMU sample it sends one
+HIL_SENSOR carrying the IMU fields plus any baro / magnetometer sample of the same step (their
+``fields_updated`` bits set only then), HIL_GPS for each GNSS fix (emitted when the receiver
+outputs it, stamped with its time of validity), and the truth as HIL_STATE_QUATERNION from the
+simulator's truth component at ``truth_rate_hz``.
+
+``run_lockstep`` flies as fast as the machine allows and hands every frame to a sink (a .tlog
+writer, an in-memory decoder, a socket): simulated time is the only clock.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from hil.codec import Encoder
+from sim.flight import Flight, FlightEnded
+from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Sample, Truth
+from sim.sensors import SensorSuite
+
+FrameSink = Callable[[int, bytes], None]
+
+
+@dataclass(frozen=True)
+class GnssWindow:
+    """GNSS switched off (no HIL_GPS sent) for fixes valid in [start_s, start_s + duration_s)."""
+
+    start_s: float
+    duration_s: float
+
+    def covers(self, time_us: int) -> bool:
+        t = time_us * 1e-6
+        return self.start_s <= t < self.start_s + self.duration_s
+
+    @classmethod
+    def parse(cls, text: str) -> GnssWindow:
+        """Parse ``START:DURATION`` in seconds, e.g. ``300:60``."""
+        try:
+            start, duration = (float(p) for p in text.split(":"))
+        except ValueError:
+            raise ValueError(
+                f"GNSS outage {text!r} must be START:DURATION in seconds, e.g. 300:60"
+            ) from None
+        if start < 0 or duration <= 0:
+            raise ValueError(f"GNSS outage {text!r}: start must be >= 0 and duration > 0")
+        return cls(start, duration)
+
+
+class SensorBridge:
+    """Encodes simulator output into frames, in the order a real sensor bus would emit them."""
+
+    def __init__(
+        self,
+        encoder: Encoder | None = None,
+        *,
+        truth_rate_hz: float = 50.0,
+        gnss_off: Sequence[GnssWindow] = (),
+    ) -> None:
+        if truth_rate_hz <= 0:
+            raise ValueError("truth_rate_hz must be > 0")
+        self.encoder = encoder or Encoder()
+        self._truth_period_us = round(1e6 / truth_rate_hz)
+        self._next_truth_us: int | None = None
+        self._gnss_off = tuple(gnss_off)
+        self.gnss_suppressed = 0
+
+    def frames(self, truth: Truth, samples: Sequence[Sample]) -> list[tuple[int, bytes]]:
+        """Frames for one step: ``[(time_us, frame), ...]`` in emission order."""
+        out: list[tuple[int, bytes]] = []
+        imu: ImuSample | None = None
+        baro: BaroSample | None = None
+        mag: MagSample | None = None
+        for s in samples:
+            if isinstance(s, ImuSample):
+                if imu is not None:
+                    out.append((imu.time_us, self.encoder.sensors(imu)))
+                imu = s
+            elif isinstance(s, BaroSample):
+                baro = s
+            elif isinstance(s, MagSample):
+                mag = s
+            elif isinstance(s, GnssFix):
+                if any(w.covers(s.time_us) for w in self._gnss_off):
+                    self.gnss_suppressed += 1
+                else:
+                    out.append((truth.time_us, self.encoder.gnss(s)))
+        if imu is not None or baro is not None or mag is not None:
+            t = imu.time_us if imu is not None else truth.time_us
+            out.append((t, self.encoder.sensors(imu, baro, mag, time_us=t)))
+        if self._next_truth_us is None or truth.time_us >= self._next_truth_us:
+            out.append((truth.time_us, self.encoder.truth(truth)))
+            base = truth.time_us if self._next_truth_us is None else self._next_truth_us
+            self._next_truth_us = base + self._truth_period_us
+        return out
+
+
+@dataclass(frozen=True)
+class LockstepReport:
+    sim_duration_s: float
+    wall_s: float
+    frames: int
+    ended: FlightEnded | None
+
+    @property
+    def realtime_factor(self) -> float:
+        return self.sim_duration_s / self.wall_s if self.wall_s > 0 else float("inf")
+
+
+def run_lockstep(
+    flight: Flight,
+    suite: SensorSuite,
+    bridge: SensorBridge,
+    duration_s: float,
+    sink: FrameSink,
+    *,
+    progress: Callable[[float], None] | None = None,
+) -> LockstepReport:
+    """Fly for ``duration_s`` of simulated time, passing every frame to ``sink``.
+
+    A stall or ground contact ends the run early; it is reported in ``ended`` (never raised),
+    so whatever the sink recorded so far stays valid.
+    """
+    if duration_s <= 0:
+        raise ValueError("duration must be > 0 s")
+    t0_us = flight.time_us
+    end_us = t0_us + round(duration_s * 1e6)
+    n_frames = 0
+    ended: FlightEnded | None = None
+    next_progress_us = t0_us
+    wall0 = time.perf_counter()
+    truth = flight.truth()
+    while truth.time_us < end_us:
+        try:
+            truth = flight.step()
+        except FlightEnded as exc:
+            ended = exc
+            break
+        for time_us, frame in bridge.frames(truth, suite.step(truth)):
+            sink(time_us, frame)
+            n_frames += 1
+        if progress is not None and truth.time_us >= next_progress_us:
+            progress((truth.time_us - t0_us) * 1e-6)
+            next_progress_us += 1_000_000
+    wall = time.perf_counter() - wall0
+    return LockstepReport((truth.time_us - t0_us) * 1e-6, wall, n_frames, ended)

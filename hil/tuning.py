@@ -1,0 +1,62 @@
+"""Filter tuning from sensor datasheets: what the fusion should assume about the sensors.
+
+A user configures the navigation filter from the IMU's datasheet (its Allan parameters), not
+from the truth of a particular run. hilnav's sensor presets *are* datasheet descriptions, so
+this module maps a :class:`sim.sensors.SensorSuiteConfig` onto the filter's
+:class:`fusion.config.FilterConfig`. It lives in ``hil`` because it is the one place allowed to
+know both ``sim`` and ``fusion``.
+"""
+
+from __future__ import annotations
+
+import math
+
+from fusion.config import FilterConfig
+from fusion.config import ImuConfig as FilterImuConfig
+from sim.imu import ImuParams
+from sim.presets import imu_preset
+from sim.sensors import ImuConfig
+
+
+def filter_imu_config(imu: ImuConfig, base: FilterImuConfig | None = None) -> FilterImuConfig:
+    """The filter's IMU error model for a sensor described by ``imu`` (datasheet units).
+
+    White noise densities are the datasheet ARW / VRW (plus the quantisation noise
+    ``LSB / sqrt(12 * rate)`` folded into the density at 200 Hz). The Gauss-Markov bias sigma
+    is the in-run part, with the rate random walk over one correlation time added in
+    quadrature (``K^2 * tau / 2``): a first-order Gauss-Markov state cannot represent a random
+    walk, so its sigma is widened to cover what the walk reaches in ``tau``. The turn-on bias
+    only widens the initial covariance.
+    """
+    p = ImuParams.from_config(imu)
+    base = base or FilterImuConfig()
+
+    def white(axis: int) -> float:
+        q = p.resolution[axis]
+        quant = (q * q / 12.0) / 200.0 if q > 0 else 0.0  # LSB^2/12 per sample at 200 Hz
+        return math.sqrt(p.white_density[axis] ** 2 + quant)
+
+    def gm(axis: int) -> float:
+        return math.sqrt(p.gm_sigma[axis] ** 2 + p.rate_random_walk[axis] ** 2
+                         * p.gm_tau_s[axis] / 2.0)
+
+    return base.model_copy(update={
+        "accel_noise_density_mps2_rthz": max(white(0), 1e-7),
+        "gyro_noise_density_rps_rthz": max(white(3), 1e-9),
+        "accel_bias_sigma_mps2": max(gm(0), 1e-7),
+        "gyro_bias_sigma_rps": max(gm(3), 1e-10),
+        "accel_bias_tau_s": float(p.gm_tau_s[0]),
+        "gyro_bias_tau_s": float(p.gm_tau_s[3]),
+        "accel_turn_on_sigma_mps2": float(p.turn_on_sigma[0]),
+        "gyro_turn_on_sigma_rps": float(p.turn_on_sigma[3]),
+        "accel_scale_sigma": max(float(p.scale_sigma[0]), 1e-7),
+        "gyro_scale_sigma": max(float(p.scale_sigma[3]), 1e-7),
+        "accel_range_mps2": float(p.range[0]),
+        "gyro_range_rps": float(p.range[3]),
+    })
+
+
+def filter_config_for_imu(preset: str, base: FilterConfig | None = None) -> FilterConfig:
+    """A :class:`FilterConfig` assuming the IMU ``preset`` (ValueError names valid presets)."""
+    base = base or FilterConfig()
+    return base.model_copy(update={"imu": filter_imu_config(imu_preset(preset), base.imu)})
