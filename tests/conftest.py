@@ -1,0 +1,21 @@
+"""Shared fixtures: one short recorded lockstep flight reused by the CLI / replay tests."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from hil.recording import SimRequest, record_flight
+
+
+@pytest.fixture(scope="session")
+def short_flight_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """180 s racetrack, industrial-mems IMU, seed 7, GNSS off from 120 s for 30 s."""
+    path = tmp_path_factory.mktemp("flight") / "run.tlog"
+    request = SimRequest.build(
+        plan="racetrack", duration_s=180.0, seed=7, gnss_off=["120:30"], rate_hz=200.0
+    )
+    report = record_flight(request, path)
+    assert report.ended is None
+    return path

@@ -1,0 +1,134 @@
+"""The hilnav command line: recording, replay scorecard, exit codes, bad input.
+
+GIVEN a user at the shell, WHEN they run a subcommand, THEN they get the files of the output
+contract (ARCHITECTURE.md) and exit 0 / 1 / 2 with one readable line on failure.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from hil.cli import app
+from hil.tlog import read_tlog
+
+runner = CliRunner()
+
+
+def _run(*args: str) -> tuple[int, str]:
+    res = runner.invoke(app, list(args))
+    return res.exit_code, res.output
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--plan", "loop-the-loop"], "climb-descent, cruise, manoeuvre"),
+        (["--aircraft", "sopwith"], "c172x"),
+        (["--imu", "gold-plated"], "industrial-mems"),
+        (["--gnss", "galileo-prs"], "modern"),
+        (["--duration", "-5"], "duration"),
+        (["--rate", "1000"], "rate_hz"),
+        (["--gnss-off", "abc"], "START:DURATION"),
+        (["--wind", "1,2"], "N,E,D"),
+    ],
+)
+def test_sim_bad_input_is_one_line_and_exit_2(tmp_path: Path, args: list[str], needle: str) -> None:
+    code, out = _run("sim", "--record", str(tmp_path / "x.tlog"), "--duration", "5", *args)
+    assert code == 2
+    assert needle in out
+    assert "Traceback" not in out
+    assert len([ln for ln in out.splitlines() if ln.strip()]) == 1
+
+
+def test_replay_bad_input(tmp_path: Path, short_flight_log: Path) -> None:
+    code, out = _run("replay", str(tmp_path / "missing.tlog"), "--out", str(tmp_path))
+    assert code == 2 and "no such log file" in out
+    code, out = _run("replay", str(short_flight_log), "--out", str(tmp_path), "--bridge", "magic")
+    assert code == 2 and "valid choices: none" in out
+
+
+def test_sim_records_a_log_mavlogdump_reads(tmp_path: Path) -> None:
+    log = tmp_path / "run.tlog"
+    code, out = _run("sim", "--record", str(log), "--duration", "20", "--seed", "3")
+    assert code == 0, out
+    dump = subprocess.run(
+        [sys.executable, "-m", "pymavlink.tools.mavlogdump", "--types",
+         "HIL_SENSOR,HIL_GPS,HIL_STATE_QUATERNION", "--format", "json", str(log)],
+        capture_output=True, text=True, timeout=120, check=True,
+    )
+    types: dict[str, int] = {}
+    for line in dump.stdout.splitlines():
+        if line.startswith("{"):
+            name = json.loads(line)["meta"]["type"]
+            types[name] = types.get(name, 0) + 1
+    # 200 Hz IMU, 5 Hz GNSS, 50 Hz truth over 20 s (the first GNSS fix is 0.1 s late)
+    assert types["HIL_SENSOR"] == pytest.approx(4000, abs=2)
+    assert types["HIL_GPS"] == pytest.approx(100, abs=2)
+    assert types["HIL_STATE_QUATERNION"] == pytest.approx(1000, abs=2)
+
+
+def test_same_seed_gives_identical_bytes(tmp_path: Path) -> None:
+    paths = [tmp_path / "a.tlog", tmp_path / "b.tlog", tmp_path / "c.tlog"]
+    for p, seed in zip(paths, (5, 5, 6), strict=True):
+        code, out = _run("sim", "--record", str(p), "--duration", "10", "--seed", str(seed),
+                         "--turbulence", "0.3")
+        assert code == 0, out
+    a, b, c = (p.read_bytes() for p in paths)
+    assert a == b
+    assert a != c
+
+
+def test_crash_keeps_the_log_and_exits_1(tmp_path: Path) -> None:
+    plan = tmp_path / "dive.yaml"
+    plan.write_text(
+        "name: dive\nlegs:\n  - {kind: heading, heading_deg: 0, duration_s: 900, alt_m: -2000,"
+        " climb_rate_mps: 8}\n"
+    )
+    log = tmp_path / "dive.tlog"
+    code, out = _run("sim", "--record", str(log), "--plan", str(plan), "--alt", "300",
+                     "--rate", "50", "--duration", "300")
+    assert code == 1
+    assert "ground" in out and "kept" in out
+    records = list(read_tlog(log))
+    assert len(records) > 1000  # everything flown before the impact is on disk
+
+
+def test_replay_writes_the_contract(tmp_path: Path, short_flight_log: Path) -> None:
+    """GIVEN a recorded flight with GNSS off 120-150 s WHEN replayed THEN the scorecard finds
+    the outage from the gap in HIL_GPS and scores it against the logged truth."""
+    out = tmp_path / "replay"
+    code, text = _run("replay", str(short_flight_log), "--out", str(out), "--settle", "30")
+    assert code == 0, text
+    s = json.loads((out / "summary.json").read_text())
+    for key in ("scenario", "seed", "sim_duration_s", "wall_s", "realtime_factor", "bridge",
+                "altitude", "outages", "gnss_on", "nees", "criteria", "passed"):
+        assert key in s
+    assert s["sim_duration_s"] == pytest.approx(180.0, abs=0.5)
+    assert len(s["outages"]) == 1
+    o = s["outages"][0]
+    assert o["start_s"] == pytest.approx(120.0, abs=0.5)
+    assert o["end_s"] == pytest.approx(150.0, abs=0.5)
+    assert set(o["rmse"]) >= {"lat_deg", "lon_deg", "h_m", "vn_mps", "ve_mps", "vd_mps"}
+    assert o["horizontal_error_m_at"]["10"] is not None
+    on = s["gnss_on"]
+    # an industrial MEMS IMU with a 1.5 m GNSS: metre-level position, sub-degree attitude
+    assert on["horizontal_rmse_m"] < 3.0
+    assert on["roll_rmse_deg"] < 0.5 and on["pitch_rmse_deg"] < 0.5
+    assert s["health"]["filter"]["gnss_fused"] > 500
+    for png in ("ground_track.png", "errors.png", "horizontal_vertical.png"):
+        assert (out / png).stat().st_size > 10_000
+
+
+def test_list_json() -> None:
+    code, out = _run("list", "--json")
+    assert code == 0
+    choices = json.loads(out)
+    assert "c172x" in choices["aircraft"] and "c310" in choices["aircraft"]
+    assert set(choices["plans"]) == {"cruise", "racetrack", "climb-descent", "survey", "manoeuvre"}
+    assert {"consumer-mems", "industrial-mems", "tactical", "paper-p2"} <= set(choices["imu"])
