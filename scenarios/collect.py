@@ -14,7 +14,7 @@ import numpy as np
 from fusion import rotations
 from fusion.filter import NavEstimate, NavFilter
 from scenarios.metrics import Track
-from sim.samples import GnssFix, Truth
+from sim.samples import GnssFix, Sample, Truth
 
 
 @dataclass
@@ -26,17 +26,14 @@ class Collector:
     fix_times_us: list[int] = field(default_factory=list)
     last_time_us: int = 0
 
-    def feed(self, nav: NavFilter, items: Iterable[object]) -> None:
+    def feed(self, nav: NavFilter, items: Iterable[Sample | Truth]) -> None:
         for item in items:
+            self.last_time_us = max(self.last_time_us, item.time_us)
             if isinstance(item, Truth):
                 self.truths.append(item)
-                self.last_time_us = max(self.last_time_us, item.time_us)
                 continue
             if isinstance(item, GnssFix) and item.fix_type >= 3:
                 self.fix_times_us.append(item.time_us)
-            time_us = getattr(item, "time_us", None)
-            if isinstance(time_us, int):
-                self.last_time_us = max(self.last_time_us, time_us)
             self.estimates.extend(nav.step(item))
 
     def estimate_track(self) -> Track:

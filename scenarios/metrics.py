@@ -98,7 +98,11 @@ def errors(estimate: Track, truth: Track) -> Errors:
     dlat = estimate.lat_rad[keep] - lat_t
     dlon = wrap_pi(estimate.lon_rad[keep] - lon_t)
     pos = np.column_stack(
-        [dlat * (r_n + alt_t), dlon * (r_e + alt_t) * np.cos(lat_t), -(estimate.alt_m[keep] - alt_t)]
+        [
+            dlat * (r_n + alt_t),
+            dlon * (r_e + alt_t) * np.cos(lat_t),
+            -(estimate.alt_m[keep] - alt_t),
+        ]
     )
     return Errors(
         time_s=t,
@@ -216,7 +220,9 @@ def component_rmse(err: Errors) -> dict[str, float]:
     }
 
 
-def gnss_on_mask(time_s: FloatArray, outages: list[Window], *, settle_s: float) -> NDArray[np.bool_]:
+def gnss_on_mask(
+    time_s: FloatArray, outages: list[Window], *, settle_s: float
+) -> NDArray[np.bool_]:
     """Samples with GNSS available, after ``settle_s`` from the start and from each outage end."""
     m = time_s >= time_s[0] + settle_s if time_s.size else np.zeros(0, bool)
     for w in outages:

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from fusion.config import FilterConfig
 from fusion.filter import NavFilter
 from hil.codec import Decoder
@@ -60,7 +62,7 @@ def replay(
     truth = col.truth_track()
     end_s = min(estimate.time_s[-1], truth.time_s[-1])
     outages = metrics.outages_from_fix_times(
-        [t * 1e-6 for t in col.fix_times_us], end_s=end_s)
+        np.asarray(col.fix_times_us, dtype=float) * 1e-6, end_s=end_s)
     info = RunInfo(
         scenario=log.stem, seed=None, sim_duration_s=col.last_time_us * 1e-6, wall_s=wall,
         bridge=bridge, altitude=altitude)

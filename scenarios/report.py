@@ -7,17 +7,17 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from fusion import earth  # noqa: E402
-from scenarios.metrics import Errors, Track, Window  # noqa: E402
+from fusion import earth
+from scenarios.metrics import Errors, Track, Window
 
 
 def _local_ne(track: Track, lat0: float, lon0: float, h0: float) -> tuple[np.ndarray, np.ndarray]:
-    r_n, r_e = earth.principal_radii(np.array([lat0]))
-    north = (track.lat_rad - lat0) * (r_n[0] + h0)
-    east = (track.lon_rad - lon0) * (r_e[0] + h0) * np.cos(lat0)
+    r_n, r_e = (float(r) for r in earth.principal_radii(lat0))
+    north = (track.lat_rad - lat0) * (r_n + h0)
+    east = (track.lon_rad - lon0) * (r_e + h0) * np.cos(lat0)
     return north, east
 
 

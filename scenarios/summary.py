@@ -34,9 +34,8 @@ def _lookup(tree: Any, path: str) -> float | None:
     node = tree
     for part in path.split("."):
         if isinstance(node, list):
-            vals = [_lookup(item, part) for item in node]
-            vals = [v for v in vals if v is not None]
-            return max(vals) if vals else None  # worst case over a list (e.g. all outages)
+            found = [v for v in (_lookup(item, part) for item in node) if v is not None]
+            return max(found) if found else None  # worst case over a list (e.g. all outages)
         if not isinstance(node, dict) or part not in node:
             return None
         node = node[part]
