@@ -172,9 +172,7 @@ def _as_float_1d_target(y: ArrayLike | None, n_samples: int, owner: str) -> Floa
         )
         arr = arr[:, 0]
     if arr.ndim != 1:
-        raise ValueError(
-            f"{owner}: y should be a 1d array (single output), got shape {arr.shape}."
-        )
+        raise ValueError(f"{owner}: y should be a 1d array (single output), got shape {arr.shape}.")
     if arr.shape[0] != n_samples:
         raise ValueError(
             "Found input variables with inconsistent numbers of samples: "
@@ -374,9 +372,7 @@ def _gram_index(m: int, pairs: IntArray) -> tuple[IntArray, IntArray, IntArray, 
     p_row = np.minimum(p, 2)
     q_row = np.minimum(q, 2)
     row = np.where(q == 0, col(p_row, ii), np.where(p == 0, col(q_row, jj), col(p, ii)))
-    column = np.where(
-        q == 0, col(p - p_row, ii), np.where(p == 0, col(q - q_row, jj), col(q, jj))
-    )
+    column = np.where(q == 0, col(p - p_row, ii), np.where(p == 0, col(q - q_row, jj), col(q, jj)))
     # right-hand side Σ y·monomial: y·a^p·b^q with p + q ≤ 2
     y_block = 1 + 3 * m  # first column of y·Z
     y_col = 1 + 4 * m  # the y column
@@ -386,9 +382,11 @@ def _gram_index(m: int, pairs: IntArray) -> tuple[IntArray, IntArray, IntArray, 
     # y·ab → (y·a, b)
     r_row = np.where(ep + eq <= 1, y_col, np.where(ep > 0, y_block + i2, y_block + j2))
     r_col = np.where(
-        ep + eq == 0, 0,
-        np.where(ep + eq == 1, np.where(ep == 1, 1 + i2, 1 + j2),
-                 np.where(eq == 0, 1 + i2, 1 + j2)),
+        ep + eq == 0,
+        0,
+        np.where(
+            ep + eq == 1, np.where(ep == 1, 1 + i2, 1 + j2), np.where(eq == 0, 1 + i2, 1 + j2)
+        ),
     )
     return row, column, r_row.astype(np.intp), r_col.astype(np.intp)
 
@@ -493,9 +491,7 @@ def _pairs_for(m: int) -> IntArray:
     return np.array(list(itertools.combinations(range(m), 2)), dtype=np.intp)
 
 
-def _split_masks(
-    n: int, fraction: float, split: str, random_state: Any
-) -> NDArray[np.bool_]:
+def _split_masks(n: int, fraction: float, split: str, random_state: Any) -> NDArray[np.bool_]:
     """Boolean validation mask of length ``n`` (≥ 1 validation and ≥ 1 training sample)."""
     n_val = min(max(round(fraction * n), 1), n - 1)
     mask = np.zeros(n, dtype=bool)
@@ -612,8 +608,7 @@ class GmdhRegressor(RegressorBase):
         y_mean, y_scale = standardise(ya)
         U = (Xa - x_mean) / x_scale
         v = (ya - float(y_mean)) / float(y_scale)
-        val = _split_masks(len(v), float(self.validation_fraction), self.split,
-                           self.random_state)
+        val = _split_masks(len(v), float(self.validation_fraction), self.split, self.random_state)
         Zt, Zv, yt, yv = U[~val], U[val], v[~val], v[val]
 
         layers: list[GmdhLayer] = []
@@ -757,8 +752,11 @@ class GmdhRegressor(RegressorBase):
             for n, ((i, j), c) in enumerate(zip(layer.pairs, layer.coefs, strict=True)):
                 a, b = names[int(i)], names[int(j)]
                 monos = ["", a, b, f"{a}**2", f"{b}**2", f"{a}*{b}"]
-                body = "".join(term(float(cv), m) for cv, m in zip(c, monos, strict=True)
-                               if cv != 0.0 or m == "")
+                body = "".join(
+                    term(float(cv), m)
+                    for cv, m in zip(c, monos, strict=True)
+                    if cv != 0.0 or m == ""
+                )
                 body = body[3:] if body.startswith(" + ") else "-" + body[3:]
                 name = f"z{li}_{n}"
                 lines.append(f"{name} = {body}")
@@ -780,8 +778,9 @@ def _prune(layers: list[GmdhLayer]) -> list[GmdhLayer]:
         pairs = layer.pairs[idx]
         if prev_index is not None:
             pairs = np.searchsorted(prev_index, pairs)
-        pruned.append(GmdhLayer(pairs.astype(np.intp), layer.coefs[idx].copy(),
-                                layer.criterion[idx].copy()))
+        pruned.append(
+            GmdhLayer(pairs.astype(np.intp), layer.coefs[idx].copy(), layer.criterion[idx].copy())
+        )
         prev_index = idx
     return pruned
 

@@ -39,8 +39,9 @@ def _require_int(owner: object, name: str, minimum: int) -> int:
     return int(v)
 
 
-def _require_real(owner: object, name: str, low: float, high: float = np.inf,
-                  low_open: bool = False) -> float:
+def _require_real(
+    owner: object, name: str, low: float, high: float = np.inf, low_open: bool = False
+) -> float:
     v = getattr(owner, name)
     ok = not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
     if ok:
@@ -174,19 +175,24 @@ class NarxMLP(RegressorBase):
 
         # regressors for rows lag..n-1, every lag genuinely observed (teacher forcing)
         R_x = self._lagged_inputs(U[lag:], U[lag - n_in_lags : lag] if n_in_lags else U[:0])
-        R_y = np.column_stack([v[lag - k : n - k] for k in range(1, n_out_lags + 1)]) \
-            if n_out_lags else np.empty((n - lag, 0))
+        R_y = (
+            np.column_stack([v[lag - k : n - k] for k in range(1, n_out_lags + 1)])
+            if n_out_lags
+            else np.empty((n - lag, 0))
+        )
         R = np.hstack([R_x, R_y])
         t = v[lag:]
         n_in = R.shape[1]
 
         rng = np.random.default_rng(self.random_state)
-        theta0 = np.concatenate([
-            rng.normal(0.0, 1.0 / np.sqrt(n_in), n_hidden * n_in),  # fan-in scaled
-            rng.normal(0.0, 0.5, n_hidden),
-            rng.normal(0.0, 1.0 / np.sqrt(n_hidden), n_hidden),
-            [0.0],
-        ])
+        theta0 = np.concatenate(
+            [
+                rng.normal(0.0, 1.0 / np.sqrt(n_in), n_hidden * n_in),  # fan-in scaled
+                rng.normal(0.0, 0.5, n_hidden),
+                rng.normal(0.0, 1.0 / np.sqrt(n_hidden), n_hidden),
+                [0.0],
+            ]
+        )
         sqrt_l2 = np.sqrt(l2)
         n_par = theta0.size
 
@@ -427,8 +433,9 @@ class RbfNet(RegressorBase):
         # the bias column is not penalised
         lam = np.sqrt(ridge * n)
         reg = np.hstack([np.zeros((k, 1)), lam * np.eye(k)])
-        sol = np.linalg.lstsq(np.vstack([Phi, reg]), np.concatenate([v, np.zeros(k)]),
-                              rcond=None)[0]
+        sol = np.linalg.lstsq(np.vstack([Phi, reg]), np.concatenate([v, np.zeros(k)]), rcond=None)[
+            0
+        ]
 
         self.n_features_in_ = Xa.shape[1]
         self.x_mean_ = x_mean
@@ -570,8 +577,12 @@ class BpNet(RegressorBase):
             # back-propagation of the MSE
             g_out = (2.0 / n) * e
             dH = np.outer(g_out, w2) * H * (1.0 - H)
-            grads = [dH.T @ U + 2 * l2 * W1, dH.sum(0), H.T @ g_out + 2 * l2 * w2,
-                     np.array([g_out.sum()])]
+            grads = [
+                dH.T @ U + 2 * l2 * W1,
+                dH.sum(0),
+                H.T @ g_out + 2 * l2 * w2,
+                np.array([g_out.sum()]),
+            ]
             for p, g, mi, si in zip(params, grads, m, s, strict=True):
                 mi *= beta1
                 mi += (1 - beta1) * g
