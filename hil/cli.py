@@ -87,7 +87,9 @@ def _progress(total_s: float, label: str) -> Progress:
 @app.command()
 @cli_errors
 def sim(
-    record: Annotated[Path, typer.Option(help="MAVLink log (.tlog) to write.")],
+    record: Annotated[
+        Path | None, typer.Option(help="MAVLink log (.tlog) to write (required without --live).")
+    ] = None,
     plan: Annotated[str, typer.Option(help="Flight plan name or YAML path.")] = "racetrack",
     aircraft: Annotated[str, typer.Option(help="JSBSim aircraft from the jsbsim wheel.")] = "c172x",
     duration: Annotated[float, typer.Option(help="Simulated seconds.")] = 600.0,
@@ -109,8 +111,26 @@ def sim(
         typer.Option("--gnss-off", help="GNSS outage START:DURATION s (repeatable)."),
     ] = None,
     truth_rate: Annotated[float, typer.Option(help="Truth message rate, Hz.")] = 50.0,
+    live: Annotated[
+        str | None,
+        typer.Option(help="Send the frames live to this MAVLink URL, e.g. udpout:HOST:14560."),
+    ] = None,
+    speed: Annotated[
+        float, typer.Option(help="With --live: simulated seconds per wall second (1 = hardware).")
+    ] = 1.0,
+    zenoh: Annotated[
+        str | None, typer.Option(help="With --live: publish truth and sensors via this router.")
+    ] = None,
+    vehicle: Annotated[str, typer.Option(help="Zenoh vehicle name.")] = "sim1",
+    wait_peer: Annotated[
+        float, typer.Option(help="With --live: wait up to S s for the receiver's heartbeat.")
+    ] = 0.0,
+    signing_key_file: Annotated[
+        Path | None,
+        typer.Option(help="MAVLink 2 signing key file (default: env HILNAV_MAVLINK_KEY)."),
+    ] = None,
 ) -> None:
-    """Fly a plan in lockstep (as fast as possible) and record sensors + truth as a .tlog."""
+    """Fly a plan and record it (lockstep, as fast as possible) or stream it live (--live)."""
     from hil.recording import SimRequest, record_flight
 
     request = SimRequest.build(
@@ -119,6 +139,12 @@ def sim(
         heading_deg=heading, airspeed_mps=airspeed, wind=wind, turbulence=turbulence,
         gnss_off=gnss_off or [], truth_rate_hz=truth_rate,
     )
+    if live is not None:
+        _sim_live(request, live, speed=speed, record=record, zenoh=zenoh, vehicle=vehicle,
+                  wait_peer=wait_peer, signing_key_file=signing_key_file)
+        return
+    if record is None:
+        raise ValueError("--record is required (or stream live with --live URL)")
     with _progress(duration, "flying") as bar:
         task = bar.add_task("fly", total=duration)
         report = record_flight(request, record, progress=lambda t: bar.update(task, completed=t))
@@ -128,6 +154,187 @@ def sim(
     )
     if report.ended is not None:
         raise RunFailed(f"{report.ended}; the log up to that point is kept in {record}")
+
+
+def _signing_key(path: Path | None) -> bytes | None:
+    from hil.signing import load_key
+
+    return load_key(path)
+
+
+def _sim_live(request: Any, url: str, *, speed: float, record: Path | None, zenoh: str | None,
+              vehicle: str, wait_peer: float, signing_key_file: Path | None) -> None:
+    from hil.live_sim import live_sim, stop_on_signals
+
+    if zenoh is not None:
+        from hil.bus import validate_endpoint, validate_vehicle
+
+        validate_endpoint(zenoh)
+        validate_vehicle(vehicle)
+    key = _signing_key(signing_key_file)
+    err_console.print(f"sim: streaming to {url} at {speed:g}x real time", highlight=False)
+    with stop_on_signals() as stop, _progress(request.duration_s, "flying") as bar:
+        task = bar.add_task("fly", total=request.duration_s)
+        report = live_sim(request, url, speed=speed, record=record, zenoh=zenoh,
+                          vehicle=vehicle, signing_key=key, wait_peer_s=wait_peer,
+                          progress=lambda t: bar.update(task, completed=t), stop=stop)
+    console.print(
+        f"sent {report.sent}/{report.frames} frames, {report.sim_duration_s:.1f} s simulated in "
+        f"{report.wall_s:.1f} s ({report.realtime_factor:.2f}x real time, target {speed:g}x)"
+        + (f" -> {record}" if record is not None else "")
+        + ("" if report.peer_seen or wait_peer == 0 else "; no receiver heartbeat seen")
+    )
+    if report.ended is not None:
+        raise RunFailed(str(report.ended))
+
+
+# ------------------------------------------------------------------------------------ fusion
+@app.command()
+@cli_errors
+def fusion(
+    mavlink: Annotated[
+        str, typer.Option(help="Sensor input MAVLink URL, e.g. udpin:0.0.0.0:14560.")
+    ] = "udpin:0.0.0.0:14560",
+    zenoh: Annotated[str | None, typer.Option(help="Zenoh router endpoint to publish on.")] = None,
+    vehicle: Annotated[str, typer.Option(help="Zenoh vehicle name.")] = "sim1",
+    imu: Annotated[str, typer.Option(help="IMU preset the filter is tuned for.")] = (
+        "industrial-mems"
+    ),
+    gcs: Annotated[
+        str | None,
+        typer.Option(help="Shadow vehicle for ground stations, e.g. udpout:127.0.0.1:14550."),
+    ] = None,
+    shadow_sysid: Annotated[int, typer.Option(help="Shadow vehicle's MAVLink system id.")] = 1,
+    companion: Annotated[
+        str | None, typer.Option(help="Flight controller link for GPS_INPUT / ODOMETRY.")
+    ] = None,
+    companion_kind: Annotated[
+        str, typer.Option(help="gps_input (ArduPilot) or odometry (PX4).")
+    ] = "gps_input",
+    companion_sysid: Annotated[int, typer.Option(help="Flight controller's system id.")] = 1,
+    duration: Annotated[
+        float | None, typer.Option(help="Stop after S wall-clock seconds.")
+    ] = None,
+    idle_exit: Annotated[
+        float | None, typer.Option(help="Stop after S s without input (once input started).")
+    ] = None,
+    out: Annotated[
+        Path | None, typer.Option(help="Write summary.json (live scorecard) here at exit.")
+    ] = None,
+    settle: Annotated[float, typer.Option(help="Scorecard: seconds excluded after start/outages.")
+                      ] = 60.0,
+    signing_key_file: Annotated[
+        Path | None,
+        typer.Option(help="MAVLink 2 signing key file (default: env HILNAV_MAVLINK_KEY)."),
+    ] = None,
+) -> None:
+    """Live fusion service: MAVLink sensors in; shadow vehicle, companion and Zenoh out."""
+    from hil.service import FusionOptions, fusion_main
+
+    if zenoh is not None:
+        from hil.bus import validate_endpoint, validate_vehicle
+
+        validate_endpoint(zenoh)
+        validate_vehicle(vehicle)
+    options = FusionOptions(
+        mavlink=mavlink, zenoh=zenoh, vehicle=vehicle, imu=imu, gcs=gcs,
+        shadow_system_id=shadow_sysid, companion=companion,
+        companion_kind=companion_kind,  # type: ignore[arg-type]  # pydantic checks the literal
+        companion_system_id=companion_sysid, duration_s=duration, idle_exit_s=idle_exit, out=out,
+        settle_s=settle,
+    )
+    from hil.tuning import filter_config_for_imu
+
+    filter_config_for_imu(imu)  # bad preset -> exit 2 before any socket opens
+    key = _signing_key(signing_key_file)
+
+    def ready(service: Any) -> None:
+        where = ", ".join(f"{n}={link.url}" for n, link in service._links.items())
+        err_console.print(f"fusion: listening ({where})", highlight=False)
+
+    summary = fusion_main(options, signing_key=key, on_ready=ready)
+    if summary is not None:
+        _print_summary(summary)
+        live = summary.get("live", {})
+        console.print(f"live: lost frames {live.get('lost_frames')}, "
+                      f"realtime factor {_fmt(summary.get('realtime_factor'))}")
+        if out is not None:
+            console.print(f"summary -> {out / 'summary.json'}")
+
+
+# ----------------------------------------------------------------------------------- monitor
+@app.command()
+@cli_errors
+def monitor(
+    connect: Annotated[str, typer.Option(help="Zenoh router endpoint.")] = "tcp/127.0.0.1:7447",
+    vehicle: Annotated[str, typer.Option(help="Vehicle name.")] = "sim1",
+    record: Annotated[Path | None, typer.Option(help="Record everything to this .mcap.")] = None,
+    duration: Annotated[float | None, typer.Option(help="Stop after S wall seconds.")] = None,
+    headless: Annotated[bool, typer.Option(help="One text line per second.")] = False,
+) -> None:
+    """Show (and optionally record) what the fusion service publishes."""
+    from hil.bus import validate_endpoint
+    from hil.monitor import monitor_main
+
+    validate_endpoint(connect)
+    code = monitor_main(connect=connect, vehicle=vehicle, record=record, duration_s=duration,
+                        headless=headless)
+    if code:
+        raise typer.Exit(code)
+
+
+# ------------------------------------------------------------------------------------ router
+@app.command()
+@cli_errors
+def router(
+    listen: Annotated[str, typer.Option(help="Endpoint(s) to listen on.")] = "tcp/127.0.0.1:7447",
+    duration: Annotated[float | None, typer.Option(help="Stop after S wall seconds.")] = None,
+) -> None:
+    """Run a Zenoh router in this process."""
+    from hil.router import router_main
+
+    code = router_main(listen=listen, duration_s=duration)
+    if code:
+        raise typer.Exit(code)
+
+
+# ---------------------------------------------------------------------------------------- up
+@app.command()
+@cli_errors
+def up(
+    duration: Annotated[
+        float | None, typer.Option(help="Simulated seconds (None: fly an hour or until Ctrl-C).")
+    ] = None,
+    speed: Annotated[float, typer.Option(help="Simulated seconds per wall second.")] = 1.0,
+    out: Annotated[Path, typer.Option(help="Folder for summary.json and the recording.")] = Path(
+        "out/up"
+    ),
+    vehicle: Annotated[str, typer.Option(help="Zenoh vehicle name.")] = "sim1",
+    plan: Annotated[str, typer.Option(help="Flight plan name or YAML path.")] = "racetrack",
+    seed: Annotated[int, typer.Option(help="Scenario seed.")] = 1,
+    gnss_off: Annotated[
+        list[str] | None,
+        typer.Option("--gnss-off", help="GNSS outage START:DURATION s (repeatable)."),
+    ] = None,
+    gcs: Annotated[
+        str | None, typer.Option(help="Also show the shadow vehicle to this ground station URL.")
+    ] = None,
+    monitor: Annotated[bool, typer.Option(help="Start the headless monitor too.")] = True,
+) -> None:
+    """Run router + fusion + sim (+ monitor) on loopback; Ctrl-C stops everything."""
+    from hil.up import UpOptions, run_up
+
+    options = UpOptions(duration_s=duration, speed=speed, out=out, vehicle=vehicle, plan=plan,
+                        seed=seed, gnss_off=tuple(gnss_off or ()), gcs=gcs, monitor=monitor)
+    summary = run_up(options, log=lambda text: console.print(text, highlight=False))
+    if summary is not None:
+        console.print("[bold]scorecard of the live run[/]")
+        _print_summary(summary)
+        live = summary.get("live", {})
+        console.print(f"live: lost frames {live.get('lost_frames')}, "
+                      f"realtime factor {_fmt(summary.get('realtime_factor'))}")
+    elif duration is not None:
+        raise RunFailed("the live run produced no scorecard (see the fusion output above)")
 
 
 # ------------------------------------------------------------------------------------ replay
@@ -242,3 +449,7 @@ def list_choices(
         return
     for k, v in choices.items():
         console.print(f"[bold]{k}[/]: {', '.join(v)}", highlight=False)
+
+
+if __name__ == "__main__":
+    app()

@@ -1,0 +1,272 @@
+"""Wire encoders for what the fusion service *sends*: the shadow vehicle and the companion.
+
+This module sits next to :mod:`hil.codec` and follows its rule: wire units (degE7, mm, cm/s,
+cdeg) are known only here and in the codec; callers hand over SI
+:class:`fusion.filter.NavEstimate` objects and get whole MAVLink 2 frames back. The unit
+constants are the codec's own.
+
+Shadow vehicle (towards ground stations; own system id, component 1)
+    HEARTBEAT comes from the link; this module builds GLOBAL_POSITION_INT,
+    ATTITUDE_QUATERNION, ATTITUDE, VFR_HUD, SYS_STATUS, ESTIMATOR_STATUS, SYSTEM_TIME and the
+    minimal answers ground stations wait for: PARAM_VALUE, AUTOPILOT_VERSION, COMMAND_ACK,
+    MISSION_COUNT (0 items).
+
+Companion (towards a flight controller)
+    GPS_INPUT (ArduPilot ``GPS_TYPE=14``) and ODOMETRY (PX4 external vision / odometry,
+    ``frame_id = MAV_FRAME_LOCAL_NED`` about the first estimate's position,
+    ``child_frame_id = MAV_FRAME_BODY_FRD``: velocity in body axes).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Final
+
+import numpy as np
+
+from fusion.earth import ned_offset_m
+from fusion.filter import NavEstimate
+from hil.codec import (
+    DEGE7_PER_RAD,
+    INT16_MAX,
+    INT16_MIN,
+    INT32_MAX,
+    INT32_MIN,
+    UINT16_MAX,
+    mavlink2,
+)
+
+__all__ = ["CompanionEncoder", "ShadowEncoder", "gps_time"]
+
+_GPS_EPOCH_UNIX_S: Final = 315_964_800  # 1980-01-06
+_GPS_LEAP_S: Final = 18  # GPS - UTC since 2017
+_WEEK_S: Final = 7 * 86_400
+
+_SENSORS: Final = int(
+    mavlink2.MAV_SYS_STATUS_SENSOR_3D_GYRO
+    | mavlink2.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | mavlink2.MAV_SYS_STATUS_SENSOR_3D_MAG
+    | mavlink2.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    | mavlink2.MAV_SYS_STATUS_SENSOR_GPS
+    | mavlink2.MAV_SYS_STATUS_AHRS
+)
+
+
+def _clip(value: float, lo: int, hi: int) -> int:
+    if not math.isfinite(value):
+        return 0
+    return int(min(max(round(value), lo), hi))
+
+
+def _f(value: float) -> float:
+    """float32 wire field: NaN stays NaN (MAVLink's "unknown" for float fields)."""
+    return float(value)
+
+
+def _heading_deg(est: NavEstimate) -> float:
+    return math.degrees(float(est.euler_rad[2])) % 360.0
+
+
+def _sigma(est: NavEstimate, i: int) -> float:
+    p = float(est.P_diag[i])
+    return math.sqrt(p) if p > 0.0 else 0.0
+
+
+def gps_time(unix_s: float) -> tuple[int, int]:
+    """(GPS week, milliseconds of week) of a UTC Unix time."""
+    gps_s = unix_s - _GPS_EPOCH_UNIX_S + _GPS_LEAP_S
+    week = int(gps_s // _WEEK_S)
+    return week, round((gps_s - week * _WEEK_S) * 1000.0) % (_WEEK_S * 1000)
+
+
+class _Packer:
+    def __init__(self, system_id: int, component_id: int) -> None:
+        self.mav = mavlink2.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
+
+    def pack(self, msg: Any) -> bytes:
+        # the link re-sequences frames per component; the packer's own seq is irrelevant
+        return bytes(msg.pack(self.mav))
+
+
+class ShadowEncoder:
+    """Frames of the shadow vehicle (the estimate shown to ground stations as an aircraft).
+
+    Parameters
+    ----------
+    system_id : int
+        The shadow vehicle's MAVLink system id (component 1, the autopilot).
+    boot_clock : callable
+        Monotonic wall time, s; ``time_boot_ms`` counts from construction.
+    """
+
+    def __init__(self, system_id: int, *, boot_clock: Any = time.monotonic) -> None:
+        self._p = _Packer(system_id, int(mavlink2.MAV_COMP_ID_AUTOPILOT1))
+        self.system_id = system_id
+        self._clock = boot_clock
+        self._boot = boot_clock()
+        self._home_alt_m: float | None = None
+
+    def boot_ms(self) -> int:
+        """Milliseconds since construction (uint32 wrap)."""
+        return int((self._clock() - self._boot) * 1000.0) & 0xFFFF_FFFF
+
+    def telemetry(self, est: NavEstimate) -> list[bytes]:
+        """The fast group: GLOBAL_POSITION_INT, ATTITUDE, ATTITUDE_QUATERNION, VFR_HUD."""
+        return [self.global_position_int(est), self.attitude(est),
+                self.attitude_quaternion(est), self.vfr_hud(est)]
+
+    def global_position_int(self, est: NavEstimate) -> bytes:
+        """GLOBAL_POSITION_INT: degE7, mm (MSL and above the first estimate), cm/s, cdeg."""
+        if self._home_alt_m is None:
+            self._home_alt_m = est.alt_msl_m
+        vn, ve, vd = (float(v) for v in est.v_ned_mps)
+        return self._p.pack(mavlink2.MAVLink_global_position_int_message(
+            self.boot_ms(),
+            _clip(est.lat_rad * DEGE7_PER_RAD, INT32_MIN, INT32_MAX),
+            _clip(est.lon_rad * DEGE7_PER_RAD, INT32_MIN, INT32_MAX),
+            _clip(est.alt_msl_m * 1000.0, INT32_MIN, INT32_MAX),
+            _clip((est.alt_msl_m - self._home_alt_m) * 1000.0, INT32_MIN, INT32_MAX),
+            _clip(vn * 100.0, INT16_MIN, INT16_MAX),
+            _clip(ve * 100.0, INT16_MIN, INT16_MAX),
+            _clip(vd * 100.0, INT16_MIN, INT16_MAX),
+            _clip(_heading_deg(est) * 100.0, 0, 35999),
+        ))
+
+    def attitude(self, est: NavEstimate, rates_rps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+                 ) -> bytes:
+        """ATTITUDE: Euler angles (rad, yaw in [-pi, pi]) and body rates (rad/s)."""
+        r, p, y = (float(a) for a in est.euler_rad)
+        y = math.atan2(math.sin(y), math.cos(y))
+        return self._p.pack(mavlink2.MAVLink_attitude_message(self.boot_ms(), r, p, y, *rates_rps))
+
+    def attitude_quaternion(
+        self, est: NavEstimate, rates_rps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    ) -> bytes:
+        """ATTITUDE_QUATERNION: q body->NED (w, x, y, z), body rates rad/s."""
+        w, x, y, z = (float(q) for q in est.q_nb)
+        return self._p.pack(mavlink2.MAVLink_attitude_quaternion_message(
+            self.boot_ms(), w, x, y, z, *rates_rps, [0.0, 0.0, 0.0, 0.0]))
+
+    def vfr_hud(self, est: NavEstimate) -> bytes:
+        """VFR_HUD: no air data in the estimate, so airspeed = ground speed (m/s)."""
+        vn, ve, vd = (float(v) for v in est.v_ned_mps)
+        gs = math.hypot(vn, ve)
+        return self._p.pack(mavlink2.MAVLink_vfr_hud_message(
+            gs, gs, _clip(_heading_deg(est), 0, 359), 0, est.alt_msl_m, -vd))
+
+    def sys_status(self, est: NavEstimate | None) -> bytes:
+        """SYS_STATUS: IMU/mag/baro/GNSS/AHRS present; AHRS healthy when navigating."""
+        healthy = _SENSORS if est is not None and est.mode != "initializing" else (
+            _SENSORS & ~int(mavlink2.MAV_SYS_STATUS_AHRS))
+        return self._p.pack(mavlink2.MAVLink_sys_status_message(
+            _SENSORS, _SENSORS, healthy, 0, UINT16_MAX, -1, -1, 0, 0, 0, 0, 0, 0))
+
+    def estimator_status(self, est: NavEstimate) -> bytes:
+        """ESTIMATOR_STATUS: solution flags, test ratios (NaN -> 0), 1-sigma accuracies (m)."""
+        flags = int(mavlink2.ESTIMATOR_ATTITUDE | mavlink2.ESTIMATOR_VELOCITY_HORIZ
+                    | mavlink2.ESTIMATOR_VELOCITY_VERT | mavlink2.ESTIMATOR_POS_VERT_ABS)
+        if est.mode == "gnss":
+            flags |= int(mavlink2.ESTIMATOR_POS_HORIZ_ABS | mavlink2.ESTIMATOR_POS_HORIZ_REL)
+        elif est.mode in ("free-inertial", "bridging"):
+            flags |= int(mavlink2.ESTIMATOR_PRED_POS_HORIZ_ABS | mavlink2.ESTIMATOR_GPS_GLITCH)
+        else:
+            flags = int(mavlink2.ESTIMATOR_CONST_POS_MODE)
+        tr = est.test_ratios
+
+        def ratio(v: float) -> float:
+            return float(v) if math.isfinite(v) else 0.0
+
+        return self._p.pack(mavlink2.MAVLink_estimator_status_message(
+            int(est.time_us), flags, ratio(tr.gnss_vel), ratio(tr.gnss_pos),
+            ratio(tr.baro_hgt), ratio(tr.mag_hdg), 0.0, 0.0,
+            math.hypot(_sigma(est, 0), _sigma(est, 1)), _sigma(est, 2)))
+
+    def system_time(self, unix_s: float | None = None) -> bytes:
+        """SYSTEM_TIME: wall-clock UTC (us) and time since boot (ms)."""
+        now = time.time() if unix_s is None else unix_s
+        return self._p.pack(mavlink2.MAVLink_system_time_message(int(now * 1e6), self.boot_ms()))
+
+    # -- minimal answers so ground stations connect without retry storms --
+    def param_value(self, name: str, value: float, index: int, count: int) -> bytes:
+        """PARAM_VALUE of a REAL32 parameter."""
+        return self._p.pack(mavlink2.MAVLink_param_value_message(
+            name.encode()[:16], float(value), int(mavlink2.MAV_PARAM_TYPE_REAL32), count, index))
+
+    def autopilot_version(self) -> bytes:
+        """AUTOPILOT_VERSION: MAVLink 2 capable, nothing else claimed."""
+        caps = int(mavlink2.MAV_PROTOCOL_CAPABILITY_MAVLINK2)
+        return self._p.pack(mavlink2.MAVLink_autopilot_version_message(
+            caps, 0, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, self.system_id))
+
+    def command_ack(self, command: int, result: int, target_system: int,
+                    target_component: int) -> bytes:
+        """COMMAND_ACK of ``command`` with ``MAV_RESULT`` ``result``."""
+        return self._p.pack(mavlink2.MAVLink_command_ack_message(
+            command, result, 0, 0, target_system, target_component))
+
+    def mission_count(self, target_system: int, target_component: int, mission_type: int
+                      ) -> bytes:
+        """MISSION_COUNT of zero items (the shadow vehicle has no mission)."""
+        return self._p.pack(mavlink2.MAVLink_mission_count_message(
+            target_system, target_component, 0, mission_type))
+
+
+class CompanionEncoder:
+    """Frames a companion computer sends a flight controller: GPS_INPUT or ODOMETRY.
+
+    Parameters
+    ----------
+    system_id, component_id : int
+        Our ids on the flight controller's link (system = the vehicle's).
+    """
+
+    def __init__(self, system_id: int, component_id: int) -> None:
+        self._p = _Packer(system_id, component_id)
+        self._origin: tuple[float, float, float] | None = None
+
+    def gps_input(self, est: NavEstimate, unix_s: float | None = None) -> bytes:
+        """GPS_INPUT (ArduPilot): 3-D fix at the estimate; GPS week/ms from the wall clock.
+
+        Accuracies are the estimate's 1-sigma position (m) and velocity (m/s); the yaw field
+        is 0 (= not provided).
+        """
+        now = time.time() if unix_s is None else unix_s
+        week, week_ms = gps_time(now)
+        vn, ve, vd = (float(v) for v in est.v_ned_mps)
+        h_acc = math.hypot(_sigma(est, 0), _sigma(est, 1))
+        v_acc = _sigma(est, 2)
+        s_acc = math.sqrt(sum(_sigma(est, i) ** 2 for i in (3, 4, 5)))
+        fix = 3 if est.mode != "initializing" else 0
+        return self._p.pack(mavlink2.MAVLink_gps_input_message(
+            int(est.time_us), 0, 0, week_ms, week, fix,
+            _clip(est.lat_rad * DEGE7_PER_RAD, INT32_MIN, INT32_MAX),
+            _clip(est.lon_rad * DEGE7_PER_RAD, INT32_MIN, INT32_MAX),
+            _f(est.alt_msl_m), 1.0, 1.0, vn, ve, vd, s_acc, h_acc, v_acc, 12, 0))
+
+    def odometry(self, est: NavEstimate) -> bytes:
+        """ODOMETRY (PX4): position NED about the first estimate (m), q body->NED, body-axis
+        velocity (m/s); covariances' first element NaN (= unknown)."""
+        if self._origin is None:
+            self._origin = (est.lat_rad, est.lon_rad, est.alt_msl_m)
+        lat0, lon0, alt0 = self._origin
+        # ned_offset_m(a, b) = a relative to b
+        n, e, d = ned_offset_m(est.lat_rad, est.lon_rad, est.alt_msl_m, lat0, lon0, alt0)
+        w, x, y, z = (float(q) for q in est.q_nb)
+        c_nb = _dcm(w, x, y, z)
+        v_b = c_nb.T @ np.asarray(est.v_ned_mps, dtype=float)
+        nan21 = [math.nan] + [0.0] * 20
+        return self._p.pack(mavlink2.MAVLink_odometry_message(
+            int(est.time_us), int(mavlink2.MAV_FRAME_LOCAL_NED), int(mavlink2.MAV_FRAME_BODY_FRD),
+            float(n), float(e), float(d), [w, x, y, z], float(v_b[0]), float(v_b[1]),
+            float(v_b[2]), math.nan, math.nan, math.nan, nan21, nan21, 0,
+            int(mavlink2.MAV_ESTIMATOR_TYPE_GPS_INS), 100))
+
+
+def _dcm(w: float, x: float, y: float, z: float) -> np.ndarray:
+    """Body -> NED direction cosine matrix of a scalar-first unit quaternion."""
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])

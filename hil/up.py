@@ -1,0 +1,227 @@
+"""``hilnav up``: the whole live chain on this machine, without Docker.
+
+An in-process Zenoh router (:mod:`hil.router`) plus three child processes on loopback with
+free ports: ``hilnav fusion`` (MAVLink in on ``udpin:127.0.0.1:<free>``, writes the live
+scorecard ``summary.json`` at exit), ``hilnav sim --live`` (waits for the fusion's heartbeat,
+then streams at ``--speed``; also records ``run.tlog``) and, optionally, ``hilnav monitor
+--headless`` (records ``live.mcap``). Each child's output goes to ``<out>/<name>.log``.
+
+Children are started in their own sessions and stopped by PID only (terminate, wait, kill):
+on a normal end, on Ctrl-C / SIGTERM, and from an ``atexit`` hook, so no orphan survives
+``up``. With a duration the run ends by itself: the sim finishes, the fusion exits after its
+input went idle and writes the scorecard, the monitor is stopped.
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import json
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import IO, Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+__all__ = ["Child", "UpOptions", "free_udp_port", "run_up", "stop_process"]
+
+_STOP_TIMEOUT_S = 5.0
+_FUSION_IDLE_EXIT_S = 3.0
+_DEFAULT_DURATION_S = 3600.0
+
+
+class UpOptions(BaseModel):
+    """Options of :func:`run_up`."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    duration_s: float | None = Field(default=None, gt=0.0)
+    speed: float = Field(default=1.0, gt=0.0, le=1000.0)
+    out: Path = Path("out/up")
+    vehicle: str = "sim1"
+    plan: str = "racetrack"
+    seed: int = Field(default=1, ge=0)
+    gnss_off: tuple[str, ...] = ()
+    gcs: str | None = None
+    monitor: bool = True
+    settle_s: float | None = Field(default=None, ge=0.0)
+    """Scorecard settling time; None: 60 s, at most a quarter of the duration."""
+
+
+def free_udp_port(host: str = "127.0.0.1") -> int:
+    """A UDP port that was free a moment ago."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind((host, 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def hilnav_argv(*args: str) -> list[str]:
+    """Command line running ``hilnav ARGS`` with this interpreter."""
+    return [sys.executable, "-m", "hil.cli", *args]
+
+
+def stop_process(proc: subprocess.Popen[Any], timeout_s: float = _STOP_TIMEOUT_S) -> int | None:
+    """Stop one child by PID: SIGTERM, wait, SIGKILL; returns its exit code."""
+    if proc.poll() is None:
+        with contextlib.suppress(ProcessLookupError):
+            proc.terminate()
+        try:
+            proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            with contextlib.suppress(ProcessLookupError):
+                proc.kill()
+            proc.wait(timeout_s)
+    return proc.returncode
+
+
+class Child:
+    """A child process with its output in a log file."""
+
+    def __init__(self, name: str, argv: list[str], log_path: Path) -> None:
+        self.name = name
+        self.log_path = log_path
+        self._log: IO[bytes] = log_path.open("wb")
+        self.proc: subprocess.Popen[bytes] = subprocess.Popen(
+            argv, stdout=self._log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+            start_new_session=True,  # Ctrl-C in the terminal reaches `up` only; up stops us
+        )
+
+    @property
+    def pid(self) -> int:
+        return self.proc.pid
+
+    def stop(self) -> int | None:
+        code = stop_process(self.proc)
+        self._log.close()
+        return code
+
+
+@contextlib.contextmanager
+def _children() -> Iterator[list[Child]]:
+    children: list[Child] = []
+
+    def stop_all() -> None:
+        for child in reversed(children):
+            child.stop()
+
+    atexit.register(stop_all)
+    previous = signal.getsignal(signal.SIGTERM)
+
+    def on_term(_sig: int, _frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    in_main = _is_main_thread()
+    if in_main:
+        signal.signal(signal.SIGTERM, on_term)
+    try:
+        yield children
+    finally:
+        stop_all()
+        atexit.unregister(stop_all)
+        if in_main:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _is_main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
+def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[str, Any] | None:
+    """Run router, fusion, sim and monitor until the sim is done (or Ctrl-C).
+
+    Returns
+    -------
+    dict or None
+        The fusion's live scorecard (``<out>/summary.json``), None if it wrote none.
+    """
+    from hil.bus import validate_vehicle
+    from hil.recording import SimRequest
+    from hil.router import zenoh_router
+
+    validate_vehicle(options.vehicle)
+    # validate the scenario here: a typo must fail before anything starts
+    SimRequest.build(plan=options.plan, seed=options.seed, gnss_off=list(options.gnss_off),
+                     duration_s=options.duration_s or _DEFAULT_DURATION_S)
+    out = options.out
+    out.mkdir(parents=True, exist_ok=True)
+    summary_path = out / "summary.json"
+    summary_path.unlink(missing_ok=True)
+    port = free_udp_port()
+    with zenoh_router() as endpoint, _children() as children:
+        log(f"zenoh router  {endpoint} (in process)")
+        fusion_args = ["fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
+                       "--vehicle", options.vehicle, "--out", str(out)]
+        settle = options.settle_s
+        if settle is None:
+            settle = min(60.0, 0.25 * (options.duration_s or _DEFAULT_DURATION_S))
+        fusion_args += ["--settle", str(settle)]
+        if options.duration_s is not None:
+            fusion_args += ["--idle-exit", str(_FUSION_IDLE_EXIT_S)]
+        if options.gcs is not None:
+            fusion_args += ["--gcs", options.gcs]
+        fusion = Child("fusion", hilnav_argv(*fusion_args), out / "fusion.log")
+        children.append(fusion)
+        log(f"fusion        pid {fusion.pid}: MAVLink in udpin:127.0.0.1:{port}"
+            + (f", shadow vehicle -> {options.gcs}" if options.gcs else "")
+            + f"; log {fusion.log_path}")
+        if options.monitor:
+            mon = Child("monitor", hilnav_argv(
+                "monitor", "--connect", endpoint, "--vehicle", options.vehicle, "--headless",
+                "--record", str(out / "live.mcap")), out / "monitor.log")
+            children.append(mon)
+            log(f"monitor       pid {mon.pid}: recording {out / 'live.mcap'}; log {mon.log_path}")
+        sim_args = ["sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", str(options.speed),
+                    "--zenoh", endpoint, "--vehicle", options.vehicle, "--plan", options.plan,
+                    "--seed", str(options.seed),
+                    "--duration", str(options.duration_s or _DEFAULT_DURATION_S),
+                    "--record", str(out / "run.tlog"), "--wait-peer", "30"]
+        for w in options.gnss_off:
+            sim_args += ["--gnss-off", w]
+        sim = Child("sim", hilnav_argv(*sim_args), out / "sim.log")
+        children.append(sim)
+        log(f"sim           pid {sim.pid}: -> udpout:127.0.0.1:{port} at {options.speed:g}x, "
+            f"recording {out / 'run.tlog'}; log {sim.log_path}")
+        log(f"subscribe:    hilnav monitor --connect {endpoint} --vehicle {options.vehicle}")
+        try:
+            sim_code = sim.proc.wait()
+            log(f"sim finished (exit {sim_code})")
+            try:
+                fusion.proc.wait(timeout=_FUSION_IDLE_EXIT_S + 30.0)
+            except subprocess.TimeoutExpired:
+                log("fusion did not stop by itself; stopping it")
+        except KeyboardInterrupt:
+            log("stopping ...")
+        for child in reversed(children):
+            code = child.stop()
+            log(f"{child.name:<13} pid {child.pid} stopped (exit {code})")
+    if summary_path.is_file():
+        loaded: dict[str, Any] = json.loads(summary_path.read_text())
+        log(f"summary -> {summary_path}")
+        return loaded
+    return None
+
+
+def wait_gone(pids: list[int], timeout_s: float = 5.0) -> bool:
+    """Whether every PID is gone (or a zombie) within ``timeout_s`` (for tests)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if not any(_alive(p) for p in pids):
+            return True
+        time.sleep(0.05)
+    return not any(_alive(p) for p in pids)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        status = Path(f"/proc/{pid}/stat").read_text().split()[2]
+    except (FileNotFoundError, IndexError, ProcessLookupError):
+        return False
+    return status != "Z"

@@ -1,0 +1,246 @@
+"""The live fusion service: shadow-vehicle / companion wire encoding, ground-station answers,
+and the live chain end to end (sim --live -> fusion -> Zenoh + shadow vehicle) on loopback."""
+
+from __future__ import annotations
+
+import bisect
+import math
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from fusion import rotations
+from fusion.filter import Health, NavEstimate, TestRatios
+from hil.bus import Bus, Message, Topic, error_payload
+from hil.cli import app
+from hil.codec import Decoder, mavlink2
+from hil.link import LinkRole, MavlinkLink
+from hil.router import zenoh_router
+from hil.service import GcsResponder, interpolate_truth
+from hil.shadow import CompanionEncoder, ShadowEncoder, gps_time
+from hil.tlog import read_tlog
+from hil.tuning import filter_config_for_imu
+from hil.up import free_udp_port, stop_process
+from scenarios.collect import Collector
+from scenarios.replay import replay
+
+SHADOW_SYS = 42
+
+
+def _estimate(yaw_deg: float = 90.0, mode: str = "gnss") -> NavEstimate:
+    euler = np.radians([2.0, -1.0, yaw_deg])
+    q = rotations.euler_to_quat(euler)
+    return NavEstimate(
+        time_us=12_345_678, lat_rad=math.radians(47.123), lon_rad=math.radians(8.456),
+        alt_msl_m=1012.3456, v_ned_mps=np.array([1.0, 50.0, -2.0]), q_nb=np.asarray(q),
+        euler_rad=euler, P_diag=np.array([9.0, 16.0, 4.0, 0.01, 0.01, 0.04, 1e-4, 1e-4, 1e-3]),
+        mode=mode, accel_bias_b=np.zeros(3), gyro_bias_b=np.zeros(3), baro_bias_m=0.0,
+        health=Health(), test_ratios=TestRatios(gnss_pos=0.5), time_since_gnss_s=0.1,
+        state_layout="ins16",
+    )
+
+
+def _decode(frame: bytes) -> Any:
+    mav = mavlink2.MAVLink(None)
+    msgs = mav.parse_buffer(frame)
+    assert msgs and len(msgs) == 1
+    return msgs[0]
+
+
+# ------------------------------------------------------------------ wire encoding (units)
+def test_global_position_int_wire_units() -> None:
+    enc = ShadowEncoder(SHADOW_SYS)
+    m = _decode(enc.global_position_int(_estimate()))
+    assert (m.get_srcSystem(), m.get_srcComponent()) == (SHADOW_SYS, 1)
+    assert m.lat == round(47.123e7) and m.lon == round(8.456e7)
+    assert m.alt == 1012346 and m.relative_alt == 0  # mm; home = first estimate
+    assert (m.vx, m.vy, m.vz) == (100, 5000, -200)  # cm/s
+    assert m.hdg == 9000  # cdeg
+
+
+def test_attitude_vfr_hud_estimator_status() -> None:
+    enc = ShadowEncoder(SHADOW_SYS)
+    est = _estimate()
+    att = _decode(enc.attitude(est))
+    assert att.yaw == pytest.approx(math.pi / 2, abs=1e-6)
+    assert att.roll == pytest.approx(math.radians(2.0), abs=1e-6)
+    aq = _decode(enc.attitude_quaternion(est))
+    assert [aq.q1, aq.q2, aq.q3, aq.q4] == pytest.approx(list(est.q_nb), abs=1e-6)
+    hud = _decode(enc.vfr_hud(est))
+    assert hud.groundspeed == pytest.approx(math.hypot(1.0, 50.0), rel=1e-6)
+    assert hud.climb == pytest.approx(2.0) and hud.heading == 90
+    st = _decode(enc.estimator_status(est))
+    assert st.pos_horiz_accuracy == pytest.approx(5.0) and st.pos_vert_accuracy == 2.0
+    assert st.pos_horiz_ratio == pytest.approx(0.5) and st.vel_ratio == 0.0  # NaN -> 0
+    assert st.flags & mavlink2.ESTIMATOR_POS_HORIZ_ABS
+    coasting = _decode(enc.estimator_status(_estimate(mode="free-inertial")))
+    assert not coasting.flags & mavlink2.ESTIMATOR_POS_HORIZ_ABS
+    assert coasting.flags & mavlink2.ESTIMATOR_PRED_POS_HORIZ_ABS
+
+
+def test_companion_gps_input_and_odometry() -> None:
+    enc = CompanionEncoder(1, 197)
+    g = _decode(enc.gps_input(_estimate(), unix_s=1_700_000_000.0))
+    assert (g.time_week, g.time_week_ms) == (2288, 252_818_000)
+    assert g.lat == round(47.123e7) and g.fix_type == 3
+    assert g.alt == pytest.approx(1012.3456, abs=1e-3)
+    assert (g.vn, g.ve, g.vd) == pytest.approx((1.0, 50.0, -2.0))
+    assert g.horiz_accuracy == pytest.approx(5.0)
+    odo = _decode(enc.odometry(_estimate()))
+    assert (odo.x, odo.y, odo.z) == (0.0, 0.0, 0.0)  # origin = first estimate
+    # yaw 90 deg, small roll/pitch: 50 m/s east is ~ forward in body axes
+    assert odo.vx == pytest.approx(50.0, abs=1.0) and abs(odo.vy) < 2.0
+    assert odo.frame_id == mavlink2.MAV_FRAME_LOCAL_NED
+    assert odo.child_frame_id == mavlink2.MAV_FRAME_BODY_FRD
+
+
+def test_gps_time_week_rollover() -> None:
+    week, ms = gps_time(315_964_800 - 18 + 7 * 86400)
+    assert (week, ms) == (1, 0)
+
+
+# ------------------------------------------------------------- ground-station answers
+def _request(msg: Any) -> Any:
+    mav = mavlink2.MAVLink(None, srcSystem=255, srcComponent=190)
+    return _decode(bytes(msg.pack(mav)))
+
+
+def test_gcs_answers_params_version_and_missions() -> None:
+    r = GcsResponder(ShadowEncoder(SHADOW_SYS))
+    pv = [_decode(f) for f in r.handle(_request(
+        mavlink2.MAVLink_param_request_list_message(SHADOW_SYS, 1)))]
+    assert [p.get_type() for p in pv] == ["PARAM_VALUE"] and pv[0].param_count == 1
+    for cmd, p1 in ((mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 1.0),
+                    (mavlink2.MAV_CMD_REQUEST_MESSAGE, 148.0)):
+        out = [_decode(f) for f in r.handle(_request(mavlink2.MAVLink_command_long_message(
+            SHADOW_SYS, 1, cmd, 0, p1, 0, 0, 0, 0, 0, 0)))]
+        assert [m.get_type() for m in out] == ["COMMAND_ACK", "AUTOPILOT_VERSION"]
+        assert out[0].result == mavlink2.MAV_RESULT_ACCEPTED and out[0].target_system == 255
+    (nack,) = [_decode(f) for f in r.handle(_request(mavlink2.MAVLink_command_long_message(
+        SHADOW_SYS, 1, mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 0, 0)))]
+    assert nack.result == mavlink2.MAV_RESULT_UNSUPPORTED
+    (count,) = [_decode(f) for f in r.handle(_request(
+        mavlink2.MAVLink_mission_request_list_message(SHADOW_SYS, 1, 0)))]
+    assert count.count == 0
+    assert r.handle(_request(mavlink2.MAVLink_param_request_list_message(7, 1))) == []
+
+
+# ------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["fusion", "--companion-kind", "mavros"], "companion_kind"),
+        (["fusion", "--mavlink", "udpin:nowhere"], "udpin"),
+        (["fusion", "--imu", "nope"], "nope"),
+        (["sim", "--duration", "5"], "--record"),
+        (["sim", "--live", "udpout:127.0.0.1:9", "--speed", "0", "--duration", "5"], "speed"),
+        (["fusion", "--zenoh", "bogus"], "bogus"),
+    ],
+)
+def test_bad_input_exit_2(args: list[str], needle: str) -> None:
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 2, result.output
+    assert needle in result.output
+
+
+# ------------------------------------------------------------------------- end to end
+def _hilnav(*args: str, log: Path) -> subprocess.Popen[bytes]:
+    return subprocess.Popen([sys.executable, "-m", "hil.cli", *args], stdout=log.open("wb"),
+                            stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def _gcs_role() -> LinkRole:
+    return LinkRole(system_id=255, component_id=190, mav_type=mavlink2.MAV_TYPE_GCS,
+                    autopilot=mavlink2.MAV_AUTOPILOT_INVALID)
+
+
+def test_live_chain_matches_replay_of_the_same_frames(tmp_path: Path) -> None:
+    """GIVEN sim --live at 20x for 60 s into the fusion service WHEN it ends THEN the live
+    scorecard equals `replay` of the sim's own recording, the Zenoh errors equal the replayed
+    filter's errors, no frame was lost, and a ground station saw the shadow vehicle."""
+    port = free_udp_port()
+    errors: list[dict[str, Any]] = []
+    estimates: list[dict[str, Any]] = []
+    lock = threading.Lock()
+
+    def on_msg(m: Message) -> None:
+        with lock:
+            if m.payload is not None:
+                (errors if m.topic is Topic.ERROR else estimates).append(m.payload)
+
+    gcs_msgs: dict[str, int] = {}
+    with zenoh_router() as endpoint, Bus(endpoint, vehicle="t1") as bus, \
+            MavlinkLink("udpin:127.0.0.1:0", _gcs_role()) as gcs:
+        bus.subscribe(Topic.ERROR, on_msg)
+        bus.subscribe(Topic.ESTIMATE, on_msg)
+        assert bus.wait_connected(10.0)
+        gcs_port = gcs.local_address[1]
+        fusion = _hilnav(
+            "fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
+            "--vehicle", "t1", "--gcs", f"udpout:127.0.0.1:{gcs_port}", "--shadow-sysid",
+            str(SHADOW_SYS), "--out", str(tmp_path / "live"), "--idle-exit", "3",
+            "--settle", "10", log=tmp_path / "fusion.log")
+        sim = _hilnav(
+            "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "20", "--duration", "60",
+            "--seed", "3", "--gnss-off", "30:10", "--record", str(tmp_path / "run.tlog"),
+            "--wait-peer", "30", "--zenoh", endpoint, "--vehicle", "t1",
+            log=tmp_path / "sim.log")
+        asked = False
+        try:
+            deadline = time.monotonic() + 100.0
+            while fusion.poll() is None and time.monotonic() < deadline:
+                for msg in gcs.recv(0.05):
+                    gcs_msgs[msg.get_type()] = gcs_msgs.get(msg.get_type(), 0) + 1
+                    if msg.get_type() == "HEARTBEAT" and not asked:
+                        gcs.send_message(mavlink2.MAVLink_param_request_list_message(
+                            SHADOW_SYS, 1))
+                        asked = True
+            assert sim.wait(30) == 0, (tmp_path / "sim.log").read_text()
+            assert fusion.wait(30) == 0, (tmp_path / "fusion.log").read_text()
+        finally:
+            for p in (sim, fusion):
+                stop_process(p)
+        time.sleep(0.5)  # let the last Zenoh samples arrive
+
+    # the ground station saw the shadow vehicle
+    assert gcs_msgs.get("GLOBAL_POSITION_INT", 0) > 0, gcs_msgs
+    for t in ("ATTITUDE", "VFR_HUD", "SYS_STATUS", "SYSTEM_TIME", "PARAM_VALUE"):
+        assert gcs_msgs.get(t, 0) > 0, (t, gcs_msgs)
+
+    # live scorecard == replay of the same frames (no loss: same numbers)
+    import json
+
+    live = json.loads((tmp_path / "live" / "summary.json").read_text())
+    assert live["live"]["lost_frames"] == 0
+    assert live["live"]["links"]["mavlink"]["accepted"] > 10_000
+    ref = replay(tmp_path / "run.tlog", tmp_path / "replay",
+                 config=filter_config_for_imu("industrial-mems"), settle_s=10.0).summary
+    assert live["gnss_on"] == ref["gnss_on"]
+    assert live["outages"] == ref["outages"]
+    assert live["nees"] == ref["nees"]
+
+    # errors on Zenoh equal the replayed filter's error at the same times
+    nav_col = Collector()
+    from fusion.filter import NavFilter
+
+    nav = NavFilter(filter_config_for_imu("industrial-mems"))
+    dec = Decoder()
+    for _ts, frame in read_tlog(tmp_path / "run.tlog"):
+        nav_col.feed(nav, (d.sample for d in dec.feed(frame)))
+    by_time = {e.time_us: e for e in nav_col.estimates}
+    truths = sorted(nav_col.truths, key=lambda t: t.time_us)
+    times = [t.time_us for t in truths]
+    assert len(errors) > 100 and len(estimates) > 100
+    for e in errors:
+        i = bisect.bisect_left(times, e["time_us"])
+        truth = interpolate_truth(truths[i - 1], truths[i], e["time_us"])
+        want = error_payload(by_time[e["time_us"]], truth)
+        assert e["horizontal_error_m"] == pytest.approx(want["horizontal_error_m"], abs=1e-9)
+        assert e["vertical_error_m"] == pytest.approx(want["vertical_error_m"], abs=1e-9)

@@ -1,0 +1,70 @@
+"""``hilnav up``: router + fusion + sim + monitor on loopback, stopped cleanly by PID."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from hil.up import stop_process, wait_gone
+
+_PID = re.compile(r"^(fusion|monitor|sim)\s+pid (\d+):", re.M)
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONUNBUFFERED": "1", "COLUMNS": "200"}
+
+
+def test_up_with_duration_finishes_by_itself_and_prints_a_scorecard(tmp_path: Path) -> None:
+    out = tmp_path / "up"
+    proc = subprocess.run(
+        [sys.executable, "-m", "hil.cli", "up", "--duration", "30", "--speed", "20",
+         "--out", str(out)],
+        capture_output=True, text=True, timeout=150, env=_env(), check=False,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    pids = {name: int(pid) for name, pid in _PID.findall(proc.stdout)}
+    assert set(pids) == {"fusion", "monitor", "sim"}, proc.stdout
+    assert wait_gone(list(pids.values())), "a child outlived `hilnav up`"
+    assert "scorecard of the live run" in proc.stdout
+    assert "GNSS on: horizontal RMSE" in proc.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["live"]["lost_frames"] == 0
+    assert summary["gnss_on"]["horizontal_rmse_m"] is not None
+    assert (out / "run.tlog").stat().st_size > 0
+    assert "sim finished (exit 0)" in proc.stdout
+
+
+def test_up_stops_every_child_on_sigint(tmp_path: Path) -> None:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hil.cli", "up", "--speed", "1", "--out", str(tmp_path / "up")],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=_env(),
+        start_new_session=True,
+    )
+    lines: list[str] = []
+    try:
+        assert proc.stdout is not None
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            if not line:
+                break
+            lines.append(line)
+            if line.startswith("subscribe:"):
+                break
+        text = "".join(lines)
+        pids = [int(p) for _name, p in _PID.findall(text)]
+        assert len(pids) == 3, text
+        time.sleep(2.0)  # let the children get going
+        os.kill(proc.pid, signal.SIGINT)
+        rest, _ = proc.communicate(timeout=60)
+    finally:
+        stop_process(proc)
+    assert proc.returncode == 0, text + rest
+    assert "stopping" in rest
+    assert wait_gone(pids), "a child outlived `hilnav up`"
