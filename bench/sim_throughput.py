@@ -2,6 +2,8 @@
 
 Both are timed in the same process at the same rate on the same flight plan. Writes JSON.
 Target (issue 2): full chain >= 100x real time at 200 Hz, within 3x of JSBSim alone.
+"JSBSim alone" is the flight adapter (JSBSim + guidance law + SI truth); the bare ``run()`` of
+JSBSim with frozen controls is reported too. Times are CPU seconds of this process.
 
     python bench/sim_throughput.py --duration 300 --out bench/results/sim_throughput.json
 """
@@ -10,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import time
 from pathlib import Path
@@ -21,14 +24,26 @@ from sim.plans import load_plan
 from sim.sensors import SensorSuite
 
 
+def time_jsbsim_bare(cfg: FlightConfig, plan_name: str, duration_s: float) -> float:
+    """JSBSim's own ``run()`` with the controls frozen at trim (no guidance, no truth)."""
+    with Flight(cfg, load_plan(plan_name)) as flight:
+        fdm = flight._fdm  # the bench measures the library underneath the adapter
+        n = round(duration_s * cfg.rate_hz)
+        t0 = time.process_time()
+        for _ in range(n):
+            fdm.run()
+        return time.process_time() - t0
+
+
 def time_jsbsim(cfg: FlightConfig, plan_name: str, duration_s: float) -> float:
+    """The flight adapter: JSBSim + guidance law + SI truth."""
     plan = load_plan(plan_name)
     with Flight(cfg, plan) as flight:
         n = round(duration_s * cfg.rate_hz)
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         for _ in range(n):
             flight.step()
-        return time.perf_counter() - t0
+        return time.process_time() - t0
 
 
 def time_chain(cfg: FlightConfig, plan_name: str, duration_s: float) -> tuple[float, int]:
@@ -38,11 +53,11 @@ def time_chain(cfg: FlightConfig, plan_name: str, duration_s: float) -> tuple[fl
     frames = 0
     with Flight(cfg, plan) as flight:
         n = round(duration_s * cfg.rate_hz)
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         for _ in range(n):
             truth = flight.step()
             frames += len(bridge.frames(truth, suite.step(truth)))
-        return time.perf_counter() - t0, frames
+        return time.process_time() - t0, frames
 
 
 def main() -> None:
@@ -53,6 +68,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("bench/results/sim_throughput.json"))
     args = ap.parse_args()
     cfg = FlightConfig(rate_hz=args.rate)
+    wall_bare = time_jsbsim_bare(cfg, args.plan, args.duration)
     wall_jsb = time_jsbsim(cfg, args.plan, args.duration)
     wall_chain, frames = time_chain(cfg, args.plan, args.duration)
     steps = round(args.duration * args.rate)
@@ -63,6 +79,13 @@ def main() -> None:
         "rate_hz": args.rate,
         "plan": args.plan,
         "sim_duration_s": args.duration,
+        "timer": "process_time (CPU seconds of this process)",
+        "load_average_1m": os.getloadavg()[0],
+        "jsbsim_bare_run": {
+            "cpu_s": wall_bare,
+            "us_per_step": wall_bare / steps * 1e6,
+            "realtime_factor": args.duration / wall_bare,
+        },
         "jsbsim_only": {
             "wall_s": wall_jsb,
             "us_per_step": wall_jsb / steps * 1e6,
