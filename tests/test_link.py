@@ -555,6 +555,18 @@ def test_lost_and_out_of_order_sequence_numbers(fusion_udp: Peer, raw_udp: socke
     assert (c["lost_seq"], c["seq_out_of_order"]) == (2 + 4, 1)
 
 
+def test_a_burst_of_more_than_128_lost_frames_is_counted_as_lost(
+    fusion_udp: Peer, raw_udp: socket.socket
+) -> None:
+    frames = sensor_frames(300)  # seq 0..255, 0..43 from (1, 200)
+    order = [0, 1, 2, 200, 201, 202]  # 197 lost in one burst, then the stream goes on
+    for i in order:
+        raw_udp.sendto(frames[i], fusion_udp.link.local_address)
+    pump(lambda: len(fusion_udp.data()) == len(order), fusion_udp)
+    c = fusion_udp.link.counters()
+    assert (c["lost_seq"], c["seq_out_of_order"]) == (197, 0)
+
+
 def test_link_numbers_heartbeats_and_encoder_frames_in_one_sequence(fusion_udp: Peer) -> None:
     """The simulator's heartbeats and its encoder's HIL_SENSOR come from the same component:
     the receiver sees one gap-free sequence."""

@@ -20,6 +20,9 @@ __all__ = ["MavlinkLink"]
 _IDLE_WAKE_S: Final = 0.05  # longest real-time sleep inside recv() between housekeeping runs
 
 
+#: Sequence numbers this far behind the last one count as reordered, not lost.
+_REORDER_WINDOW = 16
+
 class MavlinkLink:
     """One MAVLink 2 link: a transport, a role, optional signing, heartbeats and counters.
 
@@ -334,7 +337,10 @@ class MavlinkLink:
         last = self._rx_seq.get(source)
         if last is not None:
             gap = (seq - last - 1) & 0xFF
-            if gap >= 128:  # went backwards: duplicate, reordered, or a restarted sender
+            # Up to _REORDER_WINDOW behind the last: a duplicate or a late frame. Anything else
+            # is a forward jump (frames lost), also after a burst of more than 128 losses; an
+            # 8-bit sequence cannot see losses of whole multiples of 256 frames.
+            if gap >= 256 - _REORDER_WINDOW:
                 self._counters.seq_out_of_order += 1
                 return
             self._counters.lost_seq += gap

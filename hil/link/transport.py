@@ -87,7 +87,7 @@ _READ: Final = selectors.EVENT_READ
 _WRITE: Final = selectors.EVENT_WRITE
 _MAX_READS: Final = 256  # per readiness event: a flood cannot starve the caller
 _READ_SIZE: Final = 65536
-_RCVBUF_BYTES: Final = 1 << 20
+_RCVBUF_BYTES: Final = 4 << 20  # ~1 s of 20x HIL traffic; capped by net.core.rmem_max
 
 
 class Transport:
