@@ -4,10 +4,9 @@ GIVEN 10 min of a c172x racetrack from JSBSim WHEN an ideal IMU is derived from 
 (splines of position and attitude through hilnav's Earth model) and mechanised THEN the INS
 reproduces the trajectory to better than 1 m.
 
-Mechanising JSBSim's *own* specific force instead drifts by a few metres in 10 min (measured
-4.6 m north, 9.2 m vertical at 200 Hz): JSBSim's gravity (WGS-84 + J2) differs from hilnav's
-normal gravity by ~1e-5 m/s^2, far below any real accelerometer's bias, so the sensor models
-are unaffected; the comparison is recorded in the README.
+Mechanising JSBSim's *own* specific force instead drifts by a few metres in 10 min
+(``bench/mechanisation_jsbsim.py``): JSBSim's gravity (WGS-84 + J2) differs from hilnav's
+normal gravity by ~1e-5 m/s^2, far below any real accelerometer's bias.
 """
 
 from __future__ import annotations
