@@ -11,7 +11,7 @@ Target (issue 5): the MPC step costs ≤ 20 µs per call with precomputed gains.
   at 100 Hz with baro at 25 Hz and GNSS at 5 Hz (loop, calibration, monitor, compensator),
   amortised, for each method.
 
-    .venv/bin/python bench/mpc_speed.py --out bench/results/mpc_speed.json
+    PYTHONPATH=. .venv/bin/python bench/mpc_speed.py   # writes bench/results/mpc_speed.json
 """
 
 from __future__ import annotations
