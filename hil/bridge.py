@@ -4,7 +4,8 @@ The bridge is the only place where simulator output meets the wire. Per IMU samp
 HIL_SENSOR carrying the IMU fields plus any baro / magnetometer sample of the same step (their
 ``fields_updated`` bits set only then), HIL_GPS for each GNSS fix (emitted when the receiver
 outputs it, stamped with its time of validity), and the truth as HIL_STATE_QUATERNION from the
-simulator's truth component at ``truth_rate_hz``.
+simulator's truth component at ``truth_rate_hz``. An optional :class:`sim.faults.FaultInjector`
+applies the scenario's fault timeline to each step's samples before they are encoded.
 
 ``run_lockstep`` flies as fast as the machine allows and hands every frame to a sink (a .tlog
 writer, an in-memory decoder, a socket): simulated time is the only clock.
@@ -17,6 +18,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from hil.codec import Encoder
+from sim.faults import FaultInjector, FaultLogEntry
 from sim.flight import Flight, FlightEnded
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Sample, Truth
 from sim.sensors import SensorSuite
@@ -50,7 +52,19 @@ class GnssWindow:
 
 
 class SensorBridge:
-    """Encodes simulator output into frames, in the order a real sensor bus would emit them."""
+    """Encodes simulator output into frames, in the order a real sensor bus would emit them.
+
+    Parameters
+    ----------
+    encoder : Encoder, optional
+    truth_rate_hz : float
+        Rate of the HIL_STATE_QUATERNION truth frames, Hz.
+    gnss_off : sequence of GnssWindow
+        Windows (by time of validity) whose fixes are not sent (counted in
+        ``gnss_suppressed``).
+    faults : FaultInjector, optional
+        Applied to every step's samples before encoding (and before ``gnss_off``).
+    """
 
     def __init__(
         self,
@@ -58,6 +72,7 @@ class SensorBridge:
         *,
         truth_rate_hz: float = 50.0,
         gnss_off: Sequence[GnssWindow] = (),
+        faults: FaultInjector | None = None,
     ) -> None:
         if truth_rate_hz <= 0:
             raise ValueError("truth_rate_hz must be > 0")
@@ -66,9 +81,22 @@ class SensorBridge:
         self._next_truth_us: int | None = None
         self._gnss_off = tuple(gnss_off)
         self.gnss_suppressed = 0
+        self.faults = faults
+
+    @property
+    def fault_log(self) -> list[FaultLogEntry]:
+        """The injector's event starts and ends so far (empty without an injector)."""
+        return self.faults.log if self.faults is not None else []
+
+    @property
+    def fault_counters(self) -> dict[str, int]:
+        """A copy of the injector's counters (empty without an injector)."""
+        return dict(self.faults.counters) if self.faults is not None else {}
 
     def frames(self, truth: Truth, samples: Sequence[Sample]) -> list[tuple[int, bytes]]:
         """Frames for one step: ``[(time_us, frame), ...]`` in emission order."""
+        if self.faults is not None:
+            samples = self.faults.apply(truth, samples)
         out: list[tuple[int, bytes]] = []
         imu: ImuSample | None = None
         baro: BaroSample | None = None
