@@ -13,17 +13,23 @@ import numpy as np
 
 from fusion import rotations
 from fusion.filter import NavEstimate, NavFilter
-from scenarios.metrics import Track
+from scenarios.metrics import Fixes, HealthSeries, Track
 from sim.samples import GnssFix, Sample, Truth
 
 
 @dataclass
 class Collector:
-    """Accumulates estimates, truth and GNSS fix times as the filter runs."""
+    """Accumulates estimates, truth and GNSS fixes as the filter runs.
+
+    Nothing is computed while feeding (it runs at the sensor rates): the estimates already
+    carry the mode, test ratios and counters, and :meth:`series` turns them into arrays once.
+    """
 
     estimates: list[NavEstimate] = field(default_factory=list)
     truths: list[Truth] = field(default_factory=list)
     fix_times_us: list[int] = field(default_factory=list)
+    fixes: list[GnssFix] = field(default_factory=list)
+    """The 3-D fixes received (same order as ``fix_times_us``)."""
     last_time_us: int = 0
 
     def feed(self, nav: NavFilter, items: Iterable[Sample | Truth]) -> None:
@@ -34,12 +40,17 @@ class Collector:
                 continue
             if isinstance(item, GnssFix) and item.fix_type >= 3:
                 self.fix_times_us.append(item.time_us)
+                self.fixes.append(item)
             self.estimates.extend(nav.step(item))
 
-    def estimate_track(self) -> Track:
+    def _navigating(self) -> list[NavEstimate]:
         est = [e for e in self.estimates if e.mode != "initializing"]
         if not est:
             raise ValueError("the filter produced no navigation estimate (no valid GNSS fix?)")
+        return est
+
+    def estimate_track(self) -> Track:
+        est = self._navigating()
         sig = np.array([np.sqrt(np.maximum(e.P_diag[:9], 0.0)) for e in est])
         return Track(
             time_s=np.array([e.time_us for e in est], dtype=float) * 1e-6,
@@ -61,8 +72,58 @@ class Collector:
             lon_rad=np.array([s.lon_rad for s in tr]),
             alt_m=np.array([s.alt_msl_m for s in tr]),
             v_ned_mps=np.array([s.v_ned_mps for s in tr]),
-            euler_rad=np.array([rotations.quat_to_euler(s.q_nb) for s in tr]),
+            # one vectorised call: per-sample calls cost ~0.1 ms each
+            euler_rad=rotations.quat_to_euler(np.array([s.q_nb for s in tr], dtype=float)),
         )
 
     def modes(self) -> list[str]:
         return [e.mode for e in self.estimates]
+
+    def fix_track(self) -> Fixes:
+        """The received 3-D fixes as arrays (time of validity, position)."""
+        fx = self.fixes
+        return Fixes(
+            time_s=np.array([f.time_us for f in fx], dtype=float) * 1e-6,
+            lat_rad=np.array([f.lat_rad for f in fx], dtype=float),
+            lon_rad=np.array([f.lon_rad for f in fx], dtype=float),
+            alt_m=np.array([f.alt_msl_m for f in fx], dtype=float),
+        )
+
+    def series(self) -> HealthSeries:
+        """Mode, test ratios and counters at the times of :meth:`estimate_track`, with the fixes.
+
+        Raises
+        ------
+        ValueError
+            When the filter produced no navigation estimate.
+        """
+        est = self._navigating()
+        ratios = np.array(
+            [(r.gnss_pos, r.gnss_vel, r.baro_hgt, r.mag_hdg)
+             for r in (e.test_ratios for e in est)], dtype=float)  # fmt: skip
+        counts = np.array(
+            [(h.gnss_fused, h.gnss_rejected, h.gnss_resets,
+              h.gnss_no_fix + h.gnss_invalid + h.gnss_inaccurate,
+              h.baro_fused, h.baro_rejected, h.baro_resets, h.mag_fused, h.mag_rejected)
+             for h in (e.health for e in est)], dtype=np.int64)  # fmt: skip
+        fixes = self.fix_track()
+        order = np.argsort(fixes.time_s, kind="stable")  # fixes arrive in time order, mostly
+        return HealthSeries(
+            time_s=np.array([e.time_us for e in est], dtype=float) * 1e-6,
+            mode=np.array([e.mode for e in est], dtype=np.str_),
+            ratio_gnss_pos=ratios[:, 0],
+            ratio_gnss_vel=ratios[:, 1],
+            ratio_baro=ratios[:, 2],
+            ratio_mag=ratios[:, 3],
+            gnss_fused=counts[:, 0],
+            gnss_rejected=counts[:, 1],
+            gnss_resets=counts[:, 2],
+            gnss_quality_rejected=counts[:, 3],
+            baro_fused=counts[:, 4],
+            baro_rejected=counts[:, 5],
+            baro_resets=counts[:, 6],
+            mag_fused=counts[:, 7],
+            mag_rejected=counts[:, 8],
+            fixes=Fixes(fixes.time_s[order], fixes.lat_rad[order], fixes.lon_rad[order],
+                        fixes.alt_m[order]),
+        )

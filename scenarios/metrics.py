@@ -8,7 +8,10 @@ errors of interest here.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -145,10 +148,11 @@ def cep(horizontal_m: FloatArray, q: float) -> float:
     return float(np.quantile(h, q)) if h.size else float("nan")
 
 
-def _error_at(err: Errors, t_s: float) -> float | None:
+def _error_at(err: Errors, t_s: float, values: FloatArray | None = None) -> float | None:
     if t_s < err.time_s[0] or t_s > err.time_s[-1]:
         return None
-    return float(np.interp(t_s, err.time_s, err.horizontal_m))
+    v = err.horizontal_m if values is None else values
+    return float(np.interp(t_s, err.time_s, v))
 
 
 @dataclass
@@ -163,6 +167,16 @@ class OutageMetrics:
     cep95_m: float
     rmse: dict[str, float]
     extra: dict[str, float] = field(default_factory=dict)
+    vertical_max_m: float = float("nan")
+    vertical_error_m_at: dict[str, float | None] = field(default_factory=dict)
+    containment_3sigma: dict[str, float] = field(default_factory=dict)
+    nees_mean: float = float("nan")
+    reconverge_s: float | None = None
+    """Seconds after the outage until the horizontal error settles (set by the summary, which
+    knows the threshold and the next outage)."""
+    drift_step_s: float = 1.0
+    drift_m: list[float] = field(default_factory=list)
+    """Horizontal error at ``0, drift_step_s, ...`` s into the outage (for drift plots)."""
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -176,12 +190,25 @@ class OutageMetrics:
             "cep50_m": self.cep50_m,
             "cep95_m": self.cep95_m,
             "rmse": self.rmse,
+            "vertical_max_m": self.vertical_max_m,
+            "vertical_error_m_at": self.vertical_error_m_at,
+            "containment_3sigma": self.containment_3sigma,
+            "nees_mean": self.nees_mean,
+            "reconverge_s": self.reconverge_s,
+            "drift": {"step_s": self.drift_step_s, "horizontal_m": self.drift_m},
             **self.extra,
         }
 
 
-def outage_metrics(err: Errors, window: Window) -> OutageMetrics | None:
-    """Metrics of one outage; ``None`` when no estimate falls inside it."""
+def outage_metrics(
+    err: Errors, window: Window, *, drift_step_s: float = 1.0
+) -> OutageMetrics | None:
+    """Metrics of one outage; ``None`` when no estimate falls inside it.
+
+    Horizontal and vertical (absolute) error at :data:`ERROR_AT_S` s into the outage (``None``
+    past its end), RMSE, max, CEP50/95, component RMSEs, 3-sigma containment, mean NEES and the
+    drift curve sampled every ``drift_step_s``.
+    """
     m = window.mask(err.time_s)
     if not np.any(m):
         return None
@@ -190,10 +217,15 @@ def outage_metrics(err: Errors, window: Window) -> OutageMetrics | None:
         err.lat_deg[m], err.lon_deg[m], None if err.sigma is None else err.sigma[m],
     )
     h = sub.horizontal_m
+    v = sub.vertical_m
     at: dict[str, float | None] = {}
+    at_v: dict[str, float | None] = {}
     for s in ERROR_AT_S:
         t = window.start_s + s
         at[str(s)] = _error_at(sub, t) if t <= window.end_s else None
+        at_v[str(s)] = _error_at(sub, t, v) if t <= window.end_s else None
+    tau, h_tau = drift_curve(sub, window)
+    nees = consistency(sub).get("nees_mean", float("nan"))
     return OutageMetrics(
         start_s=window.start_s,
         end_s=window.end_s,
@@ -204,6 +236,12 @@ def outage_metrics(err: Errors, window: Window) -> OutageMetrics | None:
         cep50_m=cep(h, 0.5),
         cep95_m=cep(h, 0.95),
         rmse=component_rmse(sub),
+        vertical_max_m=float(np.max(v)),
+        vertical_error_m_at=at_v,
+        containment_3sigma=containment_3sigma(sub),
+        nees_mean=nees,
+        drift_step_s=drift_step_s,
+        drift_m=[float(x) for x in resample_curve(tau, h_tau, drift_step_s)],
     )
 
 
@@ -267,4 +305,569 @@ def consistency(err: Errors, mask: NDArray[np.bool_] | None = None) -> dict[str,
     for name, sl in (("pos", slice(0, 3)), ("vel", slice(3, 6)), ("att", slice(6, 9))):
         out[f"rms_z_{name}"] = rms(z[:, sl])
         out[f"within_3sigma_{name}"] = float(np.mean(np.all(np.abs(z[:, sl]) <= 3.0, axis=1)))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# 3-sigma containment, drift curves, re-convergence
+# ---------------------------------------------------------------------------------------------
+
+#: Probability inside +-3 sigma of a 1-D Gaussian.
+P_3SIGMA = 0.9973002039367398
+#: Chi-square (2 dof) quantile at :data:`P_3SIGMA`: the horizontal "3-sigma" ellipse holds the
+#: same probability as the 1-D +-3 sigma interval (a plain 3-sigma circle would hold only 98.9 %).
+CHI2_2DOF_3SIGMA = 11.829158081900795
+
+
+def containment_3sigma(err: Errors, mask: NDArray[np.bool_] | None = None) -> dict[str, float]:
+    """Fraction of samples inside the filter's 3-sigma bound, horizontally and vertically.
+
+    Horizontal: ``(e_N/s_N)^2 + (e_E/s_E)^2 <= CHI2_2DOF_3SIGMA`` (the 99.73 % ellipse of the
+    reported diagonal covariance); vertical: ``|e_D| <= 3 s_D``. A consistent filter scores
+    about 0.997 on both.
+
+    Parameters
+    ----------
+    err : Errors
+        With ``sigma`` (N, 9); without it both values are NaN.
+    mask : ndarray of bool, shape (N,), optional
+        Samples to count (all by default).
+
+    Returns
+    -------
+    dict
+        ``{"horizontal": fraction, "vertical": fraction}`` (NaN when no sample counts).
+    """
+    nan = {"horizontal": float("nan"), "vertical": float("nan")}
+    if err.sigma is None:
+        return nan
+    e, s = err.pos_ned_m, err.sigma[:, 0:3]
+    if mask is not None:
+        e, s = e[mask], s[mask]
+    if e.shape[0] == 0:
+        return nan
+    z = e / np.maximum(s, 1e-12)
+    d2_h = z[:, 0] ** 2 + z[:, 1] ** 2
+    return {
+        "horizontal": float(np.mean(d2_h <= CHI2_2DOF_3SIGMA)),
+        "vertical": float(np.mean(np.abs(z[:, 2]) <= 3.0)),
+    }
+
+
+def horizontal_bound_3sigma(sigma: FloatArray) -> FloatArray:
+    """Radius (m) of the horizontal 99.73 % bound for plotting, shape (N,) from sigma (N, >=2).
+
+    ``sqrt(CHI2_2DOF_3SIGMA * (s_N^2 + s_E^2) / 2)``: exact when ``s_N == s_E``, the circle
+    of the mean variance otherwise (:func:`containment_3sigma` uses the ellipse itself).
+    """
+    s = np.asarray(sigma, dtype=float)
+    return np.sqrt(CHI2_2DOF_3SIGMA * 0.5 * (s[:, 0] ** 2 + s[:, 1] ** 2))
+
+
+def drift_curve(err: Errors, window: Window) -> tuple[FloatArray, FloatArray]:
+    """Horizontal error against time into an outage.
+
+    Returns
+    -------
+    tau_s : ndarray, shape (M,)
+        Seconds since ``window.start_s`` of the estimates inside the window.
+    horizontal_m : ndarray, shape (M,)
+    """
+    m = window.mask(err.time_s)
+    return err.time_s[m] - window.start_s, err.horizontal_m[m]
+
+
+def resample_curve(tau_s: FloatArray, values: FloatArray, step_s: float) -> FloatArray:
+    """A curve sampled at ``0, step_s, 2 step_s, ...`` up to its last time (linear
+    interpolation, held at its first value before its first sample: estimates come at the
+    output rate, so that is at most one output period). Shape (floor(tau_s[-1] / step_s) + 1,).
+    """
+    if step_s <= 0.0:
+        raise ValueError("step_s must be positive")
+    tau = np.asarray(tau_s, dtype=float)
+    v = np.asarray(values, dtype=float)
+    if tau.size == 0:
+        return np.zeros(0)
+    grid = np.arange(0.0, tau[-1] + 1e-9, step_s)
+    return np.interp(grid, tau, v)
+
+
+def mean_drift_curve(
+    curves: list[tuple[FloatArray, FloatArray]], *, step_s: float = 1.0
+) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
+    """Mean of several drift curves (outages, seeds) on a common time-into-outage grid.
+
+    Parameters
+    ----------
+    curves : list of (tau_s (M_i,), horizontal_m (M_i,))
+    step_s : float
+        Grid step, s.
+
+    Returns
+    -------
+    grid_s : ndarray, shape (G,)
+        ``0, step_s, ...`` up to the longest curve.
+    mean_m : ndarray, shape (G,)
+        Mean over the curves that reach each grid time.
+    count : ndarray of int, shape (G,)
+        How many curves each mean is over (it drops where short outages end).
+    """
+    rows = [resample_curve(t, h, step_s) for t, h in curves]
+    n = max((r.size for r in rows), default=0)
+    grid = np.arange(n, dtype=np.float64) * step_s
+    if n == 0:
+        return grid, np.zeros(0), np.zeros(0, dtype=np.int64)
+    stack = np.full((len(rows), n), np.nan)
+    for i, r in enumerate(rows):
+        stack[i, : r.size] = r
+    count = np.sum(np.isfinite(stack), axis=0).astype(np.int64)
+    total = np.nansum(stack, axis=0)
+    mean = np.where(count > 0, total / np.maximum(count, 1), np.nan).astype(np.float64)
+    return grid, mean, count
+
+
+def reconverge_time(
+    err: Errors,
+    after_s: float,
+    *,
+    threshold_m: float,
+    hold_s: float,
+    until_s: float = math.inf,
+) -> float | None:
+    """Seconds from ``after_s`` (GNSS back) until the horizontal error stays below a threshold.
+
+    The answer is ``t - after_s`` for the first estimate time ``t >= after_s`` from which every
+    estimate in ``[t, t + hold_s]`` has a horizontal error below ``threshold_m``. Only
+    estimates before ``until_s`` (the next outage or event) are looked at: a run cut short by
+    ``until_s`` counts (the error stayed below until GNSS was lost again), a run cut by the end
+    of the data must itself last ``hold_s``.
+
+    Returns
+    -------
+    float or None
+        ``None`` when the error never settles (or there is no estimate after ``after_s``).
+    """
+    if not math.isfinite(threshold_m) or hold_s < 0.0:
+        return None
+    t = err.time_s
+    m = (t >= after_s) & (t < until_s)
+    ts = t[m]
+    if ts.size == 0:
+        return None
+    below = err.horizontal_m[m] < threshold_m
+    edges = np.diff(np.r_[0, below.astype(np.int8), 0])
+    starts = np.flatnonzero(edges == 1)
+    ends = np.flatnonzero(edges == -1) - 1  # inclusive
+    cut_by_until = math.isfinite(until_s) and until_s <= t[-1]
+    for s, e in zip(starts.tolist(), ends.tolist(), strict=True):
+        if e + 1 < ts.size:
+            ok = ts[e + 1] - ts[s] > hold_s  # the first sample above comes after the hold
+        else:
+            ok = cut_by_until or ts[e] - ts[s] >= hold_s
+        if ok:
+            return float(ts[s] - after_s)
+    return None
+
+
+# ---------------------------------------------------------------------------------------------
+# Health series, GNSS fixes, scenario events
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Fixes:
+    """GNSS fixes as received (3-D fixes only), shapes (K,): time of validity, position."""
+
+    time_s: FloatArray
+    lat_rad: FloatArray
+    lon_rad: FloatArray
+    alt_m: FloatArray
+
+    def __post_init__(self) -> None:
+        _check_shapes(self, ("lat_rad", "lon_rad", "alt_m"), self.time_s.shape)
+
+
+def fix_errors(fixes: Fixes, truth: Track) -> FloatArray:
+    """Horizontal error (m) of each fix against truth at its time of validity, shape (K,).
+
+    NaN for fixes outside the truth's time span. The antenna lever arm is ignored (it is far
+    below the errors this is used for: spoofed and glitched fixes).
+    """
+    t = fixes.time_s
+    tp = truth.time_s
+    out = np.full(t.shape, np.nan)
+    keep = (t >= tp[0]) & (t <= tp[-1])
+    lat_t = np.interp(t[keep], tp, truth.lat_rad)
+    lon_t = np.interp(t[keep], tp, truth.lon_rad)
+    alt_t = np.interp(t[keep], tp, truth.alt_m)
+    r_n, r_e = earth.principal_radii(lat_t)
+    dn = (fixes.lat_rad[keep] - lat_t) * (r_n + alt_t)
+    de = wrap_pi(fixes.lon_rad[keep] - lon_t) * (r_e + alt_t) * np.cos(lat_t)
+    out[keep] = np.hypot(dn, de)
+    return out
+
+
+#: Sensor counters in :class:`HealthSeries` (cumulative, as in ``fusion.filter.Health``).
+_COUNTERS = (
+    "gnss_fused", "gnss_rejected", "gnss_resets", "gnss_quality_rejected",
+    "baro_fused", "baro_rejected", "baro_resets", "mag_fused", "mag_rejected",
+)  # fmt: skip
+_RATIOS = ("ratio_gnss_pos", "ratio_gnss_vel", "ratio_baro", "ratio_mag")
+
+
+@dataclass(frozen=True)
+class HealthSeries:
+    """The filter's mode, innovation test ratios and counters at each estimate, shapes (N,).
+
+    Every field but ``time_s`` is optional (``None`` = not collected); detection uses what is
+    there. Counters are cumulative since the filter started (``fusion.filter.Health``); test
+    ratios are the last test's normalised innovation over its gate (> 1 = rejected, NaN before
+    the first test), so a ratio is *fresh* at a sample only where it changed.
+
+    Attributes
+    ----------
+    time_s : ndarray, shape (N,)
+    mode : ndarray of str, shape (N,)
+        ``"gnss"``, ``"free-inertial"`` or ``"bridging"``.
+    ratio_gnss_pos, ratio_gnss_vel, ratio_baro, ratio_mag : ndarray, shape (N,)
+    gnss_fused, gnss_rejected, gnss_resets : ndarray of int, shape (N,)
+    gnss_quality_rejected : ndarray of int, shape (N,)
+        Fixes refused by the quality checks (no 3-D fix, invalid, inaccurate).
+    baro_fused, baro_rejected, baro_resets, mag_fused, mag_rejected : ndarray of int, shape (N,)
+    fixes : Fixes, optional
+        The GNSS fixes received, to tell whether a fused fix was far from truth.
+    """
+
+    time_s: FloatArray
+    mode: NDArray[np.str_] | None = None
+    ratio_gnss_pos: FloatArray | None = None
+    ratio_gnss_vel: FloatArray | None = None
+    ratio_baro: FloatArray | None = None
+    ratio_mag: FloatArray | None = None
+    gnss_fused: NDArray[np.int64] | None = None
+    gnss_rejected: NDArray[np.int64] | None = None
+    gnss_resets: NDArray[np.int64] | None = None
+    gnss_quality_rejected: NDArray[np.int64] | None = None
+    baro_fused: NDArray[np.int64] | None = None
+    baro_rejected: NDArray[np.int64] | None = None
+    baro_resets: NDArray[np.int64] | None = None
+    mag_fused: NDArray[np.int64] | None = None
+    mag_rejected: NDArray[np.int64] | None = None
+    fixes: Fixes | None = None
+
+    def __post_init__(self) -> None:
+        if self.time_s.ndim != 1:
+            raise ValueError("HealthSeries.time_s must be one-dimensional")
+        if self.time_s.size > 1 and np.any(np.diff(self.time_s) < 0.0):
+            raise ValueError("HealthSeries.time_s must be non-decreasing")
+        _check_shapes(self, ("mode", *_RATIOS, *_COUNTERS), self.time_s.shape)
+
+
+def _check_shapes(obj: object, names: tuple[str, ...], shape: tuple[int, ...]) -> None:
+    for name in names:
+        a = getattr(obj, name)
+        if a is not None and np.shape(a) != shape:
+            raise ValueError(
+                f"{type(obj).__name__}.{name} has shape {np.shape(a)}, time_s has {shape}")
+
+
+#: Event kinds scored by :func:`event_metrics`.
+EVENT_KINDS = ("spoof", "glitch", "jamming", "generic")
+#: Sensors an event can concern; ``"any"`` looks at every detector.
+EVENT_SENSORS = ("gnss", "baro", "mag", "imu", "any")
+
+
+def event_kind(type_name: str) -> str:
+    """Kind of a fault type name (``"gnss_spoof_hijack"`` -> ``"spoof"``, ...)."""
+    for kind in ("spoof", "glitch", "jamming"):
+        if kind in type_name:
+            return kind
+    return "generic"
+
+
+def event_sensor(type_name: str) -> str:
+    """Sensor a fault type name concerns (``"baro_glitch"`` -> ``"baro"``; pressure weather
+    acts on the barometer; unknown -> ``"any"``)."""
+    prefix = type_name.split("_", 1)[0]
+    if prefix in ("gnss", "baro", "mag", "imu"):
+        return prefix
+    if type_name == "weather_front":
+        return "baro"
+    return "any"
+
+
+@dataclass(frozen=True)
+class EventWindow:
+    """A scenario event scored on its own: ``[start_s, end_s]`` of simulated time.
+
+    ``kind`` and ``sensor`` default to what :func:`event_kind` / :func:`event_sensor` read from
+    ``type`` (e.g. ``"gnss_spoof_drift"``).
+    """
+
+    type: str
+    start_s: float
+    end_s: float
+    kind: str = ""
+    sensor: str = ""
+
+    def __post_init__(self) -> None:
+        if not math.isfinite(self.start_s):
+            raise ValueError(f"event {self.type!r}: start_s must be finite")
+        if math.isnan(self.end_s) or self.end_s < self.start_s:
+            raise ValueError(f"event {self.type!r}: end_s must be >= start_s")
+        if not self.kind:
+            object.__setattr__(self, "kind", event_kind(self.type))
+        if not self.sensor:
+            object.__setattr__(self, "sensor", event_sensor(self.type))
+        if self.kind not in EVENT_KINDS:
+            raise ValueError(f"event {self.type!r}: kind must be one of {EVENT_KINDS}")
+        if self.sensor not in EVENT_SENSORS:
+            raise ValueError(f"event {self.type!r}: sensor must be one of {EVENT_SENSORS}")
+
+    @classmethod
+    def from_mapping(cls, row: Mapping[str, Any]) -> EventWindow:
+        """From ``{"type", "start_s", "end_s"[, "kind", "sensor"]}`` (a ``None`` end = open)."""
+        for key in ("type", "start_s"):
+            if key not in row:
+                raise ValueError(f"event {dict(row)!r} has no {key!r}")
+        end = row.get("end_s")
+        return cls(
+            type=str(row["type"]),
+            start_s=float(row["start_s"]),
+            end_s=math.inf if end is None else float(end),
+            kind=str(row.get("kind") or ""),
+            sensor=str(row.get("sensor") or ""),
+        )
+
+
+_DETECTORS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    # sensor: (counters whose increase is a rejection, ratios whose fresh value > 1 is one)
+    "gnss": (("gnss_rejected", "gnss_resets", "gnss_quality_rejected"),
+             ("ratio_gnss_pos", "ratio_gnss_vel")),
+    "baro": (("baro_rejected", "baro_resets"), ("ratio_baro",)),
+    "mag": (("mag_rejected",), ("ratio_mag",)),
+}  # fmt: skip
+_DETECTORS["imu"] = _DETECTORS["any"] = (
+    tuple(c for v in _DETECTORS.values() for c in v[0]),
+    tuple(r for v in _DETECTORS.values() for r in v[1]),
+)
+#: Counters whose increase means the sensor's data was taken in (fused, or the state reset
+#: to it).
+_ACCEPT = {
+    "gnss": ("gnss_fused", "gnss_resets"),
+    "baro": ("baro_fused", "baro_resets"),
+    "mag": ("mag_fused",),
+}
+
+
+def _span(time_s: FloatArray, start_s: float, end_s: float) -> NDArray[np.intp]:
+    i0 = int(np.searchsorted(time_s, start_s, side="left"))
+    i1 = int(np.searchsorted(time_s, end_s, side="right"))
+    return np.arange(i0, max(i0, i1))
+
+
+def _increase(x: NDArray[Any], idx: NDArray[np.intp]) -> NDArray[np.int64]:
+    """Increase of a cumulative counter at each index since the sample before (0 at index 0)."""
+    prev = np.maximum(idx - 1, 0)
+    return np.maximum(np.asarray(x[idx], dtype=np.int64) - np.asarray(x[prev], dtype=np.int64), 0)
+
+
+def rejection_flags(health: HealthSeries, sensor: str, idx: NDArray[np.intp]) -> NDArray[np.bool_]:
+    """True at the samples ``idx`` where the filter refused ``sensor``'s data.
+
+    A refusal is a rejection or reset counter (or, for GNSS, the quality-check counter)
+    increasing since the previous sample, a *fresh* test ratio above 1, or (GNSS, ``"imu"``
+    and ``"any"``) the mode leaving ``"gnss"``: the filter declared GNSS lost.
+    """
+    if sensor not in _DETECTORS:
+        raise ValueError(f"sensor must be one of {tuple(_DETECTORS)}")
+    counters, ratios = _DETECTORS[sensor]
+    prev = np.maximum(idx - 1, 0)
+    hit = np.zeros(idx.size, dtype=bool)
+    for name in counters:
+        c = getattr(health, name)
+        if c is not None:
+            hit |= _increase(c, idx) > 0
+    for name in ratios:
+        r = getattr(health, name)
+        if r is not None:
+            # a ratio equal to the previous sample's is the same (old) test
+            hit |= (r[idx] > 1.0) & (r[idx] != r[prev])
+    if health.mode is not None and sensor in ("gnss", "imu", "any"):
+        hit |= (health.mode[idx] != "gnss") & (health.mode[prev] == "gnss") & (idx > 0)
+    return hit
+
+
+def detect_time(health: HealthSeries, start_s: float, end_s: float, sensor: str) -> float | None:
+    """Time (s, absolute) of the filter's first refusal of ``sensor`` in ``[start_s, end_s]``
+    (see :func:`rejection_flags`), ``None`` if it never refused it there."""
+    idx = _span(health.time_s, start_s, end_s)
+    if idx.size == 0:
+        return None
+    hit = rejection_flags(health, sensor, idx)
+    if not np.any(hit):
+        return None
+    return float(health.time_s[idx[int(np.argmax(hit))]])
+
+
+def _bad_fixes_fused(
+    health: HealthSeries, idx: NDArray[np.intp], fix_err_m: FloatArray, bad_fix_m: float
+) -> int:
+    """Fixes taken in (fused or reset to) while the latest fix was ``bad_fix_m`` off truth.
+
+    Each increase of ``gnss_fused`` / ``gnss_resets`` at an estimate is attributed to the
+    latest fix with a time of validity at or before that estimate (fixes are fused when the
+    INS reaches their time of validity, between two estimates).
+    """
+    fixes = health.fixes
+    if fixes is None or fixes.time_s.size == 0 or idx.size == 0:
+        return 0
+    taken = np.zeros(idx.size, dtype=np.int64)
+    for name in _ACCEPT["gnss"]:
+        c = getattr(health, name)
+        if c is not None:
+            taken += _increase(c, idx)
+    at = np.flatnonzero(taken > 0)
+    if at.size == 0:
+        return 0
+    j = np.searchsorted(fixes.time_s, health.time_s[idx[at]], side="right") - 1
+    ok = j >= 0
+    bad = np.zeros(at.size, dtype=bool)
+    e = fix_err_m[j[ok]]
+    bad[ok] = np.isfinite(e) & (e > bad_fix_m)
+    return int(np.sum(taken[at][bad]))
+
+
+@dataclass
+class EventMetrics:
+    """The scorecard of one scenario event (see :func:`event_metrics`)."""
+
+    type: str
+    kind: str
+    sensor: str
+    start_s: float
+    end_s: float
+    detect_s: float | None
+    max_horizontal_m: float
+    max_vertical_m: float
+    reaccepted_early: bool | None
+    reaccept_count: int | None
+    bad_fixes_fused: int | None
+    reconverge_s: float | None = None
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "type": self.type,
+            "kind": self.kind,
+            "sensor": self.sensor,
+            "start_s": self.start_s,
+            "end_s": self.end_s,
+            "detect_s": self.detect_s,
+            "detected": self.detect_s is not None,
+            "max_horizontal_m": self.max_horizontal_m,
+            "max_vertical_m": self.max_vertical_m,
+            "reaccepted_early": self.reaccepted_early,
+            "reaccept_count": self.reaccept_count,
+            "bad_fixes_fused": self.bad_fixes_fused,
+            "reconverge_s": self.reconverge_s,
+        }
+
+
+def event_metrics(
+    err: Errors,
+    event: EventWindow,
+    *,
+    health: HealthSeries | None = None,
+    fix_err_m: FloatArray | None = None,
+    bad_fix_m: float | None = None,
+    reconverge_threshold_m: float | None = None,
+    hold_s: float = 10.0,
+    until_s: float = math.inf,
+) -> EventMetrics:
+    """Score one scenario event.
+
+    Parameters
+    ----------
+    err : Errors
+    event : EventWindow
+        An open end (``inf``) stops at the last estimate.
+    health : HealthSeries, optional
+        Without it ``detect_s`` and the re-accept fields are ``None``.
+    fix_err_m : ndarray, shape (K,), optional
+        Horizontal error of each of ``health.fixes`` vs truth (:func:`fix_errors`).
+    bad_fix_m : float, optional
+        A fix further than this from truth must not be fused (needs ``fix_err_m``).
+    reconverge_threshold_m : float, optional
+        For GNSS events: :func:`reconverge_time` after the event's end with this threshold.
+    hold_s : float
+        Hold time of the re-convergence test, s.
+    until_s : float
+        The next outage or event start: re-convergence is looked for before it.
+
+    Returns
+    -------
+    EventMetrics
+        ``detect_s``: seconds from the start to the first refusal of the event's sensor
+        (:func:`detect_time`), ``None`` if never. ``max_horizontal_m`` / ``max_vertical_m``:
+        largest error during the event (NaN without estimates in it). ``reaccept_count``: for
+        spoof and glitch events, the sensor's data taken in (fused or reset to) after the
+        detection and before the end, plus (GNSS) fixes taken in that were further than
+        ``bad_fix_m`` from truth at any time in the event; ``bad_fixes_fused`` the latter
+        alone. ``reaccepted_early`` is ``reaccept_count > 0`` (for jamming and generic GNSS
+        events only the bad-fix part counts: the real signal may legitimately return).
+    """
+    end = min(event.end_s, float(err.time_s[-1])) if err.time_s.size else event.end_s
+    m = (err.time_s >= event.start_s) & (err.time_s <= end)
+    max_h = float(np.max(err.horizontal_m[m])) if np.any(m) else float("nan")
+    max_v = float(np.max(err.vertical_m[m])) if np.any(m) else float("nan")
+    detect_abs: float | None = None
+    reaccepted: bool | None = None
+    count: int | None = None
+    bad: int | None = None
+    if health is not None:
+        t_end = min(event.end_s, float(health.time_s[-1])) if health.time_s.size else end
+        detect_abs = detect_time(health, event.start_s, t_end, event.sensor)
+        if event.sensor == "gnss" and fix_err_m is not None and bad_fix_m is not None:
+            bad = _bad_fixes_fused(
+                health, _span(health.time_s, event.start_s, t_end), fix_err_m, bad_fix_m)
+        after = 0
+        if event.kind in ("spoof", "glitch") and detect_abs is not None:
+            idx = _span(health.time_s, detect_abs, t_end)
+            idx = idx[health.time_s[idx] > detect_abs]
+            for name in _ACCEPT.get(event.sensor, ()):
+                c = getattr(health, name)
+                if c is not None and idx.size:
+                    after += int(np.sum(_increase(c, idx)))
+        if event.kind in ("spoof", "glitch") or bad is not None:
+            count = after + (bad or 0)
+            reaccepted = count > 0
+    reconv = None
+    if (reconverge_threshold_m is not None and event.sensor == "gnss"
+            and math.isfinite(event.end_s)):
+        reconv = reconverge_time(err, event.end_s, threshold_m=reconverge_threshold_m,
+                                 hold_s=hold_s, until_s=until_s)
+    return EventMetrics(
+        type=event.type, kind=event.kind, sensor=event.sensor, start_s=event.start_s,
+        end_s=end, detect_s=None if detect_abs is None else detect_abs - event.start_s,
+        max_horizontal_m=max_h, max_vertical_m=max_v, reaccepted_early=reaccepted,
+        reaccept_count=count, bad_fixes_fused=bad, reconverge_s=reconv,
+    )
+
+
+def rejections_outside(
+    health: HealthSeries, windows: list[tuple[float, float]], *, after_s: float
+) -> dict[str, int]:
+    """Rejections (counter increases) outside the given windows, from ``after_s`` on: the
+    false-alarm side of detection. Keys ``gnss_rejected``, ``baro_rejected``, ``mag_rejected``
+    (those collected)."""
+    t = health.time_s
+    keep = t >= after_s
+    for a, b in windows:
+        keep &= ~((t >= a) & (t <= b))
+    idx = np.flatnonzero(keep)
+    out: dict[str, int] = {}
+    for name in ("gnss_rejected", "baro_rejected", "mag_rejected"):
+        c = getattr(health, name)
+        if c is not None:
+            out[name] = int(np.sum(_increase(c, idx))) if idx.size else 0
     return out

@@ -4,42 +4,97 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, NonNegativeFloat, PositiveFloat
 
 from scenarios import metrics
-from scenarios.metrics import Errors, Track, Window
+from scenarios.metrics import Errors, EventWindow, HealthSeries, Track, Window
 
 SCHEMA_VERSION = 1
 
 
 @dataclass(frozen=True)
 class Criterion:
-    """A pass criterion: ``value <= limit`` (``value`` looked up by a dotted path)."""
+    """A pass criterion: ``value <= limit`` (or ``>=`` with ``op=">="``), ``value`` looked up
+    by a dotted path (e.g. ``"outages.horizontal_error_m_at.60"``).
+
+    Through a list (all outages, all events) the worst value counts: the largest for ``<=``,
+    the smallest for ``>=``. Items without the value are skipped (an outage too short for
+    ``.120``), unless ``none_fails``: then one missing value fails the criterion (an event
+    never detected has ``detect_s: null``). No value at all always fails.
+    """
 
     name: str
     path: str
     limit: float
+    op: Literal["<=", ">="] = "<="
+    none_fails: bool = False
+
+    def __post_init__(self) -> None:
+        if self.op not in ("<=", ">="):
+            raise ValueError(f"criterion {self.name!r}: op must be '<=' or '>='")
 
     def evaluate(self, summary: dict[str, Any]) -> dict[str, Any]:
-        value = _lookup(summary, self.path)
-        ok = value is not None and math.isfinite(value) and value <= self.limit
-        return {"name": self.name, "limit": self.limit, "value": value, "ok": bool(ok)}
+        values = _lookup_all(summary, self.path)
+        found = [v for v in values if v is not None]
+        value: float | None
+        if not found or (self.none_fails and len(found) < len(values)):
+            value, ok = None, False
+        else:
+            value = _worst(found, self.op)
+            ok = math.isfinite(value) and (
+                value <= self.limit if self.op == "<=" else value >= self.limit)
+        return {"name": self.name, "limit": self.limit, "value": value, "ok": bool(ok),
+                "op": self.op, "path": self.path}
+
+
+def _worst(values: list[float], op: str) -> float:
+    return max(values) if op == "<=" else min(values)
+
+
+def _lookup_all(tree: Any, path: str) -> list[float | None]:
+    """Values at a dotted path; a list along the way fans out (one entry per item)."""
+    node = tree
+    parts = path.split(".")
+    for i, part in enumerate(parts):
+        if isinstance(node, list):
+            rest = ".".join(parts[i:])
+            return [v for item in node for v in _lookup_all(item, rest)]
+        if not isinstance(node, dict) or part not in node:
+            return [None]
+        node = node[part]
+    if isinstance(node, list):
+        return [float(v) if isinstance(v, int | float) else None for v in node]
+    return [float(node) if isinstance(node, int | float) else None]
 
 
 def _lookup(tree: Any, path: str) -> float | None:
-    node = tree
-    for part in path.split("."):
-        if isinstance(node, list):
-            found = [v for v in (_lookup(item, part) for item in node) if v is not None]
-            return max(found) if found else None  # worst case over a list (e.g. all outages)
-        if not isinstance(node, dict) or part not in node:
-            return None
-        node = node[part]
-    return float(node) if isinstance(node, int | float) else None
+    """Worst (largest) value at a dotted path, ``None`` if there is none."""
+    found = [v for v in _lookup_all(tree, path) if v is not None]
+    return max(found) if found else None
+
+
+class ScoringConfig(BaseModel):
+    """How events and re-convergence are scored (defaults suit a 1-2 m GNSS receiver)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    reconverge_k: PositiveFloat = 3.0
+    """Re-converged = horizontal error below ``reconverge_k`` x the GNSS-on horizontal RMSE."""
+    reconverge_threshold_m: PositiveFloat | None = None
+    """A fixed threshold instead (m)."""
+    reconverge_hold_s: NonNegativeFloat = 10.0
+    """The error must stay below the threshold this long."""
+    bad_fix_m: PositiveFloat | None = None
+    """A fix this far from truth must not be fused (m). Default: ``bad_fix_k`` x the RMS
+    horizontal error of the fixes outside events, at least ``bad_fix_min_m``."""
+    bad_fix_k: PositiveFloat = 5.0
+    bad_fix_min_m: PositiveFloat = 10.0
 
 
 @dataclass(frozen=True)
@@ -59,17 +114,86 @@ def build_summary(
     outages: list[Window],
     *,
     settle_s: float = 60.0,
-    criteria: tuple[Criterion, ...] = (),
+    criteria: Sequence[Criterion] = (),
     health: dict[str, Any] | None = None,
+    events: Sequence[EventWindow | Mapping[str, Any]] = (),
+    series: HealthSeries | None = None,
+    scoring: ScoringConfig | None = None,
 ) -> tuple[dict[str, Any], Errors]:
-    """Score an estimate against truth; returns the summary dict and the error series."""
+    """Score an estimate against truth; returns the summary dict and the error series.
+
+    Parameters
+    ----------
+    info : RunInfo
+    estimate, truth : Track
+    outages : list of Window
+        GNSS outages (from the fix gaps).
+    settle_s : float
+        Seconds after the start, after each outage and after each spoof / glitch / jamming
+        event that the GNSS-on figures (and ``nees``) leave out.
+    criteria : sequence of Criterion
+    health : dict, optional
+        Final counters, written as ``health``.
+    events : sequence of EventWindow or mapping
+        Scenario events (``{type, start_s, end_s[, kind, sensor]}``), scored into ``events``.
+    series : HealthSeries, optional
+        The filter's mode / test ratios / counters per estimate (``Collector.series()``):
+        needed for ``detect_s`` and the re-accept check.
+    scoring : ScoringConfig, optional
+
+    Returns
+    -------
+    summary : dict
+        The ``summary.json`` contract of ARCHITECTURE.md plus ``containment_3sigma``,
+        ``events``, ``scoring`` and (with ``series``) ``rejections_outside_events``; each
+        outage also has ``cep50_m``, ``cep95_m``, ``containment_3sigma``, ``reconverge_s``,
+        vertical error figures, ``nees_mean`` and its ``drift`` curve.
+    err : Errors
+    """
+    cfg = scoring if scoring is not None else ScoringConfig()
+    windows = [e if isinstance(e, EventWindow) else EventWindow.from_mapping(e) for e in events]
     err = metrics.errors(estimate, truth)
+    on = metrics.gnss_on_mask(err.time_s, outages, settle_s=settle_s)
+    end_data = float(err.time_s[-1]) if err.time_s.size else 0.0
+    for ev in windows:
+        # spoofing, glitches and jamming corrupt the GNSS-on figures (the reference of
+        # re-convergence) as outages do; generic events (a slower or degraded receiver, an IMU
+        # or baro fault) are part of what "GNSS on" means in that scenario
+        if ev.kind != "generic":
+            on &= ~((err.time_s >= ev.start_s)
+                    & (err.time_s < min(ev.end_s, end_data) + settle_s))
+    gnss_on = metrics.gnss_on_metrics(err, on)
+    if cfg.reconverge_threshold_m is not None:
+        threshold = cfg.reconverge_threshold_m
+    else:
+        threshold = cfg.reconverge_k * gnss_on["horizontal_rmse_m"]
+    starts = sorted([w.start_s for w in outages] + [e.start_s for e in windows])
+
+    def next_start(after: float) -> float:
+        later = [s for s in starts if s > after]
+        return later[0] if later else math.inf
+
     outage_rows = []
     for w in outages:
         om = metrics.outage_metrics(err, w)
         if om is not None:
+            om.reconverge_s = metrics.reconverge_time(
+                err, w.end_s, threshold_m=threshold, hold_s=cfg.reconverge_hold_s,
+                until_s=next_start(w.end_s))
             outage_rows.append(om.as_dict())
-    on = metrics.gnss_on_mask(err.time_s, outages, settle_s=settle_s)
+    fix_err = None
+    bad_fix_m = cfg.bad_fix_m
+    if series is not None and series.fixes is not None and series.fixes.time_s.size:
+        fix_err = metrics.fix_errors(series.fixes, truth)
+        if bad_fix_m is None:
+            bad_fix_m = _bad_fix_threshold(series.fixes.time_s, fix_err, windows, cfg)
+    event_rows = [
+        metrics.event_metrics(
+            err, ev, health=series, fix_err_m=fix_err, bad_fix_m=bad_fix_m,
+            reconverge_threshold_m=threshold, hold_s=cfg.reconverge_hold_s,
+            until_s=next_start(ev.end_s)).as_dict()
+        for ev in windows
+    ]
     summary: dict[str, Any] = {
         "schema_version": SCHEMA_VERSION,
         "scenario": info.scenario,
@@ -80,14 +204,37 @@ def build_summary(
         "bridge": info.bridge,
         "altitude": info.altitude,
         "outages": outage_rows,
-        "gnss_on": metrics.gnss_on_metrics(err, on),
+        "gnss_on": gnss_on,
         "nees": metrics.consistency(err, on),
+        "containment_3sigma": metrics.containment_3sigma(
+            err, err.time_s >= err.time_s[0] + settle_s if err.time_s.size else None),
+        "events": event_rows,
+        "scoring": {"reconverge_threshold_m": threshold,
+                    "reconverge_hold_s": cfg.reconverge_hold_s, "bad_fix_m": bad_fix_m},
         "health": health or {},
     }
+    if series is not None:
+        quiet = [(w.start_s, w.end_s + settle_s) for w in outages]
+        quiet += [(e.start_s, min(e.end_s, end_data) + settle_s) for e in windows]
+        summary["rejections_outside_events"] = metrics.rejections_outside(
+            series, quiet, after_s=float(series.time_s[0]) + settle_s if series.time_s.size
+            else 0.0)
     results = [c.evaluate(summary) for c in criteria]
     summary["criteria"] = results
     summary["passed"] = all(r["ok"] for r in results)
     return summary, err
+
+
+def _bad_fix_threshold(
+    fix_time_s: np.ndarray, fix_err_m: np.ndarray, events: list[EventWindow],
+    cfg: ScoringConfig,
+) -> float:
+    """``bad_fix_k`` x RMS of the fix errors outside events, at least ``bad_fix_min_m``."""
+    clean = np.isfinite(fix_err_m)
+    for ev in events:
+        clean &= ~((fix_time_s >= ev.start_s) & (fix_time_s <= ev.end_s))
+    base = metrics.rms(fix_err_m[clean]) if np.any(clean) else 0.0
+    return max(cfg.bad_fix_min_m, cfg.bad_fix_k * base)
 
 
 def _clean(obj: Any) -> Any:

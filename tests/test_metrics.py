@@ -69,7 +69,7 @@ def test_consistency_of_matching_sigma() -> None:
     """Gaussian errors drawn with the reported sigma: NEES ~ 9, rms(e/sigma) ~ 1."""
     rng = np.random.default_rng(3)
     n = 20000
-    t = np.arange(n) * 0.1
+    t: np.ndarray = np.arange(n) * 0.1
     sig = np.tile([2.0, 2.0, 3.0, 0.1, 0.1, 0.1, 0.01, 0.01, 0.02], (n, 1))
     e = rng.normal(size=(n, 9)) * sig
     err = metrics.Errors(t, e[:, 0:3], e[:, 3:6], e[:, 6:9], e[:, 0] * 0, e[:, 0] * 0, sig)
@@ -86,3 +86,240 @@ def test_gnss_on_mask_excludes_settling_and_outages() -> None:
     assert not m[t < 20].any()
     assert not m[(t >= 100) & (t < 150)].any()
     assert m[(t >= 20) & (t < 100)].all() and m[t >= 150].all()
+
+
+# ------------------------------------------------------------------ containment, drift, settle
+
+
+def _errors(t: np.ndarray, pos: np.ndarray, sigma: np.ndarray | None = None) -> metrics.Errors:
+    n = t.size
+    z = np.zeros(n)
+    return metrics.Errors(t, pos, np.zeros((n, 3)), np.zeros((n, 3)), z, z, sigma)
+
+
+def _sigma(n: int, s_pos: tuple[float, float, float]) -> np.ndarray:
+    return np.tile([*s_pos, 0.1, 0.1, 0.1, 0.01, 0.01, 0.01], (n, 1))
+
+
+def test_containment_counts_the_99_73_percent_ellipse() -> None:
+    """GIVEN sigma (1, 2, 1) m and errors placed inside or outside the bounds by hand
+    THEN the fractions are exact; (3 sN, 1 sE) is inside the 2-D bound (9 + 1 < 11.83),
+    (3 sN, 2 sE) is not (13 > 11.83); the vertical bound is |e_D| <= 3 sD."""
+    t = np.arange(4.0)
+    pos = np.array([[3.0, 2.0, 2.9], [3.0, 4.0, 3.1], [0.0, 0.0, 0.0], [-3.0, -2.0, -3.5]])
+    c = metrics.containment_3sigma(_errors(t, pos, _sigma(4, (1.0, 2.0, 1.0))))
+    assert c == {"horizontal": 0.75, "vertical": 0.5}
+    m = np.array([False, True, True, False])
+    assert metrics.containment_3sigma(_errors(t, pos, _sigma(4, (1.0, 2.0, 1.0))), m) == {
+        "horizontal": 0.5, "vertical": 0.5}
+    nan = metrics.containment_3sigma(_errors(t, pos))
+    assert math.isnan(nan["horizontal"]) and math.isnan(nan["vertical"])
+
+
+def test_containment_of_a_consistent_filter_is_99_73_percent() -> None:
+    rng = np.random.default_rng(11)
+    n = 400_000
+    sig = _sigma(n, (2.0, 5.0, 3.0))
+    err = _errors(np.arange(n) * 0.02, rng.normal(size=(n, 3)) * sig[:, :3], sig)
+    c = metrics.containment_3sigma(err)
+    assert c["horizontal"] == pytest.approx(metrics.P_3SIGMA, abs=5e-4)
+    assert c["vertical"] == pytest.approx(metrics.P_3SIGMA, abs=5e-4)
+    # the plotted radius is exact for equal sigmas: sqrt(11.83) * 2 m
+    r = metrics.horizontal_bound_3sigma(_sigma(1, (2.0, 2.0, 1.0)))
+    assert r[0] == pytest.approx(2.0 * math.sqrt(metrics.CHI2_2DOF_3SIGMA))
+
+
+def test_outage_metrics_new_fields() -> None:
+    """Linear drift 1 m/s north, height error 0.5 m/s down, sigma 1 m: vertical error-at,
+    containment (inside while the error < 3.44 m horizontally / 3 m vertically), drift curve."""
+    t = np.arange(0.0, 200.0, 0.1)
+    zero = np.zeros_like(t)
+    inside = (t >= 50.0) & (t < 110.0)
+    drift = np.where(inside, t - 50.0, 0.0)
+    sig = _sigma(t.size, (1.0, 1.0, 1.0))
+    err = metrics.errors(_track(t, drift, zero, 0.5 * drift, sig), _track(t, zero, zero, zero))
+    om = metrics.outage_metrics(err, Window(50.0, 110.0), drift_step_s=5.0)
+    assert om is not None
+    assert om.vertical_error_m_at["10"] == pytest.approx(5.0, abs=1e-3)
+    assert om.vertical_error_m_at["30"] == pytest.approx(15.0, abs=1e-3)
+    assert om.vertical_error_m_at["60"] is None
+    assert om.vertical_max_m == pytest.approx(29.95, abs=1e-3)
+    # horizontal inside while tau <= sqrt(11.83) = 3.439 s -> 35 of 600 samples
+    assert om.containment_3sigma["horizontal"] == pytest.approx(35 / 600)
+    # vertical inside while 0.5 tau <= 3 -> tau <= 6 s -> 61 of 600 samples
+    assert om.containment_3sigma["vertical"] == pytest.approx(61 / 600)
+    np.testing.assert_allclose(om.drift_m, np.arange(0.0, 60.0, 5.0), atol=1e-3)
+    d = om.as_dict()
+    for key in ("cep50_m", "cep95_m", "containment_3sigma", "reconverge_s", "drift",
+                "vertical_error_m_at", "nees_mean"):
+        assert key in d
+
+
+def test_mean_drift_curve_over_outages_of_different_length() -> None:
+    tau1 = np.arange(0.0, 60.01, 0.1)
+    tau2 = np.arange(0.0, 30.01, 0.1)
+    grid, mean, count = metrics.mean_drift_curve([(tau1, 1.0 * tau1), (tau2, 3.0 * tau2)])
+    assert grid[-1] == pytest.approx(60.0) and grid[1] == pytest.approx(1.0)
+    assert mean[10] == pytest.approx(20.0)  # (10 + 30) / 2
+    assert mean[45] == pytest.approx(45.0)  # only the long outage reaches 45 s
+    assert count[10] == 2 and count[45] == 1
+    g, m, c = metrics.mean_drift_curve([])
+    assert g.size == m.size == c.size == 0
+
+
+def _h_errors(t: np.ndarray, h: np.ndarray) -> metrics.Errors:
+    return _errors(t, np.column_stack([h, np.zeros_like(h), np.zeros_like(h)]))
+
+
+def test_reconverge_time_waits_for_the_hold() -> None:
+    """GIVEN GNSS back at 100 s with a 50 m error decaying 5 m/s, and a spike above 5 m at
+    115 s WHEN the threshold is 5 m held 10 s THEN the first run (109-115 s) is too short and
+    re-convergence is at 115.1 s."""
+    t = np.round(np.arange(0.0, 200.0, 0.1), 6)
+    h = np.where(t < 100.0, 1.0, np.maximum(50.0 - 5.0 * (t - 100.0), 1.0))
+    h[np.isclose(t, 115.0)] = 8.0
+    err = _h_errors(t, h)
+    r = metrics.reconverge_time(err, 100.0, threshold_m=5.0, hold_s=10.0)
+    assert r == pytest.approx(15.1, abs=1e-9)
+    # without the spike the error is below 5 m from just after 109 s
+    h2 = np.where(t < 100.0, 1.0, np.maximum(50.0 - 5.0 * (t - 100.0), 1.0))
+    assert metrics.reconverge_time(_h_errors(t, h2), 100.0, threshold_m=5.0,
+                                   hold_s=10.0) == pytest.approx(9.1, abs=1e-9)
+    # already converged when GNSS returns
+    assert metrics.reconverge_time(_h_errors(t, np.ones_like(t)), 100.0, threshold_m=5.0,
+                                   hold_s=10.0) == pytest.approx(0.0)
+    # never below the threshold
+    assert metrics.reconverge_time(_h_errors(t, h2 + 10.0), 100.0, threshold_m=5.0,
+                                   hold_s=10.0) is None
+    # a run cut by the next outage counts, one cut by the end of the data must last hold_s
+    assert metrics.reconverge_time(err, 100.0, threshold_m=5.0, hold_s=10.0,
+                                   until_s=113.0) == pytest.approx(9.1, abs=1e-9)
+    t_short = t[t < 112.0]
+    assert metrics.reconverge_time(_h_errors(t_short, h2[t < 112.0]), 100.0,
+                                   threshold_m=5.0, hold_s=10.0) is None
+
+
+# ------------------------------------------------------------------ events
+
+
+def _series(t: np.ndarray, **fields: object) -> metrics.HealthSeries:
+    return metrics.HealthSeries(time_s=t, **fields)  # type: ignore[arg-type]
+
+
+def _steps(t: np.ndarray, times: list[float] | np.ndarray) -> np.ndarray:
+    """A cumulative counter that increases by one at each of ``times``."""
+    return np.searchsorted(np.sort(np.asarray(times, dtype=float)), t, side="right").astype(
+        np.int64)
+
+
+T50 = np.round(np.arange(0.0, 200.0, 0.02), 6)  # 50 Hz output
+
+
+def test_spoof_detected_then_reaccepted_after_a_reset() -> None:
+    """GIVEN a spoof 100-160 s; fixes fused at 5 Hz until the first rejection at 103 s, then a
+    reset to the spoofed fix at 130 s and fusion again from 130.2 s WHEN scored THEN detect_s = 3,
+    max error is the error's max in the window, and the re-accepts are counted."""
+    fused_t = np.r_[np.arange(0.1, 103.0, 0.2), np.arange(130.2, 160.0, 0.2)]
+    h = np.where((T50 >= 100.0) & (T50 <= 160.0), T50 - 100.0, 1.0)
+    err = _h_errors(T50, h)
+    health = _series(
+        T50, gnss_fused=_steps(T50, fused_t), gnss_rejected=_steps(T50, np.arange(103.0, 130.0,
+        0.2)), gnss_resets=_steps(T50, [130.0]))  # fmt: skip
+    ev = metrics.EventWindow("gnss_spoof_hijack", 100.0, 160.0)
+    assert ev.kind == "spoof" and ev.sensor == "gnss"
+    em = metrics.event_metrics(err, ev, health=health)
+    assert em.detect_s == pytest.approx(3.0)
+    assert em.max_horizontal_m == pytest.approx(60.0)
+    expected = 1 + np.count_nonzero((fused_t > 103.0) & (fused_t <= 160.0))
+    assert em.reaccept_count == expected and em.reaccepted_early is True
+    # the same filter without the reset and the re-fusion is clean
+    clean = _series(T50, gnss_fused=_steps(T50, fused_t[fused_t < 103.0]),
+                    gnss_rejected=_steps(T50, np.arange(103.0, 160.0, 0.2)))
+    em2 = metrics.event_metrics(err, ev, health=clean)
+    assert em2.detect_s == pytest.approx(3.0)
+    assert em2.reaccepted_early is False and em2.reaccept_count == 0
+    assert em2.as_dict()["detected"] is True
+
+
+def test_detection_ignores_stale_ratios_and_uses_the_events_sensor() -> None:
+    """A test ratio > 1 left over from before the event is not a detection; a fresh one is.
+    A baro glitch is detected by the baro checks, not by GNSS rejections."""
+    r = np.full(T50.size, np.nan)
+    r[T50 >= 90.0] = 2.0  # one old test
+    r[T50 >= 105.0] = 1.5  # a new test at 105 s
+    health = _series(T50, ratio_gnss_pos=r, gnss_rejected=_steps(T50, [100.5]),
+                     baro_rejected=_steps(T50, [101.5]))
+    stale = metrics.HealthSeries(T50, ratio_gnss_pos=r)
+    ev = metrics.EventWindow("gnss_spoof_drift", 100.0, 150.0)
+    assert metrics.event_metrics(_h_errors(T50, T50 * 0), ev, health=stale).detect_s == \
+        pytest.approx(5.0)
+    baro = metrics.EventWindow("baro_glitch", 100.0, 150.0)
+    assert baro.kind == "glitch" and baro.sensor == "baro"
+    assert metrics.detect_time(health, 100.0, 150.0, "baro") == pytest.approx(101.5)
+    assert metrics.detect_time(health, 100.0, 150.0, "gnss") == pytest.approx(100.5)
+    assert metrics.detect_time(health, 100.0, 150.0, "mag") is None
+    # a test before the window and none in it: never detected
+    assert metrics.detect_time(stale, 100.0, 104.9, "gnss") is None
+
+
+def test_jamming_detected_when_the_filter_declares_gnss_lost() -> None:
+    mode = np.where((T50 >= 112.0) & (T50 < 140.0), "free-inertial", "gnss")
+    health = _series(T50, mode=mode)
+    ev = metrics.EventWindow("gnss_jamming", 100.0, 140.0)
+    assert ev.kind == "jamming"
+    em = metrics.event_metrics(_h_errors(T50, T50 * 0), ev, health=health)
+    assert em.detect_s == pytest.approx(12.0)
+    # jamming: no fix data, so the re-accept check does not apply
+    assert em.reaccepted_early is None and em.reaccept_count is None
+
+
+def test_undetected_slow_spoof_counts_the_bad_fixes_fused() -> None:
+    """GIVEN fixes at 5 Hz pulled off 1 m/s from 100 s (1 m error before) and a filter that fuses
+    every fix until 120 s without ever rejecting one WHEN a fix > 10 m off must not be fused THEN
+    the fixes of 109.1 ... 119.9 s (55) are counted and the event is flagged."""
+    fix_t = np.round(np.arange(0.1, 200.0, 0.2), 6)
+    fix_err = np.where(fix_t >= 100.0, 1.0 + (fix_t - 100.0), 1.0)
+    fixes = metrics.Fixes(fix_t, fix_t * 0, fix_t * 0, fix_t * 0)
+    fused_at = fix_t[fix_t < 120.0] + 0.01  # fused 10 ms after the time of validity
+    health = _series(T50, gnss_fused=_steps(T50, fused_at), gnss_rejected=T50 * 0,
+                     fixes=fixes)
+    ev = metrics.EventWindow("gnss_spoof_drift", 100.0, 160.0)
+    em = metrics.event_metrics(_h_errors(T50, T50 * 0), ev, health=health, fix_err_m=fix_err,
+                               bad_fix_m=10.0)
+    assert em.detect_s is None
+    assert em.bad_fixes_fused == 55
+    assert em.reaccept_count == 55 and em.reaccepted_early is True
+
+
+def test_fix_errors_against_truth() -> None:
+    t = np.arange(0.0, 10.0, 0.5)
+    zero = np.zeros_like(t)
+    truth = _track(t, zero, zero, zero)
+    spoofed = _track(t, zero + 30.0, zero + 40.0, zero)
+    fixes = metrics.Fixes(np.r_[t, 20.0], np.r_[spoofed.lat_rad, 0.0], np.r_[spoofed.lon_rad, 0.0],
+                          np.r_[spoofed.alt_m, 0.0])
+    e = metrics.fix_errors(fixes, truth)
+    np.testing.assert_allclose(e[:-1], 50.0, rtol=1e-6)
+    assert math.isnan(e[-1])  # after the truth ends
+
+
+def test_event_and_series_validation() -> None:
+    with pytest.raises(ValueError, match="kind"):
+        metrics.EventWindow("gnss_outage", 10.0, 20.0, kind="meteor")
+    with pytest.raises(ValueError, match="end_s"):
+        metrics.EventWindow("gnss_outage", 10.0, 5.0)
+    with pytest.raises(ValueError, match="gnss_fused"):
+        metrics.HealthSeries(np.arange(5.0), gnss_fused=np.zeros(4, dtype=np.int64))
+    with pytest.raises(ValueError, match="no 'start_s'"):
+        metrics.EventWindow.from_mapping({"type": "gnss_outage"})
+    ev = metrics.EventWindow.from_mapping({"type": "weather_front", "start_s": 5, "end_s": None})
+    assert ev.sensor == "baro" and ev.kind == "generic" and ev.end_s == math.inf
+    assert metrics.event_sensor("imu_bias_step") == "imu"
+    assert metrics.event_sensor("solar_flare") == "any"
+
+
+def test_rejections_outside_windows() -> None:
+    health = _series(T50, gnss_rejected=_steps(T50, [5.0, 50.0, 101.0, 150.0]),
+                     baro_rejected=_steps(T50, [120.0]))
+    out = metrics.rejections_outside(health, [(100.0, 130.0)], after_s=10.0)
+    assert out == {"gnss_rejected": 2, "baro_rejected": 0}
