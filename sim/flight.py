@@ -374,7 +374,6 @@ class Flight:
         self._fdm.set_dt(self._dt)
         self._fdm["simulation/randomseed"] = config.seed
         self._bind()
-        self._set_wind()
         self._origin = (math.radians(config.start.lat_deg), math.radians(config.start.lon_deg))
         try:
             trim = self._start()
@@ -383,6 +382,7 @@ class Flight:
                 f"JSBSim could not initialise {config.aircraft!r} in the air: {error}"
             ) from None
         # turbulence after the trim: random gusts would upset the trim's equilibrium search
+        self._set_wind()
         self._set_turbulence()
         start = config.start
         self._guidance = Guidance(
@@ -416,7 +416,18 @@ class Flight:
         """Read every property the adapter uses, once (indices: the _I* constants)."""
         return [get() for get in self._getters]
 
+    def _set_wind_ic(self) -> None:
+        # run_ic() and the trim re-initialise the atmosphere's wind from the initial condition
+        # (a wind set on atmosphere/ before them silently vanished), so the horizontal wind
+        # goes into the IC: JSBSim's ic/vw-dir-deg is the direction the wind comes FROM. The
+        # trim then finds the equilibrium in the moving air mass.
+        wn, we, _ = self.config.wind_ned_mps
+        fdm = self._fdm
+        fdm["ic/vw-mag-fps"] = math.hypot(wn, we) / FT_M
+        fdm["ic/vw-dir-deg"] = math.degrees(math.atan2(-we, -wn)) % 360.0
+
     def _set_wind(self) -> None:
+        # the whole vector once the trim is done (the IC has no settable vertical wind)
         fdm = self._fdm
         wn, we, wd = self.config.wind_ned_mps
         fdm["atmosphere/wind-north-fps"] = wn / FT_M
@@ -448,6 +459,7 @@ class Flight:
         if alpha_rad is not None:
             fdm["ic/alpha-rad"] = alpha_rad
         fdm["gear/gear-cmd-norm"] = 0.0  # airborne start: gear up where it retracts
+        self._set_wind_ic()
         with _console_silenced():
             fdm.run_ic()
 

@@ -302,6 +302,22 @@ def test_same_config_gives_bit_identical_truth() -> None:
     assert np.abs(airspeed - ground).max() > 2.0
 
 
+def test_steady_wind_moves_the_air_mass() -> None:
+    """A configured wind reaches JSBSim (run_ic and the trim used to reset it to calm)."""
+
+    def air_minus_ground(wind: tuple[float, float, float]) -> float:
+        cfg = FlightConfig(aircraft="c172x", rate_hz=100.0, wind_ned_mps=wind,
+                           start=StartState(lat_deg=47.0, lon_deg=8.0, alt_msl_m=1000.0,
+                                            heading_deg=0.0, airspeed_mps=50.0))
+        with Flight(cfg, load_plan("cruise")) as f:
+            truths = [f.step() for _ in range(2000)]
+        return float(np.mean([t.airspeed_mps - np.linalg.norm(t.v_ned_mps) for t in truths]))
+
+    # flying north: a 6 m/s wind from the north is a 6 m/s headwind
+    assert air_minus_ground((0.0, 0.0, 0.0)) == pytest.approx(0.0, abs=0.3)
+    assert air_minus_ground((-6.0, 0.0, 0.0)) == pytest.approx(6.0, abs=0.5)
+
+
 # --- the flight ends cleanly when it must ---------------------------------------------------
 
 
