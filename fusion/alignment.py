@@ -148,7 +148,12 @@ class InFlightAlignment:
     def add_fix(self, fix: GnssFix) -> None:
         """A fix that passed the quality checks (a gap longer than ``max_fix_interval_s`` since
         the previous one restarts the collection)."""
-        v = np.asarray(fix.v_ned_mps, dtype=float)
+        v = np.asarray(fix.v_ned_mps, dtype=float).copy()
+        if not math.isfinite(v[2]):
+            # vertical velocity not reported (GPS_RAW_INT): from the height change instead
+            prev = self._fixes[-1] if self._fixes else None
+            dt = (fix.time_us - prev.time_us) * 1e-6 if prev is not None else 0.0
+            v[2] = -(float(fix.alt_msl_m) - prev.alt) / dt if prev is not None and dt > 0 else 0.0
         if self._fixes and (
             fix.time_us - self._fixes[-1].time_us > self.init.max_fix_interval_s * 1e6
             or fix.time_us <= self._fixes[-1].time_us

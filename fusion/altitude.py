@@ -321,6 +321,14 @@ class ThirdOrderLoop:
         self._baro_h = None
         self._baro_age_s = math.inf
 
+    def snapshot(self) -> tuple[float, float, float, float | None, float, bool]:
+        """The loop's complete state (for :meth:`restore`)."""
+        return (self.h_m, self.vz_mps, self.ac_mps2, self._baro_h, self._baro_age_s, self.damped)
+
+    def restore(self, state: tuple[float, float, float, float | None, float, bool]) -> None:
+        """Go back to a state taken with :meth:`snapshot`."""
+        self.h_m, self.vz_mps, self.ac_mps2, self._baro_h, self._baro_age_s, self.damped = state
+
     def shift(self, delta_h_m: float) -> None:
         """Move the height datum by ``delta_h_m`` (state and held baro height alike), m."""
         _check_finite("delta_h_m", delta_h_m)
@@ -703,6 +711,13 @@ class AltitudeChannelConfig(_Frozen):
     across missing or rejected samples, then runs undamped (free inertial, ``a_c`` frozen), s."""
     max_baro_gnss_skew_s: PositiveFloat = 0.5
     """Calibrate only with a baro sample at most this far from the GNSS time, s."""
+    freeze_rollback_m: PositiveFloat = 0.5
+    """When a frozen sensor is declared, the loop is rolled back (see :class:`AltitudeChannel`)
+    if its repeated readings had moved the loop's height by more than this (more than baro
+    noise can: in level flight a stuck reading is harmless and the loop keeps its damped
+    state), m."""
+    freeze_rollback_mps: PositiveFloat = 0.2
+    """... or its vertical speed by more than this, m/s."""
     omega_s2: float = Field(default=OMEGA_S2, ge=0.0)
 
 
@@ -718,6 +733,8 @@ class AltitudeHealth:
     qp_active: int = 0
     undamped: bool = False
     """The loop ran without baro feedback at the last IMU step."""
+    freeze_rollbacks: int = 0
+    """Frozen-sensor declarations that rolled the loop back (see :class:`AltitudeChannel`)."""
     initialised: bool = False
 
 
@@ -740,6 +757,17 @@ class AltitudeChannel:
     the calibration bias is moved so that the baro agrees with the loop's height (no jump), and
     GNSS re-calibrates it when valid. GNSS heights that fail the calibration's innovation gate
     are counted (``gnss_rejected``) and not used.
+
+    A frozen sensor is recognised only after ``freeze_time_s`` of identical readings, and until
+    then its readings look valid. When the freeze is declared, the loop is rolled back to its
+    state before the first repeated reading and re-run from there on the recorded IMU steps
+    (and datum shifts) without them, as if they had been rejected at once: with P4's stiff
+    gains two seconds of a stuck barometer in a 5 m/s climb leave the loop with a vertical
+    speed ~3 m/s and an ``a_c`` ~2 m/s² wrong and, undamped afterwards, put the altitude
+    hundreds of metres off. The rollback is applied only if the repeated readings had moved the
+    loop by more than ``freeze_rollback_m`` / ``freeze_rollback_mps`` (in level flight they
+    are harmless and the damped state is the better one). The compensators are not rolled
+    back (the MPC holds during an outage anyway).
 
     Call order: :meth:`update_imu` at the IMU rate; :meth:`update_baro` and
     :meth:`update_gnss_height` as samples arrive (time-ordered, same time base as the IMU's).
@@ -778,6 +806,14 @@ class AltitudeChannel:
         self._last_baro_h: float | None = None
         self._last_baro_time = -math.inf
         self._pending_baro: float | None = None
+        # Frozen-sensor rollback: loop state, pending baro height and last baro (height, time)
+        # when the latest fresh (changed) reading was accepted, and since then the IMU steps
+        # (az, dt) and datum shifts (None, delta) applied to the loop.
+        self._run_p: float | None = None
+        self._ckpt: (
+            tuple[tuple[float, float, float, float | None, float, bool], float, float, float] | None
+        ) = None
+        self._since_ckpt: list[tuple[float | None, float]] = []
 
     # ---- outputs -----------------------------------------------------------------------
     @property
@@ -858,6 +894,11 @@ class AltitudeChannel:
         baro, self._pending_baro = self._pending_baro, None
         self.loop.step(az_up_mps2, baro, dt_s)
         self.health.undamped = not self.loop.damped
+        if self._ckpt is not None:
+            if self.time_s - self._ckpt[3] > self.config.monitor.freeze_time_s + 2.0:
+                self._ckpt, self._since_ckpt = None, []  # no baro any more: nothing to undo
+            else:
+                self._since_ckpt.append((az_up_mps2, dt_s))
         gnss_ok = self.gnss_valid
         if gnss_ok:
             self.altimeter.unfreeze()
@@ -914,9 +955,18 @@ class AltitudeChannel:
         bool
             Whether the sample was used.
         """
+        hb = self.health.baro
+        n_freeze = hb.freeze_events
         hp = self.monitor.check(pressure_pa, time_s)
+        if hb.freeze_events != n_freeze:
+            self._rollback()
         if hp is None:
             return False
+        fresh = self._run_p is None or (
+            abs(pressure_pa - self._run_p) > self.config.monitor.freeze_tolerance_pa
+        )
+        if fresh:
+            self._run_p = pressure_pa
         self._last_hp, self._last_hp_time = hp, time_s
         if temperature_k is not None and math.isfinite(temperature_k) and temperature_k > 0.0:
             self._last_temperature = temperature_k
@@ -929,6 +979,8 @@ class AltitudeChannel:
             self._last_baro_h, self._last_baro_time = h_baro, time_s
             return True
         if not self.monitor.gate(h_baro, self.loop.h_m, time_s):
+            if fresh:
+                self._ckpt, self._since_ckpt = None, []
             if self.monitor.rejecting_for_s(time_s) < self.config.monitor.realign_after_rejected_s:
                 return False
             # A persistent step (sensor change, re-zeroed, cabin pressure): move the baro datum
@@ -938,9 +990,48 @@ class AltitudeChannel:
             self.monitor.clear_rejection()
             self.health.baro.realignments += 1
             h_baro = self.altimeter.altitude_from_hp(hp)
+        if fresh:
+            self._ckpt = (self.loop.snapshot(), h_baro, h_baro, time_s)
+            self._since_ckpt = []
         self._pending_baro = h_baro
         self._last_baro_h, self._last_baro_time = h_baro, time_s
         return True
+
+    def _rollback(self) -> None:
+        """Undo the repeated readings of a sensor just declared frozen (see class docstring)."""
+        ck = self._ckpt
+        if ck is None:
+            return
+        state, pending, last_h, last_t = ck
+        loop = self.loop
+        current = loop.snapshot()
+        loop.restore(state)
+        baro: float | None = pending
+        for az, x in self._since_ckpt:
+            if az is None:  # a calibration step moved the datum meanwhile
+                loop.shift(x)
+                last_h += x
+                if baro is not None:
+                    baro += x
+            else:
+                loop.step(az, baro, x)
+                baro = None
+        cfg = self.config
+        if (
+            abs(current[0] - loop.h_m) <= cfg.freeze_rollback_m
+            and abs(current[1] - loop.vz_mps) <= cfg.freeze_rollback_mps
+        ):
+            loop.restore(current)  # the repeats agreed with inertia: keep the damped state
+            self._ckpt, self._since_ckpt = None, []
+            return
+        self.health.freeze_rollbacks += 1
+        if baro is not None:  # no IMU step since the checkpoint: still to be applied
+            self._pending_baro = baro
+        else:
+            self._pending_baro = None
+        self.health.undamped = not loop.damped
+        self._last_baro_h, self._last_baro_time = last_h, last_t
+        self._ckpt, self._since_ckpt = None, []
 
     def update_gnss_height(
         self,
@@ -1015,6 +1106,8 @@ class AltitudeChannel:
                 if self.health.initialised:
                     # The datum moved: carry the loop with it (no transient, no gate trip).
                     self.loop.shift(shift)
+                    if self._ckpt is not None:
+                        self._since_ckpt.append((None, shift))
                     if self._last_baro_h is not None:
                         self._last_baro_h += shift
                     if self._pending_baro is not None:

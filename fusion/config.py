@@ -11,7 +11,17 @@ from __future__ import annotations
 import math
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, PositiveFloat, PositiveInt
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    NonNegativeFloat,
+    PositiveFloat,
+    PositiveInt,
+    field_validator,
+)
+
+from fusion.altitude import AltitudeChannelConfig
 
 Probability = float
 
@@ -122,6 +132,18 @@ class MagConfig(_Frozen):
     min_horizontal_field_tesla: PositiveFloat = 5e-6
     """Samples whose horizontal field (after tilt) is weaker than this are not used."""
     gate_probability: Probability = Field(default=0.999, gt=0.5, lt=1.0)
+    hard_iron_calibration: bool = True
+    """Estimate the body-fixed (hard-iron) field offset and the Earth field together in flight,
+    from GNSS-aided attitudes spread over headings (``m_b = C_bn m_n + b``, least squares)."""
+    uncalibrated_heading_noise_rad: PositiveFloat = math.radians(10.0)
+    """Heading sigma used before the hard-iron calibration completes (a hard-iron residual of
+    1 uT at 20 uT horizontal field is a heading error of +-3 deg that flips with heading; fused
+    as white noise at the calibrated sigma it pulled yaw 4-5 deg off), rad."""
+    calibration_min_heading_span_rad: PositiveFloat = math.radians(150.0)
+    """Headings covered (in 30-deg bins) before the calibration is trusted, rad."""
+    calibration_hard_iron_sigma_tesla: PositiveFloat = 5e-6
+    """Prior sigma of each hard-iron component (regularises the axis the attitudes do not
+    excite, e.g. body z in level flight), T."""
 
 
 class InitConfig(_Frozen):
@@ -162,10 +184,121 @@ class RatesConfig(_Frozen):
     """Rate of the estimates returned by ``NavFilter.step``, Hz."""
 
 
+BRIDGE_FEATURES: tuple[str, ...] = (
+    "t", "t2", "t3", "fn", "fe", "fd", "sinpsi", "cospsi", "sinpsi0", "cospsi0", "roll",
+    "pitch", "vn", "ve", "vd", "wx", "wy", "wz", "dn", "de", "dvn", "dve", "bax", "bay", "baz",
+    "bgx", "bgy", "bgz", "own", "own_rel", "own_rate",
+)  # fmt: skip
+"""Input features a bridging network may use (:mod:`fusion.bridging` documents each)."""
+
+
 class BridgeConfig(_Frozen):
-    """How often the bridging strategy is consulted during an outage."""
+    """GNSS-outage bridging (:mod:`fusion.bridging`): consultation rate, what the networks
+    learn from, their inputs, the training budget and the fallback rules.
+
+    ``rate_hz`` is read by the filter; everything else by the learned strategies
+    (:func:`fusion.bridging.make_bridge`).
+    """
 
     rate_hz: PositiveFloat = 5.0
+    """The strategy is consulted this often during an outage, Hz."""
+    training: Literal["virtual", "fix"] = "virtual"
+    """``virtual``: learn the drift of shadow INS copies re-seeded from the filter while GNSS
+    is good (virtual outages, :class:`fusion.bridge.ShadowBank`). ``fix``: paper P0's pairs,
+    the filter's INS-minus-GNSS error at each fix (closed loop: about zero)."""
+    features: tuple[str, ...] | None = None
+    """Network inputs (names in :data:`BRIDGE_FEATURES`); ``None``: the method's default."""
+    virtual_outage_s: PositiveFloat = 90.0
+    """Length of a virtual outage: each shadow INS is re-seeded this often, s."""
+    virtual_outage_count: PositiveInt = 3
+    """Number of staggered shadows (re-seeds every ``virtual_outage_s / count``)."""
+    window_s: PositiveFloat = 300.0
+    """Sliding training window (GNSS time), s."""
+    refit_period_s: PositiveFloat = 10.0
+    """Each component's network is refitted this often while GNSS is good; the six fits are
+    spread over the period (one per ``refit_period_s / 6``), so no fix pays more than one."""
+    max_samples: PositiveInt = 3000
+    """Budget of one fit: the window is thinned evenly to at most this many pairs."""
+    min_samples: PositiveInt = 150
+    """Fewer training pairs: ``untrained`` (the strategy behaves as ``none``)."""
+    min_horizon_s: NonNegativeFloat = 20.0
+    """Virtual training: the pairs must reach this far into a virtual outage before the first
+    fit (an outage right after start stays uncorrected), s."""
+    warmup_s: NonNegativeFloat = 90.0
+    """Virtual outages started within this time of the first fix are not learned from (the
+    filter is still converging: their drift says nothing about later outages), s."""
+    validation_fraction: float = Field(default=0.25, gt=0.0, lt=1.0)
+    """Share of the window held out to judge each fit: the most recent virtual outages that
+    reached ``min_horizon_s`` (the most recent pairs with ``training="fix"``), i.e. the model
+    fitted on the older data must predict the newer. A component whose validation RMSE is not
+    below ``validation_margin`` times that of a zero correction falls back to ``none``;
+    otherwise it is refitted on the whole window for use."""
+    validation_margin: float = Field(default=1.0, gt=0.0, le=1.0)
+    """See ``validation_fraction`` (1: merely better than no correction)."""
+    stale_after_s: PositiveFloat = 120.0
+    """No completed refit for this long: status ``stale`` (the models are still used), s."""
+    pseudo_min_sigma_pos_m: PositiveFloat = 1.0
+    """Floor of the pseudo-GNSS position sigma (``gmdh-pseudo``), m."""
+    pseudo_min_sigma_vel_mps: PositiveFloat = 0.1
+    """Floor of the pseudo-GNSS velocity sigma, m/s."""
+    gmdh_max_layers: PositiveInt = 5
+    gmdh_max_neurons: PositiveInt = 10
+    gmdh_alpha: float = Field(default=0.6, ge=0.0, le=1.0)
+    """P0's GMDH settings: 5 layers, 10 neurons per layer, selection pressure 0.6."""
+    rbf_centers: PositiveInt = 15
+    """P0's RBF comparator: 15 Gaussian neurons."""
+    mlp_hidden: PositiveInt = 35
+    """P1's NARX MLP: 35 hidden neurons."""
+    mlp_max_nfev: PositiveInt = 20
+    """Levenberg-Marquardt evaluations per MLP fit (bounds the fit time)."""
+    mlp_max_samples: PositiveInt = 300
+    """The MLP's own sample budget (LM is O(samples x weights^2))."""
+    bp_hidden: PositiveInt = 6
+    """P2's small sigmoid networks: hidden neurons."""
+    bp_epochs: PositiveInt = 300
+
+    @field_validator("features")
+    @classmethod
+    def _known_features(cls, v: tuple[str, ...] | None) -> tuple[str, ...] | None:
+        if v is None:
+            return v
+        if not v:
+            raise ValueError("features must name at least one input (or be None)")
+        bad = [f for f in v if f not in BRIDGE_FEATURES]
+        if bad:
+            raise ValueError(f"unknown features {bad}; valid: {', '.join(BRIDGE_FEATURES)}")
+        return v
+
+
+ALTITUDE_METHODS: tuple[str, ...] = ("ekf", "loop", "loop-mpc", "loop-kf")
+"""Altitude methods of :class:`AltitudeConfig` (and ``--altitude`` on the command line)."""
+
+AltitudeMethodName = Literal["ekf", "loop", "loop-mpc", "loop-kf"]
+
+
+class AltitudeConfig(_Frozen):
+    """Where the output altitude and vertical velocity come from.
+
+    ``ekf``: the error-state filter's own vertical channel (baro height fused as an EKF update
+    with a Gauss-Markov bias state, :class:`BaroConfig`). ``loop`` / ``loop-mpc`` /
+    ``loop-kf``: paper P4's barometric-inertial channel (:class:`fusion.altitude.AltitudeChannel`)
+    runs inside the filter on the INS vertical acceleration, the barometer (pressure and
+    temperature, non-standard-atmosphere calibration from GNSS height) and GNSS height; the
+    estimate's altitude and vertical velocity are the channel's. The EKF keeps fusing the baro
+    samples the channel accepted, for its internal state only (see :mod:`fusion.filter`).
+    """
+
+    method: AltitudeMethodName = "ekf"
+    channel: AltitudeChannelConfig = AltitudeChannelConfig()
+    ekf_repeat_hold_s: PositiveFloat = 0.25
+    """A baro reading identical to the previous ones for longer than this is not fused into the
+    EKF (any method): it is a frozen sensor's signature, and the EKF cannot undo what it fused
+    in the ``freeze_time_s`` the monitor needs to declare the sensor frozen. A live sensor whose
+    noise exceeds its resolution (MS5611: 1.2 Pa noise, 1 Pa steps) never repeats that long;
+    raise it for a coarse sensor in still air, s."""
+    """The channel's settings for the loop methods. Its own ``method`` field is ignored
+    (replaced by :attr:`method`); its ``monitor`` (range, freeze) also screens the baro samples
+    of the ``ekf`` method."""
 
 
 class FilterConfig(_Frozen):
@@ -181,3 +314,4 @@ class FilterConfig(_Frozen):
     init: InitConfig = InitConfig()
     rates: RatesConfig = RatesConfig()
     bridge: BridgeConfig = BridgeConfig()
+    altitude: AltitudeConfig = AltitudeConfig()

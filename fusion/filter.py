@@ -15,6 +15,15 @@ integrated (the INS coasts at constant velocity over the gap and the covariance 
 process noise); GNSS fixes without a 3-D fix, with non-finite fields or a poor accuracy are
 not fused. Everything is counted in :class:`Health`.
 
+Altitude (``FilterConfig.altitude.method``): ``ekf`` outputs the EKF's own vertical (baro
+fused as an EKF update); ``loop`` / ``loop-mpc`` / ``loop-kf`` run paper P4's baro-inertial
+channel (:class:`fusion.altitude.AltitudeChannel`) beside the EKF and output its altitude and
+vertical velocity, while the EKF keeps fusing the baro samples the channel accepted (why: see
+the "altitude channel" section of :class:`NavFilter`). Every method screens the barometer
+(pressure out of the atmosphere model, frozen sensor; loop methods also a gate on jumps) and
+counts what it rejects in :class:`Health`; :class:`AltitudeStatus` reports the calibration and
+compensator state.
+
 The pieces are small on purpose: this module only sequences calls and keeps counters.
 """
 
@@ -35,15 +44,19 @@ from fusion.aiding import baro as baro_aid
 from fusion.aiding import gnss as gnss_aid
 from fusion.aiding import mag as mag_aid
 from fusion.alignment import AlignmentResult, InFlightAlignment, StaticAlignment
+from fusion.altitude import AltitudeChannel, AltitudeChannelConfig
+from fusion.baro_altitude import P_MAX_PA, P_MIN_PA, BaroMonitor
 from fusion.bridge import (
     Bridge,
     BridgeEpoch,
+    BridgeStatus,
     InsError,
     NoBridge,
     OutputCorrection,
     PseudoGnss,
+    ShadowBank,
 )
-from fusion.config import FilterConfig
+from fusion.config import ALTITUDE_METHODS, FilterConfig
 from fusion.error_model import LAYOUTS, ErrorModel, ProcessNoise, StateLayout
 from fusion.history import InsHistory, span_capacity
 from fusion.rotations import quat_to_dcm
@@ -94,6 +107,8 @@ class Health:
     baro_fused: int = 0
     baro_rejected: int = 0
     baro_invalid: int = 0
+    """Baro samples whose pressure is not finite, <= 0 or outside the atmosphere model
+    (-5 km .. 47 km pressure altitude): not used."""
     baro_resets: int = 0
     """Baro-bias re-initialisations after a long rejection."""
     mag_fused: int = 0
@@ -102,6 +117,21 @@ class Health:
     """Magnetometer samples non-finite or with too weak a horizontal field."""
     bridge_updates: int = 0
     """Pseudo-GNSS updates fused or output corrections applied by the bridging strategy."""
+    baro_frozen: int = 0
+    """Baro samples rejected as coming from a frozen sensor (identical readings for
+    ``AltitudeConfig.channel.monitor.freeze_time_s``); any altitude method."""
+    baro_glitches: int = 0
+    """Baro samples rejected by the altitude channel's gate (height more than ``gate_m`` from
+    the loop's); loop methods only (``ekf``: its chi-square gate counts in ``baro_rejected``)."""
+    baro_realignments: int = 0
+    """Persistent baro steps taken as a new datum by the altitude channel (loop methods)."""
+    altitude_calibration_updates: int = 0
+    """GNSS heights that moved the baro calibration (P4's s, b); loop methods."""
+    altitude_gnss_rejected: int = 0
+    """GNSS heights rejected by the baro calibration's innovation gate; loop methods."""
+    baro_repeats_held: int = 0
+    """Baro samples held back from the EKF because the reading had not changed for more than
+    ``AltitudeConfig.ekf_repeat_hold_s`` (before the sensor is declared frozen)."""
 
 
 _HEALTH_FIELDS = tuple(f.name for f in fields(Health))
@@ -132,6 +162,12 @@ class _Counters:
     mag_rejected: int
     mag_invalid: int
     bridge_updates: int
+    baro_frozen: int
+    baro_glitches: int
+    baro_realignments: int
+    altitude_calibration_updates: int
+    altitude_gnss_rejected: int
+    baro_repeats_held: int
 
     def __init__(self) -> None:
         for name in _HEALTH_FIELDS:
@@ -143,6 +179,53 @@ class _Counters:
         health = object.__new__(Health)
         health.__dict__.update(self.__dict__)
         return health
+
+
+@dataclass(frozen=True, slots=True)
+class AltitudeStatus:
+    """State of the altitude method at one output epoch (:class:`fusion.config.AltitudeConfig`).
+
+    The counters (invalid, frozen, glitch samples, calibration updates) are in :class:`Health`;
+    this holds flags and the current calibration and compensator state. NaN / ``False`` where
+    a field does not apply (``ekf``, or the channel before its first accepted baro sample).
+    """
+
+    method: str
+    """``ekf``, ``loop``, ``loop-mpc`` or ``loop-kf``."""
+    in_use: bool = False
+    """The estimate's altitude is the channel's (loop methods, from the channel's first GNSS
+    calibration and compensator reference on; before that the EKF's)."""
+    initialised: bool = False
+    """The channel is running (loop methods: first baro sample accepted after alignment)."""
+    gnss_valid: bool = False
+    """The channel had a GNSS height within ``gnss_timeout_s``: calibration learning and
+    compensator tracking; ``False`` means the channel is holding through an outage."""
+    calibration_frozen: bool = False
+    """The baro calibration is frozen (GNSS outage)."""
+    calibration_scale: float = math.nan
+    """P4's non-standard-atmosphere scale ``s = dT/T0`` as estimated."""
+    calibration_bias_m: float = math.nan
+    """P4's bias ``b`` as estimated, m (geopotential)."""
+    sea_level_dt_k: float = math.nan
+    """Estimated sea-level temperature offset ``dT``, K."""
+    sea_level_dp_pa: float = math.nan
+    """Estimated sea-level pressure offset ``dP``, Pa."""
+    loop_height_m: float = math.nan
+    """The damping loop's own height (before the compensator's correction), m."""
+    baro_height_m: float = math.nan
+    """Last accepted calibrated baro height, m."""
+    correction_m: float = math.nan
+    """The compensator's ``dh`` (output height = loop height - dh; 0 for ``loop``), m."""
+    compensator_steps: int = 0
+    qp_active: int = 0
+    """MPC steps where a move bound was active (bounded MPC only)."""
+    undamped: bool = False
+    """The loop ran without baro feedback at the last IMU epoch (no usable baro for longer
+    than ``baro_hold_s``): free-inertial vertical."""
+    baro_frozen: bool = False
+    """The barometer currently reads as frozen."""
+    baro_rejecting: bool = False
+    """The channel's gate is currently rejecting the barometer."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,6 +272,13 @@ class NavEstimate:
         Seconds since the last fused fix (``inf`` if none yet).
     state_layout : str
         ``"ins16"`` or ``"ins22"``.
+    altitude : AltitudeStatus or None
+        The altitude method's state. With a loop method, ``alt_msl_m`` and ``v_ned_mps[2]`` are
+        the altitude channel's (``P_diag`` and ``baro_bias_m`` stay the EKF's).
+    bridge : BridgeStatus or None
+        The bridging strategy's state (:class:`fusion.bridge.BridgeStatus`: untrained /
+        training / trained / stale, validation errors, per-component fallback); ``None`` for a
+        strategy without a ``status``.
     """
 
     time_us: int
@@ -207,6 +297,8 @@ class NavEstimate:
     test_ratios: TestRatios
     time_since_gnss_s: float
     state_layout: str
+    altitude: AltitudeStatus | None = None
+    bridge: BridgeStatus | None = None
 
 
 def _vec3(a: Any) -> tuple[float, float, float]:
@@ -240,6 +332,15 @@ class NavFilter:
         self.config = config if config is not None else FilterConfig()
         self.bridge: Bridge = bridge if bridge is not None else NoBridge()
         cfg = self.config
+        method = cfg.altitude.method
+        if method not in ALTITUDE_METHODS:  # model_copy(update=...) skips pydantic's check
+            raise ValueError(
+                f"unknown altitude method {method!r}; valid methods: {', '.join(ALTITUDE_METHODS)}"
+            )
+        self._alt_cfg: AltitudeChannelConfig | None = (
+            None if method == "ekf" else cfg.altitude.channel.model_copy(update={"method": method})
+        )
+        self._omega_s2 = cfg.altitude.channel.omega_s2
         self.layout: StateLayout = LAYOUTS[cfg.state_layout]
         imu = cfg.imu
         self._noise = ProcessNoise(
@@ -307,6 +408,12 @@ class NavFilter:
         self._pending: deque[GnssFix] = deque()
         self._gnss_ctl = gnss_aid.GnssControl(cfg.gnss)
         self._baro_ctl = baro_aid.BaroControl(cfg.baro)
+        # Altitude: the loop methods' channel is created at the first IMU or baro epoch after
+        # alignment (_new_altitude_channel); the ekf method screens its baro with a monitor.
+        self._alt: AltitudeChannel | None = None
+        self._alt_ready = False
+        self._baro_mon = BaroMonitor(cfg.altitude.channel.monitor)
+        self._baro_run: tuple[float, int] | None = None  # (pressure, since time_us) of a repeat run
         self._mag_ctl = mag_aid.MagControl(cfg.mag)
         self._aligner: InFlightAlignment | StaticAlignment = (
             InFlightAlignment(cfg.init, cfg.gnss)
@@ -322,6 +429,14 @@ class NavFilter:
         self._bridge_active = False
         self._next_bridge_us = 0
         self._out_corr: OutputCorrection | None = None
+        # Virtual outages (fusion.bridge.ShadowBank) only when the strategy asks for them:
+        # otherwise None, and the IMU loop pays one attribute test.
+        v_s = float(getattr(self.bridge, "virtual_outage_s", 0.0) or 0.0)
+        self._shadows: ShadowBank | None = (
+            ShadowBank(v_s, int(getattr(self.bridge, "virtual_outage_count", 1) or 1), self._epoch)
+            if v_s > 0.0
+            else None
+        )
 
     def step(self, sample: ImuSample | GnssFix | BaroSample | MagSample) -> list[NavEstimate]:
         """Process one sample of any kind (in time order per sensor).
@@ -367,9 +482,24 @@ class NavFilter:
         return MODE_BRIDGING if self._bridge_active else MODE_FREE_INERTIAL
 
     @property
+    def bridge_status(self) -> BridgeStatus | None:
+        """The bridging strategy's status (``None`` if it reports none)."""
+        return getattr(self.bridge, "status", None)
+
+    @property
+    def shadow_states(self) -> list[InsState | None]:
+        """The virtual-outage shadow INS states (empty when the strategy asks for none)."""
+        return [] if self._shadows is None else self._shadows.shadows
+
+    @property
     def ins_state(self) -> InsState | None:
         """The INS state (IMU position, velocity, attitude) at the current time."""
         return self._ins
+
+    @property
+    def altitude_channel(self) -> AltitudeChannel | None:
+        """The altitude channel of a loop method (``None`` for ``ekf`` or before it started)."""
+        return self._alt
 
     @property
     def covariance(self) -> FloatArray:
@@ -538,6 +668,9 @@ class NavFilter:
                 c.time_jump += 1
                 if self._ins is not None:
                     self._coast(t, dt)
+                    if self._alt is not None:
+                        # no IMU data over the gap: the channel coasts on zero acceleration
+                        self._alt.update_imu(-2.0 * self._omega_s2 * self._ins.alt_msl_m, dt)
                 return self._outputs(t) if self._ins is not None else []
 
         if self._ins is None:
@@ -569,16 +702,27 @@ class NavFilter:
         else:
             dth = ((wx - bg[0]) * dt, (wy - bg[1]) * dt, (wz - bg[2]) * dt)
             dv = ((fx - ba[0]) * dt, (fy - ba[1]) * dt, (fz - ba[2]) * dt)
+        vd0 = self._ins.v_ned_mps[2]
         ins = strapdown.update(self._ins, dth, dv, self._prev_dth, self._prev_dv, dt)
         self._ins = ins
         self._prev_dth = dth
         self._prev_dv = dv
         self._last_dt = dt
         self._t_us = t
+        if self._shadows is not None:  # virtual outages (fusion.bridge.ShadowBank)
+            self._shadows.step(t, ins, dth, dv, dt, ba, bg)
         self._acc_dt += dt
         if self._acc_dt >= self._cov_period_s - 1e-9:
             self._propagate()
         self._history.push(t, ins)
+        if self._alt_cfg is not None:
+            # The mechanised vertical acceleration of this epoch's strapdown step alone (no
+            # feedback in it): specific force less the EKF's bias estimates, normal gravity at
+            # the INS height, Coriolis and transport terms. The channel wants f_up - g(lat, 0)
+            # and adds 2 ws^2 h of its *own* height back (P4 eq. 5), hence the shift by the
+            # INS height's free-air term.
+            ch = self._alt or self._new_altitude_channel(t - round(dt * 1e6))
+            ch.update_imu((vd0 - ins.v_ned_mps[2]) / dt - 2.0 * self._omega_s2 * ins.alt_msl_m, dt)
         if self._pending and self._pending[0].time_us <= t:
             self._drain_pending()
         return self._outputs(t)
@@ -590,6 +734,10 @@ class NavFilter:
             self._in_outage = True
             self._c.gnss_outages += 1
             self._next_bridge_us = t
+            if self._shadows is not None and self._ins is not None:
+                self._shadows.begin_outage(
+                    t, self._ins, self._ba, self._bg, self._prev_dth, self._prev_dv
+                )
         if self._in_outage and t >= self._next_bridge_us:
             self._bridge_step(t)
         if t >= self._next_out_us:
@@ -650,6 +798,8 @@ class NavFilter:
         self._gnss_ctl.start(time_us)
         self._next_out_us = time_us
         self._in_outage = False
+        self._alt = None  # a (re)start also restarts the altitude channel
+        self._alt_ready = False
 
     def _coast(self, t: int, gap_s: float) -> None:
         """IMU data missing for ``gap_s``: constant-velocity dead reckoning, covariance grown by
@@ -657,6 +807,8 @@ class NavFilter:
         self._flush()
         ins = self._ins
         assert ins is not None
+        if self._shadows is not None:  # the shadows cannot mechanise a gap either: restart
+            self._shadows.restart(t)
         lt = earth.local_terms(ins.lat_rad, ins.alt_msl_m)
         vn, ve, vd = ins.v_ned_mps
         self._ins = InsState(
@@ -875,6 +1027,7 @@ class NavFilter:
         if obs is None:
             c.gnss_invalid += 1
             return
+        ins_pre_pos = self._ins  # for the shadows' errors (virtual outages)
         res = self._correct(obs, self._gate3)
         pos_ok = res.test_ratio <= 1.0
         self._ratios[0] = res.test_ratio
@@ -887,6 +1040,8 @@ class NavFilter:
             ctl.on_result("pos", t, True)
         past = self._past_state(t)
         assert past is not None
+        if pos_ok and self._alt_cfg is not None:
+            self._altitude_gnss(fix, past, sig_v)
         v_fix = np.asarray(fix.v_ned_mps, dtype=float)
         obs_v = gnss_aid.velocity_model(
             lay, past, self._omega_b(), v_fix, sig_vel, cfg.lever_arm_b_m
@@ -894,6 +1049,7 @@ class NavFilter:
         if obs_v is None:
             c.gnss_invalid += 1
             return
+        ins_pre_vel = self._ins
         res_v = self._correct(obs_v, self._gate3)
         vel_ok = res_v.test_ratio <= 1.0
         self._ratios[1] = res_v.test_ratio
@@ -908,9 +1064,18 @@ class NavFilter:
         else:
             c.gnss_rejected += 1
         zp, zv = z_pos.tolist(), obs_v.z.tolist()
+        if len(zv) == 2:  # vertical velocity not reported by the receiver
+            zv.append(math.nan)
+        shadows = self._shadows
+        virtual = (
+            shadows.samples(t, ins_pre_pos, ins_pre_vel, zp, zv)
+            if shadows is not None and pos_ok and vel_ok
+            and ins_pre_pos is not None and ins_pre_vel is not None
+            else ()
+        )  # fmt: skip
         self.bridge.on_gnss(
             self._epoch(t, past),
-            InsError((zp[0], zp[1], zp[2]), (zv[0], zv[1], zv[2]), pos_ok, vel_ok),
+            InsError((zp[0], zp[1], zp[2]), (zv[0], zv[1], zv[2]), pos_ok, vel_ok, virtual),
         )
         if self._in_outage and ctl.is_active(now):
             self._leave_outage(now)
@@ -918,6 +1083,8 @@ class NavFilter:
     # ------------------------------------------------------------------ bridging
     def _epoch(self, time_us: int, state: InsState) -> BridgeEpoch:
         qw, qx, qy, qz = state.q_nb
+        ba, bg = self._ba, self._bg
+        shadows = self._shadows
         return BridgeEpoch(
             time_us=time_us,
             lat_rad=state.lat_rad,
@@ -928,6 +1095,9 @@ class NavFilter:
             f_n_mps2=self._f_n,
             omega_ib_b_rps=self._omega_b(),
             time_since_gnss_s=max(0.0, self._gnss_ctl.time_since_fused_s(time_us)),
+            accel_bias_b=(ba[0], ba[1], ba[2]),
+            gyro_bias_b=(bg[0], bg[1], bg[2]),
+            free_state=None if shadows is None else shadows.free_state,
         )
 
     def _bridge_step(self, t: int) -> None:
@@ -967,6 +1137,114 @@ class NavFilter:
         ins = self._ins
         assert ins is not None
         self.bridge.on_gnss_restored(self._epoch(t, ins))
+        if self._shadows is not None:
+            self._shadows.end_outage(t)
+
+    # ------------------------------------------------------------------ altitude channel
+    # With a loop method (P4's baro-inertial channel) the estimate's altitude and vertical
+    # velocity come from fusion.altitude.AltitudeChannel, fed here with the INS vertical
+    # acceleration (_on_imu), every baro sample (_on_baro) and the fused GNSS heights
+    # (_fuse_gnss). The EKF keeps its own baro update for its internal state, but only with the
+    # samples the channel accepted (range, freeze and glitch checks); the channel's output is
+    # not fed back. Why: (1) the EKF's vertical stays bounded by the barometer through an outage
+    # exactly as with `ekf`, and the horizontal solution is *identical* to `ekf` whenever the
+    # barometer is healthy (only faulty samples differ, and those are better left out of the
+    # EKF too); (2) the channel's height is a filtered, time-correlated signal that already
+    # contains the GNSS heights the EKF fused: feeding it back as a white pseudo-measurement
+    # would double-count GNSS and make the EKF overconfident in height, vertical velocity and
+    # the accelerometer bias; (3) the altitude methods then differ only in the output vertical,
+    # which is what a comparison of them should measure.
+    def _new_altitude_channel(self, start_us: int) -> AltitudeChannel:
+        assert self._alt_cfg is not None
+        self._alt = AltitudeChannel(self._alt_cfg, start_us * 1e-6)
+        return self._alt
+
+    def _altitude_gnss(self, fix: GnssFix, past: InsState, sigma_m: float) -> None:
+        """A fused GNSS height into the channel, moved from the antenna to the IMU and from its
+        time of validity to now with the INS height change (0.1 s of latency at 2.5 m/s of
+        climb would otherwise be a 0.25 m bias in the calibration and the MPC reference)."""
+        ins = self._ins
+        assert ins is not None
+        ch = self._alt or self._new_altitude_channel(self._t_us)
+        h = float(fix.alt_msl_m) + (ins.alt_msl_m - past.alt_msl_m)
+        ax, ay, az = self.config.gnss.lever_arm_b_m
+        if ax or ay or az:  # antenna height = IMU height - (C_nb arm)_D
+            qw, qx, qy, qz = past.q_nb
+            h += (
+                2.0 * (qx * qz - qw * qy) * ax
+                + 2.0 * (qy * qz + qw * qx) * ay
+                + (qw * qw - qx * qx - qy * qy + qz * qz) * az
+            )
+        hh, c = ch.health, self._c
+        n_cal, n_rej = hh.calibration_updates, hh.gnss_rejected
+        ch.update_gnss_height(h, sigma_m, self._t_us * 1e-6)
+        c.altitude_calibration_updates += hh.calibration_updates - n_cal
+        c.altitude_gnss_rejected += hh.gnss_rejected - n_rej
+
+    def _baro_screen(self, s: BaroSample, p: float, t: int) -> bool:
+        """Range / freeze (and, for the loop methods, the channel's gate and the channel's own
+        update): whether the EKF may use the sample. Rejections are counted, never raised."""
+        c = self._c
+        if self._alt_cfg is None:
+            mon = self._baro_mon
+            if mon.check(p, t * 1e-6) is None:  # in range (checked before): frozen
+                c.baro_frozen += 1
+                return False
+            return True
+        try:
+            temp: float | None = float(s.temperature_k)
+        except (TypeError, ValueError, AttributeError):
+            temp = None
+        if temp is not None and not (math.isfinite(temp) and temp > 0.0):
+            temp = None
+        ch = self._alt or self._new_altitude_channel(self._t_us)
+        hb = ch.health.baro
+        n_frozen, n_gate, n_realign = hb.frozen_samples, hb.gate_rejections, hb.realignments
+        used = ch.update_baro(p, temp, t * 1e-6)
+        c.baro_frozen += hb.frozen_samples - n_frozen
+        c.baro_glitches += hb.gate_rejections - n_gate
+        c.baro_realignments += hb.realignments - n_realign
+        return used
+
+    def _baro_repeat_ok(self, p: float, t: int) -> bool:
+        """False (counted) for a reading unchanged for more than ``ekf_repeat_hold_s``."""
+        run = self._baro_run
+        tol = self.config.altitude.channel.monitor.freeze_tolerance_pa
+        if run is None or abs(p - run[0]) > tol:
+            self._baro_run = (p, t)
+            return True
+        if (t - run[1]) * 1e-6 > self.config.altitude.ekf_repeat_hold_s:
+            self._c.baro_repeats_held += 1
+            return False
+        return True
+
+    def _altitude_ready(self, ch: AltitudeChannel) -> bool:
+        """The channel's output is used from its first GNSS calibration (if it learns one) and
+        its compensator's first reference (if it has one) on: before that it would show the
+        uncalibrated baro height and then jump by the calibration (tens of metres)."""
+        hh = ch.health
+        if not hh.initialised:
+            return False
+        bc = ch.config.baro
+        if bc.mode == "calibrated" and bc.calibration.use_gnss and hh.calibration_updates == 0:
+            return False
+        comp = ch.mpc if ch.mpc is not None else ch.kf
+        self._alt_ready = comp is None or comp.started
+        return self._alt_ready
+
+    def _altitude_status(self) -> AltitudeStatus:
+        ch = self._alt
+        if ch is None:
+            method = self.config.altitude.method
+            return AltitudeStatus(method, baro_frozen=self._baro_mon.health.frozen)
+        cal = ch.altimeter.calibration
+        hh = ch.health
+        return AltitudeStatus(
+            ch.method, self._alt_ready, hh.initialised, ch.gnss_valid, cal.frozen, cal.scale,
+            cal.bias_m, cal.sea_level_dt_k, cal.sea_level_dp_pa, ch.loop_height_m, ch.baro_height_m,
+            ch.correction_m, hh.compensator_steps, hh.qp_active, hh.undamped, hh.baro.frozen,
+            hh.baro.rejecting,
+        )  # fmt: skip
 
     # ------------------------------------------------------------------ baro, mag
     def _on_baro(self, s: BaroSample) -> list[NavEstimate]:
@@ -978,11 +1256,13 @@ class NavFilter:
             p = float(s.pressure_pa)
         except (TypeError, ValueError):
             p = math.nan
-        h_baro = baro_aid.pressure_to_height(p)
-        if not math.isfinite(h_baro):
+        if not P_MIN_PA <= p <= P_MAX_PA:  # also NaN and p <= 0
             c.baro_invalid += 1
             return []
+        h_baro = baro_aid.pressure_to_height(p)
         if self._ins is None:
+            return []
+        if not (self._baro_screen(s, p, t) and self._baro_repeat_ok(p, t)):
             return []
         ctl = self._baro_ctl
         batch = ctl.add_sample(t, h_baro)
@@ -1051,13 +1331,18 @@ class NavFilter:
         if not ctl.due(t):
             return []
         c_nb = quat_to_dcm(self._ins.q_nb)
-        if ctl.reference_n is None:
+        if ctl.reference_n is None or ctl.calibrator is not None:
             self._flush()
-            ctl.learn(c_nb @ m, math.sqrt(self._P[self.layout.ATT + 2, self.layout.ATT + 2]))
-            return []
+            yaw_sigma = math.sqrt(self._P[self.layout.ATT + 2, self.layout.ATT + 2])
+            if ctl.reference_n is None:
+                ctl.learn(c_nb @ m, yaw_sigma)
+            qw, qx, qy, qz = self._ins.q_nb
+            ctl.offer_calibration(c_nb, m, _euler(qw, qx, qy, qz)[2], yaw_sigma)
+            if ctl.reference_n is None:
+                return []
         cfg = self.config.mag
         obs = mag_aid.heading_model(
-            self.layout, c_nb, m, ctl.reference_n, cfg.heading_noise_rad,
+            self.layout, c_nb, ctl.corrected(m), ctl.reference_n, ctl.heading_noise_rad(),
             cfg.min_horizontal_field_tesla,
         )  # fmt: skip
         if obs is None:
@@ -1088,6 +1373,12 @@ class NavFilter:
             alt += dd
             cv = corr.vel_ned_mps
             v = (v[0] - cv[0], v[1] - cv[1], v[2] - cv[2])
+        ch = self._alt
+        if ch is not None and (self._alt_ready or self._altitude_ready(ch)):
+            # loop methods: the vertical is the altitude channel's (it supersedes the EKF's
+            # and any bridging correction's vertical)
+            alt = ch.height_m
+            v = (v[0], v[1], -ch.vz_mps)
         q = ins.q_nb
         # one read-only array, the vector fields are views of it (output-rate cost matters)
         buf = np.array((*v, *q, *_euler(*q), *self._ba, *self._bg))
@@ -1104,6 +1395,8 @@ class NavFilter:
             buf[10:13], buf[13:16], self._bb,  # accel_bias_b, gyro_bias_b, baro_bias_m
             self._c.snapshot(), TestRatios(r[0], r[1], r[2], r[3]),
             self._gnss_ctl.time_since_fused_s(t), self.layout.name,
+            altitude=self._altitude_status(),
+            bridge=getattr(self.bridge, "status", None),
         )  # fmt: skip
 
 

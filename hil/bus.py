@@ -350,11 +350,17 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
     ),
     Topic.INNOVATIONS: _schema(
         Topic.INNOVATIONS,
-        "One aiding update: innovation z - h(x), its predicted sigma, the gate test ratio.",
+        "One aiding update: innovation, its predicted sigma, the gate test ratio.",
         {
             "time_us": _TIME,
-            "source": _d(_S, "aiding source, e.g. gnss_pos, gnss_vel, baro_hgt, mag_hdg"),
-            "innovation": _d(_arr(None), "innovation, SI units of the observation"),
+            "source": _d(_S, "aiding source: gnss_pos, gnss_vel, baro_hgt, mag_hdg, "
+                         "bridge_pos, bridge_vel"),
+            "innovation": _d(
+                _arr(None),
+                "innovation of the error-state filter: INS-predicted minus measured, SI units "
+                "of the observation (gnss_pos N/E/D m, gnss_vel N/E/D m/s, baro_hgt m, "
+                "mag_hdg rad)",
+            ),
             "innovation_sigma": _d(
                 _arr(None, nullable=True), "sqrt(diag(S)), same units as the innovation"
             ),

@@ -125,6 +125,14 @@ def sim(
     wait_peer: Annotated[
         float, typer.Option(help="With --live: wait up to S s for the receiver's heartbeat.")
     ] = 0.0,
+    lockstep: Annotated[
+        bool,
+        typer.Option(help="With --live: never run ahead of the fusion service's "
+                     "acknowledgements by more than --lockstep-window (no loss at any speed)."),
+    ] = False,
+    lockstep_window: Annotated[
+        float, typer.Option(help="With --lockstep: simulated seconds allowed ahead of the ack.")
+    ] = 0.25,
     signing_key_file: Annotated[
         Path | None,
         typer.Option(help="MAVLink 2 signing key file (default: env HILNAV_MAVLINK_KEY)."),
@@ -139,9 +147,12 @@ def sim(
         heading_deg=heading, airspeed_mps=airspeed, wind=wind, turbulence=turbulence,
         gnss_off=gnss_off or [], truth_rate_hz=truth_rate,
     )
+    if lockstep and live is None:
+        raise ValueError("--lockstep paces against a fusion service: it needs --live URL")
     if live is not None:
         _sim_live(request, live, speed=speed, record=record, zenoh=zenoh, vehicle=vehicle,
-                  wait_peer=wait_peer, signing_key_file=signing_key_file)
+                  wait_peer=wait_peer, signing_key_file=signing_key_file, lockstep=lockstep,
+                  lockstep_window=lockstep_window)
         return
     if record is None:
         raise ValueError("--record is required (or stream live with --live URL)")
@@ -163,7 +174,8 @@ def _signing_key(path: Path | None) -> bytes | None:
 
 
 def _sim_live(request: Any, url: str, *, speed: float, record: Path | None, zenoh: str | None,
-              vehicle: str, wait_peer: float, signing_key_file: Path | None) -> None:
+              vehicle: str, wait_peer: float, signing_key_file: Path | None,
+              lockstep: bool = False, lockstep_window: float = 0.25) -> None:
     from hil.live_sim import live_sim, stop_on_signals
 
     if zenoh is not None:
@@ -172,18 +184,24 @@ def _sim_live(request: Any, url: str, *, speed: float, record: Path | None, zeno
         validate_endpoint(zenoh)
         validate_vehicle(vehicle)
     key = _signing_key(signing_key_file)
-    err_console.print(f"sim: streaming to {url} at {speed:g}x real time", highlight=False)
+    err_console.print(f"sim: streaming to {url} at {speed:g}x real time"
+                      + (" (lockstep)" if lockstep else ""), highlight=False)
     with stop_on_signals() as stop, _progress(request.duration_s, "flying") as bar:
         task = bar.add_task("fly", total=request.duration_s)
         report = live_sim(request, url, speed=speed, record=record, zenoh=zenoh,
                           vehicle=vehicle, signing_key=key, wait_peer_s=wait_peer,
+                          lockstep=lockstep, lockstep_window_s=lockstep_window,
                           progress=lambda t: bar.update(task, completed=t), stop=stop)
     console.print(
         f"sent {report.sent}/{report.frames} frames, {report.sim_duration_s:.1f} s simulated in "
         f"{report.wall_s:.1f} s ({report.realtime_factor:.2f}x real time, target {speed:g}x)"
         + (f" -> {record}" if record is not None else "")
         + ("" if report.peer_seen or wait_peer == 0 else "; no receiver heartbeat seen")
+        + (f"; waited {report.lockstep_wait_s:.1f} s for the fusion" if lockstep else "")
     )
+    if report.stalled:
+        raise RunFailed("lockstep: the fusion service stopped acknowledging (is it running "
+                        f"and listening at {url}?)")
     if report.ended is not None:
         raise RunFailed(str(report.ended))
 
@@ -320,12 +338,16 @@ def up(
         str | None, typer.Option(help="Also show the shadow vehicle to this ground station URL.")
     ] = None,
     monitor: Annotated[bool, typer.Option(help="Start the headless monitor too.")] = True,
+    lockstep: Annotated[bool, typer.Option(
+        help="The sim never runs ahead of the fusion's acknowledgements (no loss at any speed)."
+    )] = False,
 ) -> None:
     """Run router + fusion + sim (+ monitor) on loopback; Ctrl-C stops everything."""
     from hil.up import UpOptions, run_up
 
     options = UpOptions(duration_s=duration, speed=speed, out=out, vehicle=vehicle, plan=plan,
-                        seed=seed, gnss_off=tuple(gnss_off or ()), gcs=gcs, monitor=monitor)
+                        seed=seed, gnss_off=tuple(gnss_off or ()), gcs=gcs, monitor=monitor,
+                        lockstep=lockstep)
     summary = run_up(options, log=lambda text: console.print(text, highlight=False))
     if summary is not None:
         console.print("[bold]scorecard of the live run[/]")
@@ -449,6 +471,117 @@ def list_choices(
         return
     for k, v in choices.items():
         console.print(f"[bold]{k}[/]: {', '.join(v)}", highlight=False)
+
+
+# --------------------------------------------------------------------------- scenarios
+def _load_scenario(path: Path, **overrides: Any) -> Any:
+    from scenarios.schema import load_scenario
+
+    scn = load_scenario(path)
+    given = {k: v for k, v in overrides.items() if v is not None}
+    return scn.with_overrides(**given) if given else scn
+
+
+@app.command()
+@cli_errors
+def run(
+    scenario: Annotated[Path, typer.Argument(help="Scenario YAML (see `hilnav schema`).")],
+    out: Annotated[Path, typer.Option(help="Run folder: summary.json, junit.xml, plots, "
+                                           "report.html, run.tlog.")],
+    seed: Annotated[int | None, typer.Option(help="Override the scenario's seed.")] = None,
+    bridge: Annotated[str | None, typer.Option(help="Override the bridging method.")] = None,
+    altitude: Annotated[str | None, typer.Option(help="Override the altitude method.")] = None,
+    quiet: Annotated[bool, typer.Option(help="No progress bar.")] = False,
+) -> None:
+    """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
+    from scenarios.runner import run_scenario
+
+    scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude)
+    if quiet:
+        result = run_scenario(scn, out)
+    else:
+        with _progress(scn.duration_s, scn.name) as bar:
+            task = bar.add_task("run", total=scn.duration_s)
+            result = run_scenario(scn, out, progress=lambda t: bar.update(task, completed=t))
+    s = result.summary
+    _print_summary(s)
+    for c in s.get("criteria", []):
+        mark = "[green]pass[/]" if c["ok"] else "[red]FAIL[/]"
+        console.print(f"  {mark} {c['name']}: {_fmt(c['value'], '.3g')} (limit {c['limit']:.3g})",
+                      highlight=False)
+    if "flight_ended" in s.get("health", {}):
+        raise RunFailed(f"the flight ended early: {s['health']['flight_ended']}; see {out}")
+    console.print(f"summary -> {out / 'summary.json'}; report -> {out / 'report.html'}")
+    if not result.passed:
+        failed = [c["name"] for c in s.get("criteria", []) if not c["ok"]]
+        raise RunFailed(f"{scn.name}: criteria failed: {', '.join(failed)}")
+
+
+@app.command()
+@cli_errors
+def compare(
+    scenario: Annotated[Path, typer.Argument(help="Scenario YAML.")],
+    out: Annotated[Path, typer.Option(help="Folder for compare.json, compare.md, runs.")],
+    methods: Annotated[str, typer.Option(help="Comma-separated bridging methods.")] = (
+        "none,gmdh,gmdh-pseudo,mlp,rbf,bp-parallel"),
+    seeds: Annotated[int, typer.Option(min=1, help="Number of seeds.")] = 3,
+    seed_base: Annotated[int, typer.Option(help="First seed (seeds S, S+1, ...).")] = 100,
+    altitude: Annotated[str | None, typer.Option(help="Override the altitude method.")] = None,
+) -> None:
+    """Every bridging method on the same sensor data per seed (the papers' Tables 1 and 2)."""
+    from scenarios.compare import compare as run_compare
+    from scenarios.compare import markdown, parse_methods
+
+    names = parse_methods(methods)
+    scn = _load_scenario(scenario, altitude=altitude)
+    result = run_compare(scn, names, list(range(seed_base, seed_base + seeds)), out,
+                         progress=lambda msg: err_console.print(msg, highlight=False))
+    console.print(markdown(result), highlight=False)
+    console.print(f"compare -> {out / 'compare.json'}")
+
+
+@app.command()
+@cli_errors
+def schema(
+    out: Annotated[Path | None, typer.Option(help="Write to this file instead of stdout.")] = None,
+) -> None:
+    """Print the JSON Schema of scenario files (for editor completion)."""
+    from scenarios.schema import json_schema
+
+    text = json.dumps(json_schema(), indent=2) + "\n"
+    if out is None:
+        sys.stdout.write(text)
+    else:
+        out.write_text(text)
+        console.print(f"schema -> {out}")
+
+
+@app.command()
+@cli_errors
+def campaign(
+    scenarios: Annotated[list[Path], typer.Argument(help="Scenario YAML files.")],
+    out: Annotated[Path, typer.Option(help="Campaign folder (resumable).")],
+    seeds: Annotated[int, typer.Option(min=1, help="Seeds per scenario and grid point.")] = 10,
+    seed_base: Annotated[int, typer.Option(help="First seed.")] = 100,
+    vary: Annotated[list[str] | None, typer.Option(
+        help="Grid axis KEY=V1,V2 (imu, gnss, baro, mag, bridge, altitude, aircraft, plan);"
+             " repeatable.")
+    ] = None,
+    scheduler: Annotated[str | None, typer.Option(
+        help="Dask scheduler address (tcp://HOST:8786); default: a local cluster.")] = None,
+    workers: Annotated[int | None, typer.Option(help="Local cluster workers (default: cores).")
+                       ] = None,
+    keep_tlogs: Annotated[bool, typer.Option(help="Keep each run's run.tlog.")] = False,
+) -> None:
+    """Monte Carlo sweep over seeds and parameter grids on Dask; exit 1 if any run failed."""
+    from scenarios.campaign import campaign_main
+
+    code = campaign_main(scenarios, seeds, seed_base, vary or [], out, scheduler, workers,
+                         keep_tlogs)
+    if code == 1:
+        raise RunFailed(f"some runs failed their criteria or errored; see {out / 'campaign.md'}")
+    if code == 2:
+        raise typer.Exit(2)
 
 
 if __name__ == "__main__":

@@ -7,6 +7,21 @@ step the process sleeps until ``wall - wall0 >= (t_sim - t0) / speed``; timestam
 are always simulated time. When the machine cannot keep up the run simply falls behind (no
 frames are skipped); the achieved real-time factor is reported.
 
+Lockstep pacing against the fusion service (``--lockstep``)
+    UDP has no flow control: a fusion service that cannot keep up at ``--speed`` loses frames
+    once its receive buffer overflows. With ``lockstep`` the simulator also waits for the
+    receiver: it announces the request in its HEARTBEAT (``custom_mode`` =
+    :data:`hil.link.LOCKSTEP_CUSTOM_MODE`; its autopilot is ``MAV_AUTOPILOT_INVALID``, so no
+    ground station gives the value a meaning), the fusion service answers every processed
+    batch with TIMESYNC (``ts1`` = simulated time in ns of the newest sample its filter has
+    processed, see :mod:`hil.service`), and the simulator never runs more than
+    ``lockstep_window_s`` of simulated time ahead of that acknowledgement. The run then goes
+    as fast as the slower of ``speed`` and the fusion, and nothing is dropped for lack of
+    buffer space, whatever the speed. At the end of the flight the simulator waits until the
+    last frame is acknowledged, so when it exits the fusion has processed everything. No
+    acknowledgement progress for ``lockstep_timeout_s`` wall seconds (fusion stopped, wrong
+    URL) ends the run with ``LiveReport.stalled``.
+
 Optionally the frames are recorded to a .tlog (``--record``) and truth and sensor samples are
 published on Zenoh (``--zenoh``) through :class:`hil.bus.Bus` (never blocks).
 """
@@ -47,6 +62,8 @@ class LiveReport:
     peer_seen : whether a heartbeat from the receiver arrived before the flight started.
     ended : a stall / ground contact that ended the flight early, else None.
     stopped : True when stopped by a signal before the end.
+    lockstep_wait_s : wall seconds spent waiting for the fusion's acknowledgements.
+    stalled : lockstep only: the acknowledgements stopped coming (the run was ended).
     """
 
     sim_duration_s: float
@@ -56,6 +73,8 @@ class LiveReport:
     peer_seen: bool
     ended: FlightEnded | None
     stopped: bool
+    lockstep_wait_s: float = 0.0
+    stalled: bool = False
 
     @property
     def realtime_factor(self) -> float:
@@ -92,7 +111,11 @@ def live_sim(
     vehicle: str = "sim1",
     signing_key: bytes | None = None,
     wait_peer_s: float = 0.0,
+    lockstep: bool = False,
+    lockstep_window_s: float = 0.25,
+    lockstep_timeout_s: float = 10.0,
     progress: Callable[[float], None] | None = None,
+    on_send: Callable[[int, bytes], None] | None = None,
     stop: threading.Event | None = None,
 ) -> LiveReport:
     """Fly ``request`` and send its frames to ``url`` at ``speed`` x real time.
@@ -114,9 +137,20 @@ def live_sim(
         32-byte MAVLink 2 signing key.
     wait_peer_s : float
         Before flying, wait up to this long (wall s) for a heartbeat from the receiver, so
-        no sample is sent before it listens (0: start at once).
+        no sample is sent before it listens (0: start at once; with ``lockstep``, 0 means
+        ``lockstep_timeout_s``).
+    lockstep : bool
+        Never run more than ``lockstep_window_s`` of simulated time ahead of the fusion
+        service's acknowledgement (see the module docstring).
+    lockstep_window_s : float
+        Simulated seconds the simulator may be ahead of the acknowledged time (> 0).
+    lockstep_timeout_s : float
+        Wall seconds without acknowledgement progress after which the run ends as stalled.
     progress : callable, optional
         Called with simulated seconds flown, about once per simulated second.
+    on_send : callable, optional
+        ``on_send(time_us, frame)`` right before each frame is handed to the link (the
+        instrumentation hook of ``bench/live_latency.py``); keep it cheap.
     stop : threading.Event, optional
         Set it to stop early (the run ends cleanly, the log is closed).
 
@@ -124,7 +158,7 @@ def live_sim(
     -------
     LiveReport
     """
-    from hil.link import LinkRole, MavlinkLink
+    from hil.link import LOCKSTEP_CUSTOM_MODE, LinkRole, MavlinkLink
     from hil.signing import Signer
     from hil.tlog import TlogWriter
 
@@ -132,12 +166,18 @@ def live_sim(
         raise ValueError(f"speed must be a finite number > 0, got {speed}")
     if not (math.isfinite(wait_peer_s) and wait_peer_s >= 0):
         raise ValueError(f"wait-peer must be >= 0 s, got {wait_peer_s}")
+    if not (math.isfinite(lockstep_window_s) and lockstep_window_s > 0):
+        raise ValueError(f"lockstep-window must be > 0 s, got {lockstep_window_s}")
+    if not (math.isfinite(lockstep_timeout_s) and lockstep_timeout_s > 0):
+        raise ValueError(f"lockstep-timeout must be > 0 s, got {lockstep_timeout_s}")
     stop = stop or threading.Event()
     signer = Signer(signing_key) if signing_key is not None else None
     suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)
     bridge = SensorBridge(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
     with contextlib.ExitStack() as stack:
         link = stack.enter_context(MavlinkLink(url, LinkRole.simulator(), signer=signer))
+        if lockstep:
+            link.set_heartbeat_state(custom_mode=LOCKSTEP_CUSTOM_MODE)
         log = None
         if record is not None:
             record.parent.mkdir(parents=True, exist_ok=True)
@@ -148,9 +188,14 @@ def live_sim(
 
             bus = stack.enter_context(Bus(zenoh, vehicle=vehicle))
         flight = stack.enter_context(Flight(request.flight, request.plan))
+        if lockstep and wait_peer_s == 0.0:
+            wait_peer_s = lockstep_timeout_s
         peer_seen = _wait_for_peer(link, wait_peer_s, stop)
+        gate = (
+            _Lockstep(flight.time_us, lockstep_window_s, lockstep_timeout_s) if lockstep else None
+        )
         return _fly(flight, suite, bridge, request.duration_s, speed, link, log, bus,
-                    progress, stop, peer_seen)
+                    progress, on_send, gate, stop, peer_seen)
     raise AssertionError("unreachable")  # pragma: no cover (ExitStack does not swallow)
 
 
@@ -159,6 +204,48 @@ def _wait_for_peer(link: Any, wait_s: float, stop: threading.Event) -> bool:
     while not link.peer_alive and time.monotonic() < deadline and not stop.is_set():
         link.recv(timeout=0.05)  # also sends our heartbeat, which makes a udpin peer learn us
     return bool(link.peer_alive)
+
+
+class _Lockstep:
+    """The simulator's side of lockstep pacing: the newest acknowledged simulated time."""
+
+    def __init__(self, start_us: int, window_s: float, timeout_s: float) -> None:
+        from hil.link import TIMESYNC_ID
+
+        self._timesync_id = TIMESYNC_ID
+        self.acked_us = start_us  # the first window may go out before any acknowledgement
+        self.window_us = round(window_s * 1e6)
+        self.timeout_s = timeout_s
+        self.waited_s = 0.0
+
+    def absorb(self, msgs: list[Any]) -> None:
+        """Take the acknowledgements (TIMESYNC, ``ts1`` in ns) among received messages."""
+        for m in msgs:
+            if m.get_msgId() == self._timesync_id:
+                self.acked_us = max(self.acked_us, int(m.ts1) // 1000)
+
+    def wait(self, time_us: int, link: Any, stop: threading.Event, *, window_us: int | None = None
+             ) -> bool:
+        """Block until ``time_us`` is within the window (default ``self.window_us``) of the
+        acknowledged time; False when the acknowledgements stopped (no progress for
+        ``timeout_s``)."""
+        window = self.window_us if window_us is None else window_us
+        if time_us - self.acked_us <= window:
+            return True
+        t0 = time.monotonic()
+        deadline = t0 + self.timeout_s
+        try:
+            while time_us - self.acked_us > window and not stop.is_set():
+                now = time.monotonic()
+                if now >= deadline:
+                    return False
+                before = self.acked_us
+                self.absorb(link.recv(timeout=min(deadline - now, 0.05)))
+                if self.acked_us > before:
+                    deadline = time.monotonic() + self.timeout_s
+            return True
+        finally:
+            self.waited_s += time.monotonic() - t0
 
 
 def _fly(
@@ -171,6 +258,8 @@ def _fly(
     log: Any,
     bus: Any,
     progress: Callable[[float], None] | None,
+    on_send: Callable[[int, bytes], None] | None,
+    gate: _Lockstep | None,
     stop: threading.Event,
     peer_seen: bool,
 ) -> LiveReport:
@@ -178,6 +267,7 @@ def _fly(
     end_us = t0_us + round(duration_s * 1e6)
     frames = sent = 0
     ended: FlightEnded | None = None
+    stalled = False
     next_progress_us = t0_us
     next_tick = 0.0
     wall0 = time.monotonic()
@@ -191,6 +281,8 @@ def _fly(
         samples = suite.step(truth)
         for time_us, frame in bridge.frames(truth, samples):
             frames += 1
+            if on_send is not None:
+                on_send(time_us, frame)
             sent += link.send(frame)
             if log is not None:
                 log.write(frame, time_us)
@@ -198,17 +290,29 @@ def _fly(
             bus.publish_truth(truth)
             for s in samples:
                 bus.publish_sample(s)
-        # pace: simulated time runs at `speed` x the wall clock
-        ahead = (truth.time_us - t0_us) * 1e-6 / speed - (time.monotonic() - wall0)
+        # pace: simulated time runs at `speed` x the wall clock. recv() returns early when a
+        # message arrives (heartbeats, lockstep acknowledgements), so sleep in a loop.
+        due = wall0 + (truth.time_us - t0_us) * 1e-6 / speed
+        ahead = due - time.monotonic()
         if ahead > _MIN_SLEEP_S:
-            link.recv(timeout=ahead)  # sleeps, and keeps heartbeats / peer tracking going
+            while ahead > _MIN_SLEEP_S:
+                msgs = link.recv(timeout=ahead)  # keeps heartbeats / peer tracking going
+                if gate is not None:
+                    gate.absorb(msgs)
+                ahead = due - time.monotonic()
             next_tick = time.monotonic() + 0.1
         elif time.monotonic() >= next_tick:
             link.tick()
             next_tick = time.monotonic() + 0.1
+        if gate is not None and not gate.wait(truth.time_us, link, stop):
+            stalled = True
+            break
         if progress is not None and truth.time_us >= next_progress_us:
             progress((truth.time_us - t0_us) * 1e-6)
             next_progress_us += 1_000_000
+    if gate is not None and not stalled and not stop.is_set():
+        # the end: return once the fusion has processed every frame sent
+        stalled = not gate.wait(truth.time_us, link, stop, window_us=0)
     wall = time.monotonic() - wall0
     return LiveReport((truth.time_us - t0_us) * 1e-6, wall, frames, sent, peer_seen, ended,
-                      stop.is_set())
+                      stop.is_set(), 0.0 if gate is None else gate.waited_s, stalled)

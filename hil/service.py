@@ -17,11 +17,33 @@ Outputs (all optional; none of them can block the filter)
     * ``--companion URL --companion-kind gps_input|odometry``: GPS_INPUT (ArduPilot, 5 Hz)
       or ODOMETRY (PX4, 30 Hz) to a flight controller, on simulated time.
     * ``--zenoh EP``: estimate, status (mode, test ratios, health, link counters), error vs
-      truth (estimate and truth of the same time), a ``fusion/config`` queryable and a
-      ``fusion/alive`` liveliness token (:class:`hil.bus.Bus`: bounded queue, never blocks).
+      truth (estimate and truth of the same time), innovations (one message per aiding update,
+      see below), a ``fusion/config`` queryable and a ``fusion/alive`` liveliness token
+      (:class:`hil.bus.Bus`: bounded queue, never blocks).
     * ``--out DIR``: at exit, ``summary.json`` of everything received (estimate vs truth,
       GNSS outages from fix gaps), computed exactly as ``hilnav replay`` does, plus a
       ``live`` section with the link counters (sample loss).
+
+Innovations (``fusion/innovations``)
+    Every gated Kalman update of the filter is published: ``source`` (``gnss_pos``,
+    ``gnss_vel``, ``baro_hgt``, ``mag_hdg``; ``bridge_pos`` / ``bridge_vel`` for pseudo-GNSS
+    updates of a bridging strategy), the innovation (INS-predicted minus measured, SI units of
+    the observation: m, m/s, m, rad), ``sqrt(diag(S))``, the test ratio (NIS over the gate,
+    > 1 = rejected) and whether it was fused. ``time_us`` is the time of the sample whose
+    processing made the update. The filter's public :class:`~fusion.filter.NavEstimate`
+    carries only the last test ratio per source, so the service taps the filter's single
+    update funnel (``NavFilter._correct``, see :class:`TappedNavFilter`); the numbers of the
+    filter are unchanged. The source is read from which error-state block the observation
+    matrix ``H`` touches (baro bias -> baro, position -> GNSS position, velocity -> GNSS
+    velocity, attitude only -> magnetometer heading).
+
+Lockstep acknowledgements (``hilnav sim --live URL --lockstep``)
+    A simulator that asks for lockstep (HEARTBEAT with ``custom_mode`` =
+    :data:`hil.link.LOCKSTEP_CUSTOM_MODE`) gets a TIMESYNC on the input link after every
+    batch the filter has processed: ``ts1`` = ``tc1`` = simulated time in ns of the newest
+    sample processed so far. The reader thread owns the link, so the filter thread wakes it
+    through a socket pair to send the acknowledgement at once. Nothing is sent to other peers
+    (a flight controller never sees a TIMESYNC from us).
 
 Wire units of the outputs live in :mod:`hil.shadow` (codec-adjacent).
 """
@@ -30,6 +52,8 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import selectors
+import socket
 import threading
 import time
 from collections import OrderedDict, deque
@@ -41,22 +65,32 @@ from typing import Any, Final, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from fusion.config import FilterConfig
+from fusion.error_model import StateLayout
 from fusion.filter import NavEstimate, NavFilter
+from fusion.kalman import Correction
 from hil.bus import Topic
 from hil.codec import TRUTH_COMPONENT_ID, Decoder, mavlink2
-from hil.link import FC_SENSOR_MSG_IDS, HIL_MSG_IDS, LinkRole, MavlinkLink
+from hil.link import (
+    FC_SENSOR_MSG_IDS,
+    HIL_MSG_IDS,
+    LOCKSTEP_CUSTOM_MODE,
+    LinkRole,
+    MavlinkLink,
+)
 from hil.shadow import CompanionEncoder, ShadowEncoder
 from hil.signing import Signer
 from hil.tuning import filter_config_for_imu
 from scenarios.collect import Collector
-from sim.samples import Truth
+from sim.samples import GnssFix, Truth
 
 __all__ = [
-    "FusionOptions", "FusionService", "GcsResponder", "fusion_main", "input_role",
-    "interpolate_truth",
+    "FusionOptions", "FusionService", "GcsResponder", "TappedNavFilter", "fusion_main",
+    "innovation_source", "input_role", "interpolate_truth",
 ]
 
 _TRUTH_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HIL_STATE_QUATERNION)
+_HEARTBEAT_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HEARTBEAT)
 _GCS_MSG_IDS: Final = frozenset({
     int(mavlink2.MAVLINK_MSG_ID_PARAM_REQUEST_LIST),
     int(mavlink2.MAVLINK_MSG_ID_PARAM_REQUEST_READ),
@@ -105,6 +139,50 @@ def shadow_role(system_id: int) -> LinkRole:
     """The shadow vehicle's role, accepting the few ground-station requests we answer."""
     base = LinkRole.shadow_vehicle(system_id=system_id)
     return base.model_copy(update={"accept_msg_ids": _GCS_MSG_IDS})
+
+
+def innovation_source(layout: StateLayout, H: np.ndarray) -> str:
+    """Aiding source of an observation from the error-state blocks its matrix touches.
+
+    Parameters
+    ----------
+    layout : fusion.error_model.StateLayout
+    H : ndarray, shape (m, n)
+        Observation matrix of the update.
+
+    Returns
+    -------
+    str
+        ``baro_hgt`` (touches the baro bias), ``gnss_pos`` (position; a GNSS position model
+        also has latency terms on velocity), ``gnss_vel`` (velocity), else ``mag_hdg``.
+    """
+    h = np.asarray(H)
+    if np.any(h[:, layout.baro]):
+        return "baro_hgt"
+    if np.any(h[:, layout.pos]):
+        return "gnss_pos"
+    if np.any(h[:, layout.vel]):
+        return "gnss_vel"
+    return "mag_hdg"
+
+
+class TappedNavFilter(NavFilter):
+    """:class:`~fusion.filter.NavFilter` that keeps every gated update of the current step.
+
+    ``corrections`` collects ``(H, Correction)`` of each update made through the filter's
+    single update funnel; the owner reads and clears it after each :meth:`step`. The filter's
+    arithmetic is untouched (the live scorecard still equals ``hilnav replay``).
+    """
+
+    def __init__(self, config: FilterConfig | None = None) -> None:
+        self.corrections: list[tuple[np.ndarray, Correction]] = []
+        super().__init__(config)
+
+    def _correct(self, *args: Any, **kwargs: Any) -> Correction:
+        res = super()._correct(*args, **kwargs)
+        obs = args[0] if args else kwargs["obs"]
+        self.corrections.append((obs.H, res))
+        return res
 
 
 class GcsResponder:
@@ -167,6 +245,8 @@ class _Stats:
     errors_published: int = 0
     estimates: int = 0
     gcs_answers: int = 0
+    innovations: int = 0
+    lockstep_acks: int = 0
     first_input_wall: float | None = None
     last_input_wall: float | None = None
     last_processed_wall: float | None = None
@@ -186,7 +266,7 @@ class FusionService:
     def __init__(self, options: FusionOptions, *, signing_key: bytes | None = None) -> None:
         self.options = options
         self.config = filter_config_for_imu(options.imu)
-        self.nav = NavFilter(self.config)
+        self.nav = TappedNavFilter(self.config)
         self.decoder = Decoder()
         self.collector = Collector() if options.out is not None else None
         self.stats = _Stats()
@@ -203,6 +283,12 @@ class FusionService:
         self._wall0 = time.monotonic()
         self._queue: deque[Any] = deque()
         self._cond = threading.Condition()
+        # lockstep: sources that asked for acknowledgements, newest processed sample time (us;
+        # written by the filter thread, read by the reader thread), and the reader's wake-up
+        self._lockstep_sources: set[tuple[int, int]] = set()
+        self._processed_us = -1
+        self._wake_rx: socket.socket | None = None
+        self._wake_tx: socket.socket | None = None
 
     # ---------------------------------------------------------------- links
     def _signer(self, link_id: int) -> Signer | None:
@@ -257,6 +343,8 @@ class FusionService:
         new: list[NavEstimate] = []
         for d in self.decoder.decode_message(msg):
             item = d.sample
+            if item.time_us > self._processed_us:
+                self._processed_us = item.time_us
             if isinstance(item, Truth):
                 if d.component_id != TRUTH_COMPONENT_ID or d.msg_id != _TRUTH_ID:
                     self.stats.truth_other_component += 1
@@ -271,10 +359,31 @@ class FusionService:
                 ests = self.collector.estimates[n:]
             else:
                 ests = self.nav.step(item)
+            if self.nav.corrections:
+                self._on_corrections(item)
             for est in ests:
                 self._on_estimate(est)
             new.extend(ests)
         return new
+
+    def _on_corrections(self, item: Any) -> None:
+        """Publish the updates the last step made on ``fusion/innovations``."""
+        nav = self.nav
+        corrections = list(nav.corrections)
+        nav.corrections.clear()
+        if self._bus is None:
+            return
+        t = int(item.time_us)
+        # pseudo-GNSS updates of a bridging strategy happen on IMU steps while bridging
+        bridging = not isinstance(item, GnssFix) and nav.mode == "bridging"
+        for H, res in corrections:
+            source = innovation_source(nav.layout, H)
+            if bridging and source.startswith("gnss_"):
+                source = "bridge_" + source[5:]
+            ratio = float(res.test_ratio)
+            if self._bus.publish_innovation(t, source, res.innovation, S=res.S,
+                                            test_ratio=ratio, accepted=ratio <= 1.0):
+                self.stats.innovations += 1
 
     def _on_estimate(self, est: NavEstimate) -> None:
         self.stats.estimates += 1
@@ -331,17 +440,52 @@ class FusionService:
     def _reader(self, link: MavlinkLink, stop: threading.Event) -> None:
         """Own the input link: drain the socket into the queue as fast as frames arrive, so
         a filter that falls behind (CPU contention, first-call warm-up) builds a backlog in
-        memory instead of overflowing the kernel's receive buffer (= losing frames)."""
-        while not stop.is_set():
-            msgs = [m for m in link.recv(timeout=0.05)
-                    if m.get_msgId() != mavlink2.MAVLINK_MSG_ID_HEARTBEAT]
-            if msgs:
-                with self._cond:
-                    self._queue.extend(msgs)
-                    self.stats.last_input_wall = time.monotonic()
-                    if self.stats.first_input_wall is None:
-                        self.stats.first_input_wall = self.stats.last_input_wall
-                    self._cond.notify()
+        memory instead of overflowing the kernel's receive buffer (= losing frames). Also
+        sends the lockstep acknowledgements (the link belongs to this thread)."""
+        wake = self._wake_rx
+        assert wake is not None
+        acked_us = -1
+        with selectors.DefaultSelector() as sel:
+            sel.register(link.fileno(), selectors.EVENT_READ)
+            sel.register(wake, selectors.EVENT_READ)
+            while not stop.is_set():
+                sel.select(0.05)
+                with contextlib.suppress(BlockingIOError, InterruptedError):
+                    while wake.recv(4096):
+                        pass
+                msgs = []
+                for m in link.recv(0.0):
+                    if m.get_msgId() == _HEARTBEAT_ID:
+                        self._on_heartbeat(m)
+                    else:
+                        msgs.append(m)
+                if msgs:
+                    with self._cond:
+                        self._queue.extend(msgs)
+                        self.stats.last_input_wall = time.monotonic()
+                        if self.stats.first_input_wall is None:
+                            self.stats.first_input_wall = self.stats.last_input_wall
+                        self._cond.notify()
+                processed = self._processed_us
+                if self._lockstep_sources and processed > acked_us:
+                    t_ns = processed * 1000
+                    if link.send_message(mavlink2.MAVLink_timesync_message(t_ns, t_ns)):
+                        self.stats.lockstep_acks += 1
+                    acked_us = processed
+
+    def _on_heartbeat(self, msg: Any) -> None:
+        """Follow which peers ask for lockstep acknowledgements (see the module docstring)."""
+        source = (msg.get_srcSystem(), msg.get_srcComponent())
+        if (int(msg.autopilot) == mavlink2.MAV_AUTOPILOT_INVALID
+                and int(msg.custom_mode) == LOCKSTEP_CUSTOM_MODE):
+            self._lockstep_sources.add(source)
+        else:
+            self._lockstep_sources.discard(source)
+
+    def _wake_reader(self) -> None:
+        if self._wake_tx is not None:
+            with contextlib.suppress(BlockingIOError, InterruptedError):
+                self._wake_tx.send(b"\0")  # full buffer: a wake-up is pending anyway
 
     def run(self, stop: threading.Event) -> None:
         """Serve until ``stop`` is set, ``duration_s`` passed, or input stayed idle for
@@ -351,6 +495,9 @@ class FusionService:
         wall0 = self._wall0 = time.monotonic()
         schedule = {"fast": wall0, "slow": wall0, "housekeeping": wall0}
         reader_stop = threading.Event()
+        self._wake_rx, self._wake_tx = socket.socketpair()
+        self._wake_rx.setblocking(False)
+        self._wake_tx.setblocking(False)
         reader = threading.Thread(target=self._reader, args=(link, reader_stop),
                                   name="mavlink-reader", daemon=True)
         reader.start()
@@ -363,6 +510,8 @@ class FusionService:
                     self._queue.clear()
                 for msg in batch:
                     self._handle(msg)
+                if batch and self._lockstep_sources:
+                    self._wake_reader()
                 now = time.monotonic()
                 if now < schedule["housekeeping"]:
                     continue
@@ -379,7 +528,12 @@ class FusionService:
                     break
         finally:
             reader_stop.set()
+            self._wake_reader()
             reader.join(timeout=2.0)
+            for s in (self._wake_rx, self._wake_tx):
+                if s is not None:
+                    s.close()
+            self._wake_rx = self._wake_tx = None
         if self._bus is not None and self.last_estimate is not None:
             with contextlib.suppress(ValueError):
                 self._bus.publish_status(self.last_estimate, links=self.link_counters(),
@@ -417,6 +571,8 @@ class FusionService:
             "fixes": len(col.fix_times_us),
             "errors_published": self.stats.errors_published,
             "gcs_answers": self.stats.gcs_answers,
+            "innovations_published": self.stats.innovations,
+            "lockstep_acks": self.stats.lockstep_acks,
             "truth_from_other_components": self.stats.truth_other_component,
         }
         return summary

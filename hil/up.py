@@ -49,6 +49,9 @@ class UpOptions(BaseModel):
     gnss_off: tuple[str, ...] = ()
     gcs: str | None = None
     monitor: bool = True
+    lockstep: bool = False
+    """Run the sim with ``--lockstep``: it never runs ahead of the fusion (no loss at any
+    speed; the run goes as fast as the slower of the two)."""
     settle_s: float | None = Field(default=None, ge=0.0)
     """Scorecard settling time; None: 60 s, at most a quarter of the duration."""
 
@@ -185,9 +188,12 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
                     "--record", str(out / "run.tlog"), "--wait-peer", "30"]
         for w in options.gnss_off:
             sim_args += ["--gnss-off", w]
+        if options.lockstep:
+            sim_args.append("--lockstep")
         sim = Child("sim", hilnav_argv(*sim_args), out / "sim.log")
         children.append(sim)
-        log(f"sim           pid {sim.pid}: -> udpout:127.0.0.1:{port} at {options.speed:g}x, "
+        log(f"sim           pid {sim.pid}: -> udpout:127.0.0.1:{port} at {options.speed:g}x"
+            + (" (lockstep)" if options.lockstep else "") + ", "
             f"recording {out / 'run.tlog'}; log {sim.log_path}")
         log(f"subscribe:    hilnav monitor --connect {endpoint} --vehicle {options.vehicle}")
         try:

@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from fusion.config import FilterConfig
+from fusion.bridging import make_bridge
+from fusion.config import ALTITUDE_METHODS, FilterConfig
 from fusion.filter import NavFilter
 from hil.codec import Decoder
 from hil.tlog import read_tlog
@@ -42,12 +43,24 @@ def replay(
     settle_s: float = 60.0,
     progress: Callable[[int, int], None] | None = None,
 ) -> ReplayResult:
-    """Run the filter over ``log`` and write ``summary.json`` and plots into ``out_dir``."""
+    """Run the filter over ``log`` and write ``summary.json`` and plots into ``out_dir``.
+
+    ``altitude`` selects the altitude method (``fusion.config.ALTITUDE_METHODS``), replacing
+    ``config.altitude.method``; an unknown name raises ``ValueError`` listing the valid ones.
+    """
+    if altitude not in ALTITUDE_METHODS:
+        raise ValueError(
+            f"unknown altitude method {altitude!r}; valid methods: {', '.join(ALTITUDE_METHODS)}"
+        )
+    base = config if config is not None else FilterConfig()
+    config = base.model_copy(
+        update={"altitude": base.altitude.model_copy(update={"method": altitude})}
+    )
     if not log.is_file():
         raise ValueError(f"no such log file: {log}")
     out_dir.mkdir(parents=True, exist_ok=True)
     size = log.stat().st_size
-    nav = NavFilter(config)
+    nav = NavFilter(config, bridge=make_bridge(bridge, config.bridge))
     decoder = Decoder()
     col = Collector()
     t0 = time.perf_counter()

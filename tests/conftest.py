@@ -8,6 +8,8 @@ import pytest
 
 from hil.recording import SimRequest, record_flight
 
+pytest_plugins = ["pytester"]
+
 
 @pytest.fixture(scope="session")
 def short_flight_log(tmp_path_factory: pytest.TempPathFactory) -> Path:

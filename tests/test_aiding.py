@@ -242,3 +242,35 @@ def test_mag_control_rate_limit_and_learning() -> None:
         ctl.learn(FIELD_N_T, yaw_sigma_rad=0.01)
     assert ctl.learned
     np.testing.assert_allclose(ctl.reference_n, FIELD_N_T)
+
+
+def test_hard_iron_calibration_recovers_the_offset_and_the_earth_field() -> None:
+    from fusion.rotations import euler_to_dcm
+
+    rng = np.random.default_rng(3)
+    offset = np.array([1.0e-6, -0.6e-6, 0.8e-6])
+    cal = mag.HardIronCalibrator(math.radians(150.0), 5e-6)
+    # one straight leg: no heading spread, no solution however many samples
+    for _ in range(200):
+        c_nb = euler_to_dcm(np.array([0.0, 0.02, 0.3]))
+        cal.add(c_nb, c_nb.T @ FIELD_N_T + offset + rng.normal(0, 0.2e-6, 3), 0.3)
+    assert not cal.solved
+    # a racetrack: headings all round, banked turns
+    for k in range(1500):
+        yaw = 2 * math.pi * k / 300
+        roll = math.radians(25.0) * math.sin(2 * math.pi * k / 150)
+        c_nb = euler_to_dcm(np.array([roll, 0.03, yaw]))
+        cal.add(c_nb, c_nb.T @ FIELD_N_T + offset + rng.normal(0, 0.2e-6, 3), yaw)
+    assert cal.solved
+    assert cal.offset_b is not None and cal.field_n is not None
+    np.testing.assert_allclose(cal.offset_b, offset, atol=0.1e-6)
+    np.testing.assert_allclose(cal.field_n, FIELD_N_T, atol=0.1e-6)
+
+
+def test_mag_heading_is_fused_loosely_until_the_hard_iron_is_calibrated() -> None:
+    cfg = MagConfig()
+    ctl = mag.MagControl(cfg)
+    assert ctl.heading_noise_rad() == cfg.uncalibrated_heading_noise_rad
+    off = mag.MagControl(MagConfig(hard_iron_calibration=False))
+    assert off.heading_noise_rad() == cfg.heading_noise_rad
+    assert off.corrected(FIELD_N_T) is FIELD_N_T

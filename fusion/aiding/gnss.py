@@ -132,7 +132,7 @@ def velocity_model(
     Observation or None
     """
     v_fix = np.asarray(fix_v_ned_mps, dtype=float)
-    if v_fix.shape != (3,) or not np.all(np.isfinite(v_fix)) or not sigma_mps > 0.0:
+    if v_fix.shape != (3,) or not np.all(np.isfinite(v_fix[:2])) or not sigma_mps > 0.0:
         return None
     c_nb = dcm_from_quat(ins.q_nb)
     arm_b = lever_arm_b_m
@@ -178,6 +178,8 @@ def velocity_model(
             for i in range(3)
         ]  # fmt: skip
     s2 = sigma_mps * sigma_mps
+    if not math.isfinite(fv[2]):  # vertical velocity not reported: horizontal rows only
+        return Observation(z[:2], H[:2], np.array([[s2, 0.0], [0.0, s2]]))
     R = np.array([[s2, 0.0, 0.0], [0.0, s2, 0.0], [0.0, 0.0, s2]])
     return Observation(z, H, R)
 
@@ -194,7 +196,9 @@ def fix_quality(fix: GnssFix, cfg: GnssConfig) -> str | None:
     if not all(math.isfinite(float(v)) for v in scalars):
         return "invalid"
     v = np.asarray(fix.v_ned_mps, dtype=float)
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
+    # a NaN vertical velocity means "not reported" (GPS_RAW_INT has none): only the
+    # horizontal velocity is fused then
+    if v.shape != (3,) or not np.all(np.isfinite(v[:2])) or np.isinf(v[2]):
         return "invalid"
     # NaN accuracies mean "not reported" (HIL_GPS has no speed accuracy; 65535 = unknown):
     # the configured defaults stand in for them in fix_sigmas.

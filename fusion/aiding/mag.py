@@ -31,6 +31,11 @@ from fusion.config import MagConfig
 from fusion.error_model import StateLayout
 
 LEARN_SAMPLES = 10
+#: Forgetting factor per calibration sample (at 5 Hz: a memory of ~10 minutes).
+CAL_FORGET = 0.9997
+#: Calibration samples between two solutions.
+CAL_SOLVE_EVERY = 25
+_HEADING_BINS = 12
 
 
 def wrap_pi(angle_rad: float) -> float:
@@ -102,6 +107,39 @@ class MagControl:
             else np.asarray(cfg.reference_field_n_tesla, dtype=float)
         )
         self._learn: list[NDArray[np.float64]] = []
+        self.calibrator = (
+            HardIronCalibrator(cfg.calibration_min_heading_span_rad,
+                               cfg.calibration_hard_iron_sigma_tesla)
+            if cfg.hard_iron_calibration else None
+        )
+
+    @property
+    def calibrated(self) -> bool:
+        """The hard-iron calibration has replaced the learned reference."""
+        return self.calibrator is not None and self.calibrator.solved
+
+    def offer_calibration(self, c_nb: NDArray[np.float64], field_b: NDArray[np.float64],
+                          yaw_rad: float, yaw_sigma_rad: float) -> None:
+        """Offer a (good-attitude, body-field) pair to the hard-iron calibration."""
+        cal = self.calibrator
+        if cal is None or yaw_sigma_rad > self.cfg.learn_yaw_sigma_rad:
+            return
+        cal.add(c_nb, field_b, yaw_rad)
+        if cal.field_n is not None and self.cfg.reference_field_n_tesla is None:
+            self.reference_n = cal.field_n
+
+    def corrected(self, field_b: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The body field minus the estimated hard-iron offset (unchanged before calibration)."""
+        cal = self.calibrator
+        if cal is None or cal.offset_b is None:
+            return field_b
+        return field_b - cal.offset_b
+
+    def heading_noise_rad(self) -> float:
+        """Heading sigma to fuse with: larger until the hard iron is calibrated."""
+        if self.calibrator is None or self.calibrated:
+            return self.cfg.heading_noise_rad
+        return max(self.cfg.heading_noise_rad, self.cfg.uncalibrated_heading_noise_rad)
 
     @property
     def learned(self) -> bool:
@@ -128,3 +166,57 @@ class MagControl:
         """Record the gate's verdict."""
         if accepted:
             self.last_fused_us = time_us
+
+
+class HardIronCalibrator:
+    """Joint least-squares estimate of the Earth field (NED) and the hard-iron offset (body).
+
+    Parameters
+    ----------
+    min_heading_span_rad : float
+        Headings (in 30-degree bins) that must have been flown before :attr:`solved`.
+    hard_iron_sigma : float
+        Prior sigma of each offset component (same unit as the field).
+    noise : float
+        Field measurement sigma used to weight the prior (same unit).
+    """
+
+    def __init__(self, min_heading_span_rad: float, hard_iron_sigma: float,
+                 noise: float = 0.3e-6) -> None:
+        self._ata = np.zeros((6, 6))
+        self._aty = np.zeros(6)
+        self._bins = np.zeros(_HEADING_BINS, dtype=bool)
+        self._need_bins = max(2, math.ceil(min_heading_span_rad / (2 * math.pi / _HEADING_BINS)))
+        self._prior = (noise / hard_iron_sigma) ** 2
+        self._count = 0
+        self.field_n: NDArray[np.float64] | None = None
+        self.offset_b: NDArray[np.float64] | None = None
+
+    @property
+    def solved(self) -> bool:
+        return self.offset_b is not None
+
+    def add(self, c_nb: NDArray[np.float64], field_b: NDArray[np.float64], yaw_rad: float) -> None:
+        """One pair of a good attitude and the measured body field."""
+        c_bn = np.asarray(c_nb, dtype=float).T
+        a = np.hstack((c_bn, np.eye(3)))
+        self._ata *= CAL_FORGET
+        self._aty *= CAL_FORGET
+        self._ata += a.T @ a
+        self._aty += a.T @ np.asarray(field_b, dtype=float)
+        self._bins[int((yaw_rad % (2 * math.pi)) / (2 * math.pi) * _HEADING_BINS)
+                   % _HEADING_BINS] = True
+        self._count += 1
+        if self._count % CAL_SOLVE_EVERY == 0 and int(self._bins.sum()) >= self._need_bins:
+            self._solve()
+
+    def _solve(self) -> None:
+        ata = self._ata.copy()
+        ata[3:, 3:] += self._prior * np.eye(3) * max(1.0, float(np.trace(self._ata[:3, :3])) / 3)
+        try:
+            x = np.asarray(np.linalg.solve(ata, self._aty), dtype=np.float64)
+        except np.linalg.LinAlgError:
+            return
+        if np.all(np.isfinite(x)):
+            self.field_n = x[:3]
+            self.offset_b = x[3:]

@@ -71,21 +71,29 @@ Heartbeats and peers
 A link is not thread-safe: one thread owns it.
 
 Modules
-    ``roles`` (:class:`LinkRole`, message id sets), ``counters`` (:class:`LinkCounters`),
-    ``framing`` (:class:`FrameParser`, no I/O), ``transport`` (:class:`LinkUrl`, UDP / TCP /
-    serial byte transports), ``endpoint`` (:class:`MavlinkLink`). Signing lives in
-    :mod:`hil.signing`.
+    ``roles`` (:class:`LinkRole`, message id sets, the lockstep constants), ``counters``
+    (:class:`LinkCounters`), ``framing`` (:class:`FrameParser`, no I/O), ``transport``
+    (:class:`LinkUrl`, UDP / TCP / serial byte transports), ``endpoint`` (:class:`MavlinkLink`).
+    Signing lives in :mod:`hil.signing`.
 """
 
 from hil.link.counters import LinkCounters
 from hil.link.endpoint import MavlinkLink
 from hil.link.framing import FrameParser
-from hil.link.roles import FC_SENSOR_MSG_IDS, HIL_MSG_IDS, LinkRole
+from hil.link.roles import (
+    FC_SENSOR_MSG_IDS,
+    HIL_MSG_IDS,
+    LOCKSTEP_CUSTOM_MODE,
+    TIMESYNC_ID,
+    LinkRole,
+)
 from hil.link.transport import LinkUrl
 
 __all__ = [
     "FC_SENSOR_MSG_IDS",
     "HIL_MSG_IDS",
+    "LOCKSTEP_CUSTOM_MODE",
+    "TIMESYNC_ID",
     "FrameParser",
     "LinkCounters",
     "LinkRole",

@@ -8,9 +8,18 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from hil.codec import SENSOR_COMPONENT_ID, TRUTH_COMPONENT_ID, mavlink2
 
-__all__ = ["FC_SENSOR_MSG_IDS", "HEARTBEAT_ID", "HIL_MSG_IDS", "LinkRole"]
+__all__ = [
+    "FC_SENSOR_MSG_IDS", "HEARTBEAT_ID", "HIL_MSG_IDS", "LOCKSTEP_CUSTOM_MODE", "TIMESYNC_ID",
+    "LinkRole",
+]
 
 HEARTBEAT_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HEARTBEAT)
+TIMESYNC_ID: Final = int(mavlink2.MAVLINK_MSG_ID_TIMESYNC)
+"""Lockstep acknowledgement from the fusion service to the simulator (``ts1`` = simulated time
+of the newest processed sample, ns; see :mod:`hil.live_sim`)."""
+LOCKSTEP_CUSTOM_MODE: Final = 0x4C4F_434B
+"""HEARTBEAT ``custom_mode`` ("LOCK" in ASCII) by which the simulator (``MAV_AUTOPILOT_INVALID``,
+so no ground station interprets it) asks the fusion service for lockstep acknowledgements."""
 
 HIL_MSG_IDS: Final = frozenset(
     {
@@ -112,13 +121,13 @@ class LinkRole(BaseModel):
     def simulator(cls, *, system_id: int = 1) -> LinkRole:
         """The simulator: a sensor component (200) of the simulated vehicle, neither a vehicle
         nor an autopilot (``MAV_TYPE_GENERIC``, ``MAV_AUTOPILOT_INVALID``); listens only to
-        heartbeats (from anyone)."""
+        heartbeats and lockstep acknowledgements (TIMESYNC), from anyone."""
         return cls(
             system_id=system_id,
             component_id=SENSOR_COMPONENT_ID,
             mav_type=mavlink2.MAV_TYPE_GENERIC,
             autopilot=mavlink2.MAV_AUTOPILOT_INVALID,
-            accept_msg_ids=frozenset(),
+            accept_msg_ids=frozenset({TIMESYNC_ID}),
         )
 
     @classmethod
