@@ -31,8 +31,9 @@ console = Console(soft_wrap=True)
 P = ParamSpec("P")
 R = TypeVar("R")
 
-BRIDGE_METHODS = ("none",)
-ALTITUDE_METHODS = ("ekf",)
+# the methods the fusion offers (fusion/ imports no I/O: cheap to import here)
+from fusion.bridging import BRIDGE_METHODS  # noqa: E402
+from fusion.config import ALTITUDE_METHODS  # noqa: E402
 
 
 class RunFailed(Exception):

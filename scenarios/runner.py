@@ -110,7 +110,7 @@ def fuse(
     bridge: str,
 ) -> Fused:
     """Decode ``frames`` and run one NavFilter with bridging method ``bridge`` over them."""
-    nav = NavFilter(config, bridge=make_bridge(bridge))
+    nav = NavFilter(config, bridge=make_bridge(bridge, config.bridge))
     decoder = Decoder()
     col = Collector()
     n = 0
@@ -128,7 +128,7 @@ class _StreamingFuser:
 
     def __init__(self, log: TlogWriter | None, config: FilterConfig, bridge: str) -> None:
         self.log = log
-        self.nav = NavFilter(config, bridge=make_bridge(bridge))
+        self.nav = NavFilter(config, bridge=make_bridge(bridge, config.bridge))
         self.decoder = Decoder()
         self.col = Collector()
         self.samples = 0
