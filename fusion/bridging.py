@@ -61,6 +61,17 @@ back to ``none``. Fitting failures (singular data the ridge cannot save, non-fin
 keep the component in fallback; they never raise. Inputs are clipped to their training range
 before prediction, so a polynomial never extrapolates past the longest virtual outage seen.
 :attr:`LearnedBridge.status` (:class:`fusion.bridge.BridgeStatus`) reports the state.
+
+What it achieves (``bench/bridging.py``, held-out seeds and plans; ``bench/README.md``)
+--------------------------------------------------------------------------------------
+A negative result, stated plainly: on 120 held-out 25 s outages the learned corrections
+*increase* the plain filter's horizontal RMSE (``gmdh`` 1.45x the summed RMSE, worst single
+outage 9.5x; ``gmdh-pseudo`` 1.08x; ``rbf`` 1.20x, ``mlp`` 1.38x, ``bp-parallel`` 1.43x) and do
+not help 60 s into a 60 s outage (``gmdh`` 1.12x). P0's own pairs (``training="fix"``) learn
+about zero and change nothing (1.00x), as the closed loop predicts. The filter's drift in a
+real outage is set by its error state at the outage's start, which a well-tuned filter has
+already made unpredictable from what it has seen; the drift of past virtual outages does not
+carry over. Keep ``none`` as the default; the strategies are here to measure that claim.
 """
 
 from __future__ import annotations

@@ -378,6 +378,20 @@ def test_every_method_runs_in_the_filter_through_an_outage(turning: Prepared, na
     assert not est[-1].bridge.active
 
 
+def test_an_outage_right_after_start_is_flown_exactly_as_none(turning: Prepared) -> None:
+    # GIVEN GNSS lost 12 s after start (the default warm-up alone is 90 s)
+    sc = make_scenario(turning, np.random.default_rng(6), ERRORS, gnss_outages=[(12.0, 30.0)])
+    plain = run(NavFilter(CFG), sc.samples)
+    learned = run(NavFilter(CFG, bridge=make_bridge("gmdh")), sc.samples)
+    # THEN the strategy stays untrained and the output is the plain filter's, bit for bit
+    during = [e for e in learned if 14e6 <= e.time_us <= 29e6]
+    assert during and all(e.bridge is not None and e.bridge.state == "untrained"
+                          and e.mode == "free-inertial" for e in during)  # fmt: skip
+    assert len(plain) == len(learned)
+    for a, b in zip(plain, learned, strict=True):
+        assert (a.lat_rad, a.lon_rad, a.alt_msl_m) == (b.lat_rad, b.lon_rad, b.alt_msl_m)
+
+
 def test_pseudo_gnss_comes_from_the_free_ins_minus_the_predicted_drift() -> None:
     # GIVEN a trained gmdh-pseudo strategy
     cfg = BridgeConfig(features=("t", "t2", "sinpsi", "cospsi"), warmup_s=0.0,
