@@ -66,7 +66,7 @@ def config(method: str) -> FilterConfig:
     return CFG.model_copy(update={"altitude": AltitudeConfig.model_validate({"method": method})})
 
 
-def run(nav: NavFilter, stream: list[object]) -> list[NavEstimate]:
+def run(nav: NavFilter, stream: list[Any]) -> list[NavEstimate]:
     out: list[NavEstimate] = []
     for s in stream:
         out.extend(nav.step(s))
