@@ -83,10 +83,15 @@ def generate(duration_s: float, seed: int) -> tuple[list[Any], list[bytes], int]
     return samples, frames, n_imu
 
 
-def _config(cov_rate_hz: float | None) -> Any:
-    from hil.tuning import filter_config_for_imu
+GNSS_BIAS = {"on": False}
+"""Whether the filter carries the GNSS position-bias states (``--gnss-bias``)."""
 
-    cfg = filter_config_for_imu(IMU)
+
+def _config(cov_rate_hz: float | None) -> Any:
+    from hil.tuning import filter_config_for_imu, filter_config_for_presets
+
+    on = GNSS_BIAS["on"]
+    cfg = filter_config_for_presets(IMU, "modern") if on else filter_config_for_imu(IMU)
     return cfg.model_copy(update={"rates": cfg.rates.model_copy(
         update={"covariance_rate_hz": cov_rate_hz})})
 
@@ -166,7 +171,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--no-profile", action="store_true", help="skip the pyinstrument profile")
     ap.add_argument("--out", type=Path, default=Path("bench/results/fusion_speed.json"))
+    ap.add_argument("--gnss-bias", choices=("on", "off"), default="off",
+                    help="off: ins16 (as before); on: the filter as the commands tune it for the "
+                         "modern receiver (ins16+gnss, 19 states)")
     args = ap.parse_args(argv)
+    GNSS_BIAS["on"] = args.gnss_bias == "on"
     if args.duration <= 5 or args.repeats < 1:
         ap.error("--duration must be > 5 s and --repeats >= 1")
 
@@ -204,9 +213,14 @@ def main(argv: list[str] | None = None) -> int:
 
     hot = [] if args.no_profile else profile_filter(samples)
     main_case = cases["filter/cov_100hz"]
+    from fusion.filter import NavFilter
+
+    layout = NavFilter(_config(100.0)).layout  # the cost grows with the error-state size
     result: dict[str, Any] = {
         "benchmark": "fusion_speed",
         "imu": IMU,
+        "state_layout": layout.name,
+        "error_states": layout.n,
         "stream": {
             "plan": "racetrack", "seed": args.seed, "duration_s": args.duration,
             "imu_rate_hz": RATE_HZ, "gnss_rate_hz": 5.0, "baro_rate_hz": 50.0,

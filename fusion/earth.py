@@ -40,6 +40,16 @@ M_RATIO = RATE**2 * A**2 * B / GM
 
 FloatOrArray = float | NDArray[np.float64]
 
+# Folded constants of the scalar fast paths (local_terms, gravity_gradient): the normal gravity
+# height correction is 1 - (_GH1 - _GH1S sin^2 L) h + _GH2 h^2.
+_ONE_MINUS_E2 = 1.0 - E2
+_GH1 = 2.0 / A * (1.0 + F + M_RATIO)
+_GH1S = 4.0 * F / A
+_GH2 = 3.0 / (A * A)
+_TWO_GE_K = 2.0 * GE * K_SOMIGLIANA
+_sin, _cos, _sqrt = math.sin, math.cos, math.sqrt
+_tuple_new = tuple.__new__  # NamedTuple(...) without its Python-level __new__ frame
+
 
 def principal_radii(lat_rad: ArrayLike) -> tuple[FloatOrArray, FloatOrArray]:
     """Meridian and transverse (prime-vertical) radii of curvature.
@@ -94,18 +104,19 @@ def gravity_gradient(lat_rad: float, alt_m: float) -> tuple[float, float]:
         1/s^2 (about ``-2 g / R``: gravity weakens upwards, the root of the unstable
         vertical channel).
     """
-    s, c = math.sin(lat_rad), math.cos(lat_rad)
+    # d sin^2 L / dL = 2 sin L cos L; written on few operations (runs at the covariance rate)
+    s = _sin(lat_rad)
+    sc = s * _cos(lat_rad)
     sin2 = s * s
-    root = math.sqrt(1.0 - E2 * sin2)
+    x = 1.0 - E2 * sin2
+    root = _sqrt(x)
     g0 = GE * (1.0 + K_SOMIGLIANA * sin2) / root
-    dg0 = GE * (
-        2.0 * K_SOMIGLIANA * s * c / root + (1.0 + K_SOMIGLIANA * sin2) * E2 * s * c / root**3
-    )
+    k1 = _GH1 - _GH1S * sin2
     h = alt_m
-    corr = 1.0 - 2.0 / A * (1.0 + F + M_RATIO - 2.0 * F * sin2) * h + 3.0 * h * h / (A * A)
-    dcorr_dlat = 2.0 / A * 2.0 * F * 2.0 * s * c * h
-    dcorr_dh = -2.0 / A * (1.0 + F + M_RATIO - 2.0 * F * sin2) + 6.0 * h / (A * A)
-    return dg0 * corr + g0 * dcorr_dlat, g0 * dcorr_dh
+    corr = 1.0 - k1 * h + _GH2 * h * h
+    # d g0 / dL = sin L cos L (2 GE k / root + g0 e^2 / root^2); d corr / dL = 2 _GH1S sc h
+    dg_dlat = sc * ((_TWO_GE_K / root + g0 * E2 / x) * corr + 2.0 * _GH1S * h * g0)
+    return dg_dlat, g0 * (2.0 * _GH2 * h - k1)
 
 
 def earth_rate_n(lat_rad: ArrayLike) -> NDArray[np.float64]:
@@ -164,17 +175,19 @@ def local_terms(lat_rad: float, alt_m: float) -> LocalTerms:
     Same formulas as :func:`principal_radii` and :func:`gravity` using ``math`` (about ten times
     faster than numpy on scalars), for the per-sample strapdown loop.
     """
-    s = math.sin(lat_rad)
+    s = _sin(lat_rad)
     sin2 = s * s
     x = 1.0 - E2 * sin2
-    root = math.sqrt(x)
+    root = _sqrt(x)
     r_n = A / root
-    r_m = r_n * (1.0 - E2) / x
-    g0 = GE * (1.0 + K_SOMIGLIANA * sin2) / root
-    g = g0 * (
-        1.0 - 2.0 / A * (1.0 + F + M_RATIO - 2.0 * F * sin2) * alt_m + 3.0 * alt_m * alt_m / (A * A)
+    r_m = r_n * _ONE_MINUS_E2 / x
+    g = (
+        GE
+        * (1.0 + K_SOMIGLIANA * sin2)
+        / root
+        * (1.0 - (_GH1 - _GH1S * sin2) * alt_m + _GH2 * alt_m * alt_m)
     )
-    return LocalTerms(r_m + alt_m, r_n + alt_m, g, s, math.cos(lat_rad))
+    return _tuple_new(LocalTerms, (r_m + alt_m, r_n + alt_m, g, s, _cos(lat_rad)))
 
 
 def lla_to_ecef(lat_rad: ArrayLike, lon_rad: ArrayLike, alt_m: ArrayLike) -> NDArray[np.float64]:

@@ -11,6 +11,7 @@ second the buffer spans).
 from __future__ import annotations
 
 import math
+from collections import deque
 
 from fusion import earth
 from fusion.strapdown import InsState, rotvec_quat
@@ -32,31 +33,18 @@ class InsHistory:
         if capacity < 2:
             raise ValueError(f"capacity must be >= 2, got {capacity}")
         self._cap = capacity
-        self._t: list[int] = [0] * capacity
-        self._s: list[InsState | None] = [None] * capacity
-        self._c: list[Correction9] = [_ZERO9] * capacity
-        self._head = -1
-        self._count = 0
+        # one bounded deque of entry tuples: push (every IMU epoch) is a single C-level append
+        self._d: deque[tuple[int, InsState, Correction9]] = deque(maxlen=capacity)
         self._cum: Correction9 = _ZERO9
 
     def clear(self) -> None:
         """Forget every stored state (the running correction sum restarts too)."""
-        self._head = -1
-        self._count = 0
+        self._d.clear()
         self._cum = _ZERO9
-        self._s = [None] * self._cap
 
     def push(self, time_us: int, state: InsState) -> None:
         """Store the INS state of epoch ``time_us`` (times must increase)."""
-        i = self._head + 1
-        if i == self._cap:
-            i = 0
-        self._t[i] = time_us
-        self._s[i] = state
-        self._c[i] = self._cum
-        self._head = i
-        if self._count < self._cap:
-            self._count += 1
+        self._d.append((time_us, state, self._cum))
 
     def add_correction(self, dx9: list[float]) -> None:
         """Record a feedback ``[dr_ned m, dv_ned m/s, phi rad]`` just subtracted from the INS."""
@@ -69,15 +57,10 @@ class InsHistory:
     @property
     def oldest_us(self) -> int | None:
         """Time of the oldest stored epoch."""
-        if self._count == 0:
-            return None
-        i = (self._head - self._count + 1) % self._cap
-        return self._t[i]
+        return self._d[0][0] if self._d else None
 
-    def _corrected(self, i: int) -> InsState:
-        s = self._s[i]
-        assert s is not None
-        c0 = self._c[i]
+    def _corrected(self, entry: tuple[int, InsState, Correction9]) -> InsState:
+        _, s, c0 = entry
         c1 = self._cum
         if c0 is c1:
             return s
@@ -104,21 +87,18 @@ class InsHistory:
     def at(self, time_us: int) -> InsState | None:
         """Corrected INS state at ``time_us`` (linear interpolation of position and velocity,
         nearest attitude), or ``None`` when outside the stored span."""
-        if self._count == 0:
+        buf = self._d
+        if not buf or time_us > buf[-1][0]:
             return None
-        cap = self._cap
-        i = self._head
-        if time_us > self._t[i]:
-            return None
-        for _ in range(self._count):
-            ti = self._t[i]
+        newer = buf[-1]
+        for entry in reversed(buf):  # newest first: GNSS delays are short
+            ti = entry[0]
             if ti <= time_us:
                 if ti == time_us:
-                    return self._corrected(i)
-                j = i + 1 if i + 1 < cap else 0
-                a = self._corrected(i)
-                b = self._corrected(j)
-                w = (time_us - ti) / (self._t[j] - ti)
+                    return self._corrected(entry)
+                a = self._corrected(entry)
+                b = self._corrected(newer)
+                w = (time_us - ti) / (newer[0] - ti)
                 va, vb = a.v_ned_mps, b.v_ned_mps
                 return InsState(
                     a.lat_rad + w * (b.lat_rad - a.lat_rad),
@@ -131,7 +111,7 @@ class InsHistory:
                     ),
                     a.q_nb if w < 0.5 else b.q_nb,
                 )
-            i = i - 1 if i > 0 else cap - 1
+            newer = entry
         return None
 
 

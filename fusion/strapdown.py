@@ -27,6 +27,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from math import cos as _cos
+from math import sin as _sin
+from math import sqrt as _sqrt
 from typing import NamedTuple
 
 import numpy as np
@@ -110,6 +113,22 @@ def dcm_from_quat(q: Sequence[float]) -> tuple[float, ...]:
     )  # fmt: skip
 
 
+# Earth-model constants folded once (module globals: LOAD_GLOBAL is cached, ``earth.X`` is two
+# lookups per use in the per-sample loop).
+_E2 = earth.E2
+_A = earth.A
+_ONE_MINUS_E2 = 1.0 - earth.E2
+_GE = earth.GE
+_KS = earth.K_SOMIGLIANA
+# normal gravity height correction 1 - (_GH1 - _GH1S sin^2 L) h + _GH2 h^2 (earth.gravity)
+_GH1 = 2.0 / earth.A * (1.0 + earth.F + earth.M_RATIO)
+_GH1S = 4.0 * earth.F / earth.A
+_GH2 = 3.0 / (earth.A * earth.A)
+_RATE = earth.RATE
+_TWELFTH = 1.0 / 12.0
+_tuple_new = tuple.__new__  # InsState(...) without the Python-level namedtuple __new__ frame
+
+
 def update(
     state: InsState,
     dtheta_b: Sequence[float],
@@ -137,9 +156,8 @@ def update(
     InsState
         State at the end of the interval.
     """
-    lat, lon, h = state.lat_rad, state.lon_rad, state.alt_msl_m
-    vn, ve, vd = state.v_ned_mps
-    qw, qx, qy, qz = state.q_nb
+    # Written out on plain floats, every operation counted: this runs at the IMU rate.
+    lat, lon, h, (vn, ve, vd), (qw, qx, qy, qz) = state
     ax, ay, az = dtheta_b
     ux, uy, uz = dv_b
     pax, pay, paz = dtheta_prev_b
@@ -147,46 +165,35 @@ def update(
 
     # Earth terms at mid-interval height (lat moves ~1e-7 rad per sample: start value is enough).
     h_mid = h - 0.5 * vd * dt_s
-    s_lat = math.sin(lat)
-    c_lat = math.cos(lat)
+    s_lat = _sin(lat)
+    c_lat = _cos(lat)
     sin2 = s_lat * s_lat
-    x = 1.0 - earth.E2 * sin2
-    root = math.sqrt(x)
-    r_n = earth.A / root
+    x = 1.0 - _E2 * sin2
+    root = _sqrt(x)
+    r_n = _A / root
     rho_e = r_n + h_mid
-    rho_n = r_n * (1.0 - earth.E2) / x + h_mid
+    rho_n = r_n * _ONE_MINUS_E2 / x + h_mid
     g = (
-        earth.GE
-        * (1.0 + earth.K_SOMIGLIANA * sin2)
+        _GE
+        * (1.0 + _KS * sin2)
         / root
-        * (
-            1.0
-            - 2.0 / earth.A * (1.0 + earth.F + earth.M_RATIO - 2.0 * earth.F * sin2) * h_mid
-            + 3.0 * h_mid * h_mid / (earth.A * earth.A)
-        )
+        * (1.0 - (_GH1 - _GH1S * sin2) * h_mid + _GH2 * h_mid * h_mid)
     )
     tan_lat = s_lat / c_lat
-    wie_n = earth.RATE * c_lat
-    wie_d = -earth.RATE * s_lat
+    wie_n = _RATE * c_lat
+    wie_d = -_RATE * s_lat
 
     # rotation (dtheta × dv / 2) and sculling ((dtheta_prev × dv + dv_prev × dtheta) / 12)
-    wx = ux + 0.5 * (ay * uz - az * uy) + ((pay * uz - paz * uy) + (puy * az - puz * ay)) / 12.0
-    wy = uy + 0.5 * (az * ux - ax * uz) + ((paz * ux - pax * uz) + (puz * ax - pux * az)) / 12.0
-    wz = uz + 0.5 * (ax * uy - ay * ux) + ((pax * uy - pay * ux) + (pux * ay - puy * ax)) / 12.0
-    # C_nb(k-1) from the start-of-interval quaternion
-    ww, xx, yy, zz2 = qw * qw, qx * qx, qy * qy, qz * qz
-    c00 = ww + xx - yy - zz2
-    c01 = 2.0 * (qx * qy - qw * qz)
-    c02 = 2.0 * (qx * qz + qw * qy)
-    c10 = 2.0 * (qx * qy + qw * qz)
-    c11 = ww - xx + yy - zz2
-    c12 = 2.0 * (qy * qz - qw * qx)
-    c20 = 2.0 * (qx * qz - qw * qy)
-    c21 = 2.0 * (qy * qz + qw * qx)
-    c22 = ww - xx - yy + zz2
-    dn = c00 * wx + c01 * wy + c02 * wz
-    de = c10 * wx + c11 * wy + c12 * wz
-    dd = c20 * wx + c21 * wy + c22 * wz
+    wx = ux + 0.5 * (ay * uz - az * uy) + (pay * uz - paz * uy + puy * az - puz * ay) * _TWELFTH
+    wy = uy + 0.5 * (az * ux - ax * uz) + (paz * ux - pax * uz + puz * ax - pux * az) * _TWELFTH
+    wz = uz + 0.5 * (ax * uy - ay * ux) + (pax * uy - pay * ux + pux * ay - puy * ax) * _TWELFTH
+    # C_nb(k-1) w by the quaternion directly (unit q): t = 2 q_v × w, d = w + qw t + q_v × t
+    tx = 2.0 * (qy * wz - qz * wy)
+    ty = 2.0 * (qz * wx - qx * wz)
+    tz = 2.0 * (qx * wy - qy * wx)
+    dn = wx + qw * tx + qy * tz - qz * ty
+    de = wy + qw * ty + qz * tx - qx * tz
+    dd = wz + qw * tz + qx * ty - qy * tx
     # Mid-interval velocity (Coriolis neglected, it is ~1e-4 of the rest) for the transport rate
     # and Coriolis terms: using the start value instead makes the whole scheme first order.
     mvn = vn + 0.5 * dn
@@ -197,15 +204,32 @@ def update(
     wen_d = -mve * tan_lat / rho_e
 
     # ---- 1. attitude -------------------------------------------------------------------
-    # coning: phi = dtheta + (dtheta_prev × dtheta) / 12
-    phx = ax + (pay * az - paz * ay) / 12.0
-    phy = ay + (paz * ax - pax * az) / 12.0
-    phz = az + (pax * ay - pay * ax) / 12.0
-    bw, bx, by, bz = rotvec_quat(phx, phy, phz)
+    # coning: phi = dtheta + (dtheta_prev × dtheta) / 12; q_b = q(phi) (rotvec_quat, inlined)
+    phx = ax + (pay * az - paz * ay) * _TWELFTH
+    phy = ay + (paz * ax - pax * az) * _TWELFTH
+    phz = az + (pax * ay - pay * ax) * _TWELFTH
+    a2 = phx * phx + phy * phy + phz * phz
+    if a2 < 1e-4:
+        bw = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
+        k = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
+    else:
+        a = _sqrt(a2)
+        bw = _cos(0.5 * a)
+        k = _sin(0.5 * a) / a
+    bx, by, bz = k * phx, k * phy, k * phz
+    # q_n = q(-zeta), zeta = omega_in_n dt (~1e-7 rad: always the series branch in practice)
     zx = (wie_n + wen_n) * dt_s
     zy = wen_e * dt_s
     zz = (wie_d + wen_d) * dt_s
-    nw, nx, ny, nz = rotvec_quat(-zx, -zy, -zz)
+    a2 = zx * zx + zy * zy + zz * zz
+    if a2 < 1e-4:
+        nw = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
+        k = a2 / 48.0 - 0.5 - a2 * a2 / 3840.0  # negated: the rotation is -zeta
+    else:
+        a = _sqrt(a2)
+        nw = _cos(0.5 * a)
+        k = -_sin(0.5 * a) / a
+    nx, ny, nz = k * zx, k * zy, k * zz
     # t = q_nb ⊗ q_b
     tw = qw * bw - qx * bx - qy * by - qz * bz
     tx = qw * bx + qx * bw + qy * bz - qz * by
@@ -216,33 +240,31 @@ def update(
     rx = nw * tx + nx * tw + ny * tz - nz * ty
     ry = nw * ty - nx * tz + ny * tw + nz * tx
     rz = nw * tz + nx * ty - ny * tx + nz * tw
-    norm = math.sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
+    norm = _sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
     if rw < 0.0:
         norm = -norm
-    q_new = (rw / norm, rx / norm, ry / norm, rz / norm)
 
     # ---- 2. velocity -------------------------------------------------------------------
-    # (I - [zeta×]/2): the n frame turns during the interval
-    fn = dn - 0.5 * (zy * dd - zz * de)
-    fe = de - 0.5 * (zz * dn - zx * dd)
-    fd = dd - 0.5 * (zx * de - zy * dn)
+    # (I - [zeta×]/2): the n frame turns during the interval; then Coriolis / transport and
+    # gravity with c = 2 omega_ie + omega_en
     cx = 2.0 * wie_n + wen_n
-    cy = wen_e
     cz = 2.0 * wie_d + wen_d
-    vn_new = vn + fn - (cy * mvd - cz * mve) * dt_s
-    ve_new = ve + fe - (cz * mvn - cx * mvd) * dt_s
-    vd_new = vd + fd + (g - (cx * mve - cy * mvn)) * dt_s
+    vn_new = vn + dn - 0.5 * (zy * dd - zz * de) - (wen_e * mvd - cz * mve) * dt_s
+    ve_new = ve + de - 0.5 * (zz * dn - zx * dd) - (cz * mvn - cx * mvd) * dt_s
+    vd_new = vd + dd - 0.5 * (zx * de - zy * dn) + (g - (cx * mve - wen_e * mvn)) * dt_s
 
     # ---- 3. position -------------------------------------------------------------------
     h_new = h - 0.5 * (vd + vd_new) * dt_s
-    h_avg = 0.5 * (h + h_new)
-    rho_n_avg = rho_n - h_mid + h_avg
-    rho_e_avg = rho_e - h_mid + h_avg
-    dlat = 0.5 * (vn + vn_new) * dt_s / rho_n_avg
+    dh_avg = 0.5 * (h + h_new) - h_mid  # rho at the interval's mean height
+    dlat = 0.5 * (vn + vn_new) * dt_s / (rho_n + dh_avg)
     # cos of the mid-interval latitude, first-order expansion
     c_mid = c_lat - 0.5 * s_lat * dlat
-    lon_new = lon + 0.5 * (ve + ve_new) * dt_s / (rho_e_avg * c_mid)
-    return InsState(lat + dlat, lon_new, h_new, (vn_new, ve_new, vd_new), q_new)
+    lon_new = lon + 0.5 * (ve + ve_new) * dt_s / ((rho_e + dh_avg) * c_mid)
+    return _tuple_new(
+        InsState,
+        (lat + dlat, lon_new, h_new, (vn_new, ve_new, vd_new),
+         (rw / norm, rx / norm, ry / norm, rz / norm)),
+    )  # fmt: skip
 
 
 def integrate(

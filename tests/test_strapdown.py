@@ -189,3 +189,71 @@ def test_ins_state_from_arrays_validates() -> None:
         SplineTrajectory(
             [0.0, 0.0], np.zeros((2, 3)), np.zeros((2, 3)), np.tile([1.0, 0, 0, 0], (2, 1))
         )
+
+
+def reference_update(
+    s: strapdown.InsState,
+    dth: np.ndarray,
+    dv: np.ndarray,
+    pdth: np.ndarray,
+    pdv: np.ndarray,
+    dt: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The module docstring's three steps on numpy vectors and fusion.rotations / the array
+    Earth functions (slow, readable): what the scalar hot loop must reproduce."""
+    lat, lon, h = s.lat_rad, s.lon_rad, s.alt_msl_m
+    v, q = np.array(s.v_ned_mps), np.array(s.q_nb)
+    h_mid = h - 0.5 * v[2] * dt
+    r_m, r_n = earth.principal_radii(lat)
+    g = float(earth.gravity(lat, h_mid))
+    w_ie = earth.earth_rate_n(lat)
+    # velocity increment in n: rotation + sculling, C_nb(k-1)
+    d_n = quat_to_dcm(q) @ (
+        dv + np.cross(dth, dv) / 2 + (np.cross(pdth, dv) + np.cross(pdv, dth)) / 12
+    )
+    v_mid = v + 0.5 * d_n + [0.0, 0.0, 0.5 * g * dt]
+    w_en = np.array([v_mid[1] / (r_n + h_mid), -v_mid[0] / (r_m + h_mid),
+                     -v_mid[1] * math.tan(lat) / (r_n + h_mid)])  # fmt: skip
+    zeta = (w_ie + w_en) * dt
+    # 1. attitude
+    phi = dth + np.cross(pdth, dth) / 12
+    q_new = quat_multiply(rotvec_to_quat(-zeta), quat_multiply(q, rotvec_to_quat(phi)))
+    q_new = q_new / np.linalg.norm(q_new) * np.sign(q_new[0])
+    # 2. velocity
+    v_new = (
+        v
+        + d_n
+        - 0.5 * np.cross(zeta, d_n)
+        + ([0.0, 0.0, g] - np.cross(2 * w_ie + w_en, v_mid)) * dt
+    )
+    # 3. position
+    h_new = h - 0.5 * (v[2] + v_new[2]) * dt
+    h_avg = 0.5 * (h + h_new)
+    dlat = 0.5 * (v[0] + v_new[0]) * dt / (r_m + h_avg)
+    c_mid = math.cos(lat) - 0.5 * math.sin(lat) * dlat
+    dlon = 0.5 * (v[1] + v_new[1]) * dt / ((r_n + h_avg) * c_mid)
+    return np.array([lat + dlat, lon + dlon, h_new]), v_new, q_new
+
+
+@pytest.mark.parametrize("rate_scale", [1.0, 20.0])  # 20: |phi| > 0.01 rad, the exact branch
+def test_scalar_update_matches_the_vector_reference_to_round_off(rate_scale: float) -> None:
+    # GIVEN random states (latitudes to 80 deg, heights to 12 km, 250 m/s) and increments
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        q = rng.normal(size=4)
+        state = strapdown.InsState.from_arrays(
+            rng.uniform(-1.4, 1.4), rng.uniform(-3.0, 3.0), rng.uniform(-100.0, 12_000.0),
+            rng.normal(scale=150.0, size=3), q * np.sign(q[0]),
+        )  # fmt: skip
+        dt = float(rng.choice([0.0025, 0.005, 0.01]))
+        dth, pdth = rng.normal(scale=0.2 * rate_scale * dt, size=(2, 3))
+        dv, pdv = rng.normal(scale=20.0 * dt, size=(2, 3))
+        # WHEN the hot-loop update and the vector reference advance it
+        new = strapdown.update(state, tuple(dth), tuple(dv), tuple(pdth), tuple(pdv), dt)
+        lla, v, q_ref = reference_update(state, dth, dv, pdth, pdv, dt)
+        # THEN they agree to round-off (1e-15 rad is 6 nm)
+        assert new.lat_rad == pytest.approx(lla[0], abs=1e-15)
+        assert new.lon_rad == pytest.approx(lla[1], abs=1e-14)
+        assert new.alt_msl_m == pytest.approx(lla[2], abs=1e-9)
+        np.testing.assert_allclose(new.v_ned_mps, v, rtol=0, atol=1e-11)
+        np.testing.assert_allclose(new.q_nb, q_ref, rtol=0, atol=1e-15)
