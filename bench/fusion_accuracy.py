@@ -8,9 +8,12 @@ replay``: :class:`hil.bridge.SensorBridge` -> :class:`hil.codec.Decoder` ->
 :class:`scenarios.collect.Collector` / :class:`fusion.filter.NavFilter` (no bridging method:
 outages are flown free-inertial), scored by :func:`scenarios.summary.build_summary`.
 
-The filter is tuned from the IMU preset's datasheet only (:func:`hil.tuning.filter_config_for_imu`),
-never from truth. Its hand-set defaults were tuned on seeds 1-2 of the racetrack, so the
-reported seeds default to 100-109, held out from that tuning.
+The filter is tuned from the IMU and GNSS presets' datasheets only
+(:func:`hil.tuning.filter_config_for_presets`: IMU noise and bias model, the GNSS receiver's
+correlated position error as the filter's GNSS bias states), never from truth. Its hand-set
+defaults were tuned on seeds 1-2 of the racetrack (the GNSS bias default on seeds 1-5), so the
+reported seeds default to 100-109, held out from that tuning. ``--gnss-bias off`` flies the
+filter without the GNSS bias states (each fix fused as white noise), for comparison.
 
 Reported per run and aggregated (mean, p95 across seeds; per plan and overall):
 
@@ -24,7 +27,9 @@ Reported per run and aggregated (mean, p95 across seeds; per plan and overall):
   outage (outage windows found from the fix times, as replay does: last fix before the gap to
   first fix after it), plus each outage's maximum and RMSE. These are the baseline the GMDH
   bridging must beat.
-- ``nees_mean`` (9 dof: position, velocity, attitude) while GNSS is on.
+- ``nees_mean`` (9 dof: position, velocity, attitude) while GNSS is on, and
+  ``rms_z_{pos,vel,att}`` = rms(error / sigma) per state group and ``rms_z_axis`` per axis
+  (N, E, D position and velocity; roll-, pitch-, yaw-axis attitude in NED): 1 if consistent.
 
 Targets (``meets_targets``): horizontal RMSE (GNSS on) <= raw GNSS horizontal RMSE of the same
 run (ratio <= 1), roll and pitch RMSE <= 0.2 deg, yaw RMSE <= 1 deg; each judged on the mean,
@@ -32,6 +37,7 @@ on the p95 and on every run.
 
     python bench/fusion_accuracy.py --out bench/results/fusion_accuracy.json \
         [--seeds 10] [--seed-base 100] [--plans racetrack,manoeuvre] [--duration 600] [--jobs 2]
+        [--gnss-bias default|on|off]
 
 Each run is independent; ``--jobs`` runs them in that many processes (spawned, with one BLAS
 thread each so two jobs do not fight over two cores).
@@ -56,7 +62,10 @@ GNSS = "modern"
 OUTAGES: tuple[tuple[float, float], ...] = ((200.0, 30.0), (400.0, 60.0))
 """(start_s, duration_s) of the GNSS outages; each needs >= 60 s of GNSS after it."""
 SETTLE_S = 60.0
-TUNING_SEEDS = "racetrack seeds 1-2 (filter defaults hand-tuned on them)"
+TUNING_SEEDS = (
+    "racetrack seeds 1-2 (filter defaults hand-tuned on them); GNSS bias states on/off "
+    "decided on racetrack and manoeuvre seed 1"
+)
 TARGETS: dict[str, tuple[str, float]] = {
     "horizontal_rmse_vs_raw_gnss": ("filter_over_raw", 1.0),
     "roll_rmse_deg": ("roll_rmse_deg", 0.2),
@@ -73,7 +82,7 @@ def _quantile(values: list[float], q: float) -> float:
     return float(np.quantile(v, q)) if v else float("nan")
 
 
-def run_one(plan: str, seed: int, duration_s: float) -> dict[str, Any]:
+def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default") -> dict[str, Any]:
     """Fly one plan with one seed and score the filter; returns one row of the results.
 
     Parameters
@@ -84,6 +93,8 @@ def run_one(plan: str, seed: int, duration_s: float) -> dict[str, Any]:
         Scenario seed (flight turbulence and all sensor noise).
     duration_s : float
         Simulated flight time, s.
+    gnss_bias : str
+        ``default`` (the configuration's), ``on`` or ``off``: the filter's GNSS bias states.
 
     Returns
     -------
@@ -96,7 +107,7 @@ def run_one(plan: str, seed: int, duration_s: float) -> dict[str, Any]:
     from hil.bridge import SensorBridge, run_lockstep
     from hil.codec import Decoder
     from hil.recording import SimRequest
-    from hil.tuning import filter_config_for_imu
+    from hil.tuning import filter_config_for_presets
     from scenarios import metrics
     from scenarios.collect import Collector
     from scenarios.summary import RunInfo, build_summary
@@ -109,7 +120,11 @@ def run_one(plan: str, seed: int, duration_s: float) -> dict[str, Any]:
         gnss_off=[f"{s}:{d}" for s, d in OUTAGES])
     suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)
     bridge = SensorBridge(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
-    nav = NavFilter(filter_config_for_imu(IMU))
+    cfg = filter_config_for_presets(IMU, GNSS)
+    if gnss_bias != "default":
+        cfg = cfg.model_copy(
+            update={"gnss": cfg.gnss.model_copy(update={"bias_states": gnss_bias == "on"})})
+    nav = NavFilter(cfg)
     decoder = Decoder()
     col = Collector()
     fixes: list[GnssFix] = []
@@ -133,7 +148,7 @@ def run_one(plan: str, seed: int, duration_s: float) -> dict[str, Any]:
         np.array(col.fix_times_us, dtype=float) * 1e-6, end_s=end_s)
     info = RunInfo(scenario=plan, seed=seed, sim_duration_s=report.sim_duration_s,
                    wall_s=report.wall_s, bridge="none", altitude="ekf")
-    summary, _err = build_summary(info, estimate, truth, outages, settle_s=SETTLE_S,
+    summary, err = build_summary(info, estimate, truth, outages, settle_s=SETTLE_S,
                                   health={"filter": dataclasses.asdict(nav.health),
                                           "decoder": decoder.counters.as_dict()})
 
@@ -152,6 +167,13 @@ def run_one(plan: str, seed: int, duration_s: float) -> dict[str, Any]:
     raw_v = metrics.rms(gnss_err.pos_ned_m[gnss_on, 2])
 
     on = summary["gnss_on"]
+    # rms(error / sigma) per axis over the GNSS-on mask (the summary has it per group)
+    on_mask = metrics.gnss_on_mask(err.time_s, outages, settle_s=SETTLE_S)
+    rms_z_axis: list[float | None] = [None] * 9
+    if err.sigma is not None and on_mask.any():
+        e9 = np.column_stack([err.pos_ned_m, err.vel_ned_mps, err.att_rad])[on_mask]
+        z9 = e9 / np.maximum(err.sigma[on_mask], 1e-12)
+        rms_z_axis = [float(v) for v in np.sqrt(np.mean(z9 * z9, axis=0))]
     row: dict[str, Any] = {
         "plan": plan,
         "seed": seed,
@@ -168,6 +190,11 @@ def run_one(plan: str, seed: int, duration_s: float) -> dict[str, Any]:
         "raw_gnss_vertical_rmse_m": raw_v,
         "filter_over_raw": on["horizontal_rmse_m"] / raw_h if raw_h > 0 else float("nan"),
         "nees_mean": summary["nees"].get("nees_mean", float("nan")),
+        "rms_z_pos": summary["nees"].get("rms_z_pos", float("nan")),
+        "rms_z_vel": summary["nees"].get("rms_z_vel", float("nan")),
+        "rms_z_att": summary["nees"].get("rms_z_att", float("nan")),
+        "rms_z_axis": rms_z_axis,
+        "filter_layout": nav.layout.name,
         "n_outages_found": len(summary["outages"]),
         "gnss_rejected": nav.health.gnss_rejected,
         "gnss_resets": nav.health.gnss_resets,
@@ -192,11 +219,11 @@ def run_one(plan: str, seed: int, duration_s: float) -> dict[str, Any]:
     return row
 
 
-def _run_star(args: tuple[str, int, float]) -> dict[str, Any]:
-    plan, seed, duration = args
+def _run_star(args: tuple[str, int, float, str]) -> dict[str, Any]:
+    plan, seed, duration, gnss_bias = args
     t0 = time.perf_counter()
     try:
-        row = run_one(plan, seed, duration)
+        row = run_one(plan, seed, duration, gnss_bias)
     except Exception as exc:  # a failed run is reported, not allowed to sink the others
         row = {"plan": plan, "seed": seed, "error": f"{type(exc).__name__}: {exc}"}
     row["run_wall_s"] = time.perf_counter() - t0
@@ -209,6 +236,7 @@ def _run_star(args: tuple[str, int, float]) -> dict[str, Any]:
 AGG_KEYS = (
     "horizontal_rmse_m", "vertical_rmse_m", "roll_rmse_deg", "pitch_rmse_deg", "yaw_rmse_deg",
     "raw_gnss_horizontal_rmse_m", "filter_over_raw", "nees_mean",
+    "rms_z_pos", "rms_z_vel", "rms_z_att",
     "outage30_h_err_at_end_m", "outage30_h_max_m", "outage30_h_rmse_m",
     "outage60_h_err_at_end_m", "outage60_h_max_m", "outage60_h_rmse_m",
 )
@@ -269,6 +297,7 @@ def _table(result: dict[str, Any]) -> str:
         ("ratio", "filter_over_raw", ".2f"), ("vert m", "vertical_rmse_m", ".2f"),
         ("roll°", "roll_rmse_deg", ".3f"), ("pitch°", "pitch_rmse_deg", ".3f"),
         ("yaw°", "yaw_rmse_deg", ".3f"), ("NEES", "nees_mean", ".1f"),
+        ("z pos", "rms_z_pos", ".2f"), ("z vel", "rms_z_vel", ".2f"), ("z att", "rms_z_att", ".2f"),
         ("30s@30 m", "outage30_h_err_at_end_m", ".1f"),
         ("60s@60 m", "outage60_h_err_at_end_m", ".1f"),
         ("60s max m", "outage60_h_max_m", ".1f"),
@@ -298,6 +327,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes")
     ap.add_argument("--out", type=Path, default=Path("bench/results/fusion_accuracy.json"))
+    ap.add_argument("--gnss-bias", choices=("default", "on", "off"), default="default",
+                    help="the filter's GNSS position-bias states (default: as configured)")
     args = ap.parse_args(argv)
     if args.seeds < 1 or args.jobs < 1:
         ap.error("--seeds and --jobs must be >= 1")
@@ -309,7 +340,7 @@ def main(argv: list[str] | None = None) -> int:
                  f"{last_end:g} s, then {SETTLE_S:g} s of GNSS)")
     plans = [p.strip() for p in args.plans.split(",") if p.strip()]
     seeds = list(range(args.seed_base, args.seed_base + args.seeds))
-    tasks = [(p, s, args.duration) for p in plans for s in seeds]
+    tasks = [(p, s, args.duration, args.gnss_bias) for p in plans for s in seeds]
 
     load0 = os.getloadavg()
     t0 = time.perf_counter()
@@ -343,7 +374,9 @@ def main(argv: list[str] | None = None) -> int:
             "free-inertial (bridge none); outage windows from fix-time gaps (last fix before "
             "to first fix after); *_h_err_at_end_m is the horizontal error 30 s into the 30 s "
             "outage / 60 s into the 60 s outage"),
-        "filter_tuning": "hil.tuning.filter_config_for_imu(IMU) (datasheet, not truth)",
+        "filter_tuning": "hil.tuning.filter_config_for_presets(IMU, GNSS) (datasheet, not truth)",
+        "gnss_bias": args.gnss_bias,
+        "filter_layouts": sorted({r["filter_layout"] for r in rows if "filter_layout" in r}),
         "targets": {k: {"metric": m, "limit": lim} for k, (m, lim) in TARGETS.items()},
         "machine": {
             "python": platform.python_version(), "numpy": np.__version__,

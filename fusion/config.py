@@ -9,7 +9,7 @@ MEMS barometer.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import (
     BaseModel,
@@ -19,6 +19,7 @@ from pydantic import (
     PositiveFloat,
     PositiveInt,
     field_validator,
+    model_validator,
 )
 
 from fusion.altitude import AltitudeChannelConfig
@@ -98,6 +99,26 @@ class GnssConfig(_Frozen):
     """Good-quality fixes rejected by the gate for this long: reset position and velocity."""
     max_delay_s: PositiveFloat = 0.5
     """Fixes whose time of validity is older than this (w.r.t. the INS) are dropped, s."""
+    bias_states: bool = False
+    """Estimate the receiver's time-correlated position error (atmosphere, orbits, multipath)
+    as three Gauss-Markov states (North, East, Down; the layout becomes ``ins16+gnss`` /
+    ``ins22+gnss``). The position update then uses only the white part of the reported
+    accuracy, ``sqrt(eph^2 - bias_sigma_h_m^2)`` (floored by ``pos_noise_floor_m``). Off: each
+    fix is fused as white noise with sigma ``eph`` / ``epv``, which makes the filter
+    overconfident when the receiver error is correlated over minutes (NEES ~200-300 instead of
+    9 on the ``modern`` receiver). Off by default because the split of ``eph`` into correlated
+    and white parts is a property of the receiver that this model cannot guess: with the
+    states on, a receiver whose error is really white at ``eph`` is fused with too small an
+    ``R`` and gated out. :func:`hil.tuning.filter_gnss_config` turns it on from a receiver
+    description."""
+    bias_sigma_h_m: PositiveFloat = 1.4
+    """Steady-state sigma of the correlated position error per horizontal axis, m."""
+    bias_sigma_v_m: PositiveFloat = 2.4
+    """Steady-state sigma of the correlated position error, Down, m."""
+    bias_tau_h_s: PositiveFloat = 120.0
+    """Correlation time of the horizontal position bias, s."""
+    bias_tau_v_s: PositiveFloat = 120.0
+    """Correlation time of the vertical position bias, s."""
 
 
 class BaroConfig(_Frozen):
@@ -227,14 +248,24 @@ class BridgeConfig(_Frozen):
     warmup_s: NonNegativeFloat = 90.0
     """Virtual outages started within this time of the first fix are not learned from (the
     filter is still converging: their drift says nothing about later outages), s."""
-    validation_fraction: float = Field(default=0.25, gt=0.0, lt=1.0)
-    """Share of the window held out to judge each fit: the most recent virtual outages that
-    reached ``min_horizon_s`` (the most recent pairs with ``training="fix"``), i.e. the model
-    fitted on the older data must predict the newer. A component whose validation RMSE is not
-    below ``validation_margin`` times that of a zero correction falls back to ``none``;
-    otherwise it is refitted on the whole window for use."""
-    validation_margin: float = Field(default=1.0, gt=0.0, le=1.0)
-    """See ``validation_fraction`` (1: merely better than no correction)."""
+    gate_horizon_s: PositiveFloat = 60.0
+    """The fallback gate (:class:`fusion.bridging.LearnedBridge`): every virtual outage is
+    replayed, once it is over, through the models that were in use when it *started* (so it
+    is data they never saw), and scored over its first ``gate_horizon_s``: the mean squared
+    error left after the correction against the mean squared error of no correction, s."""
+    gate_outages: PositiveInt = 6
+    """The gate judges each component on its last this-many scored outages (virtual ones,
+    and the end of each real outage: the first fix after it measures what the correction
+    did)."""
+    gate_min_outages: PositiveInt = 3
+    """Fewer scored outages: the component stays off (behaves as ``none``)."""
+    gate_margin: float = Field(default=0.8, gt=0.0, le=1.0)
+    """A component is on only while its RMS error with the correction is at most this times
+    the RMS error without it over the judged outages, both summed and per outage (geometric
+    mean of the ratios)..."""
+    gate_min_wins: float = Field(default=0.75, gt=0.0, le=1.0)
+    """... *and* the correction made the error smaller in at least this share of them,
+    including the most recent one (it turns off as soon as it stops winning)."""
     stale_after_s: PositiveFloat = 120.0
     """No completed refit for this long: status ``stale`` (the models are still used), s."""
     pseudo_min_sigma_pos_m: PositiveFloat = 1.0
@@ -249,13 +280,17 @@ class BridgeConfig(_Frozen):
     """P0's RBF comparator: 15 Gaussian neurons."""
     mlp_hidden: PositiveInt = 35
     """P1's NARX MLP: 35 hidden neurons."""
-    mlp_max_nfev: PositiveInt = 20
-    """Levenberg-Marquardt evaluations per MLP fit (bounds the fit time)."""
-    mlp_max_samples: PositiveInt = 300
+    mlp_max_nfev: PositiveInt = 3
+    """Levenberg-Marquardt function evaluations per MLP refit (about one LM step; bounds the
+    refit time). Each refit continues from the previous weights (warm start), so training
+    proceeds across refits."""
+    mlp_max_samples: PositiveInt = 200
     """The MLP's own sample budget (LM is O(samples x weights^2))."""
     bp_hidden: PositiveInt = 6
     """P2's small sigmoid networks: hidden neurons."""
-    bp_epochs: PositiveInt = 300
+    bp_epochs: PositiveInt = 100
+    """Back-propagation epochs per refit; each refit continues from the previous weights
+    (warm start)."""
 
     @field_validator("features")
     @classmethod
@@ -289,16 +324,41 @@ class AltitudeConfig(_Frozen):
     """
 
     method: AltitudeMethodName = "ekf"
+    preset: Literal["tuned", "p4"] = "tuned"
+    """Where the channel's settings come from when ``channel`` is not given: ``tuned`` (the
+    defaults of :class:`~fusion.altitude.AltitudeChannelConfig`: loop with a triple pole at
+    3 s, baro-calibration random walk 0.005 m/√s, MPC pole 0.6, KF with a near-constant baro
+    bias, all chosen on the tuning seeds of ``bench/altitude_jsbsim.py``) or ``p4`` (paper P4's
+    channel, :meth:`~fusion.altitude.AltitudeChannelConfig.p4`: gains K1 = 3.00, K2 = 0.6452,
+    K3 = 0.8710, the untuned MPC, P4's KF with a 600 s Gauss–Markov bias, and P4's baro set-up:
+    scale from the sensed temperature, bias not learned from GNSS). Giving both ``channel``
+    and ``preset="p4"`` is an error."""
     channel: AltitudeChannelConfig = AltitudeChannelConfig()
+    """The channel's settings for the loop methods. Its own ``method`` field is ignored
+    (replaced by :attr:`method`); its ``monitor`` (range, freeze) also screens the baro samples
+    of the ``ekf`` method. A QNH setting goes in ``channel.baro.qnh_pa`` (Pa): the calibration
+    then starts from it instead of the standard atmosphere."""
     ekf_repeat_hold_s: PositiveFloat = 0.25
     """A baro reading identical to the previous ones for longer than this is not fused into the
     EKF (any method): it is a frozen sensor's signature, and the EKF cannot undo what it fused
     in the ``freeze_time_s`` the monitor needs to declare the sensor frozen. A live sensor whose
     noise exceeds its resolution (MS5611: 1.2 Pa noise, 1 Pa steps) never repeats that long;
     raise it for a coarse sensor in still air, s."""
-    """The channel's settings for the loop methods. Its own ``method`` field is ignored
-    (replaced by :attr:`method`); its ``monitor`` (range, freeze) also screens the baro samples
-    of the ``ekf`` method."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _apply_preset(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("preset") == "p4":
+            if data.get("channel") is not None:
+                raise ValueError("preset: give either preset='p4' or channel, not both")
+            method = data.get("method", "ekf")
+            data = {
+                **data,
+                "channel": AltitudeChannelConfig.p4(
+                    method if method in ("loop", "loop-mpc", "loop-kf") else "loop-mpc"
+                ),
+            }
+        return data
 
 
 class FilterConfig(_Frozen):

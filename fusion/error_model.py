@@ -9,10 +9,14 @@ Error definitions (every error is *estimated minus true*):
   that takes the true attitude to the estimate), rad;
 - ``dba`` (BA), ``dbg`` (BG): accelerometer / gyro bias errors in the body frame, m/s^2, rad/s;
 - ``dbb`` (BARO): barometric height bias error, m (see :mod:`fusion.aiding.baro`);
-- optional ``dsa`` (SA) / ``dsg`` (SG): accelerometer / gyro scale-factor errors (dimensionless).
+- optional ``dsa`` (SA) / ``dsg`` (SG): accelerometer / gyro scale-factor errors (dimensionless);
+- optional ``db_gnss`` (GNSS): error of the estimated time-correlated GNSS position error
+  (receiver "bias": atmosphere, orbit, multipath), North / East / Down, m; it does not enter the
+  INS dynamics, only the GNSS position measurement (see :mod:`fusion.aiding.gnss`).
 
 Sensor model: ``f~ = (1 + s_a) f + b_a + w_a``, ``omega~ = (1 + s_g) omega + b_g + w_g``; biases,
-scale factors and the baro bias are first-order Gauss-Markov, ``b' = -b / tau + w``.
+scale factors, the baro bias and the GNSS position bias are first-order Gauss-Markov,
+``b' = -b / tau + w``.
 
 Continuous error dynamics ``dx' = F dx + G w`` (Titterton & Weston ch. 12, Groves ch. 14.2,
 same structure as KF-GINS ``gi_engine.cpp`` with our sign of ``phi``)::
@@ -21,7 +25,7 @@ same structure as KF-GINS ``gi_engine.cpp`` with our sign of ``phi``)::
     dv'   = F_vr dr + F_vv dv - [f_n×] phi - C_nb dba - C_nb diag(f_b) dsa + C_nb w_a
     phi'  = -(N_ie + N_en) dr - N_env dv - [omega_in_n×] phi - C_nb dbg - C_nb diag(omega_b) dsg
             + C_nb w_g
-    dba'  = -dba / tau_a + w_ba       (likewise dbg, dbb, dsa, dsg)
+    dba'  = -dba / tau_a + w_ba       (likewise dbg, dbb, dsa, dsg, db_gnss)
 
 with ``N_ie``, ``N_en`` the derivatives of ``omega_ie_n``, ``omega_en_n`` w.r.t. position error
 and ``N_env`` that of ``omega_en_n`` w.r.t. velocity error; ``F_vr = [v×](2 N_ie + N_en) + dg``,
@@ -52,7 +56,9 @@ class StateLayout:
     """Named offsets of the error-state blocks (the only place that knows them).
 
     Use the slices (``layout.pos``, ``layout.att`` ...) instead of bare numbers; ``None`` means
-    the block is not in this layout. Two layouts exist: :data:`INS16` and :data:`INS22`.
+    the block is not in this layout. Four layouts exist: :data:`INS16`, :data:`INS22` and the
+    same two with the GNSS position-bias block appended (``ins16+gnss``, ``ins22+gnss``,
+    :func:`layout_for`); the name always says which blocks are present.
     """
 
     name: str
@@ -66,6 +72,7 @@ class StateLayout:
     sa: slice | None
     sg: slice | None
     labels: tuple[str, ...]
+    gnss: slice | None = None
 
     @property
     def POS(self) -> int:
@@ -97,6 +104,13 @@ class StateLayout:
         """Offset of the baro-bias state."""
         return int(self.baro.start)
 
+    @property
+    def GNSS(self) -> int:
+        """Offset of the GNSS position-bias block (ValueError if the layout has none)."""
+        if self.gnss is None:
+            raise ValueError(f"layout {self.name!r} has no GNSS position-bias states")
+        return int(self.gnss.start)
+
 
 _LABELS16 = (
     "pos_n_m", "pos_e_m", "pos_d_m",
@@ -127,7 +141,37 @@ INS22 = StateLayout(
     ),
 )  # fmt: skip
 
-LAYOUTS = {INS16.name: INS16, INS22.name: INS22}
+_GNSS_LABELS = ("gnss_bias_n_m", "gnss_bias_e_m", "gnss_bias_d_m")
+
+
+def _with_gnss_bias(base: StateLayout) -> StateLayout:
+    n = base.n
+    return StateLayout(
+        name=f"{base.name}+gnss", n=n + 3, pos=base.pos, vel=base.vel, att=base.att, ba=base.ba,
+        bg=base.bg, baro=base.baro, sa=base.sa, sg=base.sg,
+        labels=(*base.labels, *_GNSS_LABELS), gnss=slice(n, n + 3),
+    )  # fmt: skip
+
+
+#: :data:`INS16` plus the GNSS position bias (19 states).
+INS16_GNSS = _with_gnss_bias(INS16)
+#: :data:`INS22` plus the GNSS position bias (25 states).
+INS22_GNSS = _with_gnss_bias(INS22)
+
+LAYOUTS = {lay.name: lay for lay in (INS16, INS22, INS16_GNSS, INS22_GNSS)}
+
+
+def layout_for(name: str, gnss_bias: bool = False) -> StateLayout:
+    """The layout ``name`` (``"ins16"`` / ``"ins22"``), with the GNSS bias block if asked.
+
+    Raises
+    ------
+    ValueError
+        Unknown ``name``.
+    """
+    if name not in ("ins16", "ins22"):
+        raise ValueError(f"unknown state layout {name!r}; valid: ins16, ins22")
+    return LAYOUTS[f"{name}+gnss" if gnss_bias else name]
 
 
 @dataclass(frozen=True)
@@ -151,6 +195,11 @@ class ProcessNoise:
     gyro_scale_tau_s: float = 3600.0
     accel_scale_sigma: float = 0.0
     accel_scale_tau_s: float = 3600.0
+    gnss_bias_sigma_h_m: float = 0.0
+    """GNSS position bias per horizontal axis, m (only layouts with the GNSS block)."""
+    gnss_bias_sigma_v_m: float = 0.0
+    gnss_bias_tau_h_s: float = 120.0
+    gnss_bias_tau_v_s: float = 120.0
 
 
 class ErrorModel:
@@ -193,6 +242,10 @@ class ErrorModel:
             out += [(int(lay.sa.start) + i, nz.accel_scale_tau_s) for i in range(3)]
         if lay.sg is not None:
             out += [(int(lay.sg.start) + i, nz.gyro_scale_tau_s) for i in range(3)]
+        if lay.gnss is not None:
+            g = lay.GNSS
+            out += [(g, nz.gnss_bias_tau_h_s), (g + 1, nz.gnss_bias_tau_h_s),
+                    (g + 2, nz.gnss_bias_tau_v_s)]  # fmt: skip
         return out
 
     def _variable_indices(self) -> NDArray[np.intp]:
@@ -443,6 +496,10 @@ class ErrorModel:
             q[lay.sa] = gm(nz.accel_scale_sigma, nz.accel_scale_tau_s)
         if lay.sg is not None:
             q[lay.sg] = gm(nz.gyro_scale_sigma, nz.gyro_scale_tau_s)
+        if lay.gnss is not None:
+            g = lay.GNSS
+            q[g] = q[g + 1] = gm(nz.gnss_bias_sigma_h_m, nz.gnss_bias_tau_h_s)
+            q[g + 2] = gm(nz.gnss_bias_sigma_v_m, nz.gnss_bias_tau_v_s)
         qd = np.diag(q)
         if len(self._q_cache) < 64:
             self._q_cache[dt_s] = qd

@@ -57,7 +57,7 @@ from fusion.bridge import (
     ShadowBank,
 )
 from fusion.config import ALTITUDE_METHODS, FilterConfig
-from fusion.error_model import LAYOUTS, ErrorModel, ProcessNoise, StateLayout
+from fusion.error_model import ErrorModel, ProcessNoise, StateLayout, layout_for
 from fusion.history import InsHistory, span_capacity
 from fusion.rotations import quat_to_dcm
 from fusion.samples import BaroSample, GnssFix, ImuSample, MagSample
@@ -65,6 +65,10 @@ from fusion.strapdown import InsState, dcm_from_quat, rotvec_quat
 
 FloatArray = NDArray[np.float64]
 _ZERO3 = (0.0, 0.0, 0.0)
+_TWO_RATE = 2.0 * earth.RATE
+_dot = np.dot
+_isfinite = math.isfinite
+_ins_update = strapdown.update
 
 MODE_INITIALIZING = "initializing"
 MODE_GNSS = "gnss"
@@ -271,7 +275,7 @@ class NavEstimate:
     time_since_gnss_s : float
         Seconds since the last fused fix (``inf`` if none yet).
     state_layout : str
-        ``"ins16"`` or ``"ins22"``.
+        ``"ins16"`` or ``"ins22"``, with ``"+gnss"`` when the GNSS bias states are on.
     altitude : AltitudeStatus or None
         The altitude method's state. With a loop method, ``alt_msl_m`` and ``v_ned_mps[2]`` are
         the altitude channel's (``P_diag`` and ``baro_bias_m`` stay the EKF's).
@@ -299,6 +303,19 @@ class NavEstimate:
     state_layout: str
     altitude: AltitudeStatus | None = None
     bridge: BridgeStatus | None = None
+
+
+_ESTIMATE_SETTERS = tuple(getattr(NavEstimate, f.name).__set__ for f in fields(NavEstimate))
+
+
+def _new_estimate(*values: Any) -> NavEstimate:
+    """``NavEstimate(*values)`` (every field, positionally) through the slot setters: the
+    generated frozen ``__init__`` goes through ``object.__setattr__`` per field and costs about
+    twice as much at the output rate. No validation, as with ``__init__``."""
+    est = object.__new__(NavEstimate)
+    for setter, value in zip(_ESTIMATE_SETTERS, values):  # noqa: B905  # 18 values, one caller
+        setter(est, value)
+    return est
 
 
 def _vec3(a: Any) -> tuple[float, float, float]:
@@ -341,7 +358,7 @@ class NavFilter:
             None if method == "ekf" else cfg.altitude.channel.model_copy(update={"method": method})
         )
         self._omega_s2 = cfg.altitude.channel.omega_s2
-        self.layout: StateLayout = LAYOUTS[cfg.state_layout]
+        self.layout: StateLayout = layout_for(cfg.state_layout, cfg.gnss.bias_states)
         imu = cfg.imu
         self._noise = ProcessNoise(
             gyro_noise=imu.gyro_noise_density_rps_rthz,
@@ -356,6 +373,10 @@ class NavFilter:
             gyro_scale_tau_s=imu.gyro_scale_tau_s,
             accel_scale_sigma=imu.accel_scale_sigma,
             accel_scale_tau_s=imu.accel_scale_tau_s,
+            gnss_bias_sigma_h_m=cfg.gnss.bias_sigma_h_m,
+            gnss_bias_sigma_v_m=cfg.gnss.bias_sigma_v_m,
+            gnss_bias_tau_h_s=cfg.gnss.bias_tau_h_s,
+            gnss_bias_tau_v_s=cfg.gnss.bias_tau_v_s,
         )
         self._model = ErrorModel(self.layout, self._noise)
         self._scale = self.layout.sa is not None
@@ -377,6 +398,11 @@ class NavFilter:
         self._tau_b = cfg.baro.bias_tau_s
         self._tau_sa, self._tau_sg = imu.accel_scale_tau_s, imu.gyro_scale_tau_s
         self._handlers: dict[type, Callable[[Any], list[NavEstimate]]] = {}
+        # output-rate caches of immutable estimate parts, keyed by their content (so valid
+        # across reset()): _make_estimate, _altitude_status
+        self._est_ratios_key: list[float] = []
+        self._est_ratios = TestRatios()
+        self._alt_status_idle: dict[bool, AltitudeStatus] = {}
         self.reset()
 
     # ------------------------------------------------------------------ public API
@@ -397,6 +423,10 @@ class NavFilter:
         self._sa = [0.0, 0.0, 0.0]
         self._sg = [0.0, 0.0, 0.0]
         self._bb = 0.0
+        # GNSS position-bias estimate (NED, m) and the time it refers to: it is decayed with
+        # its Gauss-Markov time constant only when used (_gnss_bias), not on the IMU path
+        self._gb = [0.0, 0.0, 0.0]
+        self._gb_us = 0
         self._P = np.zeros((n, n))
         self._acc_dt = 0.0
         self._acc_v0: tuple[float, float, float] = _ZERO3
@@ -495,6 +525,15 @@ class NavFilter:
     def ins_state(self) -> InsState | None:
         """The INS state (IMU position, velocity, attitude) at the current time."""
         return self._ins
+
+    @property
+    def gnss_bias_ned_m(self) -> tuple[float, float, float] | None:
+        """Estimated time-correlated GNSS position error (NED, m) at the current time;
+        ``None`` without the GNSS bias states (``GnssConfig.bias_states``)."""
+        if self.layout.gnss is None:
+            return None
+        b = self._gnss_bias()
+        return (b[0], b[1], b[2])
 
     @property
     def altitude_channel(self) -> AltitudeChannel | None:
@@ -673,7 +712,8 @@ class NavFilter:
                         self._alt.update_imu(-2.0 * self._omega_s2 * self._ins.alt_msl_m, dt)
                 return self._outputs(t) if self._ins is not None else []
 
-        if self._ins is None:
+        ins0 = self._ins
+        if ins0 is None:
             if good:
                 self._aligner.add_imu(t, dt, (fx, fy, fz), (wx, wy, wz))
                 self._try_align()
@@ -702,8 +742,7 @@ class NavFilter:
         else:
             dth = ((wx - bg[0]) * dt, (wy - bg[1]) * dt, (wz - bg[2]) * dt)
             dv = ((fx - ba[0]) * dt, (fy - ba[1]) * dt, (fz - ba[2]) * dt)
-        vd0 = self._ins.v_ned_mps[2]
-        ins = strapdown.update(self._ins, dth, dv, self._prev_dth, self._prev_dv, dt)
+        ins = _ins_update(ins0, dth, dv, self._prev_dth, self._prev_dv, dt)
         self._ins = ins
         self._prev_dth = dth
         self._prev_dv = dv
@@ -711,8 +750,9 @@ class NavFilter:
         self._t_us = t
         if self._shadows is not None:  # virtual outages (fusion.bridge.ShadowBank)
             self._shadows.step(t, ins, dth, dv, dt, ba, bg)
-        self._acc_dt += dt
-        if self._acc_dt >= self._cov_period_s - 1e-9:
+        acc_dt = self._acc_dt + dt
+        self._acc_dt = acc_dt
+        if acc_dt >= self._cov_period_s - 1e-9:
             self._propagate()
         self._history.push(t, ins)
         if self._alt_cfg is not None:
@@ -722,6 +762,7 @@ class NavFilter:
             # and adds 2 ws^2 h of its *own* height back (P4 eq. 5), hence the shift by the
             # INS height's free-air term.
             ch = self._alt or self._new_altitude_channel(t - round(dt * 1e6))
+            vd0 = ins0.v_ned_mps[2]
             ch.update_imu((vd0 - ins.v_ned_mps[2]) / dt - 2.0 * self._omega_s2 * ins.alt_msl_m, dt)
         if self._pending and self._pending[0].time_us <= t:
             self._drain_pending()
@@ -768,6 +809,9 @@ class NavFilter:
         d[lay.ba] = cfg.imu.accel_turn_on_sigma_mps2**2 + cfg.imu.accel_bias_sigma_mps2**2
         d[lay.bg] = cfg.imu.gyro_turn_on_sigma_rps**2 + cfg.imu.gyro_bias_sigma_rps**2
         d[lay.baro] = cfg.baro.bias_sigma_m**2
+        if lay.gnss is not None:
+            g = cfg.gnss
+            d[lay.gnss] = [g.bias_sigma_h_m**2] * 2 + [g.bias_sigma_v_m**2]
         if lay.sa is not None and lay.sg is not None:
             d[lay.sa] = cfg.imu.accel_scale_sigma**2
             d[lay.sg] = cfg.imu.gyro_scale_sigma**2
@@ -779,7 +823,15 @@ class NavFilter:
         d[lay.pos] = np.square(res.sigma_pos_ned_m)
         d[lay.vel] = res.sigma_vel_mps**2
         d[lay.att] = np.square(res.sigma_att_ned_rad)
-        self._start(res.time_us, res.state, np.diag(d))
+        cov = np.diag(d)
+        if lay.gnss is not None:
+            # the aligned position is a fix: its error is the receiver's bias plus white noise,
+            # i.e. dr = -db + w (db = b^ - b with b^ = 0), correlation -sigma_b^2 per axis
+            for i in range(3):
+                pi, gi = lay.POS + i, lay.GNSS + i
+                c = min(cov[gi, gi], 0.9 * cov[pi, pi])
+                cov[pi, gi] = cov[gi, pi] = -c
+        self._start(res.time_us, res.state, cov)
         self.alignment_method = res.method
 
     def _start(self, time_us: int, state: InsState, cov: FloatArray) -> None:
@@ -796,6 +848,7 @@ class NavFilter:
         self._history.clear()
         self._history.push(time_us, state)
         self._gnss_ctl.start(time_us)
+        self._gb, self._gb_us = [0.0, 0.0, 0.0], time_us
         self._next_out_us = time_us
         self._in_outage = False
         self._alt = None  # a (re)start also restarts the altitude channel
@@ -859,22 +912,24 @@ class NavFilter:
         T = self._acc_dt
         ins = self._ins
         assert ins is not None
-        lat, h = ins.lat_rad, ins.alt_msl_m
-        vn, ve, vd = ins.v_ned_mps
-        v0 = self._acc_v0
+        lat, _, h, v, q = ins
+        vn, ve, vd = v
+        v0n, v0e, v0d = self._acc_v0
         lt = earth.local_terms(lat, h)
-        tan = lt.sin_lat / lt.cos_lat
-        cx = 2.0 * earth.RATE * lt.cos_lat + ve / lt.rho_e_m
-        cy = -vn / lt.rho_n_m
-        cz = -2.0 * earth.RATE * lt.sin_lat - ve * tan / lt.rho_e_m
+        rho_n, rho_e, g, s_lat, c_lat = lt
+        # c = 2 omega_ie + omega_en
+        wen_n = ve / rho_e
+        cx = _TWO_RATE * c_lat + wen_n
+        cy = -vn / rho_n
+        cz = -_TWO_RATE * s_lat - wen_n * s_lat / c_lat
         # mean specific force in NED: v' = f + g - (2 w_ie + w_en) × v
         f_n = (
-            (vn - v0[0]) / T + (cy * vd - cz * ve),
-            (ve - v0[1]) / T + (cz * vn - cx * vd),
-            (vd - v0[2]) / T - lt.gravity_mps2 + (cx * ve - cy * vn),
+            (vn - v0n) / T + (cy * vd - cz * ve),
+            (ve - v0e) / T + (cz * vn - cx * vd),
+            (vd - v0d) / T - g + (cx * ve - cy * vn),
         )
         self._f_n = f_n
-        c_nb = dcm_from_quat(ins.q_nb)
+        c_nb = dcm_from_quat(q)
         if self._scale:
             af, aw = self._acc_f, self._acc_w
             f_b = (af[0] / T, af[1] / T, af[2] / T)
@@ -883,12 +938,12 @@ class NavFilter:
             self._acc_w = [0.0, 0.0, 0.0]
         else:
             f_b = w_b = _ZERO3
-        Phi = self._model.first_order_transition(
-            lat, h, ins.v_ned_mps, c_nb, f_n, T, f_b, w_b, terms=lt
-        )
+        model = self._model
+        Phi = model.first_order_transition(lat, h, v, c_nb, f_n, T, f_b, w_b, terms=lt)
         # P = Phi P Phi^T + Q  (Q diagonal: white sensor noise and Gauss-Markov driving noise)
-        P = Phi @ self._P @ Phi.T
-        P += self._model.process_noise(T)
+        # (np.dot: the same GEMMs as @, with less dispatch overhead on these small matrices)
+        P = _dot(_dot(Phi, self._P), Phi.T)
+        P += model.process_noise(T)
         self._P = P
         # The IMU bias and scale-factor *estimates* are held, not decayed with the Gauss-Markov
         # time constant: a real sensor's bias is a turn-on constant plus a zero-mean in-run
@@ -943,6 +998,9 @@ class NavFilter:
         self._ba = [ba[0] - d[b], ba[1] - d[b + 1], ba[2] - d[b + 2]]
         self._bg = [bg[0] - d[g], bg[1] - d[g + 1], bg[2] - d[g + 2]]
         self._bb -= d[lay.BARO]
+        if lay.gnss is not None:
+            gb, g = self._gnss_bias(), lay.GNSS
+            self._gb = [gb[0] - d[g], gb[1] - d[g + 1], gb[2] - d[g + 2]]
         if lay.sa is not None and lay.sg is not None:
             b = int(lay.sa.start)
             self._sa = [self._sa[i] - d[b + i] for i in range(3)]
@@ -962,6 +1020,44 @@ class NavFilter:
         P[:, block] = 0.0
         P[block, block] = np.diag(variances)
         self._P = P
+
+    def _reset_position(self, z: FloatArray, variances: FloatArray) -> None:
+        """Position reset to the fix (``z`` its position innovation, ``variances`` the white
+        part). With the GNSS bias states the bias also goes back to its prior (estimate 0,
+        sigma_b): the INS position becomes the fix itself, whose error is bias plus white noise,
+        ``dr = -db + w``, hence the covariance ``[[sb^2 + r, -sb^2], [-sb^2, sb^2]]``."""
+        lay = self.layout
+        if lay.gnss is None:
+            self._reset_block(lay.pos, z, variances)
+            return
+        self._flush()
+        gb = np.array(self._gnss_bias())
+        dx = np.zeros(lay.n)
+        dx[lay.pos] = z - gb  # z holds + b^: the INS moves onto the fix, not onto fix - b^
+        dx[lay.gnss] = gb  # b^ <- b^ - dx = 0
+        self._feedback(dx)
+        g = self.config.gnss
+        sb2 = np.array([g.bias_sigma_h_m**2] * 2 + [g.bias_sigma_v_m**2])
+        P = self._P.copy()
+        for blk in (lay.pos, lay.gnss):
+            P[blk, :] = 0.0
+            P[:, blk] = 0.0
+        P[lay.pos, lay.pos] = np.diag(variances + sb2)
+        P[lay.gnss, lay.gnss] = np.diag(sb2)
+        P[lay.pos, lay.gnss] = P[lay.gnss, lay.pos] = -np.diag(sb2)
+        self._P = P
+
+    def _gnss_bias(self) -> list[float]:
+        """The GNSS position-bias estimate (NED, m) decayed to the current time: between fixes
+        (and through outages) it relaxes to zero as its Gauss-Markov mean does."""
+        dt = (self._t_us - self._gb_us) * 1e-6
+        if dt > 0.0:
+            g = self.config.gnss
+            kh, kv = math.exp(-dt / g.bias_tau_h_s), math.exp(-dt / g.bias_tau_v_s)
+            b = self._gb
+            self._gb = [b[0] * kh, b[1] * kh, b[2] * kv]
+            self._gb_us = self._t_us
+        return self._gb
 
     # ------------------------------------------------------------------ GNSS
     def _on_gnss(self, fix: GnssFix) -> list[NavEstimate]:
@@ -1021,9 +1117,12 @@ class NavFilter:
         sig_h, sig_v, sig_vel = gnss_aid.fix_sigmas(fix, cfg)
         delay = (now - t) * 1e-6
         lat, lon, alt = float(fix.lat_rad), float(fix.lon_rad), float(fix.alt_msl_m)
+        bias = None if lay.gnss is None else self._gnss_bias()
+        w_h, w_v = gnss_aid.white_position_sigmas(sig_h, sig_v, cfg)
         obs = gnss_aid.position_model(
-            lay, past, lat, lon, alt, sig_h, sig_v, cfg.lever_arm_b_m, delay
-        )
+            lay, past, lat, lon, alt, w_h, w_v, cfg.lever_arm_b_m, delay,
+            None if bias is None else (bias[0], bias[1], bias[2]),
+        )  # fmt: skip
         if obs is None:
             c.gnss_invalid += 1
             return
@@ -1031,9 +1130,10 @@ class NavFilter:
         res = self._correct(obs, self._gate3)
         pos_ok = res.test_ratio <= 1.0
         self._ratios[0] = res.test_ratio
-        z_pos = obs.z
+        # the bridge learns the INS minus the fix as received (without the bias estimate)
+        z_pos = obs.z if bias is None else obs.z - np.array(bias)
         if not pos_ok and ctl.on_result("pos", t, False):
-            self._reset_block(lay.pos, obs.z, np.diag(obs.R))
+            self._reset_position(obs.z, np.diag(obs.R))
             ctl.on_reset("pos", t)
             c.gnss_resets += 1
         elif pos_ok:
@@ -1235,8 +1335,14 @@ class NavFilter:
     def _altitude_status(self) -> AltitudeStatus:
         ch = self._alt
         if ch is None:
-            method = self.config.altitude.method
-            return AltitudeStatus(method, baro_frozen=self._baro_mon.health.frozen)
+            # no channel: the status has one variable field, so it is built once per value
+            # (AltitudeStatus is immutable; its __init__ with 17 fields costs ~3 us)
+            frozen = self._baro_mon.health.frozen
+            cached = self._alt_status_idle.get(frozen)
+            if cached is None:
+                cached = AltitudeStatus(self.config.altitude.method, baro_frozen=frozen)
+                self._alt_status_idle[frozen] = cached
+            return cached
         cal = ch.altimeter.calibration
         hh = ch.health
         return AltitudeStatus(
@@ -1315,21 +1421,24 @@ class NavFilter:
         if t is None:
             return []
         c = self._c
+        # scalar checks, and the array only for a sample that is used (most are not due):
+        # numpy's all(isfinite) on 3 values costs more than the rest of a skipped sample
         try:
-            m = np.array(_vec3(s.field_b_tesla))
+            field = _vec3(s.field_b_tesla)
         except (TypeError, ValueError, AttributeError):
-            m = np.full(3, math.nan)
-        if not np.all(np.isfinite(m)):
+            field = (math.nan, math.nan, math.nan)
+        if not (_isfinite(field[0]) and _isfinite(field[1]) and _isfinite(field[2])):
             c.mag_invalid += 1
             return []
         if self._ins is None:
             if isinstance(self._aligner, StaticAlignment):
-                self._aligner.add_mag(m)
+                self._aligner.add_mag(np.array(field))
                 self._try_align()
             return []
         ctl = self._mag_ctl
         if not ctl.due(t):
             return []
+        m = np.array(field)
         c_nb = quat_to_dcm(self._ins.q_nb)
         if ctl.reference_n is None or ctl.calibrator is not None:
             self._flush()
@@ -1360,10 +1469,11 @@ class NavFilter:
 
     # ------------------------------------------------------------------ output
     def _make_estimate(self) -> NavEstimate:
+        # runs at the output rate (50 Hz default): no per-call dataclass __init__ where a
+        # cached immutable part or the slot setters (_new_estimate) do
         ins = self._ins
         assert ins is not None
-        lat, lon, alt = ins.lat_rad, ins.lon_rad, ins.alt_msl_m
-        v = ins.v_ned_mps
+        lat, lon, alt, v, q = ins
         corr = self._out_corr
         if corr is not None:
             lt = earth.local_terms(lat, alt)
@@ -1379,24 +1489,29 @@ class NavFilter:
             # and any bridging correction's vertical)
             alt = ch.height_m
             v = (v[0], v[1], -ch.vz_mps)
-        q = ins.q_nb
-        # one read-only array, the vector fields are views of it (output-rate cost matters)
+        # one read-only array, the vector fields are views of it
         buf = np.array((*v, *q, *_euler(*q), *self._ba, *self._bg))
-        buf.flags.writeable = False
+        buf.setflags(write=False)
         p_diag = self._P.diagonal().copy()
-        p_diag.flags.writeable = False
+        p_diag.setflags(write=False)
         r = self._ratios
+        if r != self._est_ratios_key:  # list ==: identity first, so NaN == the same NaN
+            self._est_ratios_key = r[:]
+            self._est_ratios = TestRatios(r[0], r[1], r[2], r[3])
         t = self._t_us
-        # positional arguments: this runs at the output rate and keywords cost 50 % more
-        return NavEstimate(
+        gctl = self._gnss_ctl
+        mode = (
+            MODE_GNSS if gctl.is_active(t)
+            else MODE_BRIDGING if self._bridge_active else MODE_FREE_INERTIAL
+        )  # fmt: skip
+        return _new_estimate(
             t, lat, lon, alt,
             buf[0:3], buf[3:7], buf[7:10],  # v_ned_mps, q_nb, euler_rad
-            p_diag, self.mode,
+            p_diag, mode,
             buf[10:13], buf[13:16], self._bb,  # accel_bias_b, gyro_bias_b, baro_bias_m
-            self._c.snapshot(), TestRatios(r[0], r[1], r[2], r[3]),
-            self._gnss_ctl.time_since_fused_s(t), self.layout.name,
-            altitude=self._altitude_status(),
-            bridge=getattr(self.bridge, "status", None),
+            self._c.snapshot(), self._est_ratios,
+            gctl.time_since_fused_s(t), self.layout.name,
+            self._altitude_status(), getattr(self.bridge, "status", None),
         )  # fmt: skip
 
 

@@ -11,7 +11,7 @@ from helpers.nav_synth import FIELD_N_T
 from fusion import earth
 from fusion.aiding import baro, gnss, mag
 from fusion.config import BaroConfig, GnssConfig, MagConfig
-from fusion.error_model import INS16
+from fusion.error_model import INS16, INS16_GNSS
 from fusion.rotations import euler_to_quat, quat_multiply, quat_to_dcm, rotvec_to_quat
 from fusion.strapdown import InsState
 from sim.samples import GnssFix
@@ -73,6 +73,66 @@ def test_gnss_position_h_matches_finite_differences() -> None:
     delayed = gnss.position_model(LAY, TRUE, *fix, 2.0, 3.0, LEVER, delay_s=0.2)
     assert delayed is not None
     np.testing.assert_allclose(delayed.H[:, LAY.vel], -0.2 * np.eye(3))
+
+
+def test_gnss_position_h_with_bias_states_matches_finite_differences() -> None:
+    # GIVEN a fix carrying a receiver bias b (no white noise), the filter's bias estimate
+    # b^ = b + db, and the layout with the GNSS bias block
+    lay = INS16_GNSS
+    g = lay.gnss
+    assert g is not None
+    b_true = np.array([1.2, -0.7, 2.1])
+    arm_n = quat_to_dcm(TRUE.q_nb) @ LEVER
+    t = earth.local_terms(TRUE.lat_rad, TRUE.alt_msl_m)
+    d = arm_n + b_true
+    fix = (
+        TRUE.lat_rad + d[0] / t.rho_n_m,
+        TRUE.lon_rad + d[1] / (t.rho_e_m * t.cos_lat),
+        TRUE.alt_msl_m - d[2],
+    )
+
+    def z(dx: np.ndarray) -> np.ndarray:
+        b_hat = b_true + dx[g]
+        obs = gnss.position_model(
+            lay, perturb(TRUE, dx), *fix, 0.5, 0.8, LEVER, bias_ned_m=tuple(b_hat)
+        )
+        assert obs is not None
+        return obs.z
+
+    eps = np.concatenate([EPS, [0.5, 0.5, 0.5]])
+    cols = []
+    for j in range(lay.n):
+        dx = np.zeros(lay.n)
+        dx[j] = eps[j]
+        cols.append((z(dx) - z(-dx)) / (2.0 * eps[j]))
+    h_num = np.array(cols).T
+    # WHEN the model is evaluated at the true state and the true bias
+    obs = gnss.position_model(lay, TRUE, *fix, 0.5, 0.8, LEVER, bias_ned_m=tuple(b_true))
+    assert obs is not None
+    # THEN z is zero, H matches the finite differences, with H = I on the bias block
+    np.testing.assert_allclose(obs.z, 0.0, atol=1e-6)
+    np.testing.assert_allclose(obs.H, h_num, atol=1e-6)
+    np.testing.assert_array_equal(obs.H[:, g], np.eye(3))
+    np.testing.assert_allclose(obs.R, np.diag([0.25, 0.25, 0.64]))
+    # AND without a bias estimate (a bridging pseudo-fix) the bias block of H stays zero
+    plain = gnss.position_model(lay, TRUE, *fix, 0.5, 0.8, LEVER)
+    assert plain is not None
+    np.testing.assert_array_equal(plain.H[:, g], 0.0)
+    np.testing.assert_allclose(plain.z, -b_true, atol=1e-6)
+    # AND a bias estimate for a layout without the block is an error, not a silent no-op
+    with pytest.raises(ValueError, match="no GNSS"):
+        gnss.position_model(INS16, TRUE, *fix, 0.5, 0.8, LEVER, bias_ned_m=(0.0, 0.0, 0.0))
+
+
+def test_white_position_sigmas_take_the_bias_out_of_the_reported_accuracy() -> None:
+    cfg = GnssConfig(bias_states=True, bias_sigma_h_m=1.4, bias_sigma_v_m=2.4)
+    # the modern receiver's eph = hypot(1.4, 0.5), epv = hypot(2.4, 0.8): the white parts remain
+    h, v = gnss.white_position_sigmas(math.hypot(1.4, 0.5), math.hypot(2.4, 0.8), cfg)
+    assert (h, v) == (pytest.approx(0.5), pytest.approx(0.8))
+    # a receiver reporting less than the bias sigma: the floor
+    assert gnss.white_position_sigmas(1.0, 2.0, cfg) == (0.5, 0.5)
+    # without bias states the reported sigmas are used as they are
+    assert gnss.white_position_sigmas(1.5, 2.5, GnssConfig()) == (1.5, 2.5)
 
 
 def test_gnss_velocity_h_matches_finite_differences() -> None:

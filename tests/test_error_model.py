@@ -9,7 +9,17 @@ import pytest
 from helpers.nav_synth import Flight
 
 from fusion import earth, strapdown
-from fusion.error_model import INS16, INS22, LAYOUTS, ErrorModel, ProcessNoise, StateLayout
+from fusion.error_model import (
+    INS16,
+    INS16_GNSS,
+    INS22,
+    INS22_GNSS,
+    LAYOUTS,
+    ErrorModel,
+    ProcessNoise,
+    StateLayout,
+    layout_for,
+)
 from fusion.rotations import dcm_to_rotvec, quat_multiply, quat_to_dcm, rotvec_to_quat
 from fusion.trajectory import ImuIncrements, ideal_increments
 
@@ -20,6 +30,8 @@ NOISE = ProcessNoise(
     baro_bias_sigma=5.0, baro_bias_tau_s=500.0,
     gyro_scale_sigma=1e-3, gyro_scale_tau_s=1000.0,
     accel_scale_sigma=1e-3, accel_scale_tau_s=800.0,
+    gnss_bias_sigma_h_m=1.4, gnss_bias_sigma_v_m=2.4,
+    gnss_bias_tau_h_s=120.0, gnss_bias_tau_v_s=90.0,
 )  # fmt: skip
 
 
@@ -110,25 +122,35 @@ def analytic_transition(model: ErrorModel, inc: ImuIncrements, kin0: object) -> 
     return phi
 
 
-# perturbation sizes: small enough to stay linear, large enough to beat rounding
+# perturbation sizes: small enough to stay linear, large enough to beat rounding (the GNSS
+# bias states of the "+gnss" layouts follow the baro bias or the scale factors: 1 m)
 EPS = [10.0] * 3 + [0.1] * 3 + [1e-3] * 3 + [1e-2] * 3 + [1e-4] * 3 + [1.0] + [1e-3] * 6
 
 
-@pytest.mark.parametrize("layout", [INS16, INS22], ids=lambda lay: lay.name)
+def eps_for(layout: StateLayout) -> list[float]:
+    eps = EPS[: layout.n]
+    if layout.gnss is not None:
+        eps = EPS[: layout.GNSS] + [1.0] * 3
+    return eps
+
+
+@pytest.mark.parametrize("layout", [INS16, INS22, INS22_GNSS], ids=lambda lay: lay.name)
 def test_F_matches_numerical_propagation_of_a_perturbed_ins(layout: StateLayout, segment) -> None:
     inc, kin0 = segment
     model = ErrorModel(layout, NOISE)
     phi = analytic_transition(model, inc, kin0)
     nominal = perturbed_run(layout, inc, kin0, np.zeros(layout.n))
     eye = np.eye(layout.n)
+    eps = eps_for(layout)
     for j in range(layout.n):
         dx = np.zeros(layout.n)
-        dx[j] = EPS[j]
-        # central difference of the navigation error after 2 s
+        dx[j] = eps[j]
+        # central difference of the navigation error after 2 s (a GNSS-bias error does not
+        # enter the INS: its columns must come out zero)
         num = (
             nav_error(perturbed_run(layout, inc, kin0, dx), nominal)
             - nav_error(perturbed_run(layout, inc, kin0, -dx), nominal)
-        ) / (2.0 * EPS[j])
+        ) / (2.0 * eps[j])
         col_scale = np.abs(phi[:9, j]).max()
         for blk in (slice(0, 3), slice(3, 6), slice(6, 9)):
             # compare Phi - I per block so that small couplings (transport rate, gravity
@@ -142,6 +164,14 @@ def test_F_matches_numerical_propagation_of_a_perturbed_ins(layout: StateLayout,
     # Gauss-Markov sensor-error states decay with their correlation times
     tau = {layout.BA: NOISE.accel_bias_tau_s, layout.BG: NOISE.gyro_bias_tau_s,
            layout.BARO: NOISE.baro_bias_tau_s}  # fmt: skip
+    if layout.gnss is not None:
+        g = layout.GNSS
+        tau |= {g: NOISE.gnss_bias_tau_h_s, g + 1: NOISE.gnss_bias_tau_h_s,
+                g + 2: NOISE.gnss_bias_tau_v_s}  # fmt: skip
+        # the bias block is decoupled from the INS both ways
+        others = [i for i in range(layout.n) if i not in range(g, g + 3)]
+        np.testing.assert_array_equal(phi[np.ix_(others, range(g, g + 3))], 0.0)
+        np.testing.assert_array_equal(phi[np.ix_(range(g, g + 3), others)], 0.0)
     for i, t in tau.items():
         assert phi[i, i] == pytest.approx(math.exp(-2.0 / t), rel=1e-6)
 
@@ -149,7 +179,7 @@ def test_F_matches_numerical_propagation_of_a_perturbed_ins(layout: StateLayout,
 def test_layouts_are_contiguous_and_named() -> None:
     for layout in LAYOUTS.values():
         covered = []
-        for name in ("pos", "vel", "att", "ba", "bg", "baro", "sa", "sg"):
+        for name in ("pos", "vel", "att", "ba", "bg", "baro", "sa", "sg", "gnss"):
             sl = getattr(layout, name)
             if sl is not None:
                 covered += list(range(layout.n))[sl]
@@ -157,6 +187,37 @@ def test_layouts_are_contiguous_and_named() -> None:
         assert len(layout.labels) == layout.n
     assert (INS16.POS, INS16.VEL, INS16.ATT, INS16.BA, INS16.BG, INS16.BARO) == (0, 3, 6, 9, 12, 15)
     assert INS16.sa is None and INS22.sa == slice(16, 19) and INS22.sg == slice(19, 22)
+    # the GNSS bias block is appended: every other offset stays where it was
+    assert (INS16_GNSS.name, INS16_GNSS.n, INS16_GNSS.GNSS) == ("ins16+gnss", 19, 16)
+    assert (INS22_GNSS.name, INS22_GNSS.n, INS22_GNSS.GNSS) == ("ins22+gnss", 25, 22)
+    assert INS22_GNSS.labels[:22] == INS22.labels and INS22_GNSS.sg == INS22.sg
+    assert INS16_GNSS.labels[-3:] == ("gnss_bias_n_m", "gnss_bias_e_m", "gnss_bias_d_m")
+    assert layout_for("ins16") is INS16 and layout_for("ins22", gnss_bias=True) is INS22_GNSS
+    with pytest.raises(ValueError, match="no GNSS"):
+        _ = INS16.GNSS
+    with pytest.raises(ValueError, match="ins16, ins22"):
+        layout_for("ins19")
+
+
+def test_gnss_bias_block_of_f_and_q() -> None:
+    # GIVEN the INS16 layout with and without the GNSS bias block
+    args = (0.9, 800.0, (40.0, -10.0, 2.0), (1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0), (0.5, -1.0, -9.7))
+    f16 = ErrorModel(INS16, NOISE).continuous_matrix(*args)
+    model = ErrorModel(INS16_GNSS, NOISE)
+    f = model.continuous_matrix(*args)
+    g = INS16_GNSS.gnss
+    assert g is not None
+    # THEN the INS part of F is unchanged and the bias block is -1/tau on its diagonal only
+    np.testing.assert_array_equal(f[:16, :16], f16)
+    np.testing.assert_array_equal(f[:16, g], 0.0)
+    np.testing.assert_array_equal(f[g, :16], 0.0)
+    np.testing.assert_allclose(
+        f[g, g], -np.diag([1 / 120.0, 1 / 120.0, 1 / 90.0]), rtol=1e-15
+    )
+    # AND Q holds the exact discrete Gauss-Markov variance sigma^2 (1 - exp(-2 T / tau))
+    q = np.diag(model.process_noise(0.2))
+    np.testing.assert_allclose(q[g], [1.4**2 * (1 - math.exp(-0.4 / 120.0))] * 2
+                               + [2.4**2 * (1 - math.exp(-0.4 / 90.0))])  # fmt: skip
 
 
 def test_first_order_transition_and_process_noise() -> None:

@@ -16,6 +16,7 @@ from helpers.nav_synth import (
     Prepared,
     Scenario,
     SensorErrors,
+    error_state,
     make_scenario,
     prepare,
     run_nees,
@@ -129,6 +130,130 @@ def test_filter_is_consistent_nees_over_20_seeds() -> None:
     for name in ("pos", "vel", "att", "ba", "bg", "baro"):
         rms = np.sqrt(np.mean(z[:, :, getattr(lay, name)] ** 2))
         assert 0.6 < rms < 1.5, f"{name}: rms(err/sigma) = {rms:.2f}"
+
+
+def with_gm_gnss_error(
+    sc: Scenario, rng: np.random.Generator, sigma_h: float, sigma_v: float, tau_s: float,
+    b0: np.ndarray,
+) -> tuple[Scenario, dict[int, np.ndarray]]:
+    """The scenario with a Gauss-Markov position error (N, E, D; starting at ``b0``) added to
+    every fix, the fixes reporting the total accuracy (white part as generated plus the GM
+    sigma in quadrature, as a receiver's eph does). Returns it and the bias at each fix time."""
+    sig = np.array([sigma_h, sigma_h, sigma_v])
+    b = np.asarray(b0, dtype=float).copy()
+    last: int | None = None
+    biases: dict[int, np.ndarray] = {}
+    out: list[object] = []
+    for smp in sc.samples:
+        if isinstance(smp, GnssFix):
+            if last is not None:
+                k = math.exp(-(smp.time_us - last) * 1e-6 / tau_s)
+                b = k * b + math.sqrt(1.0 - k * k) * sig * rng.standard_normal(3)
+            last = smp.time_us
+            biases[smp.time_us] = b.copy()
+            t = earth.local_terms(smp.lat_rad, smp.alt_msl_m)
+            smp = dataclasses.replace(
+                smp,
+                lat_rad=smp.lat_rad + b[0] / t.rho_n_m,
+                lon_rad=smp.lon_rad + b[1] / (t.rho_e_m * t.cos_lat),
+                alt_msl_m=smp.alt_msl_m - b[2],
+                eph_m=math.hypot(smp.eph_m, sigma_h),
+                epv_m=math.hypot(smp.epv_m, sigma_v),
+            )
+        out.append(smp)
+    return dataclasses.replace(sc, samples=out), biases
+
+
+@pytest.mark.slow
+def test_gnss_bias_states_make_the_filter_consistent_with_correlated_gnss_error() -> None:
+    # GIVEN GNSS whose position error is mostly Gauss-Markov (1.4 m / 2.4 m, tau shortened to
+    # 8 s so that 40 s runs are statistical) plus 0.5 m / 0.8 m white, fixes reporting the
+    # total accuracy, and IMU/baro errors from the filter's own model
+    sig_h, sig_v, tau = 1.4, 2.4, 8.0
+    init = InitConfig(pos_sigma_m=2.0, vel_sigma_mps=0.2, roll_pitch_sigma_rad=math.radians(1.0),
+                      yaw_sigma_rad=math.radians(3.0))  # fmt: skip
+    bias = GnssConfig(bias_states=True, bias_sigma_h_m=sig_h, bias_sigma_v_m=sig_v,
+                      bias_tau_h_s=tau, bias_tau_v_s=tau)  # fmt: skip
+    cfg_on = FilterConfig(init=init, gnss=bias)
+    cfg_off = FilterConfig(init=init)
+    duration = 40.0
+    prep = prepare(
+        Flight(duration_s=duration, turns=[(5.0, 15.0, 0.1), (20.0, 30.0, -0.1)],
+               climbs=[(3.0, 14.0, 3.0), (19.0, 30.0, -3.0)], speed_wave_mps=2.0),
+    )  # fmt: skip
+    errors = SensorErrors.from_config(cfg_on)
+    evals_us = [round(t * 1e6) for t in np.arange(2.0, duration - 0.5, 1.0)]
+    n_seeds, n_off = 8, 2
+    nees_on: list[np.ndarray] = []  # per seed: (epochs,) NEES of all 19 states
+    nav9_on: list[np.ndarray] = []  # per seed: (epochs,) NEES of pos, vel, att
+    z_on: list[np.ndarray] = []  # per seed: (epochs, 19) error / sigma
+    nav9_off: list[np.ndarray] = []
+    for seed in range(n_seeds):
+        for cfg in (cfg_on, cfg_off) if seed < n_off else (cfg_on,):
+            rng = np.random.default_rng(1000 + seed)
+            sc = make_scenario(prep, rng, errors, gnss_sigma_h_m=0.5, gnss_sigma_v_m=0.8)
+            nav = NavFilter(cfg)
+            lay = nav.layout
+            p0 = np.diag(nav.default_initial_variances())
+            x0 = rng.multivariate_normal(np.zeros(lay.n), p0)
+            # the bias estimate starts at zero: the true bias is -(its drawn error)
+            b0 = -x0[lay.gnss] if lay.gnss is not None else rng.normal(0.0, 1.0, 3) * [
+                sig_h, sig_h, sig_v]  # fmt: skip
+            sc, biases = with_gm_gnss_error(sc, np.random.default_rng(2000 + seed), sig_h,
+                                            sig_v, tau, b0)  # fmt: skip
+            kin = sc.traj(np.array([0.0]))
+            lat, lon, h = kin.lla[0]
+            t = earth.local_terms(lat, h)
+            ba, bg, _ = sc.true_bias_at(0.0)
+            nav.initialize(
+                0, lat + x0[0] / t.rho_n_m, lon + x0[1] / (t.rho_e_m * t.cos_lat), h - x0[2],
+                kin.v_ned_mps[0] + x0[lay.vel],
+                quat_multiply(rotvec_to_quat(x0[lay.att]), kin.q_nb[0]),
+                covariance=p0, accel_bias_b=ba + x0[lay.ba], gyro_bias_b=bg + x0[lay.bg],
+            )  # fmt: skip
+            errs, covs, k = [], [], 0
+            for smp in sc.samples:
+                nav.step(smp)
+                # evaluated at a fix time, before that fix is fused: the true bias is known
+                if k < len(evals_us) and isinstance(smp, ImuSample) and smp.time_us >= evals_us[k]:
+                    e = error_state(nav, sc)
+                    if lay.gnss is not None:
+                        gb = nav.gnss_bias_ned_m
+                        assert gb is not None
+                        e[lay.gnss] = np.array(gb) - biases[evals_us[k]]
+                    errs.append(e)
+                    covs.append(nav.covariance)
+                    k += 1
+            err, cov = np.array(errs), np.array(covs)
+            nav9 = np.einsum("ei,eij,ej->e", err[:, :9], np.linalg.inv(cov[:, :9, :9]), err[:, :9])
+            if cfg is cfg_on:
+                nees_on.append(np.einsum("ei,eij,ej->e", err, np.linalg.inv(cov), err))
+                nav9_on.append(nav9)
+                z_on.append(err / np.sqrt(np.einsum("eii->ei", cov)))
+            else:
+                nav9_off.append(nav9)
+    # WHEN the NEES is averaged over the seeds and the epochs
+    lay = NavFilter(cfg_on).layout
+    n = lay.n
+    avg = np.mean(nees_on, axis=0)
+    lo, hi = chi2.ppf([0.025, 0.975], n * n_seeds) / n_seeds
+    lo9, hi9 = chi2.ppf([0.025, 0.975], 9 * n_seeds) / n_seeds
+    avg9 = np.mean(nav9_on, axis=0)
+    # THEN with the bias states the ANEES of all 19 states and of the 9 navigation states
+    # (the bench's NEES) lie in their chi-square 95 % bands (measured with 10 seeds: 18.6 in
+    # [15.4, 23.0] and 8.5 in [6.6, 11.8])
+    assert lo < avg.mean() < hi, f"ANEES {avg.mean():.2f} outside [{lo:.2f}, {hi:.2f}]"
+    assert lo9 < avg9.mean() < hi9, f"ANEES(9) {avg9.mean():.2f} outside [{lo9:.2f}, {hi9:.2f}]"
+    # AND rms(error / sigma) is near 1 for every state group, the GNSS bias included
+    # (measured 0.82-1.07)
+    z = np.array(z_on)
+    for name in ("pos", "vel", "att", "ba", "bg", "baro", "gnss"):
+        rms = np.sqrt(np.mean(z[:, :, getattr(lay, name)] ** 2))
+        assert 0.6 < rms < 1.5, f"{name}: rms(err/sigma) = {rms:.2f}"
+    # AND without them (each fix taken as white noise at eph) the same data is far outside
+    # (measured 115)
+    off9 = float(np.mean(nav9_off))
+    assert off9 > 3.0 * hi9, f"ANEES(9) without bias states {off9:.1f}"
 
 
 # --------------------------------------------------------------------------- alignment
@@ -298,6 +423,57 @@ def test_reset_to_gnss_when_the_ins_drifted_beyond_the_gate(racetrack: Prepared)
     assert est[-1].mode == "gnss"
     pos = errors_at(sc, est[-1])[0]
     np.testing.assert_allclose(pos[:2], [60.0, -40.0], atol=3.0)
+
+
+def test_gnss_bias_relaxes_to_its_prior_in_an_outage_and_is_reset_with_the_position(
+    racetrack: Prepared,
+) -> None:
+    # GIVEN the GNSS bias states (tau 3 s), correlated GNSS error, an outage from 20 to 30 s
+    # and, after it, a GNSS solution 60 m away (the INS is then reset to GNSS)
+    tau, sb_h, sb_v = 3.0, 1.4, 2.4
+    cfg = FilterConfig(gnss=GnssConfig(bias_states=True, bias_sigma_h_m=sb_h,
+                                       bias_sigma_v_m=sb_v, bias_tau_h_s=tau, bias_tau_v_s=tau))
+    jump = {k: np.array([60.0, -40.0, 0.0]) for k in range(150, 225)}
+    sc = make_scenario(racetrack, np.random.default_rng(10), ERRORS, gnss_sigma_h_m=0.5,
+                       gnss_sigma_v_m=0.8, gnss_outages=[(20.0, 30.0)], gnss_glitches=jump)
+    sc, _ = with_gm_gnss_error(sc, np.random.default_rng(11), sb_h, sb_v, tau,
+                               np.array([1.0, -1.0, 2.0]))  # fmt: skip
+    nav = NavFilter(cfg)
+    lay = nav.layout
+    g = lay.gnss
+    assert g is not None and lay.name == "ins16+gnss"
+    sb2 = np.array([sb_h**2, sb_h**2, sb_v**2])
+    at_outage: tuple[int, np.ndarray] | None = None
+    late_outage: tuple[int, np.ndarray, np.ndarray] | None = None
+    after_reset: tuple[np.ndarray, np.ndarray] | None = None
+    for smp in sc.samples:
+        nav.step(smp)
+        if not isinstance(smp, ImuSample):
+            if after_reset is None and nav.health.gnss_resets == 1:
+                gb = nav.gnss_bias_ned_m
+                assert gb is not None
+                after_reset = (np.array(gb), nav.covariance)
+            continue
+        if at_outage is None and smp.time_us >= 19_900_000:
+            at_outage = (smp.time_us, np.array(nav.gnss_bias_ned_m))
+        if late_outage is None and smp.time_us >= 29_900_000:
+            late_outage = (smp.time_us, np.array(nav.gnss_bias_ned_m), nav.covariance)
+    assert at_outage is not None and late_outage is not None and after_reset is not None
+    # WHEN GNSS is lost THEN the bias estimate decays like the Gauss-Markov mean (the baro
+    # updates move it a little through its correlations) and its covariance returns to the prior
+    t1, b1 = at_outage
+    t2, b2, cov2 = late_outage
+    assert np.linalg.norm(b1[:2]) > 0.3  # there was something to forget
+    np.testing.assert_allclose(b2[:2], b1[:2] * math.exp(-(t2 - t1) * 1e-6 / tau), atol=0.02)
+    np.testing.assert_allclose(np.diag(cov2)[g], sb2, rtol=0.03)
+    # WHEN the re-acquired fixes are rejected and the position is reset to GNSS, THEN the bias
+    # goes back to its prior: estimate zero, sigma_b, position error = -bias error + white noise
+    b3, cov3 = after_reset
+    assert nav.health.gnss_resets >= 1
+    np.testing.assert_allclose(b3, 0.0, atol=1e-9)
+    np.testing.assert_allclose(np.diag(cov3)[g], sb2, rtol=0.02)
+    np.testing.assert_allclose(np.diag(cov3[lay.pos, g]), -sb2, rtol=0.02)
+    assert np.all(np.diag(cov3)[lay.pos] > sb2)
 
 
 # --------------------------------------------------------------------------- bad input
@@ -496,3 +672,22 @@ def test_config_rejects_unknown_keys_and_bad_values() -> None:
         FilterConfig.model_validate({"imu": {"gyro_noise_density_rps_rthz": -1.0}})
     with pytest.raises(ValueError, match="covariance"):
         NavFilter().initialize(0, 0.8, 0.1, 100.0, np.zeros(3), [1, 0, 0, 0], covariance=np.eye(3))
+
+
+def test_estimates_are_complete_immutable_and_equal_to_a_regular_construction() -> None:
+    # GIVEN a filter started at rest (estimates are built through the slot setters and cached
+    # immutable parts, not NavEstimate.__init__)
+    nav = NavFilter()
+    nav.initialize(0, 0.8, 0.1, 100.0, np.zeros(3), [1.0, 0.0, 0.0, 0.0])
+    f_b = np.array([0.0, 0.0, -earth.gravity(0.8, 100.0)])
+    # WHEN it integrates 1 s of IMU samples
+    out = run(nav, (ImuSample(5000 * k, 0.005, np.zeros(3), f_b) for k in range(1, 201)))
+    # THEN every field of every estimate is set and equals what __init__ would have built
+    assert len(out) == 51  # 50 Hz, from the first sample on
+    for est in out:
+        fields = {f.name: getattr(est, f.name) for f in dataclasses.fields(NavEstimate)}
+        assert est == NavEstimate(**fields)
+        assert not est.v_ned_mps.flags.writeable and not est.P_diag.flags.writeable
+    assert [e.time_us for e in out] == [5000, *range(20_000, 1_000_001, 20_000)]
+    assert math.isnan(out[-1].test_ratios.gnss_pos) and out[-1].altitude is not None
+    assert out[-1].health.imu_ok == out[-1].time_us // 5000

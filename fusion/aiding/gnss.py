@@ -9,6 +9,17 @@ validity, moved to the antenna by the lever arm, minus the fix::
 ``eph_m`` is used as the 1-sigma of *each* horizontal axis (as PX4's ekf2 does), ``epv_m`` for
 down, ``speed_accuracy_mps`` for each velocity axis, each floored by the configuration.
 
+Time-correlated receiver error (``GnssConfig.bias_states``): the fix is
+``p_fix = p + b + w`` with ``b`` a Gauss-Markov position bias (N, E, D; tau ~ minutes) and ``w``
+white. The filter carries the bias estimate ``b^`` and its error ``db = b^ - b`` (layout block
+``gnss``), and the position observation becomes::
+
+    z_pos = [dN, dE, dD](INS - fix) + C_nb l_b + b^ = dr + db - w,    H_gnss = I
+
+with ``R`` the white part only, ``eph^2 - sigma_b^2`` (:func:`white_position_sigmas`). Fused as
+white noise at ``eph`` instead, 5 fixes/s of an error that changes over 120 s are taken as
+independent, and the position sigma shrinks far below the actual error.
+
 Latency: the fix is compared with the INS state buffered at its time of validity (corrected for
 every feedback applied since, see :mod:`fusion.history`), while the error state lives at the
 current time. Over the delay ``d`` (<= ``max_delay_s``) ``dr(t_fix) ≈ dr(now) - dv d``; that
@@ -57,6 +68,7 @@ def position_model(
     sigma_v_m: float,
     lever_arm_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
     delay_s: float = 0.0,
+    bias_ned_m: tuple[float, float, float] | None = None,
 ) -> Observation | None:
     """GNSS position observation (antenna position, metres NED).
 
@@ -73,11 +85,21 @@ def position_model(
         Antenna w.r.t. IMU in body FRD, m.
     delay_s : float
         Current time minus the fix's time of validity, s (>= 0).
+    bias_ned_m : 3 floats, optional
+        Current estimate of the receiver's correlated position error ``b^``, m NED. Given
+        (the layout must have the ``gnss`` block): it is added to ``z`` and ``H`` gets an
+        identity on the bias block. ``None``: the fix is not a receiver fix with a modelled
+        bias (e.g. a bridging pseudo-fix); the bias block of ``H`` stays zero.
 
     Returns
     -------
     Observation or None
         ``None`` when the inputs are not finite or the sigmas not positive.
+
+    Raises
+    ------
+    ValueError
+        ``bias_ned_m`` given for a layout without the GNSS bias block.
     """
     vals = (fix_lat_rad, fix_lon_rad, fix_alt_m, sigma_h_m, sigma_v_m)
     if not all(math.isfinite(v) for v in vals) or sigma_h_m <= 0.0 or sigma_v_m <= 0.0:
@@ -94,6 +116,13 @@ def position_model(
         H[i, p + i] = 1.0
         # dr(t_fix) = dr(now) - dv * delay
         H[i, v + i] = -delay_s
+    if bias_ned_m is not None:
+        g = layout.GNSS  # ValueError when the layout has no bias block
+        # z = p_ins - (p_fix - b^) = dr + (b^ - b) - w; the bias changes little over the delay
+        # (tau ~ minutes vs <= 0.5 s), so b^(now) and db(now) stand for their values at t_fix
+        for i in range(3):
+            z[i] += bias_ned_m[i]
+            H[i, g + i] = 1.0
     # d(C l) = [phi×] C l = -[(C l)×] phi
     H[0, a + 1], H[0, a + 2] = arm_n[2], -arm_n[1]
     H[1, a], H[1, a + 2] = -arm_n[2], arm_n[0]
@@ -207,6 +236,35 @@ def fix_quality(fix: GnssFix, cfg: GnssConfig) -> str | None:
     if fix.eph_m > cfg.max_eph_m:
         return "inaccurate"
     return None
+
+
+def white_position_sigmas(
+    sigma_h_m: float, sigma_v_m: float, cfg: GnssConfig
+) -> tuple[float, float]:
+    """The white part of the reported position sigmas when the bias states take the rest.
+
+    The receiver's ``eph`` / ``epv`` describe its *total* error; with the Gauss-Markov bias
+    states (``cfg.bias_states``) only ``sqrt(sigma^2 - sigma_b^2)`` is left for ``R``, floored by
+    ``pos_noise_floor_m`` (a receiver reporting less than the configured bias sigma). Without
+    bias states the sigmas are returned unchanged.
+
+    Parameters
+    ----------
+    sigma_h_m, sigma_v_m : float
+        Per-axis horizontal and vertical sigmas (:func:`fix_sigmas`), m.
+    cfg : GnssConfig
+
+    Returns
+    -------
+    (float, float)
+        Horizontal and vertical white sigmas, m.
+    """
+    if not cfg.bias_states:
+        return sigma_h_m, sigma_v_m
+    floor2 = cfg.pos_noise_floor_m**2
+    h2 = sigma_h_m * sigma_h_m - cfg.bias_sigma_h_m * cfg.bias_sigma_h_m
+    v2 = sigma_v_m * sigma_v_m - cfg.bias_sigma_v_m * cfg.bias_sigma_v_m
+    return math.sqrt(max(h2, floor2)), math.sqrt(max(v2, floor2))
 
 
 def fix_sigmas(fix: GnssFix, cfg: GnssConfig) -> tuple[float, float, float]:
