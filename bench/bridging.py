@@ -17,7 +17,9 @@ recorded hook calls (every ``on_gnss`` with its virtual-outage pairs, every ``on
 applied to the recorded estimates exactly as ``NavFilter._make_estimate`` does (a correction
 holds from its bridge epoch until the next one or the end of the outage). The recorded run
 *is* the ``none`` baseline. ``gmdh-pseudo`` changes the filter (its pseudo-fixes are fused), so
-it is run through a second full filter pass. ``--check-equivalence N`` runs a real
+it is run through a second full filter pass — unless a replay of the recording shows that it
+never sends a pseudo-fix (its fallback gate kept it off): until its first pseudo-fix its filter
+*is* the recorded one, so then the recording is its run. ``--check-equivalence N`` runs a real
 ``NavFilter(bridge=make_bridge("gmdh"))`` on the first N flights and reports the largest
 difference from the replay (it must be ~0: same code, same inputs).
 
@@ -35,13 +37,20 @@ feature set and settings were chosen with ``--tune`` on seeds 1-5 of racetrack a
 - the bridging status at the start of each outage (state, fallback flags).
 
     python bench/bridging.py --out bench/results/bridging.json [--seeds 10] [--seed-base 100]
-        [--plans manoeuvre,cruise,climb-descent] [--jobs 2] [--full-methods-seeds 3]
+        [--plans manoeuvre,cruise,climb-descent] [--jobs 2] [--full-methods-seeds K]
+        [--cache DIR] [--no-pseudo]
     python bench/bridging.py --tune --out bench/results/bridging_tuning.json
+    python bench/bridging.py --tune-gate --out bench/results/bridging_gate_tuning.json
 
-``--full-methods-seeds K`` runs the slow comparators (``mlp``, ``rbf``, ``bp-parallel``, the P0
-variants) on the first K seeds of each plan only (the bench must fit in ~15 minutes on 2
-cores); ``gmdh`` and ``gmdh-pseudo`` run on every flight. ``--cache DIR`` keeps the decoded
-flights (pickles) so re-runs skip the simulation.
+Every method runs on every flight (the replays are cheap now that refits are bounded);
+``--full-methods-seeds K`` limits the P0-input variants to the first K seeds. For a quick
+check use ``--seeds 2 --no-pseudo`` (the reported numbers need the full 10 seeds x 3 plans).
+``--cache DIR`` keeps the decoded flights (pickles) *and* the recordings, the latter keyed by a
+hash of the filter code (``fusion/`` without the strategies, ``hil/tuning.py``,
+``scenarios/collect.py`` and ``metrics.py``): a re-run with the same filter skips every
+filter pass but ``gmdh-pseudo``'s; the flight is loaded only when a filter pass needs it.
+``--tune-gate`` searches the fallback gate's settings (``BridgeConfig.gate_*``) on the tuning
+seeds and plans.
 """
 
 from __future__ import annotations
@@ -80,13 +89,13 @@ TARGETS = {
 # Variants run by replay: name -> (method, BridgeConfig overrides)
 FAST_VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "gmdh": ("gmdh", {}),
-}
-SLOW_VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
-    "gmdh-p0-fix": ("gmdh", {"training": "fix", "features": ("own",)}),
-    "gmdh-p0-virtual": ("gmdh", {"features": ("own",)}),
     "rbf": ("rbf", {}),
     "bp-parallel": ("bp-parallel", {}),
     "mlp": ("mlp", {}),
+}
+P0_VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "gmdh-p0-fix": ("gmdh", {"training": "fix", "features": ("own",)}),
+    "gmdh-p0-virtual": ("gmdh", {"features": ("own",)}),
 }
 TUNING_FEATURES: tuple[tuple[str, ...], ...] = (
     ("own",), ("t",), ("t", "t2"), ("t", "own"), ("t", "sinpsi", "cospsi"),
@@ -96,8 +105,18 @@ TUNING_FEATURES: tuple[tuple[str, ...], ...] = (
     ("t", "sinpsi0", "cospsi0", "dn", "de"), ("t", "bax", "bay", "bgz", "sinpsi", "cospsi"),
 )  # fmt: skip
 TUNING_SETTINGS: tuple[dict[str, Any], ...] = (
-    {}, {"window_s": 150.0}, {"window_s": 600.0}, {"validation_margin": 0.8},
+    {}, {"window_s": 150.0}, {"window_s": 600.0},
 )
+TUNING_GATES: tuple[dict[str, Any], ...] = (
+    {"gate_margin": 1.0, "gate_min_wins": 0.01, "gate_min_outages": 1},  # ~ no gate
+    {"gate_margin": 0.9, "gate_min_wins": 0.5},
+    {"gate_margin": 0.8, "gate_min_wins": 0.75},
+    {"gate_margin": 0.6, "gate_min_wins": 1.0},
+    {"gate_margin": 0.8, "gate_min_wins": 0.75, "gate_outages": 10, "gate_min_outages": 5},
+    {"gate_margin": 0.8, "gate_min_wins": 0.75, "gate_horizon_s": 30.0},
+)
+"""Gate settings searched with ``--tune-gate`` (tuning seeds and plans only)."""
+TUNING_GATE_METHODS = ("gmdh", "rbf")
 
 
 # ------------------------------------------------------------------------------ recording
@@ -187,16 +206,44 @@ def run_filter(items: list[Any], bridge: Any) -> tuple[Any, Any, list[float], fl
                                                               col.fix_times_us], cpu
 
 
-def record(items: list[Any], virtual_outage_s: float, count: int) -> Recorded:
+def _code_hash() -> str:
+    """Hash of the code a recording depends on (the filter and its tuning): a cached
+    recording is reused only while that code is unchanged."""
+    import hashlib
+
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    strategies = {"bridging.py", "gmdh.py", "regressors.py"}  # replayed, not recorded
+    for f in sorted([*(root / "fusion").rglob("*.py"), root / "hil" / "tuning.py",
+                     root / "scenarios" / "collect.py", root / "scenarios" / "metrics.py"]):
+        if f.parent.name != "fusion" or f.name not in strategies:
+            h.update(f.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def record(
+    items_fn: Any, virtual_outage_s: float, count: int, cache: Path | None = None,
+    key: str = "",
+) -> Recorded:  # fmt: skip
+    """Filter once with the recording strategy (cached under ``cache`` by flight and code)."""
     from sim.samples import ImuSample
 
+    path = None
+    if cache is not None:
+        path = cache / f"rec_{key}_{virtual_outage_s:g}x{count}_{_code_hash()}.pkl"
+        if path.is_file():
+            cached: Recorded = pickle.loads(path.read_bytes())
+            return cached
     rec = Recorded()
+    items = items_fn()
     err, t_us, fixes, cpu = run_filter(items, HookRecorder(virtual_outage_s, count, rec.hooks))
     rec.err_pos = err.pos_ned_m
     rec.est_t_us = t_us.tolist()
     rec.fix_t_s = fixes
     rec.filter_cpu_s = cpu
     rec.imu_samples = sum(1 for i in items if isinstance(i, ImuSample))
+    if path is not None:
+        path.write_bytes(pickle.dumps(rec))
     return rec
 
 
@@ -205,7 +252,9 @@ def record(items: list[Any], virtual_outage_s: float, count: int) -> Recorded:
 class Replayed:
     corr: Any  # (N, 3) position correction applied to each recorded estimate
     fit_s: list[float]
+    fit_cpu_s: list[float]
     fit_pairs: list[int]
+    predict_cpu_s: list[float]
     status_at_outage: list[dict[str, Any]]
 
 
@@ -217,19 +266,24 @@ def replay_hooks(bridge: Any, rec: Recorded) -> Replayed:
 
     events: list[tuple[int, tuple[float, float, float] | None]] = []
     fit_s: list[float] = []
+    fit_cpu_s: list[float] = []
     fit_pairs: list[int] = []
+    pred_s: list[float] = []
     statuses: list[dict[str, Any]] = []
     current: tuple[float, float, float] | None = None
     in_outage = False
     for kind, epoch, error in rec.hooks:
         if kind == "g":
             refits = bridge.status.refits
+            c0 = time.process_time()
             t0 = time.perf_counter()
             bridge.on_gnss(epoch, error)
             dt = time.perf_counter() - t0
+            dc = time.process_time() - c0
             st = bridge.status
             if st.refits > refits:
                 fit_s.append(dt)
+                fit_cpu_s.append(dc)
                 fit_pairs.append(st.last_fit_samples)
         elif kind == "o":
             if not in_outage:
@@ -238,7 +292,9 @@ def replay_hooks(bridge: Any, rec: Recorded) -> Replayed:
                                  "fallback": list(st.fallback), "samples": st.samples,
                                  "horizon_s": st.horizon_s})
                 in_outage = True
+            c0 = time.process_time()
             action = bridge.on_outage(epoch)
+            pred_s.append(time.process_time() - c0)
             if isinstance(action, OutputCorrection):
                 current = action.pos_ned_m
                 events.append((epoch.time_us, current))
@@ -257,7 +313,24 @@ def replay_hooks(bridge: Any, rec: Recorded) -> Replayed:
         j = bisect.bisect_right(times, t) - 1
         if j >= 0 and events[j][1] is not None:
             corr[i] = events[j][1]
-    return Replayed(corr, fit_s, fit_pairs, statuses)
+    return Replayed(corr, fit_s, fit_cpu_s, fit_pairs, pred_s, statuses)
+
+
+def pseudo_fixes_in_replay(bridge: Any, rec: Recorded) -> int:
+    """Replay the recorded hooks into a pseudo-GNSS strategy up to its first pseudo-fix;
+    returns 1 if it sends one (the recording no longer matches its filter from there), else 0.
+    """
+    from fusion.bridge import PseudoGnss
+
+    for kind, epoch, error in rec.hooks:
+        if kind == "g":
+            bridge.on_gnss(epoch, error)
+        elif kind == "o":
+            if isinstance(bridge.on_outage(epoch), PseudoGnss):
+                return 1
+        else:
+            bridge.on_gnss_restored(epoch)
+    return 0
 
 
 # ------------------------------------------------------------------------------ scoring
@@ -315,10 +388,19 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
     plan, seed = task["plan"], task["seed"]
     t_start = time.perf_counter()
     cache = Path(task["cache"]) if task.get("cache") else None
-    items = simulate(plan, seed, cache)
+    loaded: list[Any] = []
+
+    def items_fn() -> list[Any]:  # the flight is loaded only when a filter pass needs it
+        if not loaded:
+            loaded.append(simulate(plan, seed, cache))
+        return loaded[0]
+
+    if task.get("check") or task.get("step_cost"):
+        items_fn()
     sim_wall = time.perf_counter() - t_start
     cfg = BridgeConfig()
-    rec = record(items, cfg.virtual_outage_s, cfg.virtual_outage_count)
+    rec = record(items_fn, cfg.virtual_outage_s, cfg.virtual_outage_count, cache,
+                 f"{plan}_{seed}")  # fmt: skip
     base = outage_scores(rec.est_t_us, rec.err_pos, rec.fix_t_s)
     row: dict[str, Any] = {
         "plan": plan, "seed": seed, "sim_wall_s": sim_wall,
@@ -337,16 +419,30 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
             "fits": len(rp.fit_s),
             "fit_ms_median": 1e3 * statistics.median(rp.fit_s) if rp.fit_s else None,
             "fit_ms_max": 1e3 * max(rp.fit_s) if rp.fit_s else None,
+            "fit_cpu_ms": [round(1e3 * x, 2) for x in rp.fit_cpu_s],
             "fit_pairs_max": max(rp.fit_pairs) if rp.fit_pairs else None,
+            "predict_cpu_us_median": (1e6 * statistics.median(rp.predict_cpu_s)
+                                      if rp.predict_cpu_s else None),
+            "outages_active": [sum(1 for f in st["fallback"] if not f)
+                               for st in rp.status_at_outage],
             "status_at_outage_start": rp.status_at_outage,
         }
     if task.get("pseudo"):
-        err, t_us, fixes, cpu = run_filter(items, make("gmdh-pseudo", {}))
-        scores = outage_scores(t_us, err.pos_ned_m, fixes)
+        # Until gmdh-pseudo sends its first pseudo-fix the filter is the recorded one (same
+        # shadows, nothing fused): replay it first, and run the full filter pass only when
+        # it would send one; otherwise its run *is* the recording, bit for bit.
+        fixes_sent = pseudo_fixes_in_replay(make("gmdh-pseudo", {}), rec)
+        if fixes_sent:
+            err, t_us, fixes, cpu = run_filter(items_fn(), make("gmdh-pseudo", {}))
+            scores = outage_scores(t_us, err.pos_ned_m, fixes)
+        else:
+            scores, cpu = base, 0.0
         row["methods"]["gmdh-pseudo"] = {"outages": scores, **ratios(base, scores),
-                                         "filter_cpu_s": cpu}
+                                         "filter_cpu_s": cpu,
+                                         "pseudo_fixes_in_replay": fixes_sent,
+                                         "full_filter_pass": bool(fixes_sent)}
     if task.get("check"):
-        err, t_us, fixes, cpu = run_filter(items, make("gmdh", {}))
+        err, t_us, fixes, cpu = run_filter(items_fn(), make("gmdh", {}))
         ref = row["methods"]["gmdh"]["outages"]
         real = outage_scores(t_us, err.pos_ned_m, fixes)
         diffs = [abs(a["h_rmse_m"] - b["h_rmse_m"]) for a, b in zip(ref, real, strict=True)
@@ -354,7 +450,7 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
         row["equivalence_check"] = {"max_abs_rmse_diff_m": max(diffs) if diffs else None,
                                     "filter_cpu_s_with_gmdh": cpu}
     if task.get("step_cost"):
-        _err, _t, _f, cpu = run_filter(items, None)
+        _err, _t, _f, cpu = run_filter(items_fn(), None)
         row["filter_cpu_s_none"] = cpu
     row["wall_s"] = time.perf_counter() - t_start
     return row
@@ -443,8 +539,9 @@ def cost_benchmarks(repeats: int = 5) -> dict[str, Any]:
         "pairs": n, "pairs_used_by_a_fit": pairs,
         "refit_one_component_ms": 1e3 * statistics.median(one),
         "refit_six_components_ms": 1e3 * statistics.median(six),
-        "refit_note": ("each fit = one fit on the older 75 % (validation) + one refit on all "
-                       "pairs for use; the components take turns, one per refit tick"),
+        "refit_note": ("one fit per component refit (the fallback gate judges it later on "
+                       "held-out virtual outages, no validation refit); the components take "
+                       "turns, one per refit tick"),
         "predict_call_us": 1e6 * statistics.median(pred),
         "predict_active_components": active,
     }
@@ -472,6 +569,8 @@ def _pool_map(tasks: list[dict[str, Any]], jobs: int) -> list[dict[str, Any]]:
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Per method: summed-RMSE ratio and mean / worst ratio over the 25 s outages, and the
     ratio of the errors 60 s into the 60 s outages (sum and per flight)."""
+    import numpy as np
+
     good = [r for r in rows if "error" not in r]
     names = sorted({m for r in good for m in r["methods"]} - {"none"})
     out: dict[str, Any] = {}
@@ -479,11 +578,19 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         num25 = den25 = num60 = den60 = 0.0
         r25: list[float] = []
         r60: list[float] = []
+        fit_ms: list[float] = []
+        pred_us: list[float] = []
+        by_plan: dict[str, list[float]] = {}
+        gains: list[dict[str, Any]] = []
         flights = 0
         for r in good:
             if name not in r["methods"]:
                 continue
             flights += 1
+            rm = r["methods"][name]
+            fit_ms.extend(rm.get("fit_cpu_ms", []))
+            if rm.get("predict_cpu_us_median") is not None:
+                pred_us.append(rm["predict_cpu_us_median"])
             base, meth = r["methods"]["none"]["outages"], r["methods"][name]["outages"]
             for b, m in zip(base, meth, strict=True):
                 if "h_rmse_m" not in b or "h_rmse_m" not in m:
@@ -491,7 +598,12 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
                 if b["duration_s"] == 25:
                     num25 += m["h_rmse_m"]
                     den25 += b["h_rmse_m"]
-                    r25.append(m["h_rmse_m"] / b["h_rmse_m"])
+                    ratio = m["h_rmse_m"] / b["h_rmse_m"]
+                    r25.append(ratio)
+                    by_plan.setdefault(r["plan"], []).append(ratio)
+                    if ratio < 0.9:
+                        gains.append({"plan": r["plan"], "seed": r["seed"],
+                                      "start_s": b["start_s"], "ratio": ratio})
                 elif "h_at_60s_m" in b:
                     num60 += m["h_at_60s_m"]
                     den60 += b["h_at_60s_m"]
@@ -503,11 +615,20 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "rmse_25s_ratio_mean": statistics.mean(r25) if r25 else None,
             "rmse_25s_ratio_median": statistics.median(r25) if r25 else None,
             "rmse_25s_ratio_worst": max(r25) if r25 else None,
+            "rmse_25s_ratio_p95": float(np.percentile(r25, 95)) if r25 else None,
+            "rmse_25s_ratio_mean_by_plan": {k: statistics.mean(v) for k, v in by_plan.items()},
+            "outages_25s_better_than_0_9x": gains,
+            "outages_25s_changed": sum(1 for x in r25 if abs(x - 1.0) > 1e-9),
+            "fit_cpu_ms_median": statistics.median(fit_ms) if fit_ms else None,
+            "fit_cpu_ms_max": max(fit_ms) if fit_ms else None,
+            "fits": len(fit_ms),
+            "predict_call_cpu_us_median": statistics.median(pred_us) if pred_us else None,
             "rmse_25s_outages_worse_than_1_2x": sum(1 for x in r25 if x > 1.2),
             "none_rmse_25s_mean_m": den25 / len(r25) if r25 else None,
             "method_rmse_25s_mean_m": num25 / len(r25) if r25 else None,
             "error_at_60s_ratio_of_sums": num60 / den60 if den60 else None,
             "error_at_60s_ratio_worst": max(r60) if r60 else None,
+            "error_at_60s_ratio_mean": statistics.mean(r60) if r60 else None,
             "none_error_at_60s_mean_m": den60 / len(r60) if r60 else None,
             "method_error_at_60s_mean_m": num60 / len(r60) if r60 else None,
         }
@@ -515,17 +636,22 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def _table(summary: dict[str, Any]) -> str:
-    lines = [f"{'method':18s} {'flights':>7s} {'25s ratio':>9s} {'mean':>6s} {'worst':>6s} "
-             f"{'>1.2x':>5s} {'none m':>7s} {'meth m':>7s} {'@60 ratio':>9s} {'none@60':>8s}"]
+    lines = [f"{'method':18s} {'flights':>7s} {'25s ratio':>9s} {'mean':>6s} {'p95':>6s} "
+             f"{'worst':>6s} {'>1.2x':>5s} {'<0.9x':>5s} {'none m':>7s} {'meth m':>7s} "
+             f"{'@60 ratio':>9s} {'none@60':>8s} {'fit ms':>7s} {'max':>7s}"]
     for name, s in summary.items():
         def f(v: Any, spec: str = ".2f") -> str:
             return "n/a" if v is None else format(v, spec)
         lines.append(
             f"{name:18s} {s['flights']:7d} {f(s['rmse_25s_ratio_of_sums']):>9s} "
-            f"{f(s['rmse_25s_ratio_mean']):>6s} {f(s['rmse_25s_ratio_worst']):>6s} "
-            f"{s['rmse_25s_outages_worse_than_1_2x']:5d} {f(s['none_rmse_25s_mean_m'], '.1f'):>7s} "
+            f"{f(s['rmse_25s_ratio_mean']):>6s} {f(s['rmse_25s_ratio_p95']):>6s} "
+            f"{f(s['rmse_25s_ratio_worst']):>6s} "
+            f"{s['rmse_25s_outages_worse_than_1_2x']:5d} "
+            f"{len(s['outages_25s_better_than_0_9x']):5d} "
+            f"{f(s['none_rmse_25s_mean_m'], '.1f'):>7s} "
             f"{f(s['method_rmse_25s_mean_m'], '.1f'):>7s} {f(s['error_at_60s_ratio_of_sums']):>9s} "
-            f"{f(s['none_error_at_60s_mean_m'], '.1f'):>8s}")
+            f"{f(s['none_error_at_60s_mean_m'], '.1f'):>8s} {f(s['fit_cpu_ms_median'], '.1f'):>7s} "
+            f"{f(s['fit_cpu_ms_max'], '.1f'):>7s}")
     return "\n".join(lines)
 
 
@@ -536,20 +662,34 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed-base", type=int, default=100)
     ap.add_argument("--plans", default=HELD_OUT_PLANS)
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--full-methods-seeds", type=int, default=3)
+    ap.add_argument("--full-methods-seeds", type=int, default=None,
+                    help="run the P0-input variants on the first K seeds only (default all)")
     ap.add_argument("--check-equivalence", type=int, default=1)
     ap.add_argument("--tune", action="store_true",
                     help="feature/setting search on the tuning seeds 1-5 of racetrack, survey")
+    ap.add_argument("--tune-gate", action="store_true",
+                    help="fallback-gate search on the tuning seeds 1-5 of racetrack, survey")
+    ap.add_argument("--no-pseudo", action="store_true", help="skip gmdh-pseudo (quick checks)")
     ap.add_argument("--cache", type=Path, default=None)
     ap.add_argument("--out", type=Path, default=Path("bench/results/bridging.json"))
     args = ap.parse_args(argv)
     if args.seeds < 1 or args.jobs < 1:
         ap.error("--seeds and --jobs must be >= 1")
     cache = None if args.cache is None else str(args.cache)
-    if args.tune:
+    if args.tune_gate:
         plans = [p for p in TUNING_PLANS.split(",")]
         seeds = list(range(1, 6))
         variants: dict[str, tuple[str, dict[str, Any]]] = {}
+        for meth in TUNING_GATE_METHODS:
+            for gate in TUNING_GATES:
+                key = ",".join(f"{k.removeprefix('gate_')}={v:g}" for k, v in gate.items())
+                variants[f"{meth}:{key}"] = (meth, dict(gate))
+        tasks = [{"plan": p, "seed": s, "variants": variants, "cache": cache}
+                 for p in plans for s in seeds]
+    elif args.tune:
+        plans = [p for p in TUNING_PLANS.split(",")]
+        seeds = list(range(1, 6))
+        variants = {}
         for fs in TUNING_FEATURES:
             variants["gmdh:" + ",".join(fs)] = ("gmdh", {"features": fs})
         for setting in TUNING_SETTINGS[1:]:
@@ -564,17 +704,17 @@ def main(argv: list[str] | None = None) -> int:
         for p in plans:
             for i, s in enumerate(seeds):
                 variants = dict(FAST_VARIANTS)
-                if i < args.full_methods_seeds:
-                    variants.update(SLOW_VARIANTS)
+                if args.full_methods_seeds is None or i < args.full_methods_seeds:
+                    variants.update(P0_VARIANTS)
                 tasks.append({"plan": p, "seed": s, "variants": variants, "cache": cache,
-                              "pseudo": True,
+                              "pseudo": not args.no_pseudo,
                               "check": p == plans[0] and i < args.check_equivalence,
                               "step_cost": p == plans[0] and i == 0})
     load0 = os.getloadavg()
     t0 = time.perf_counter()
     print(f"{len(tasks)} flights ({len(plans)} plans x {len(seeds)} seeds) on {args.jobs} "
           "process(es)", flush=True)
-    costs = None if args.tune else cost_benchmarks()
+    costs = None if args.tune or args.tune_gate else cost_benchmarks()
     rows = _pool_map(tasks, args.jobs)
     wall = time.perf_counter() - t0
     summary = summarise(rows)
@@ -599,7 +739,7 @@ def main(argv: list[str] | None = None) -> int:
                 good[0]["imu_samples"])
     result: dict[str, Any] = {
         "benchmark": "bridging",
-        "mode": "tune" if args.tune else "held-out",
+        "mode": "tune-gate" if args.tune_gate else "tune" if args.tune else "held-out",
         "imu": IMU, "gnss": GNSS, "duration_s": DURATION_S, "plans": plans, "seeds": seeds,
         "seeds_note": ("tuning seeds" if args.tune else
                        "held-out seeds and plans (defaults chosen with --tune on seeds 1-5 of "

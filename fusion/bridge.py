@@ -164,12 +164,14 @@ class BridgeStatus:
     refits : int
         Component fits completed since construction.
     validation_rmse : 6 floats
-        Per component (:data:`COMPONENTS`), RMS error of the last fit on its validation split
-        (NaN before the first fit).
+        Per component (:data:`COMPONENTS`), RMS error left by the correction on the outages
+        the fallback gate judged (held-out virtual outages, replayed through the models in
+        use at their start, and the ends of real outages); NaN before the first.
     zero_rmse : 6 floats
-        RMS of the target on the same split: the error of predicting zero correction.
+        RMS error of no correction on the same outages.
     fallback : 6 bools
-        Component not corrected (validation no better than zero, or not fitted yet).
+        Component not corrected (the gate has not seen it win clearly and consistently, or
+        it is not fitted yet).
     last_fit_samples : int
         Training pairs used by the last component fit (after thinning to the budget).
     horizon_s : float

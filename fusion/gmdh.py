@@ -57,7 +57,7 @@ import sys
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Self, TypeVar
+from typing import Any, ClassVar, NamedTuple, Self, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -196,6 +196,15 @@ def standardise(a: FloatArray, axis: int = 0) -> tuple[FloatArray, FloatArray]:
     return mean, scale
 
 
+class Scaling(NamedTuple):
+    """Input and target standardisation of a fit (:func:`standardise`)."""
+
+    x_mean: FloatArray
+    x_scale: FloatArray
+    y_mean: float
+    y_scale: float
+
+
 class RegressorBase:
     """scikit-learn's regressor protocol in plain numpy (no scikit-learn import).
 
@@ -205,6 +214,13 @@ class RegressorBase:
     """
 
     _estimator_type: ClassVar[str] = "regressor"
+    # fitted standardisation (set by _store_scaling; declared, not defined, so an unfitted
+    # model has none of them)
+    n_features_in_: int
+    x_mean_: FloatArray
+    x_scale_: FloatArray
+    y_mean_: float
+    y_scale_: float
 
     # -- parameters -------------------------------------------------------------------------
     @classmethod
@@ -273,6 +289,41 @@ class RegressorBase:
             )
         return Xa, ya
 
+    def _standardised_fit_data(
+        self, X: ArrayLike, y: ArrayLike, min_samples: int
+    ) -> tuple[FloatArray, FloatArray, Scaling]:
+        """Validate ``(X, y)`` and standardise both: ``(U, v, scaling)`` with
+        ``U = (X - x_mean) / x_scale`` and ``v = (y - y_mean) / y_scale``. Nothing is stored
+        (a fit that fails later must not look fitted): :meth:`_store_scaling` at the end."""
+        Xa, ya = self._validate_fit(X, y, min_samples=min_samples)
+        x_mean, x_scale = standardise(Xa)
+        y_mean, y_scale = standardise(ya)
+        sc = Scaling(x_mean, x_scale, float(y_mean), float(y_scale))
+        return (Xa - x_mean) / x_scale, (ya - sc.y_mean) / sc.y_scale, sc
+
+    def _store_scaling(self, sc: Scaling) -> None:
+        """Set ``n_features_in_``, ``x_mean_``, ``x_scale_``, ``y_mean_``, ``y_scale_``."""
+        self.n_features_in_ = int(sc.x_mean.shape[0])
+        self.x_mean_ = sc.x_mean
+        self.x_scale_ = sc.x_scale
+        self.y_mean_ = sc.y_mean
+        self.y_scale_ = sc.y_scale
+
+    def _standardised_input(self, X: ArrayLike) -> FloatArray:
+        """Validated ``X`` in the fit's standardised units."""
+        Xa = self._validate_predict(X)
+        out: FloatArray = (Xa - self.x_mean_) / self.x_scale_
+        return out
+
+    def _target_units(self, z: FloatArray) -> FloatArray:
+        """Standardised network output back to target units."""
+        out: FloatArray = self.y_mean_ + self.y_scale_ * z
+        return out
+
+    def _stored_scaling(self) -> Scaling:
+        """The standardisation of the last fit (for a warm start)."""
+        return Scaling(self.x_mean_, self.x_scale_, self.y_mean_, self.y_scale_)
+
     def _check_fitted(self) -> None:
         if not hasattr(self, "n_features_in_"):
             raise _sklearn_compatible(NotFittedError, "NotFittedError")(
@@ -283,7 +334,7 @@ class RegressorBase:
         self._check_fitted()
         name = type(self).__name__
         Xa = _as_float_2d(X, "X", name)
-        n_expected: int = self.n_features_in_  # type: ignore[attr-defined]
+        n_expected: int = self.n_features_in_
         if Xa.shape[1] != n_expected:
             raise ValueError(
                 f"X has {Xa.shape[1]} features, but {name} is expecting {n_expected} "
@@ -603,11 +654,7 @@ class GmdhRegressor(RegressorBase):
         self
         """
         self._check_params()
-        Xa, ya = self._validate_fit(X, y, min_samples=2)
-        x_mean, x_scale = standardise(Xa)
-        y_mean, y_scale = standardise(ya)
-        U = (Xa - x_mean) / x_scale
-        v = (ya - float(y_mean)) / float(y_scale)
+        U, v, sc = self._standardised_fit_data(X, y, min_samples=2)
         val = _split_masks(len(v), float(self.validation_fraction), self.split, self.random_state)
         Zt, Zv, yt, yv = U[~val], U[val], v[~val], v[val]
 
@@ -644,17 +691,13 @@ class GmdhRegressor(RegressorBase):
             # every neuron non-finite: only possible with pathological ridge=0 inputs
             raise ValueError("GmdhRegressor: no neuron of the first layer could be fitted.")
 
-        self.n_features_in_ = Xa.shape[1]
-        self.x_mean_ = x_mean
-        self.x_scale_ = x_scale
-        self.y_mean_ = float(y_mean)
-        self.y_scale_ = float(y_scale)
+        self._store_scaling(sc)
         self.layers_ = layers
         self.n_layers_ = len(layers)
         self.criterion_ = np.array(best) * self.y_scale_**2
         self.network_ = _prune(layers)
         self._fast_source = _fast_source(
-            self.network_, x_mean, x_scale, self.y_mean_, self.y_scale_
+            self.network_, sc.x_mean, sc.x_scale, self.y_mean_, self.y_scale_
         )
         self._fast = _load_fast(self._fast_source)
         return self

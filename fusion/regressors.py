@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 
-from fusion.gmdh import FloatArray, RegressorBase, standardise
+from fusion.gmdh import FloatArray, RegressorBase
 
 __all__ = ["BpNet", "NarxMLP", "RbfNet"]
 
@@ -89,7 +89,13 @@ class NarxMLP(RegressorBase):
     n_output_lags : int ≥ 0, default 1
         Previous outputs fed back (0 makes a plain feed-forward time-delay network).
     max_nfev : int, default 100
-        Bound on the LM function evaluations, so a fit is time-bounded.
+        Bound on the LM function evaluations of one :meth:`fit` call, so a fit is
+        time-bounded (MINPACK counts the first evaluation; 2 allow about one LM step).
+    warm_start : bool, default False
+        Continue from the weights and the standardisation of the previous :meth:`fit`
+        (scikit-learn's meaning) when the architecture and the feature count match; training
+        then proceeds across successive bounded fits. Otherwise start from the seeded
+        initialisation.
     l2 : float ≥ 0, default 1e-4
         Weight decay, added as residuals ``sqrt(l2)·w`` (keeps LM well posed even with fewer
         samples than weights, which MINPACK's LM otherwise refuses).
@@ -105,10 +111,17 @@ class NarxMLP(RegressorBase):
         Weights (standardised units); ``n_inputs = n_features·(1 + n_input_lags) +
         n_output_lags``, ordered ``[x_t, x_{t-1}, …, y_{t-1}, …]``.
     n_iter_ : int
-        Function evaluations used by LM.
+        Function evaluations used by LM in the last fit.
+    n_iter_total_ : int
+        Function evaluations over all fits continued by ``warm_start``.
     cost_ : float
         Final LM cost ``½‖r‖²`` (standardised units, weight decay included).
     """
+
+    W1_: FloatArray
+    b1_: FloatArray
+    w2_: FloatArray
+    b2_: float
 
     def __init__(
         self,
@@ -118,6 +131,7 @@ class NarxMLP(RegressorBase):
         max_nfev: int = 100,
         l2: float = 1e-4,
         random_state: int | None = 0,
+        warm_start: bool = False,
     ) -> None:
         self.n_hidden = n_hidden
         self.n_input_lags = n_input_lags
@@ -125,6 +139,7 @@ class NarxMLP(RegressorBase):
         self.max_nfev = max_nfev
         self.l2 = l2
         self.random_state = random_state
+        self.warm_start = warm_start
 
     # -- helpers ---------------------------------------------------------------------------
     def _lagged_inputs(self, U: FloatArray, history: FloatArray) -> FloatArray:
@@ -166,12 +181,16 @@ class NarxMLP(RegressorBase):
         max_nfev = _require_int(self, "max_nfev", 1)
         l2 = _require_real(self, "l2", 0.0)
         lag = max(n_in_lags, n_out_lags)
-        Xa, ya = self._validate_fit(X, y, min_samples=lag + 1)
-        x_mean, x_scale = standardise(Xa)
-        y_mean, y_scale = standardise(ya)
-        U = (Xa - x_mean) / x_scale
-        v = (ya - float(y_mean)) / float(y_scale)
+        U, v, sc = self._standardised_fit_data(X, y, min_samples=lag + 1)
         n, f = U.shape
+        n_in = f * (1 + n_in_lags) + n_out_lags
+        warm = self._warm_theta(n_hidden, n_in)
+        if warm is not None:
+            # continue in the previous fit's units (its weights mean nothing in new ones)
+            old = self._stored_scaling()
+            U = U * sc.x_scale / old.x_scale + (sc.x_mean - old.x_mean) / old.x_scale
+            v = v * sc.y_scale / old.y_scale + (sc.y_mean - old.y_mean) / old.y_scale
+            sc = old
 
         # regressors for rows lag..n-1, every lag genuinely observed (teacher forcing)
         R_x = self._lagged_inputs(U[lag:], U[lag - n_in_lags : lag] if n_in_lags else U[:0])
@@ -182,17 +201,19 @@ class NarxMLP(RegressorBase):
         )
         R = np.hstack([R_x, R_y])
         t = v[lag:]
-        n_in = R.shape[1]
 
-        rng = np.random.default_rng(self.random_state)
-        theta0 = np.concatenate(
-            [
-                rng.normal(0.0, 1.0 / np.sqrt(n_in), n_hidden * n_in),  # fan-in scaled
-                rng.normal(0.0, 0.5, n_hidden),
-                rng.normal(0.0, 1.0 / np.sqrt(n_hidden), n_hidden),
-                [0.0],
-            ]
-        )
+        if warm is not None:
+            theta0 = warm
+        else:
+            rng = np.random.default_rng(self.random_state)
+            theta0 = np.concatenate(
+                [
+                    rng.normal(0.0, 1.0 / np.sqrt(n_in), n_hidden * n_in),  # fan-in scaled
+                    rng.normal(0.0, 0.5, n_hidden),
+                    rng.normal(0.0, 1.0 / np.sqrt(n_hidden), n_hidden),
+                    [0.0],
+                ]
+            )
         sqrt_l2 = np.sqrt(l2)
         n_par = theta0.size
 
@@ -217,18 +238,26 @@ class NarxMLP(RegressorBase):
         sol = least_squares(residuals, theta0, jac=jacobian, method="lm", max_nfev=max_nfev)
         W1, b1, w2, b2 = self._unpack(sol.x, n_hidden, n_in)
 
-        self.n_features_in_ = f
-        self.x_mean_ = x_mean
-        self.x_scale_ = x_scale
-        self.y_mean_ = float(y_mean)
-        self.y_scale_ = float(y_scale)
+        total = int(getattr(self, "n_iter_total_", 0)) if warm is not None else 0
+        self._store_scaling(sc)
+        # fresh arrays: a copy of this model taken before the fit keeps its own weights
         self.W1_ = W1.copy()
         self.b1_ = b1.copy()
         self.w2_ = w2.copy()
         self.b2_ = b2
         self.n_iter_ = int(sol.nfev)
+        self.n_iter_total_ = total + int(sol.nfev)
         self.cost_ = float(sol.cost)
         return self
+
+    def _warm_theta(self, n_hidden: int, n_in: int) -> FloatArray | None:
+        """The previous fit's weights as LM's start vector, or ``None`` for a cold start."""
+        if not (self.warm_start and hasattr(self, "W1_")):
+            return None
+        if self.W1_.shape != (n_hidden, n_in):
+            return None
+        out: FloatArray = np.concatenate([self.W1_.ravel(), self.b1_, self.w2_, [self.b2_]])
+        return out
 
     # -- prediction ------------------------------------------------------------------------
     def predict(
@@ -254,9 +283,8 @@ class NarxMLP(RegressorBase):
         -------
         (n_samples,) float64
         """
-        Xa = self._validate_predict(X)
+        U = self._standardised_input(X)
         k_in, k_out = int(self.n_input_lags), int(self.n_output_lags)
-        U = (Xa - self.x_mean_) / self.x_scale_
         hist_x = self._x_history(x_init, U[0], k_in)
         hist_y = self._y_history(y_init, k_out)
         n_x = U.shape[1] * (k_in + 1)
@@ -273,8 +301,7 @@ class NarxMLP(RegressorBase):
                 z = float(np.tanh(A[i] + Wy @ fb) @ w2) + b2
                 out[i] = z
                 fb = [z, *fb[:-1]]
-        result: FloatArray = self.y_mean_ + self.y_scale_ * out
-        return result
+        return self._target_units(out)
 
     def predict_one(
         self,
@@ -403,11 +430,7 @@ class RbfNet(RegressorBase):
         width_factor = _require_real(self, "width_factor", 0.0, low_open=True)
         ridge = _require_real(self, "ridge", 0.0)
         n_iter = _require_int(self, "n_kmeans_iter", 0)
-        Xa, ya = self._validate_fit(X, y, min_samples=1)
-        x_mean, x_scale = standardise(Xa)
-        y_mean, y_scale = standardise(ya)
-        U = (Xa - x_mean) / x_scale
-        v = (ya - float(y_mean)) / float(y_scale)
+        U, v, sc = self._standardised_fit_data(X, y, min_samples=1)
 
         rng = np.random.default_rng(self.random_state)
         distinct = np.unique(U, axis=0)
@@ -437,11 +460,7 @@ class RbfNet(RegressorBase):
             0
         ]
 
-        self.n_features_in_ = Xa.shape[1]
-        self.x_mean_ = x_mean
-        self.x_scale_ = x_scale
-        self.y_mean_ = float(y_mean)
-        self.y_scale_ = float(y_scale)
+        self._store_scaling(sc)
         self.centers_ = C
         self.widths_ = widths
         self.bias_ = float(sol[0])
@@ -476,11 +495,9 @@ class RbfNet(RegressorBase):
         -------
         (n_samples,) float64
         """
-        Xa = self._validate_predict(X)
-        U = (Xa - self.x_mean_) / self.x_scale_
+        U = self._standardised_input(X)
         G = np.exp(-_sq_dist(U, self.centers_) / (2.0 * self.widths_**2))
-        out: FloatArray = self.y_mean_ + self.y_scale_ * (G @ self.weights_ + self.bias_)
-        return out
+        return self._target_units(G @ self.weights_ + self.bias_)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -508,6 +525,10 @@ class BpNet(RegressorBase):
     l2 : float ≥ 0, default 0.0
         Weight decay on the weights (not the biases).
     random_state : int, Generator or None, default 0
+    warm_start : bool, default False
+        Continue from the weights and the standardisation of the previous :meth:`fit` (fresh
+        Adam moments) when the shapes match, so ``n_epochs`` bounds one fit and training
+        proceeds across successive fits.
 
     Attributes
     ----------
@@ -519,6 +540,11 @@ class BpNet(RegressorBase):
         Epochs run.
     """
 
+    W1_: FloatArray
+    b1_: FloatArray
+    w2_: FloatArray
+    b2_: float
+
     def __init__(
         self,
         n_hidden: int = 8,
@@ -526,12 +552,14 @@ class BpNet(RegressorBase):
         learning_rate: float = 0.02,
         l2: float = 0.0,
         random_state: int | None = 0,
+        warm_start: bool = False,
     ) -> None:
         self.n_hidden = n_hidden
         self.n_epochs = n_epochs
         self.learning_rate = learning_rate
         self.l2 = l2
         self.random_state = random_state
+        self.warm_start = warm_start
 
     def fit(self, X: ArrayLike, y: ArrayLike) -> Self:
         """Train by back-propagation.
@@ -549,22 +577,27 @@ class BpNet(RegressorBase):
         n_epochs = _require_int(self, "n_epochs", 1)
         lr = _require_real(self, "learning_rate", 0.0, low_open=True)
         l2 = _require_real(self, "l2", 0.0)
-        Xa, ya = self._validate_fit(X, y, min_samples=1)
-        x_mean, x_scale = standardise(Xa)
-        y_mean, y_scale = standardise(ya)
-        U = (Xa - x_mean) / x_scale
-        v = (ya - float(y_mean)) / float(y_scale)
+        U, v, sc = self._standardised_fit_data(X, y, min_samples=1)
         n, f = U.shape
 
-        rng = np.random.default_rng(self.random_state)
-        lim1 = np.sqrt(6.0 / (f + n_hidden))
-        lim2 = np.sqrt(6.0 / (n_hidden + 1))
-        params = [
-            rng.uniform(-lim1, lim1, (n_hidden, f)),
-            np.zeros(n_hidden),
-            rng.uniform(-lim2, lim2, n_hidden),
-            np.zeros(1),
-        ]
+        if self.warm_start and getattr(self, "W1_", np.empty(0)).shape == (n_hidden, f):
+            # continue in the previous fit's units; copies, so a copy of this model taken
+            # before the fit keeps its own weights
+            old = self._stored_scaling()
+            U = U * sc.x_scale / old.x_scale + (sc.x_mean - old.x_mean) / old.x_scale
+            v = v * sc.y_scale / old.y_scale + (sc.y_mean - old.y_mean) / old.y_scale
+            sc = old
+            params = [self.W1_.copy(), self.b1_.copy(), self.w2_.copy(), np.array([self.b2_])]
+        else:
+            rng = np.random.default_rng(self.random_state)
+            lim1 = np.sqrt(6.0 / (f + n_hidden))
+            lim2 = np.sqrt(6.0 / (n_hidden + 1))
+            params = [
+                rng.uniform(-lim1, lim1, (n_hidden, f)),
+                np.zeros(n_hidden),
+                rng.uniform(-lim2, lim2, n_hidden),
+                np.zeros(1),
+            ]
         m = [np.zeros_like(p) for p in params]
         s = [np.zeros_like(p) for p in params]
         beta1, beta2, eps = 0.9, 0.999, 1e-8
@@ -592,11 +625,7 @@ class BpNet(RegressorBase):
                 s_hat = si / (1 - beta2**epoch)
                 p -= lr * m_hat / (np.sqrt(s_hat) + eps)
 
-        self.n_features_in_ = f
-        self.x_mean_ = x_mean
-        self.x_scale_ = x_scale
-        self.y_mean_ = float(y_mean)
-        self.y_scale_ = float(y_scale)
+        self._store_scaling(sc)
         self.W1_, self.b1_, self.w2_ = params[0], params[1], params[2]
         self.b2_ = float(params[3][0])
         self.loss_curve_ = losses
@@ -614,8 +643,6 @@ class BpNet(RegressorBase):
         -------
         (n_samples,) float64
         """
-        Xa = self._validate_predict(X)
-        U = (Xa - self.x_mean_) / self.x_scale_
+        U = self._standardised_input(X)
         H = _sigmoid(U @ self.W1_.T + self.b1_)
-        out: FloatArray = self.y_mean_ + self.y_scale_ * (H @ self.w2_ + self.b2_)
-        return out
+        return self._target_units(H @ self.w2_ + self.b2_)

@@ -80,7 +80,7 @@ def test_every_method_constructs_by_name_and_unknown_names_list_them() -> None:
 
 def test_method_defaults_fill_only_what_the_caller_left_unset() -> None:
     slow = make_bridge("mlp")
-    assert isinstance(slow, LearnedBridge) and slow.config.refit_period_s == 60.0
+    assert isinstance(slow, LearnedBridge) and slow.config.refit_period_s == 20.0
     mine = make_bridge("mlp", BridgeConfig(refit_period_s=5.0))
     assert isinstance(mine, LearnedBridge) and mine.config.refit_period_s == 5.0
     plain = make_bridge("gmdh", BridgeConfig())
@@ -191,11 +191,116 @@ def test_gmdh_learns_a_drift_law_rotated_by_heading_from_virtual_outages() -> No
             assert isinstance(act, OutputCorrection)
             got.append(act.pos_ned_m[:2])
             want.append((0.02 * el * el * math.cos(yaw), 0.02 * el * el * math.sin(yaw)))
+            # GNSS back: its first fix shows the drift the law predicts (the gate scores it)
+            v = 0.04 * el
+            bridge.on_gnss(_epoch(t, yaw), InsError(
+                (want[-1][0], want[-1][1], 0.0), (v * math.cos(yaw), v * math.sin(yaw), 0.0),
+                True, True))  # fmt: skip
             bridge.on_gnss_restored(_epoch(t, yaw))
     # THEN the prediction follows the law (measured: 0.1 % relative RMS error)
     got_a, want_a = np.array(got), np.array(want)
     rel = np.sqrt(np.mean((got_a - want_a) ** 2)) / np.sqrt(np.mean(want_a**2))
     assert rel < 0.1, f"relative RMS error {rel:.3f}"
+
+
+def _shifted(stream: list[tuple[BridgeEpoch, InsError]], dt_s: float) -> list[
+    tuple[BridgeEpoch, InsError]
+]:  # fmt: skip
+    """The same stream ``dt_s`` later."""
+    d = round(dt_s * 1e6)
+
+    def ep(e: BridgeEpoch) -> BridgeEpoch:
+        return dataclasses.replace(e, time_us=e.time_us + d)
+
+    return [
+        (ep(e), dataclasses.replace(err, virtual=tuple(
+            dataclasses.replace(v, start=ep(v.start), epoch=ep(v.epoch))
+            for v in err.virtual)))
+        for e, err in stream
+    ]  # fmt: skip
+
+
+GATE_CFG = BridgeConfig(features=("t", "t2", "sinpsi", "cospsi"), warmup_s=0.0,
+                        min_horizon_s=10.0, window_s=1000.0, refit_period_s=6.0,
+                        max_samples=600)  # fmt: skip
+
+
+def test_gate_keeps_a_model_that_cannot_predict_off_and_the_output_is_none() -> None:
+    # GIVEN a drift along a random heading per outage, and inputs without the heading: the
+    # fitted model predicts some mean drift that no single outage has
+    bridge = make_bridge("gmdh", GATE_CFG.model_copy(update={"features": ("t", "t2")}))
+    assert isinstance(bridge, LearnedBridge)
+    for ep, err in _drift_stream({"a": 0.02}):
+        bridge.on_gnss(ep, err)
+    st = bridge.status
+    # THEN the networks are fitted, but the held-out virtual outages show the correction does
+    # not beat no correction by the margin, and the strategy does what `none` does
+    assert st.state == "trained" and st.refits > 10
+    assert all(st.fallback)
+    for k in (0, 1):
+        assert st.validation_rmse[k] > GATE_CFG.gate_margin * st.zero_rmse[k]
+    assert bridge.on_outage(_epoch(230.0, el=20.0)) is None
+    assert NoBridge().on_outage(_epoch(230.0, el=20.0)) is None
+    assert not bridge.status.active
+
+
+def test_gate_turns_on_for_a_learnable_drift_and_off_when_it_stops_winning() -> None:
+    # GIVEN the learnable law (0.02 t^2 along the heading): the gate lets it through
+    bridge = make_bridge("gmdh", GATE_CFG)
+    assert isinstance(bridge, LearnedBridge)
+    first = _drift_stream({"a": 0.02})
+    for ep, err in first:
+        bridge.on_gnss(ep, err)
+    st = bridge.status
+    assert not any(st.fallback[k] for k in (0, 1))
+    assert st.validation_rmse[0] < 0.2 * st.zero_rmse[0]
+    assert isinstance(bridge.on_outage(_epoch(230.0, el=20.0)), OutputCorrection)
+    bridge.on_gnss_restored(_epoch(230.0))
+    # WHEN the aircraft's drift reverses (a new error source the window has not seen)
+    off_at = None
+    t_last = first[-1][0].time_us * 1e-6
+    for i, (ep, err) in enumerate(_shifted(_drift_stream({"a": -0.02}, seed=1), t_last + 0.2)):
+        bridge.on_gnss(ep, err)
+        if off_at is None and all(bridge.status.fallback[k] for k in (0, 1)):
+            off_at = i * 0.2
+    # THEN the first outage it loses turns it off, long before the window forgets the old law
+    assert off_at is not None and off_at < 60.0, off_at
+
+
+def test_gate_scores_a_real_outage_by_the_first_fix_after_it() -> None:
+    # GIVEN a trained, enabled bridge
+    bridge = make_bridge("gmdh", GATE_CFG.model_copy(update={"gate_min_wins": 1.0}))
+    stream = _drift_stream({"a": 0.02})
+    for ep, err in stream:
+        bridge.on_gnss(ep, err)
+    assert not bridge.status.fallback[0]  # type: ignore[attr-defined]
+    # WHEN a real outage ends and GNSS shows the correction was wrong (no drift at all)
+    t = stream[-1][0].time_us * 1e-6 + 20.0
+    act = bridge.on_outage(_epoch(t, el=20.0))
+    assert isinstance(act, OutputCorrection) and abs(act.pos_ned_m[0]) > 1.0
+    bridge.on_gnss(_epoch(t + 0.2), InsError(_Z3, _Z3, True, True))
+    bridge.on_gnss_restored(_epoch(t + 0.2))
+    # THEN the components it made worse are off (the most recent outage must be a win)
+    assert bridge.status.fallback[0]  # type: ignore[attr-defined]
+
+
+def test_mlp_refits_are_bounded_and_continue_training_across_refits() -> None:
+    cfg = GATE_CFG.model_copy(update={"mlp_max_nfev": 3, "mlp_max_samples": 120,
+                                      "refit_period_s": 8.0, "mlp_hidden": 10})  # fmt: skip
+    bridge = make_bridge("mlp", cfg)
+    assert isinstance(bridge, LearnedBridge)
+    totals = []
+    for ep, err in _drift_stream({"a": 0.02}, n_outages=5):
+        bridge.on_gnss(ep, err)
+        cand = bridge._cand[0]  # the north-position network (white-box: its LM counters)
+        if cand is not None:
+            narx = cand.model._model  # type: ignore[attr-defined]
+            assert narx.n_iter_ <= 3 and bridge.status.last_fit_samples <= 120
+            totals.append(narx.n_iter_total_)
+    # every refit is bounded, and each continues the previous weights: the evaluation count
+    # of the model in use keeps growing past one refit's bound
+    assert totals and totals[-1] > 3 * 3
+    assert totals == sorted(totals)
 
 
 def test_refits_are_bounded_one_per_fix_and_by_the_sample_budget() -> None:
@@ -215,11 +320,12 @@ def test_refits_are_bounded_one_per_fix_and_by_the_sample_budget() -> None:
 
 
 def test_status_goes_untrained_training_trained_stale() -> None:
-    cfg = BridgeConfig(features=("t",), warmup_s=0.0, min_horizon_s=10.0, stale_after_s=30.0,
-                       refit_period_s=5.0, window_s=1000.0)  # fmt: skip
+    cfg = BridgeConfig(features=("t", "t2", "sinpsi", "cospsi"), warmup_s=0.0,
+                       min_horizon_s=10.0, stale_after_s=30.0, refit_period_s=5.0,
+                       window_s=1000.0)  # fmt: skip
     bridge = make_bridge("gmdh", cfg)
     states = []
-    stream = _drift_stream({"a": 0.01}, n_outages=4)
+    stream = _drift_stream({"a": 0.01})
     for ep, err in stream:
         bridge.on_gnss(ep, err)
         states.append(bridge.status.state)  # type: ignore[attr-defined]
@@ -397,7 +503,7 @@ def test_pseudo_gnss_comes_from_the_free_ins_minus_the_predicted_drift() -> None
     cfg = BridgeConfig(features=("t", "t2", "sinpsi", "cospsi"), warmup_s=0.0,
                        min_horizon_s=10.0, window_s=1000.0)  # fmt: skip
     bridge = make_bridge("gmdh-pseudo", cfg)
-    for ep, err in _drift_stream({"a": 0.02}, n_outages=6):
+    for ep, err in _drift_stream({"a": 0.02}):
         bridge.on_gnss(ep, err)
     # WHEN it is consulted with and without the free-running INS of the outage
     free = InsState(0.82, 0.14, 480.0, (10.0, 20.0, 1.0), (1.0, 0.0, 0.0, 0.0))

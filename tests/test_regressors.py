@@ -193,3 +193,62 @@ def test_bad_hyperparameter_names_the_parameter(model: object, param: str) -> No
     X = np.zeros((10, 2))
     with pytest.raises(ValueError, match=f"parameter {param}="):
         model.fit(X, np.zeros(10))  # type: ignore[attr-defined]
+
+
+# --------------------------------------------------------------------------- bounded refits
+def _narx_data(n: int = 150, seed: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    X = rng.normal(size=(n, 3))
+    return X, np.sin(X[:, 0]) + 0.5 * X[:, 1] * X[:, 2]
+
+
+def test_narx_warm_start_continues_training_within_max_nfev_per_fit() -> None:
+    # GIVEN one bounded fit (3 LM evaluations)
+    X, y = _narx_data()
+    model = NarxMLP(n_hidden=8, max_nfev=3).fit(X, y)
+    assert model.n_iter_ <= 3
+    costs = [model.cost_]
+    evaluations = [model.n_iter_]
+    first_mean = model.x_mean_.copy()
+    # WHEN it is continued (warm start) on slightly newer data, four times
+    model.set_params(warm_start=True)
+    for k in range(1, 5):
+        model.fit(X[k:], y[k:])
+        assert model.n_iter_ <= 3  # every refit is bounded on its own
+        costs.append(model.cost_)
+        evaluations.append(model.n_iter_)
+    # THEN training went on from where it stopped, the evaluations add up, the first fit's
+    # standardisation is kept, and it beats a cold bounded fit on the same data
+    assert costs[-1] < 0.5 * costs[0]
+    assert model.n_iter_total_ == sum(evaluations)
+    np.testing.assert_array_equal(model.x_mean_, first_mean)
+    cold = NarxMLP(n_hidden=8, max_nfev=3).fit(X[4:], y[4:])
+    assert model.cost_ < cold.cost_
+
+
+def test_warm_start_leaves_a_copy_taken_before_untouched() -> None:
+    # the bridge's fallback gate keeps judging the previous model while its copy trains on
+    import copy
+
+    X, y = _narx_data()
+    for model in (NarxMLP(n_hidden=6, max_nfev=3), BpNet(n_epochs=20)):
+        model.fit(X, y)
+        old = copy.copy(model)
+        pred = old.predict(X[:20])
+        model.set_params(warm_start=True)
+        model.fit(X[5:], y[5:])
+        np.testing.assert_array_equal(old.predict(X[:20]), pred)
+        assert not np.array_equal(model.predict(X[:20]), pred)
+
+
+def test_bp_warm_start_continues_the_loss_curve() -> None:
+    X, y = _narx_data(200)
+    model = BpNet(n_epochs=50).fit(X, y)
+    first = model.loss_curve_.copy()
+    model.set_params(warm_start=True).fit(X, y)
+    # the continued run starts about where the first ended, far below the first run's start
+    assert model.loss_curve_[0] < 0.5 * first[0]
+    assert model.loss_curve_[-1] < first[-1]
+    # a mismatched shape starts cold instead of failing
+    model.fit(X[:, :2], y)
+    assert model.n_features_in_ == 2
