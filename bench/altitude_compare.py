@@ -280,13 +280,25 @@ SETUPS: dict[str, dict[str, Any]] = {
 def make_config(
     method: AltitudeMethod, params: dict[str, Any], setup: str = "gnss-calibrated"
 ) -> AltitudeChannelConfig:
-    """Channel config from a flat parameter dict (keys: q_b, loop_tau_s, mpc.*, kf.*)."""
+    """Channel config from a flat parameter dict (keys: q_b, loop_tau_s, mpc.*, kf.*).
+
+    Keys not given take the values of P4's preset (:meth:`AltitudeChannelConfig.p4`: P4's loop
+    gains, the untuned MPC, P4's KF, ``q_b`` 0.02), not the channel's defaults (which are the
+    result of tuning), so a grid point means the same whatever the defaults are.
+    """
     cal = BaroCalibrationConfig(
         bias_random_walk_m_per_rth_s=params.get("q_b", 0.02), **SETUPS[setup]
     )
-    mpc = MpcConfig(**{k[4:]: v for k, v in params.items() if k.startswith("mpc.")})
-    kf = VerticalKfConfig(**{k[3:]: v for k, v in params.items() if k.startswith("kf.")})
-    loop = LoopGains()
+    mpc = MpcConfig.p4().model_copy(
+        update={k[4:]: v for k, v in params.items() if k.startswith("mpc.")}
+    )
+    kf = VerticalKfConfig.p4().model_copy(
+        update={k[3:]: v for k, v in params.items() if k.startswith("kf.")}
+    )
+    # model_copy does not validate: round-trip so bad grid values still raise
+    mpc = MpcConfig.model_validate(mpc.model_dump())
+    kf = VerticalKfConfig.model_validate(kf.model_dump())
+    loop = LoopGains.p4()
     if "loop_tau_s" in params:  # triple pole at -1/tau instead of P4's gains
         tau = params["loop_tau_s"]
         k1, k2, k3 = gains_from_poles([-1.0 / tau] * 3)

@@ -62,13 +62,13 @@ from typing import Literal
 
 import numpy as np
 import scipy.linalg
-from filterpy.kalman import KalmanFilter
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, PositiveInt
 
 from fusion.baro_altitude import (
     BaroAltimeter,
     BaroAltimeterConfig,
+    BaroCalibrationConfig,
     BaroHealth,
     BaroMonitor,
     BaroMonitorConfig,
@@ -92,6 +92,10 @@ P4_K2 = 0.6452
 """P4's loop gain K2, 1/s²."""
 P4_K3 = 0.8710
 """P4's loop gain K3, 1/s³."""
+
+DEFAULT_LOOP_TAU_S = 3.0
+"""Time constant of the default loop: a triple pole at ``−1/τ``, chosen on the tuning seeds
+(1-5) of ``bench/altitude_jsbsim.py`` over P4's gains and τ = 1 s (see :class:`LoopGains`)."""
 
 
 class _Frozen(BaseModel):
@@ -140,11 +144,39 @@ def zoh_discretise(a: FloatArray, b: FloatArray, dt_s: float) -> tuple[FloatArra
 
 
 class LoopGains(_Frozen):
-    """Gains of the third-order loop, SI (1/s, 1/s², 1/s³). Defaults: P4 eq. 17."""
+    """Gains of the third-order loop, SI (1/s, 1/s², 1/s³).
 
-    k1: PositiveFloat = P4_K1
-    k2: PositiveFloat = P4_K2
-    k3: PositiveFloat = P4_K3
+    Default: a triple pole at ``−1/τ`` with ``τ = 3 s`` (:data:`DEFAULT_LOOP_TAU_S`;
+    ``K1 = 1.0``, ``K2 = 0.3333``, ``K3 = 0.0370``), chosen on the tuning seeds of
+    ``bench/altitude_jsbsim.py`` (JSBSim climb-descent, 120 s GNSS outage, objective the mean
+    outage RMSE over calm and weather-front flights; candidates P4's gains, τ = 1 s, τ = 3 s).
+    P4's gains (eq. 17: K1 = 3.00, K2 = 0.6452, K3 = 0.8710, a real pole at −2.88/s and a
+    pair with ζ = 0.11 that rings for ~17 s) are :meth:`p4`; :meth:`triple_pole` gives any τ.
+    """
+
+    k1: PositiveFloat = 3.0 / DEFAULT_LOOP_TAU_S
+    k2: PositiveFloat = 3.0 / DEFAULT_LOOP_TAU_S**2 + 2.0 * OMEGA_S2
+    k3: PositiveFloat = 1.0 / DEFAULT_LOOP_TAU_S**3
+
+    @classmethod
+    def p4(cls) -> LoopGains:
+        """P4's gains K1 = 3.00 /s, K2 = 0.6452 /s², K3 = 0.8710 /s³ (paper eq. 17)."""
+        return cls(k1=P4_K1, k2=P4_K2, k3=P4_K3)
+
+    @classmethod
+    def triple_pole(cls, tau_s: float, omega_s2: float = OMEGA_S2) -> LoopGains:
+        """Triple pole at ``−1/τ``: ``K1 = 3/τ``, ``K2 = 3/τ² + 2ωs²``, ``K3 = 1/τ³``.
+
+        Parameters
+        ----------
+        tau_s : float
+            Time constant, s (> 0).
+        omega_s2 : float
+            ``ωs²``, 1/s².
+        """
+        if not (math.isfinite(tau_s) and tau_s > 0.0):
+            raise ValueError(f"tau_s must be finite and > 0 (got {tau_s!r})")
+        return cls(k1=3.0 / tau_s, k2=3.0 / tau_s**2 + 2.0 * omega_s2, k3=1.0 / tau_s**3)
 
 
 def gains_from_poles(
@@ -477,10 +509,15 @@ class MpcConfig(_Frozen):
     ``outage_mode`` (no reference): ``hold`` keeps ``δh`` and the model frozen; ``coast`` runs
     the model on with the last control held (``Δu = 0``); ``extrapolate`` runs it with ``u = 0``
     (``δh`` continues along the learned ``δVz``).
+
+    Defaults: P4's horizons ``Np = Nc = 10``; period 0.2 s, Laguerre pole 0.6 and ``R_L = 1``
+    as chosen on the tuning seeds of ``bench/altitude_jsbsim.py`` (grid: period 0.2 / 1 / 5 s,
+    pole 0 / 0.6, ``R_L`` 0.01 / 1 / 10). P4 gives no pole or ``N``; :meth:`p4` is the
+    untuned design used before (pole 0.5).
     """
 
     period_s: PositiveFloat = 0.2
-    pole: float = Field(default=0.5, ge=0.0, lt=1.0)
+    pole: float = Field(default=0.6, ge=0.0, lt=1.0)
     n_terms: PositiveInt = 4
     np_horizon: PositiveInt = 10
     nc_horizon: PositiveInt | None = 10
@@ -494,6 +531,12 @@ class MpcConfig(_Frozen):
     outage_mode: OutageMode = "hold"
     warm_start: bool = True
     """Start the model at ``δh = r`` with the first reference (no pull-in transient)."""
+
+    @classmethod
+    def p4(cls) -> MpcConfig:
+        """The untuned design: ``Np = Nc = 10`` (P4), pole 0.5, 4 terms, ``R_L = 1``, 0.2 s,
+        P4's Gauss–Markov baro bias (τ 600 s)."""
+        return cls(pole=0.5)
 
 
 class MpcCompensator:
@@ -565,6 +608,15 @@ class MpcCompensator:
         back = 1.0 - min(1.0, max(0.0, frac))
         return self.x[1] - back * self._dx[1], self.x[0] - back * self._dx[0]
 
+    def snapshot(self) -> tuple[tuple[float, ...], tuple[float, ...], float, bool]:
+        """The compensator's state (for :meth:`restore`)."""
+        return (tuple(self.x), tuple(self._dx), self.u, self.started)
+
+    def restore(self, state: tuple[tuple[float, ...], tuple[float, ...], float, bool]) -> None:
+        """Go back to a state taken with :meth:`snapshot`."""
+        x, dx, self.u, self.started = state
+        self.x, self._dx = list(x), list(dx)
+
     def _propagate(self, u: float) -> None:
         p, g, x = self._phi, self._gam, self.x
         n0 = p[0][0] * x[0] + p[0][1] * x[1] + p[0][2] * x[2] + g[0] * u
@@ -616,20 +668,34 @@ class MpcCompensator:
 
 
 class VerticalKfConfig(_Frozen):
-    """P4's Kalman comparator on ``[δVz, δh, b]`` (filterpy ``KalmanFilter``)."""
+    """P4's Kalman comparator on ``[δVz, δh, b]`` (filterpy ``KalmanFilter``).
+
+    Defaults as chosen on the tuning seeds of ``bench/altitude_jsbsim.py`` (GNSS-calibrated
+    baro): ``q_a`` 1e-6 m²/s³, GNSS sigma ×3 (its error is time-correlated), baro fused with a
+    near-constant bias (σ 0.5 m, τ 1e5 s). :meth:`p4` is P4's model (Gauss–Markov bias τ 600 s,
+    σ 1 m; ``q_a`` 1e-4), with which the KF forgets the bias during a long outage.
+    """
 
     period_s: PositiveFloat = 0.2
-    accel_noise_psd: PositiveFloat = 1e-4
+    accel_noise_psd: PositiveFloat = 1e-6
     """``q_a``, m²/s³ (covers the loop's model mismatch too: it is a tuning knob)."""
-    baro_bias_tau_s: PositiveFloat = 600.0
-    baro_bias_sigma_m: PositiveFloat = 1.0
+    baro_bias_tau_s: PositiveFloat = 1e5
+    baro_bias_sigma_m: PositiveFloat = 0.5
     baro_noise_m: PositiveFloat = 0.3
     """1σ of the baro measurement ``h − H``, m."""
     use_baro: bool = True
     """Fuse P4 eq. 18 ``z = h − H = δh − b + v`` at every period."""
-    gnss_sigma_scale: PositiveFloat = 1.0
+    gnss_sigma_scale: PositiveFloat = 3.0
     initial_sigmas: tuple[PositiveFloat, PositiveFloat, PositiveFloat] = (0.5, 5.0, 1.0)
     """Initial 1σ of ``[δVz, δh, b]`` (m/s, m, m)."""
+
+    @classmethod
+    def p4(cls) -> VerticalKfConfig:
+        """P4's comparator: Gauss–Markov baro bias τ 600 s, σ 1 m; ``q_a`` 1e-4; GNSS sigma as
+        reported."""
+        return cls(
+            accel_noise_psd=1e-4, baro_bias_tau_s=600.0, baro_bias_sigma_m=1.0, gnss_sigma_scale=1.0
+        )
 
 
 class VerticalKalman:
@@ -641,6 +707,10 @@ class VerticalKalman:
             cfg.baro_bias_tau_s, cfg.baro_bias_sigma_m, cfg.accel_noise_psd, omega_s2
         )
         phi, _, q_d = self.model.discretise(cfg.period_s)
+        # Imported here, not at module level: only loop-kf needs filterpy, and importing it
+        # costs ~2 s of CPU in every process that imports fusion (the live service included).
+        from filterpy.kalman import KalmanFilter
+
         kf = KalmanFilter(dim_x=3, dim_z=1)
         kf.F = phi
         kf.Q = q_d
@@ -667,6 +737,16 @@ class VerticalKalman:
     def baro_bias_m(self) -> float:
         """Estimated ``b``, m."""
         return float(self.kf.x[2, 0])
+
+    def snapshot(self) -> tuple[FloatArray, FloatArray, bool]:
+        """The filter's state ``(x, P, started)`` (copies, for :meth:`restore`)."""
+        return (self.kf.x.copy(), self.kf.P.copy(), self.started)
+
+    def restore(self, state: tuple[FloatArray, FloatArray, bool]) -> None:
+        """Go back to a state taken with :meth:`snapshot`."""
+        x, p, self.started = state
+        self.kf.x = x.copy()
+        self.kf.P = p.copy()
 
     def predict(self) -> None:
         """Propagate one period."""
@@ -720,6 +800,35 @@ class AltitudeChannelConfig(_Frozen):
     """... or its vertical speed by more than this, m/s."""
     omega_s2: float = Field(default=OMEGA_S2, ge=0.0)
 
+    @classmethod
+    def p4(
+        cls, method: AltitudeMethod = "loop-mpc", *, gnss_calibration: bool = False
+    ) -> AltitudeChannelConfig:
+        """Paper P4's channel: its loop gains (K1 = 3.00, K2 = 0.6452, K3 = 0.8710), the
+        untuned MPC (:meth:`MpcConfig.p4`) and P4's KF (:meth:`VerticalKfConfig.p4`).
+
+        Parameters
+        ----------
+        method : {"loop", "loop-mpc", "loop-kf"}
+        gnss_calibration : bool
+            ``False`` (P4's set-up): the baro scale ``s`` comes from the sensed temperature
+            only and ``b`` is not learned; GNSS reaches the altitude only through the
+            compensator. ``True``: ``(s, b)`` learned from GNSS height as in the defaults, with
+            the earlier (untuned) random walk of ``b``, 0.02 m/√s.
+        """
+        cal = BaroCalibrationConfig(
+            bias_random_walk_m_per_rth_s=0.02,
+            use_gnss=gnss_calibration,
+            use_temperature=not gnss_calibration,
+        )
+        return cls(
+            method=method,
+            loop=LoopGains.p4(),
+            baro=BaroAltimeterConfig(calibration=cal),
+            mpc=MpcConfig.p4(),
+            kf=VerticalKfConfig.p4(),
+        )
+
 
 @dataclass(slots=True)
 class AltitudeHealth:
@@ -766,8 +875,12 @@ class AltitudeChannel:
     speed ~3 m/s and an ``a_c`` ~2 m/s² wrong and, undamped afterwards, put the altitude
     hundreds of metres off. The rollback is applied only if the repeated readings had moved the
     loop by more than ``freeze_rollback_m`` / ``freeze_rollback_mps`` (in level flight they
-    are harmless and the damped state is the better one). The compensators are not rolled
-    back (the MPC holds during an outage anyway).
+    are harmless and the damped state is the better one). The compensator (MPC or KF) is rolled
+    back with the loop: to its state at the checkpoint, then run on without measurements for
+    the periods since (MPC: its outage mode; KF: prediction only), because its GNSS references
+    and baro residuals in that time were taken against the corrupted loop. So is the baro
+    calibration, which had fitted GNSS heights to the stuck pressure altitude (the datum shifts
+    it made meanwhile are undone).
 
     Call order: :meth:`update_imu` at the IMU rate; :meth:`update_baro` and
     :meth:`update_gnss_height` as samples arrive (time-ordered, same time base as the IMU's).
@@ -808,12 +921,21 @@ class AltitudeChannel:
         self._pending_baro: float | None = None
         # Frozen-sensor rollback: loop state, pending baro height and last baro (height, time)
         # when the latest fresh (changed) reading was accepted, and since then the IMU steps
-        # (az, dt) and datum shifts (None, delta) applied to the loop.
+        # (az, dt) and datum shifts (None, delta) applied to the loop; also the calibration's
+        # state and the pressure altitude (Hp, time) it calibrates against at that moment.
         self._run_p: float | None = None
         self._ckpt: (
             tuple[tuple[float, float, float, float | None, float, bool], float, float, float] | None
         ) = None
+        self._cal_ckpt: (
+            tuple[tuple[float, float, float, float, float, float | None, bool], float | None, float]
+            | None
+        ) = None
         self._since_ckpt: list[tuple[float | None, float]] = []
+        # ... and the compensator's state at (or, unchanged, before) that checkpoint, with the
+        # number of compensator periods run since the snapshot.
+        self._comp_ckpt: object = None
+        self._comp_steps_since = 0
 
     # ---- outputs -----------------------------------------------------------------------
     @property
@@ -912,6 +1034,7 @@ class AltitudeChannel:
         if self.mpc is None and self.kf is None:
             return
         self.health.compensator_steps += 1
+        self._comp_steps_since += 1
         fresh = self._residual_n > 0
         if fresh:
             self._residual = self._residual_sum / self._residual_n
@@ -992,7 +1115,13 @@ class AltitudeChannel:
             h_baro = self.altimeter.altitude_from_hp(hp)
         if fresh:
             self._ckpt = (self.loop.snapshot(), h_baro, h_baro, time_s)
+            self._cal_ckpt = (self.altimeter.calibration.snapshot(), hp, time_s)
             self._since_ckpt = []
+            if self._comp_steps_since or self._comp_ckpt is None:
+                # The compensator changes only at its period (0.2 s): a new snapshot only if
+                # it stepped since the last one (baro samples come at up to 50 Hz).
+                self._comp_ckpt = self._comp_snapshot()
+                self._comp_steps_since = 0
         self._pending_baro = h_baro
         self._last_baro_h, self._last_baro_time = h_baro, time_s
         return True
@@ -1025,6 +1154,18 @@ class AltitudeChannel:
             self._ckpt, self._since_ckpt = None, []
             return
         self.health.freeze_rollbacks += 1
+        self._comp_rollback()
+        if self._cal_ckpt is not None:
+            # The calibration had learned from GNSS heights against the stuck Hp: back to its
+            # state at the checkpoint, and the datum shifts it made since are undone.
+            cal_state, self._last_hp, self._last_hp_time = self._cal_ckpt
+            self.altimeter.calibration.restore(cal_state)
+            undo = -sum(x for az, x in self._since_ckpt if az is None)
+            if undo:
+                loop.shift(undo)
+                last_h += undo
+                if baro is not None:
+                    baro += undo
         if baro is not None:  # no IMU step since the checkpoint: still to be applied
             self._pending_baro = baro
         else:
@@ -1032,6 +1173,35 @@ class AltitudeChannel:
         self.health.undamped = not loop.damped
         self._last_baro_h, self._last_baro_time = last_h, last_t
         self._ckpt, self._since_ckpt = None, []
+
+    def _comp_snapshot(self) -> object:
+        if self.mpc is not None:
+            return self.mpc.snapshot()
+        if self.kf is not None:
+            return self.kf.snapshot()
+        return None
+
+    def _comp_rollback(self) -> None:
+        """Roll the compensator back with the loop: restore its state at the checkpoint and
+        re-run the periods since without measurements. Its references and baro residuals in
+        that time were made against the loop the stuck readings had pulled away; kept, they
+        would carry that error into ``h − δh`` after the loop itself was repaired."""
+        state, n = self._comp_ckpt, self._comp_steps_since
+        if state is None:
+            return
+        if self.mpc is not None:
+            self.mpc.restore(state)  # type: ignore[arg-type]
+            for _ in range(n):
+                self.mpc.step(None)  # the outage behaviour (hold by default)
+        elif self.kf is not None:
+            self.kf.restore(state)  # type: ignore[arg-type]
+            if self.kf.started:
+                for _ in range(n):
+                    self.kf.predict()
+        # Residuals gathered since were against the wrong loop height: drop them.
+        self._residual = None
+        self._residual_sum, self._residual_n = 0.0, 0
+        self._comp_ckpt, self._comp_steps_since = None, 0  # re-snapshot at the next checkpoint
 
     def update_gnss_height(
         self,

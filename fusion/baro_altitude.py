@@ -348,7 +348,7 @@ class BaroCalibrationConfig(_Frozen):
     poorly excited in level flight, and exponential forgetting then winds the covariance of
     ``s`` up without bound; random-walk process noise keeps it bounded and gives the same
     fading memory for ``b``. The memory of ``b`` is about ``σ_meas/(q_b·√f)`` for GNSS heights
-    at rate ``f`` (e.g. 2.5 m, q_b = 0.02 m/√s, 5 Hz: 56 s).
+    at rate ``f`` (e.g. 2.5 m at 5 Hz: 224 s with the default q_b = 0.005 m/√s, 56 s with 0.02).
     """
 
     scale_sigma0: PositiveFloat = 0.05
@@ -359,8 +359,11 @@ class BaroCalibrationConfig(_Frozen):
     """Prior 1σ of ``b`` when initialised from a QNH setting, m."""
     scale_random_walk_per_rth_s: float = Field(default=1e-5, ge=0.0)
     """Random walk of ``s``, 1/√s (the air mass changes slowly)."""
-    bias_random_walk_m_per_rth_s: float = Field(default=0.02, ge=0.0)
-    """Random walk of ``b``, m/√s: weather (1 hPa per 10 min ≈ 0.014 m/s) and sensor drift."""
+    bias_random_walk_m_per_rth_s: float = Field(default=0.005, ge=0.0)
+    """Random walk of ``b``, m/√s: weather (1 hPa per 10 min ≈ 0.014 m/s) and sensor drift.
+    0.005 was chosen on the tuning seeds of ``bench/altitude_jsbsim.py`` (over 0.02 and 0.05;
+    calm and weather-front flights): a memory of ~200 s averages the GNSS receiver's
+    time-correlated vertical error better than 0.02 (~56 s) does."""
     min_gnss_sigma_m: PositiveFloat = 0.5
     """Floor on the GNSS height sigma used, m."""
     gnss_sigma_scale: PositiveFloat = 1.0
@@ -472,6 +475,30 @@ class BaroCalibration:
     def unfreeze(self) -> None:
         """Resume learning; the covariance grows by the random walk over the frozen time."""
         self.frozen = False
+
+    def snapshot(self) -> tuple[float, float, float, float, float, float | None, bool]:
+        """The estimator's state ``(s, b, Pss, Psb, Pbb, t_last, frozen)`` (for :meth:`restore`)."""
+        return (
+            self.scale,
+            self.bias_m,
+            self._pss,
+            self._psb,
+            self._pbb,
+            self._t_last_s,
+            self.frozen,
+        )
+
+    def restore(self, state: tuple[float, float, float, float, float, float | None, bool]) -> None:
+        """Go back to a state taken with :meth:`snapshot` (the counters are kept)."""
+        (
+            self.scale,
+            self.bias_m,
+            self._pss,
+            self._psb,
+            self._pbb,
+            self._t_last_s,
+            self.frozen,
+        ) = state
 
     def shift_bias(self, delta_m: float) -> None:
         """Add ``delta_m`` to ``b`` (re-alignment of the datum after a baro step), m."""

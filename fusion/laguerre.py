@@ -41,10 +41,18 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
+
+
+def _nnls(a: FloatArray, b: FloatArray) -> tuple[FloatArray, float]:
+    """``scipy.optimize.nnls``, imported on first use: only the bounded (QP) MPC needs it, and
+    importing scipy.optimize costs ~0.5 s in every process that imports fusion."""
+    import scipy.optimize
+
+    x, rnorm = scipy.optimize.nnls(a, b)
+    return np.asarray(x, dtype=np.float64), float(rnorm)
 
 
 def laguerre_network(pole: float, n_terms: int) -> tuple[FloatArray, FloatArray]:
@@ -181,7 +189,7 @@ def solve_qp(
     a = np.vstack([g.T, h[None, :]])
     b = np.zeros(n + 1)
     b[n] = 1.0
-    u = np.asarray(scipy.optimize.nnls(a, b)[0], dtype=np.float64)
+    u = np.asarray(_nnls(a, b)[0], dtype=np.float64)
     r = a @ u - b
     # r[n] = -(1 - hᵀu) < 0 for a feasible problem (always, after the relaxation)
     z = -r[:n] / r[n]
@@ -423,7 +431,7 @@ class LaguerreMPC:
         g_eff = np.maximum(gamma, 0.0) if relaxed else gamma
         a = self._ldp_a
         a[-1] = m_eta0 - g_eff
-        w = np.asarray(scipy.optimize.nnls(a, self._ldp_b)[0], dtype=np.float64)
+        w = np.asarray(_nnls(a, self._ldp_b)[0], dtype=np.float64)
         resid = a @ w - self._ldp_b
         eta = self._r_inv @ (-resid[:-1] / resid[-1]) + eta0
         return eta, QpResult(True, relaxed, float(np.max(self.m_con @ eta - g_eff)))

@@ -304,3 +304,13 @@ def test_monitor_gate_and_rejection_duration():
     assert mon.health.gate_rejections == 2 and mon.health.rejecting
     assert mon.gate(101.0, 100.0, 4.0)
     assert mon.rejecting_for_s(4.0) == 0.0 and mon.health.accepted == 2
+
+
+def test_calibration_snapshot_restore_round_trip():
+    cal = ba.BaroCalibration()
+    state = cal.snapshot()
+    for k in range(20):
+        cal.update(1000.0 + k, 990.0 + k, float(k), sigma_m=2.0)
+    assert cal.bias_m != state[1]
+    cal.restore(state)
+    assert cal.snapshot() == state
