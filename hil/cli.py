@@ -6,10 +6,11 @@ crashed), 2 bad input (one line on stderr naming what is wrong, never a tracebac
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Annotated, Any, ParamSpec, TypeVar
 
@@ -72,8 +73,11 @@ def _choice(name: str, value: str, valid: tuple[str, ...] | list[str]) -> str:
     return value
 
 
-def _progress(total_s: float, label: str) -> Progress:
-    return Progress(
+@contextlib.contextmanager
+def _progress(total_s: float, label: str) -> Iterator[Callable[[float], None]]:
+    """A transient bar on stderr over ``total_s`` simulated seconds (hidden when stderr is not
+    a terminal); yields the ``progress(t_s)`` callback the runners take."""
+    bar = Progress(
         TextColumn(f"[bold]{label}"),
         BarColumn(),
         TextColumn("{task.completed:>7.0f}/{task.total:.0f} s"),
@@ -82,6 +86,9 @@ def _progress(total_s: float, label: str) -> Progress:
         transient=True,
         disable=not err_console.is_terminal,
     )
+    with bar:
+        task = bar.add_task(label, total=total_s)
+        yield lambda t: bar.update(task, completed=t)
 
 
 # --------------------------------------------------------------------------------------- sim
@@ -157,9 +164,8 @@ def sim(
         return
     if record is None:
         raise ValueError("--record is required (or stream live with --live URL)")
-    with _progress(duration, "flying") as bar:
-        task = bar.add_task("fly", total=duration)
-        report = record_flight(request, record, progress=lambda t: bar.update(task, completed=t))
+    with _progress(duration, "flying") as progress:
+        report = record_flight(request, record, progress=progress)
     console.print(
         f"recorded {report.frames} frames, {report.sim_duration_s:.1f} s simulated in "
         f"{report.wall_s:.1f} s ({report.realtime_factor:.0f}x real time) -> {record}"
@@ -187,12 +193,11 @@ def _sim_live(request: Any, url: str, *, speed: float, record: Path | None, zeno
     key = _signing_key(signing_key_file)
     err_console.print(f"sim: streaming to {url} at {speed:g}x real time"
                       + (" (lockstep)" if lockstep else ""), highlight=False)
-    with stop_on_signals() as stop, _progress(request.duration_s, "flying") as bar:
-        task = bar.add_task("fly", total=request.duration_s)
+    with stop_on_signals() as stop, _progress(request.duration_s, "flying") as progress:
         report = live_sim(request, url, speed=speed, record=record, zenoh=zenoh,
                           vehicle=vehicle, signing_key=key, wait_peer_s=wait_peer,
                           lockstep=lockstep, lockstep_window_s=lockstep_window,
-                          progress=lambda t: bar.update(task, completed=t), stop=stop)
+                          progress=progress, stop=stop)
     console.print(
         f"sent {report.sent}/{report.frames} frames, {report.sim_duration_s:.1f} s simulated in "
         f"{report.wall_s:.1f} s ({report.realtime_factor:.2f}x real time, target {speed:g}x)"
@@ -219,6 +224,9 @@ def fusion(
     imu: Annotated[str, typer.Option(help="IMU preset the filter is tuned for.")] = (
         "industrial-mems"
     ),
+    gnss: Annotated[
+        str, typer.Option(help="GNSS receiver preset the filter models (its correlated error).")
+    ] = "modern",
     gcs: Annotated[
         str | None,
         typer.Option(help="Shadow vehicle for ground stations, e.g. udpout:127.0.0.1:14550."),
@@ -256,15 +264,15 @@ def fusion(
         validate_endpoint(zenoh)
         validate_vehicle(vehicle)
     options = FusionOptions(
-        mavlink=mavlink, zenoh=zenoh, vehicle=vehicle, imu=imu, gcs=gcs,
+        mavlink=mavlink, zenoh=zenoh, vehicle=vehicle, imu=imu, gnss=gnss, gcs=gcs,
         shadow_system_id=shadow_sysid, companion=companion,
         companion_kind=companion_kind,  # type: ignore[arg-type]  # pydantic checks the literal
         companion_system_id=companion_sysid, duration_s=duration, idle_exit_s=idle_exit, out=out,
         settle_s=settle,
     )
-    from hil.tuning import filter_config_for_imu
+    from hil.tuning import filter_config_for_presets
 
-    filter_config_for_imu(imu)  # bad preset -> exit 2 before any socket opens
+    filter_config_for_presets(imu, gnss)  # bad preset -> exit 2 before any socket opens
     key = _signing_key(signing_key_file)
 
     def ready(service: Any) -> None:
@@ -372,14 +380,18 @@ def replay(
     imu: Annotated[
         str, typer.Option(help="IMU datasheet preset the filter is tuned for.")
     ] = "industrial-mems",
+    gnss: Annotated[
+        str, typer.Option(help="GNSS receiver preset the filter models (its correlated error).")
+    ] = "modern",
 ) -> None:
     """Run the navigation filter on a recorded log and score it against the logged truth."""
-    from hil.tuning import filter_config_for_imu
+    from hil.tuning import filter_config_for_presets
     from scenarios.replay import replay as run_replay
 
     _choice("bridging method", bridge, BRIDGE_METHODS)
     _choice("altitude method", altitude, ALTITUDE_METHODS)
-    result = run_replay(log, out, config=filter_config_for_imu(imu), bridge=bridge,
+    result = run_replay(log, out, config=filter_config_for_presets(imu, gnss),
+                        bridge=bridge,
                         altitude=altitude, settle_s=settle)
     _print_summary(result.summary)
     console.print(f"summary -> {result.summary_path}")
@@ -421,20 +433,20 @@ def demo(
     imu: Annotated[str, typer.Option(help="IMU preset (sensor and filter tuning).")] = (
         "industrial-mems"
     ),
+    gnss: Annotated[str, typer.Option(help="GNSS preset (sensor and filter model).")] = "modern",
 ) -> None:
     """The main job: fly a racetrack, record it, run the filter with a GNSS outage, score it."""
     from hil.recording import SimRequest, record_flight
-    from hil.tuning import filter_config_for_imu
+    from hil.tuning import filter_config_for_presets
     from scenarios.replay import replay as run_replay
 
     out.mkdir(parents=True, exist_ok=True)
     log = out / "run.tlog"
-    config = filter_config_for_imu(imu)
-    request = SimRequest.build(plan=plan, imu=imu, duration_s=duration, seed=seed,
+    config = filter_config_for_presets(imu, gnss)
+    request = SimRequest.build(plan=plan, imu=imu, gnss=gnss, duration_s=duration, seed=seed,
                                gnss_off=[outage])
-    with _progress(duration, "flying") as bar:
-        task = bar.add_task("fly", total=duration)
-        report = record_flight(request, log, progress=lambda t: bar.update(task, completed=t))
+    with _progress(duration, "flying") as progress:
+        report = record_flight(request, log, progress=progress)
     console.print(
         f"flew {report.sim_duration_s:.0f} s in {report.wall_s:.1f} s "
         f"({report.realtime_factor:.0f}x real time) -> {log}"
@@ -501,9 +513,8 @@ def run(
     if quiet:
         result = run_scenario(scn, out)
     else:
-        with _progress(scn.duration_s, scn.name) as bar:
-            task = bar.add_task("run", total=scn.duration_s)
-            result = run_scenario(scn, out, progress=lambda t: bar.update(task, completed=t))
+        with _progress(scn.duration_s, scn.name) as progress:
+            result = run_scenario(scn, out, progress=progress)
     s = result.summary
     _print_summary(s)
     for c in s.get("criteria", []):

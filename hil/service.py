@@ -80,7 +80,7 @@ from hil.link import (
 )
 from hil.shadow import CompanionEncoder, ShadowEncoder
 from hil.signing import Signer
-from hil.tuning import filter_config_for_imu
+from hil.tuning import filter_config_for_presets
 from scenarios.collect import Collector
 from sim.samples import GnssFix, Truth
 
@@ -110,6 +110,7 @@ class FusionOptions(BaseModel):
     zenoh: str | None = None
     vehicle: str = "sim1"
     imu: str = "industrial-mems"
+    gnss: str = "modern"
     gcs: str | None = None
     shadow_system_id: int = Field(default=1, ge=1, le=255)
     companion: str | None = None
@@ -265,7 +266,7 @@ class FusionService:
 
     def __init__(self, options: FusionOptions, *, signing_key: bytes | None = None) -> None:
         self.options = options
-        self.config = filter_config_for_imu(options.imu)
+        self.config = filter_config_for_presets(options.imu, options.gnss)
         self.nav = TappedNavFilter(self.config)
         self.decoder = Decoder()
         self.collector = Collector() if options.out is not None else None

@@ -9,15 +9,13 @@ data, written as ``compare.json`` (ARCHITECTURE.md) and ``compare.md``.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from fusion.bridging import BRIDGE_METHODS, make_bridge
+from scenarios.jsonable import plain_dict, write_json
 from scenarios.runner import Frame, filter_config, fuse, score, simulate
 from scenarios.schema import Scenario
 from scenarios.summary import write_summary
@@ -68,7 +66,7 @@ def compare(
             if progress:
                 progress(f"seed {seed}: fusing with {m}")
             fused = fuse(frames, config, m)
-            status = _bridge_status(fused.nav.bridge)
+            status = plain_dict(getattr(fused.nav.bridge, "status", None))
             summary, _ = score(
                 scn, fused, out_dir / f"seed{seed}" / m, bridge=m, altitude=altitude,
                 sim_duration_s=sim.report.sim_duration_s, wall_s=fused.wall_s,
@@ -78,7 +76,7 @@ def compare(
             write_summary(summary, out_dir / f"seed{seed}" / m / "summary.json")
             runs[m].append(summary)
     result = aggregate(scenario.name, runs, list(seeds))
-    (out_dir / "compare.json").write_text(json.dumps(_clean(result), indent=2) + "\n")
+    write_json(result, out_dir / "compare.json")
     (out_dir / "compare.md").write_text(markdown(result))
     _plot_drift(runs, out_dir / "drift_by_method.png")
     return result
@@ -89,16 +87,6 @@ def _appender(frames: list[Frame]) -> Callable[[int, bytes], None]:
         frames.append((time_us, frame))
 
     return sink
-
-
-def _bridge_status(bridge: object) -> dict[str, Any]:
-    status = getattr(bridge, "status", None)
-    if status is None:
-        return {}
-    fields = getattr(status, "__dataclass_fields__", None)
-    if fields is None:
-        return {}
-    return {k: getattr(status, k) for k in fields}
 
 
 def _rms(values: list[float]) -> float | None:
@@ -187,17 +175,6 @@ def markdown(result: dict[str, Any]) -> str:
         lines.append(f"| {m} | {_f(row['update_us_per_sample'], '.1f')} "
                      f"| {_f(row['fit_ms'], '.1f')} |")
     return "\n".join(lines) + "\n"
-
-
-def _clean(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, float | np.floating):
-        f = float(obj)
-        return f if math.isfinite(f) else None
-    return obj
 
 
 def _plot_drift(runs: dict[str, list[dict[str, Any]]], path: Path) -> None:

@@ -22,6 +22,7 @@ from hil.codec import Decoder
 from hil.tlog import read_tlog
 from scenarios import metrics
 from scenarios.collect import Collector
+from scenarios.jsonable import plain_dict
 from scenarios.report import write_plots
 from scenarios.summary import RunInfo, build_summary, write_summary
 
@@ -82,17 +83,12 @@ def replay(
     health = nav.health
     summary, err = build_summary(
         info, estimate, truth, outages, settle_s=settle_s,
-        health={"filter": _as_dict(health), "decoder": _as_dict(decoder.counters)})
+        health={"filter": plain_dict(health), "decoder": plain_dict(decoder.counters)})
     summary_path = out_dir / "summary.json"
     write_summary(summary, summary_path)
     plots = write_plots(estimate, truth, err, outages, out_dir)
     return ReplayResult(summary, summary_path, plots)
 
 
-def _as_dict(obj: object) -> dict[str, Any]:
-    if isinstance(obj, dict):
-        return dict(obj)
-    fields = getattr(obj, "__dataclass_fields__", None)
-    if fields is not None:
-        return {k: getattr(obj, k) for k in fields}
-    return {}
+#: Old private name; ``hil.service`` still imports it.
+_as_dict = plain_dict

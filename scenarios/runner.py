@@ -26,9 +26,10 @@ from fusion.filter import NavFilter
 from hil.bridge import LockstepReport, SensorBridge, run_lockstep
 from hil.codec import Decoder
 from hil.tlog import TlogWriter
-from hil.tuning import filter_config_for_imu
+from hil.tuning import filter_config_for_imu, filter_gnss_config
 from scenarios import metrics
 from scenarios.collect import Collector
+from scenarios.jsonable import plain_dict
 from scenarios.schema import Scenario
 from scenarios.summary import RunInfo, build_summary, write_summary
 from sim.faults import FaultInjector
@@ -80,12 +81,14 @@ class RunResult:
 
 
 def filter_config(scenario: Scenario, altitude: str | None = None) -> FilterConfig:
-    """The filter tuned from the scenario's IMU datasheet preset, with its altitude method."""
+    """The filter tuned from the scenario's IMU datasheet preset and its GNSS receiver's error
+    model (position-bias states for a time-correlated receiver), with its altitude method."""
     config = filter_config_for_imu(scenario.imu_preset)
     method = altitude or scenario.fusion.altitude
-    return config.model_copy(
-        update={"altitude": config.altitude.model_copy(update={"method": method})}
-    )
+    return config.model_copy(update={
+        "altitude": config.altitude.model_copy(update={"method": method}),
+        "gnss": filter_gnss_config(scenario.sensor_config().gnss, config.gnss),
+    })
 
 
 def simulate(
@@ -187,8 +190,8 @@ def score(
         np.asarray(col.fix_times_us, dtype=float) * 1e-6, end_s=end_s)
     info = RunInfo(scenario=scenario.name, seed=scenario.seed, sim_duration_s=sim_duration_s,
                    wall_s=wall_s, bridge=bridge, altitude=altitude)
-    health: dict[str, Any] = {"filter": _as_dict(nav.health),
-                              "decoder": _as_dict(fused.decoder.counters)}
+    health: dict[str, Any] = {"filter": plain_dict(nav.health),
+                              "decoder": plain_dict(fused.decoder.counters)}
     health.update(health_extra or {})
     summary, err = build_summary(
         info, estimate, truth, outages, criteria=scenario.criteria(), health=health,
@@ -238,7 +241,7 @@ def run_scenario(
     wall = time.perf_counter() - t0
     extra: dict[str, Any] = {
         "faults": sim.fault_counters,
-        "fault_log": [_as_dict(e) for e in sim.fault_log],
+        "fault_log": [plain_dict(e) for e in sim.fault_log],
         "fusion_us_per_sample": 1e6 * sink.fuse_s / max(sink.samples, 1),
     }
     if sim.report.ended is not None:
@@ -254,20 +257,3 @@ def run_scenario(
     if tlog:
         files.insert(1, log_path)
     return RunResult(summary, out_dir, files)
-
-
-def _as_dict(obj: object) -> dict[str, Any]:
-    if isinstance(obj, dict):
-        return dict(obj)
-    fields = getattr(obj, "__dataclass_fields__", None)
-    if fields is not None:
-        return {k: _plain(getattr(obj, k)) for k in fields}
-    return {}
-
-
-def _plain(v: Any) -> Any:
-    if hasattr(v, "__dataclass_fields__"):
-        return _as_dict(v)
-    if isinstance(v, tuple | list):
-        return [_plain(x) for x in v]
-    return v

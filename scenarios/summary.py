@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -13,6 +12,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, NonNegativeFloat, PositiveFloat
 
 from scenarios import metrics
+from scenarios.jsonable import write_json
 from scenarios.metrics import Errors, EventWindow, HealthSeries, Track, Window
 
 SCHEMA_VERSION = 1
@@ -237,19 +237,6 @@ def _bad_fix_threshold(
     return max(cfg.bad_fix_min_m, cfg.bad_fix_k * base)
 
 
-def _clean(obj: Any) -> Any:
-    """JSON has no NaN/Inf: write them as null."""
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, float | np.floating):
-        f = float(obj)
-        return f if math.isfinite(f) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    return obj
-
-
 def write_summary(summary: dict[str, Any], path: Path) -> None:
-    path.write_text(json.dumps(_clean(summary), indent=2) + "\n")
+    """Write ``summary.json`` (NaN and infinity as ``null``)."""
+    write_json(summary, path)

@@ -41,7 +41,7 @@ from hil.router import zenoh_router
 from hil.service import TappedNavFilter, innovation_source, input_role, interpolate_truth
 from hil.signing import Signer, mavlink_timestamp
 from hil.tlog import read_tlog
-from hil.tuning import filter_config_for_imu
+from hil.tuning import filter_config_for_presets
 from hil.up import free_udp_port, stop_process
 from scenarios.collect import Collector
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Truth
@@ -548,7 +548,7 @@ def test_lockstep_loses_nothing_when_the_fusion_freezes_and_innovations_match_re
     assert live["lockstep_acks"] > 0
 
     # the same filter on the recording, tapped the same way
-    nav = TappedNavFilter(filter_config_for_imu("industrial-mems"))
+    nav = TappedNavFilter(filter_config_for_presets("industrial-mems", "modern"))
     col = Collector()
     dec = Decoder()
     want: list[tuple[int, str, list[float], float]] = []

@@ -86,6 +86,29 @@ def test_replay_of_the_run_log_scores_the_same(run_dir: Path, scenario: Scenario
     assert r["health"]["filter"] == s["health"]["filter"]
 
 
+def test_filter_models_the_scenario_gnss_receiver(scenario: Scenario, tmp_path: Path) -> None:
+    """The filter's GNSS position-bias states take the scenario receiver's Gauss-Markov error."""
+    from scenarios.runner import filter_config
+
+    gnss = scenario.sensor_config().gnss
+    cfg = filter_config(scenario).gnss
+    # GIVEN the default (modern) receiver, whose position error is mostly Gauss-Markov
+    assert gnss.horizontal_gm_sigma_m > 0.0
+    # THEN the filter carries bias states with the receiver's sigma and correlation time
+    assert cfg.bias_states
+    assert (cfg.bias_sigma_h_m, cfg.bias_tau_h_s) == (gnss.horizontal_gm_sigma_m,
+                                                     gnss.horizontal_gm_tau_s)
+    assert (cfg.bias_sigma_v_m, cfg.bias_tau_v_s) == (gnss.vertical_gm_sigma_m,
+                                                     gnss.vertical_gm_tau_s)
+    # AND a receiver without a correlated part keeps the white-noise model
+    imu_line = "  imu: {preset: industrial-mems}\n"
+    white_gnss = "  gnss: {preset: modern, horizontal_gm_sigma_m: 0, vertical_gm_sigma_m: 0}\n"
+    text = SCENARIO.replace(imu_line, imu_line + white_gnss)
+    (tmp_path / "white.yaml").write_text(text % "100 m")
+    white = load_scenario(tmp_path / "white.yaml")
+    assert not filter_config(white).gnss.bias_states
+
+
 def test_same_seed_same_numbers(run_dir: Path, scenario: Scenario, tmp_path: Path) -> None:
     run_scenario(scenario, tmp_path, reports=False, tlog=False)
     again = json.loads((tmp_path / "summary.json").read_text())

@@ -26,7 +26,7 @@ from hil.router import zenoh_router
 from hil.service import GcsResponder, interpolate_truth
 from hil.shadow import CompanionEncoder, ShadowEncoder, gps_time
 from hil.tlog import read_tlog
-from hil.tuning import filter_config_for_imu
+from hil.tuning import filter_config_for_presets
 from hil.up import free_udp_port, stop_process
 from scenarios.collect import Collector
 from scenarios.replay import replay
@@ -221,7 +221,8 @@ def test_live_chain_matches_replay_of_the_same_frames(tmp_path: Path) -> None:
     assert live["live"]["lost_frames"] == 0
     assert live["live"]["links"]["mavlink"]["accepted"] > 10_000
     ref = replay(tmp_path / "run.tlog", tmp_path / "replay",
-                 config=filter_config_for_imu("industrial-mems"), settle_s=10.0).summary
+                 config=filter_config_for_presets("industrial-mems", "modern"),
+                 settle_s=10.0).summary
     assert live["gnss_on"] == ref["gnss_on"]
     assert live["outages"] == ref["outages"]
     assert live["nees"] == ref["nees"]
@@ -230,7 +231,7 @@ def test_live_chain_matches_replay_of_the_same_frames(tmp_path: Path) -> None:
     nav_col = Collector()
     from fusion.filter import NavFilter
 
-    nav = NavFilter(filter_config_for_imu("industrial-mems"))
+    nav = NavFilter(filter_config_for_presets("industrial-mems", "modern"))
     dec = Decoder()
     for _ts, frame in read_tlog(tmp_path / "run.tlog"):
         nav_col.feed(nav, (d.sample for d in dec.feed(frame)))
