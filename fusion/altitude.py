@@ -278,20 +278,8 @@ class ThirdOrderLoop:
     def from_time_constant(
         cls, tau_s: float, *, omega_s2: float = OMEGA_S2, **kwargs: float
     ) -> ThirdOrderLoop:
-        """Triple pole at ``−1/τ``: ``K1 = 3/τ``, ``K2 = 3/τ² + 2ωs²``, ``K3 = 1/τ³``.
-
-        Parameters
-        ----------
-        tau_s : float
-            Time constant, s (> 0).
-        omega_s2 : float
-            ``ωs²``, 1/s².
-        """
-        if not (math.isfinite(tau_s) and tau_s > 0.0):
-            raise ValueError(f"tau_s must be finite and > 0 (got {tau_s!r})")
-        p = -1.0 / tau_s
-        k1, k2, k3 = gains_from_poles([p, p, p], omega_s2)
-        return cls(k1, k2, k3, omega_s2=omega_s2, **kwargs)
+        """Triple pole at ``−1/τ`` (gains as :meth:`LoopGains.triple_pole`)."""
+        return cls.from_gains(LoopGains.triple_pole(tau_s, omega_s2), omega_s2=omega_s2, **kwargs)
 
     @classmethod
     def from_poles(
