@@ -403,31 +403,56 @@ class _Narx:
         return y
 
 
-class _Candidate:
-    """A fitted component model with its input and output ranges (predictions are made on
-    inputs clipped to the training range and clipped to the targets seen)."""
+ENVELOPE_TIME_FACTOR = 1.25
+"""A prediction ``t`` s into an outage may not exceed the largest error seen in training up
+to ``ENVELOPE_TIME_FACTOR * t + ENVELOPE_TIME_SLACK_S`` s into a (virtual) outage..."""
+ENVELOPE_TIME_SLACK_S = 2.0
+ENVELOPE_GAIN = 1.5
+"""...times this factor (a drift never corrected by more than anything seen at that stage)."""
 
-    __slots__ = ("feat", "hi", "lo", "model", "y_hi", "y_lo")
+
+class _Candidate:
+    """A fitted component model with its input and output ranges: predictions are made on
+    inputs clipped to the training range, then clipped to the targets seen and to the
+    elapsed-time envelope of the training errors (a polynomial or network far from its data
+    can return a correction of hundreds of metres 10 s into an outage; seen on a consumer
+    MEMS, seed 100 of the P0 scenario)."""
+
+    __slots__ = ("env", "env_t", "feat", "hi", "lo", "model", "y_hi", "y_lo")
 
     def __init__(
         self, model: ComponentModel, lo: FloatArray, hi: FloatArray, y_lo: float, y_hi: float,
-        spec: Spec,
+        spec: Spec, t_s: FloatArray, y: FloatArray,
     ) -> None:  # fmt: skip
         self.model = model
         self.lo, self.hi = lo, hi
         self.y_lo, self.y_hi = y_lo, y_hi
         self.feat = compile_features(spec, lo.tolist(), hi.tolist())
+        order = np.argsort(t_s, kind="stable")
+        self.env_t: FloatArray = np.asarray(t_s, dtype=float)[order]
+        self.env: FloatArray = ENVELOPE_GAIN * np.maximum.accumulate(np.abs(y[order]))
+
+    def _envelope(self, t_s: FloatArray) -> FloatArray:
+        """Largest correction allowed ``t_s`` s into an outage (0 before any training pair)."""
+        i = np.searchsorted(self.env_t, ENVELOPE_TIME_FACTOR * t_s + ENVELOPE_TIME_SLACK_S,
+                            side="right")  # fmt: skip
+        out: FloatArray = np.where(i > 0, self.env[np.maximum(i - 1, 0)], 0.0)
+        return out
 
     def predict_one(self, base: list[float]) -> float:
         y = self.model.predict_one(self.feat(base))
-        return min(max(y, self.y_lo), self.y_hi) if math.isfinite(y) else math.nan
+        if not math.isfinite(y):
+            return math.nan
+        env = float(self._envelope(np.array([base[_T]]))[0])
+        return min(max(y, self.y_lo, -env), self.y_hi, env)
 
     def predict_rows(self, B: FloatArray, spec: Spec, groups: NDArray[np.int64]) -> FloatArray:
         """Same values as :meth:`predict_one` over rows of one outage each group (batch)."""
         X = np.clip(features_matrix(B, spec), self.lo, self.hi)
         with np.errstate(all="ignore"):
             y = self.model.predict_groups(X, groups)
-        out: FloatArray = np.clip(y, self.y_lo, self.y_hi)
+        env = self._envelope(B[:, _T])
+        out: FloatArray = np.clip(np.clip(y, self.y_lo, self.y_hi), -env, env)
         return out
 
 
@@ -521,6 +546,13 @@ class LearnedBridge:
         self._scores: list[deque[tuple[float, float]]] = [
             deque(maxlen=config.gate_outages) for _ in range(6)
         ]
+        # the last real outage is the judge that counts: virtual outages (shadow INS without
+        # the filter's mag/baro aiding) can drift unlike real ones, so a component whose
+        # prediction lost the last real outage stays off until it wins one again
+        self._real_lost = [False] * 6
+        self._real_scored = False
+        self._judged: set[int] = set()  # virtual outages already scored (keys)
+        self._judged_order: deque[int] = deque()
         self._tracked: dict[int, _Tracked] = {}
         self._outage_pred: list[float] | None = None  # candidates' last prediction, real outage
         self._fitted: set[int] = set()
@@ -596,6 +628,11 @@ class LearnedBridge:
                 seen.add(key)
                 tr = self._tracked.get(key)
                 if tr is None:
+                    if key in self._judged:
+                        # scored already: a shadow runs on past the gate horizon, and tracking
+                        # it again would score the same outage once per fix, with models that
+                        # have trained on it
+                        continue
                     # the models in use now have seen nothing of this outage
                     tr = self._tracked[key] = _Tracked(tuple(self._cand))
                 tr.elapsed = max(tr.elapsed, v.elapsed_s)
@@ -621,6 +658,10 @@ class LearnedBridge:
     # -- the gate ---------------------------------------------------------------------------
     def _score_virtual_outage(self, key: int, tr: _Tracked) -> None:
         """Replay a finished virtual outage through the candidates of its start."""
+        self._judged.add(key)
+        self._judged_order.append(key)
+        if len(self._judged_order) > 256:
+            self._judged.discard(self._judged_order.popleft())
         if tr.elapsed < self.config.min_horizon_s or not any(tr.snapshot):
             return  # too short to say anything (or nothing was fitted at its start)
         m = min(self._n, self._cap)
@@ -647,12 +688,17 @@ class LearnedBridge:
         candidates' last prediction would have left of it. Output corrections only (a
         pseudo-GNSS strategy has moved the INS, so the fix no longer sees the drift)."""
         pred, self._outage_pred = self._outage_pred, None
-        if self._pseudo or pred is None or not (error.pos_accepted and error.vel_accepted):
+        # once per outage, at its first fix, whether or not the filter's gate took it: after a
+        # long outage the gate may refuse good fixes for seconds (until its reset), and those
+        # are exactly the outages where a bad correction must be caught
+        if self._pseudo or pred is None or self._real_scored:
             return
+        self._real_scored = True
         err = [*error.pos_ned_m, *error.vel_ned_mps]
         for k in self._components:
             if math.isfinite(pred[k]) and math.isfinite(err[k]):
                 self._scores[k].append(((err[k] - pred[k]) ** 2, err[k] ** 2))
+                self._real_lost[k] = (err[k] - pred[k]) ** 2 >= err[k] ** 2
         self._judge()
 
     def _judge(self) -> None:
@@ -677,6 +723,7 @@ class LearnedBridge:
                     and log_ratio <= 2.0 * math.log(cfg.gate_margin)
                     and wins >= cfg.gate_min_wins * len(sc)
                     and sc[-1][0] < sc[-1][1]
+                    and not self._real_lost[k]
                 )
             self._fallback[k] = not on
 
@@ -725,7 +772,8 @@ class LearnedBridge:
             with np.errstate(all="ignore"):
                 model.fit(X, y, self._key[idx], None if prev is None else prev.model)
             cand: _Candidate | None = _Candidate(
-                model, X.min(axis=0), X.max(axis=0), float(y.min()), float(y.max()), spec)
+                model, X.min(axis=0), X.max(axis=0), float(y.min()), float(y.max()), spec,
+                self._B[idx, _T], y)
             # a fit that predicts garbage on its own training inputs is no candidate
             probe = model.predict_groups(X[:1], self._key[idx[:1]])
             if not np.all(np.isfinite(probe)):
@@ -802,6 +850,7 @@ class LearnedBridge:
         """End of the outage: forget the recurrent history, stop correcting."""
         self._now_us = epoch.time_us
         self._active = False
+        self._real_scored = False
         for c in self._cand:
             if c is not None:
                 c.model.reset()

@@ -134,9 +134,9 @@ def test_feature_paths_agree_row_matrix_and_compiled() -> None:
 
 # --------------------------------------------------------------------------- learning
 def _drift_stream(
-    law: dict[str, float], n_outages: int = 12, seed: int = 0
+    law: dict[str, float], n_outages: int = 12, seed: int = 0, length_s: float = 40.0
 ) -> list[tuple[BridgeEpoch, InsError]]:
-    """Virtual outages of 40 s at 5 Hz, one heading each (random), three overlapping:
+    """Virtual outages of ``length_s`` at 5 Hz, one heading each (random), three overlapping:
     error N/E = a t^2 (cos, sin) of the heading, noise 0.2 m."""
     rng = np.random.default_rng(seed)
     a = law["a"]
@@ -145,13 +145,13 @@ def _drift_stream(
     for w in range(n_outages):
         yaw = float(rng.uniform(-math.pi, math.pi))
         starts.append((w * 15.0, yaw))
-    t_end = n_outages * 15.0 + 40.0
+    t_end = n_outages * 15.0 + length_s
     for i in range(int(t_end * 5)):
         t = i * 0.2
         virt = []
         for j, (t0, yaw) in enumerate(starts):
             el = t - t0
-            if not 0.0 < el <= 40.0:
+            if not 0.0 < el <= length_s:
                 continue
             start = _epoch(t0, yaw)
             ep = _epoch(t, yaw, n_m=40.0 * el * math.cos(yaw), el=el)
@@ -282,6 +282,49 @@ def test_gate_scores_a_real_outage_by_the_first_fix_after_it() -> None:
     bridge.on_gnss_restored(_epoch(t + 0.2))
     # THEN the components it made worse are off (the most recent outage must be a win)
     assert bridge.status.fallback[0]  # type: ignore[attr-defined]
+
+
+def test_a_virtual_outage_running_past_the_gate_horizon_is_scored_once() -> None:
+    # GIVEN shadows that keep drifting 30 s past the gate's 60 s scoring horizon
+    cfg = GATE_CFG.model_copy(update={"gate_outages": 100})
+    bridge = make_bridge("gmdh", cfg)
+    assert isinstance(bridge, LearnedBridge)
+    n = 6
+    for ep, err in _drift_stream({"a": 0.02}, n_outages=n, length_s=90.0):
+        bridge.on_gnss(ep, err)
+    # THEN each is scored once, by the models of its start (never again on every later fix,
+    # by models that have trained on it)
+    for k in (0, 1):
+        assert 0 < len(bridge._scores[k]) <= n
+
+
+def test_a_real_outage_is_scored_even_when_the_gate_refuses_the_first_fix() -> None:
+    # GIVEN a trained, enabled bridge
+    bridge = make_bridge("gmdh", GATE_CFG.model_copy(update={"gate_min_wins": 1.0}))
+    stream = _drift_stream({"a": 0.02})
+    for ep, err in stream:
+        bridge.on_gnss(ep, err)
+    assert not bridge.status.fallback[0]  # type: ignore[attr-defined]
+    t = stream[-1][0].time_us * 1e-6 + 20.0
+    assert isinstance(bridge.on_outage(_epoch(t, el=20.0)), OutputCorrection)
+    # WHEN the filter's gate refuses the first fix after the outage (INS error 0: the
+    # correction was wrong)
+    bridge.on_gnss(_epoch(t + 0.2), InsError(_Z3, _Z3, False, False))
+    # THEN the outage is still judged and lost: the component is off
+    assert bridge.status.fallback[0]  # type: ignore[attr-defined]
+
+
+def test_a_correction_never_exceeds_the_drift_seen_at_that_stage_of_training() -> None:
+    # GIVEN a bridge trained on outages that drift at most 0.02 * 40^2 = 32 m in 40 s
+    bridge = make_bridge("gmdh", GATE_CFG)
+    assert isinstance(bridge, LearnedBridge)
+    for ep, err in _drift_stream({"a": 0.02}):
+        bridge.on_gnss(ep, err)
+    # THEN 5 s into an outage no prediction exceeds 1.5 x the largest error seen by
+    # 1.25 * 5 + 2 s of training outages (0.02 * 8.25^2 = 1.4 m plus noise)
+    pred = bridge._predict(_epoch(300.0, el=5.0))
+    assert pred is not None
+    assert all(abs(p) <= 1.5 * (0.02 * 8.25**2 + 1.0) for p in pred[:2] if math.isfinite(p))
 
 
 def test_mlp_refits_are_bounded_and_continue_training_across_refits() -> None:
