@@ -95,6 +95,7 @@ the real outages then confirmed). Keep ``none`` as the default.
 
 from __future__ import annotations
 
+import bisect
 import copy
 import math
 from collections import deque
@@ -418,7 +419,8 @@ class _Candidate:
     can return a correction of hundreds of metres 10 s into an outage; seen on a consumer
     MEMS, seed 100 of the P0 scenario)."""
 
-    __slots__ = ("env", "env_t", "feat", "hi", "lo", "model", "y_hi", "y_lo")
+    __slots__ = ("env", "env_list", "env_t", "env_t_list", "feat", "hi", "lo", "model", "y_hi",
+                 "y_lo")
 
     def __init__(
         self, model: ComponentModel, lo: FloatArray, hi: FloatArray, y_lo: float, y_hi: float,
@@ -431,6 +433,9 @@ class _Candidate:
         order = np.argsort(t_s, kind="stable")
         self.env_t: FloatArray = np.asarray(t_s, dtype=float)[order]
         self.env: FloatArray = ENVELOPE_GAIN * np.maximum.accumulate(np.abs(y[order]))
+        # plain lists for the per-sample path (bisect on a list: ~1 us, numpy: ~20 us)
+        self.env_t_list: list[float] = self.env_t.tolist()
+        self.env_list: list[float] = self.env.tolist()
 
     def _envelope(self, t_s: FloatArray) -> FloatArray:
         """Largest correction allowed ``t_s`` s into an outage (0 before any training pair)."""
@@ -443,7 +448,9 @@ class _Candidate:
         y = self.model.predict_one(self.feat(base))
         if not math.isfinite(y):
             return math.nan
-        env = float(self._envelope(np.array([base[_T]]))[0])
+        i = bisect.bisect_right(
+            self.env_t_list, ENVELOPE_TIME_FACTOR * base[_T] + ENVELOPE_TIME_SLACK_S)
+        env = self.env_list[i - 1] if i > 0 else 0.0
         return min(max(y, self.y_lo, -env), self.y_hi, env)
 
     def predict_rows(self, B: FloatArray, spec: Spec, groups: NDArray[np.int64]) -> FloatArray:
