@@ -57,7 +57,7 @@ front; ``p4-baro``: day). The grid is evaluated by replaying the channel inputs 
 NavFilter on the tuning flights (exact, see above; a full filter run per candidate would cost
 ~100x more). Reported numbers come from full NavFilter runs on held-out seeds 100-109.
 
-    PYTHONPATH=. .venv/bin/python bench/altitude_jsbsim.py [--report-seeds 100 ... 109]
+    .venv/bin/python bench/altitude_jsbsim.py [--report-seeds 100 ... 109]
 
 (about 10-15 min on 2 cores; the load average is recorded in the JSON).
 """
@@ -65,6 +65,11 @@ NavFilter on the tuning flights (exact, see above; a full filter run per candida
 from __future__ import annotations
 
 import os
+import sys
+
+# `bench.altitude_compare` is imported by package path: make the repository importable when
+# the script is run by its file name
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")  # two workers must not fight over two cores
@@ -194,8 +199,16 @@ def replay_mismatch(cfg: AltitudeChannelConfig, log: ChannelLog, track: RunTrack
     return float(np.max(np.abs(h - np.asarray(track.alt)[k])))
 
 
-def replay(cfg: AltitudeChannelConfig, log: ChannelLog) -> tuple[FloatArray, FloatArray]:
-    """Feed a recorded input log through a fresh channel; heights where the filter read them.
+def replay(
+    cfg: AltitudeChannelConfig, log: ChannelLog, *, baro: bool = False,
+    truth: tuple[FloatArray, ...] | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """Feed a recorded input log through a fresh channel; its height where the filter read it
+    (``baro``: the channel's calibrated baro height instead).
+
+    With ``truth`` the GNSS heights are replaced by the true height at the same epochs (same
+    sigma), so the calibration sees a perfect height reference: the difference from the
+    GNSS-fed replay is what the receiver's own vertical error puts into the calibration.
 
     Returns
     -------
@@ -212,41 +225,11 @@ def replay(cfg: AltitudeChannelConfig, log: ChannelLog) -> tuple[FloatArray, Flo
         elif k == "b":
             ch.update_baro(e[1], e[2], e[3])
         elif k == "g":
-            ch.update_gnss_height(e[1], e[2], e[3])
-        else:
-            ts.append(ch.time_s)
-            hs.append(ch.height_m)
-    return np.asarray(ts), np.asarray(hs)
-
-
-def replay_baro(
-    cfg: AltitudeChannelConfig, log: ChannelLog, truth: tuple[FloatArray, ...] | None = None
-) -> tuple[FloatArray, FloatArray]:
-    """Replay a recorded log; the channel's calibrated baro height where the filter read.
-
-    With ``truth`` the GNSS heights are replaced by the true height at the same epochs (same
-    sigma), so the calibration sees a perfect height reference: the difference from the
-    GNSS-fed replay is what the receiver's own vertical error puts into the calibration.
-
-    Returns
-    -------
-    t_s, h_baro_m : ndarray
-    """
-    ch = AltitudeChannel(cfg, log.start_s)
-    ts: list[float] = []
-    hs: list[float] = []
-    for e in log.entries:
-        k = e[0]
-        if k == "i":
-            ch.update_imu(e[1], e[2])
-        elif k == "b":
-            ch.update_baro(e[1], e[2], e[3])
-        elif k == "g":
             h = e[1] if truth is None else float(np.interp(e[3], truth[0], truth[1]))
             ch.update_gnss_height(h, e[2], e[3])
         else:
             ts.append(ch.time_s)
-            hs.append(ch.baro_height_m)
+            hs.append(ch.baro_height_m if baro else ch.height_m)
     return np.asarray(ts), np.asarray(hs)
 
 
@@ -703,8 +686,8 @@ def _report_seed(job: tuple[int, dict[str, dict[str, dict[str, Any]]]]) -> dict[
     k_out = int(np.searchsorted(tc, OUTAGE[0])) - 1
     day_cfg = make_config("loop-mpc", tuned["gnss-calibrated"]["loop-mpc"])
     day_log = res["logs"]["day/loop-mpc"]
-    t_rg, h_rg = replay_baro(day_cfg, day_log)
-    t_rt, h_rt = replay_baro(day_cfg, day_log, truth)
+    t_rg, h_rg = replay(day_cfg, day_log, baro=True)
+    t_rt, h_rt = replay(day_cfg, day_log, baro=True, truth=truth)
     qnh = P0_PA + DAY_DP_HPA * 100.0  # the issue's sea-level offset, set as a pilot would
     out["baro_bias"] = {
         # (a) raw: ISA pressure altitude, no calibration, no QNH

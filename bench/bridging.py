@@ -547,18 +547,6 @@ def cost_benchmarks(repeats: int = 5) -> dict[str, Any]:
     }
 
 
-def _clean(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if hasattr(obj, "item"):  # numpy scalars
-        return _clean(obj.item())
-    return obj
-
-
 def _pool_map(tasks: list[dict[str, Any]], jobs: int) -> list[dict[str, Any]]:
     if jobs == 1:
         return [_run_star(t) for t in tasks]
@@ -760,7 +748,9 @@ def main(argv: list[str] | None = None) -> int:
         "runs": rows,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(_clean(result), indent=1) + "\n")
+    from scenarios.jsonable import json_safe
+
+    args.out.write_text(json.dumps(json_safe(result), indent=1) + "\n")
     for r in rows:
         if "error" in r:
             print(f"FAILED {r['plan']} seed {r['seed']}: {r['error']}", file=sys.stderr)

@@ -281,16 +281,6 @@ def targets(rows: list[dict[str, Any]], agg: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _clean(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    return obj
-
-
 def _table(result: dict[str, Any]) -> str:
     cols = [
         ("horiz m", "horizontal_rmse_m", ".2f"), ("raw m", "raw_gnss_horizontal_rmse_m", ".2f"),
@@ -392,7 +382,9 @@ def main(argv: list[str] | None = None) -> int:
         "runs": rows,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(_clean(result), indent=1) + "\n")
+    from scenarios.jsonable import json_safe
+
+    args.out.write_text(json.dumps(json_safe(result), indent=1) + "\n")
     failed = [r for r in rows if "error" in r]
     for r in failed:
         print(f"FAILED {r['plan']} seed {r['seed']}: {r['error']}", file=sys.stderr)
