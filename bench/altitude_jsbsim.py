@@ -6,7 +6,7 @@ JSBSim at 100 Hz, the IMU at 50 Hz (P0's INS rate; half the filter cost of 100 H
 white), ``ms5611`` barometer at 50 Hz, ``consumer`` magnetometer at 10 Hz, 660 s. GNSS is
 switched off for fixes valid in [480 s, 600 s): the 120 s outage covers the end of a climb,
 level flight at 1700 m and the first half of a descent. Frames go through the MAVLink path
-(``SensorBridge`` -> ``Decoder``) into ``NavFilter`` (``filter_config_for_imu``), one filter
+(``SensorStreamer`` -> ``Decoder``) into ``NavFilter`` (``filter_config_for_imu``), one filter
 per method, every filter of a seed on the same sensor data.
 
 Barometer variants (same seed: identical IMU, GNSS, magnetometer and baro noise; the suite
@@ -94,7 +94,6 @@ from bench.altitude_compare import make_config  # noqa: E402
 from fusion import earth  # noqa: E402
 from fusion.altitude import AltitudeChannel, AltitudeChannelConfig  # noqa: E402
 from fusion.baro_altitude import (  # noqa: E402
-    P0_PA,
     geometric_from_geopotential,
     geopotential_from_geometric,
     nonstandard_scale_bias,
@@ -103,10 +102,11 @@ from fusion.baro_altitude import (  # noqa: E402
 )
 from fusion.config import AltitudeConfig, FilterConfig  # noqa: E402
 from fusion.filter import NavEstimate, NavFilter  # noqa: E402
-from hil.bridge import SensorBridge  # noqa: E402
 from hil.codec import Decoder  # noqa: E402
 from hil.recording import SimRequest  # noqa: E402
+from hil.streamer import SensorStreamer  # noqa: E402
 from hil.tuning import filter_config_for_imu  # noqa: E402
+from physconst import ISA_P0_PA  # noqa: E402
 from sim.flight import Flight, FlightEnded  # noqa: E402
 from sim.samples import BaroSample, Truth  # noqa: E402
 from sim.sensors import SensorSuite  # noqa: E402
@@ -335,7 +335,7 @@ def fly(seed: int, runs: list[RunSpec]) -> dict[str, Any]:
         )
         suites[v] = SensorSuite(sensors, request.seed, request.flight.rate_hz)
         # truth is taken from the flight directly (100 Hz); its frames are not needed
-        bridges[v] = SensorBridge(truth_rate_hz=0.1, gnss_off=request.gnss_off)
+        bridges[v] = SensorStreamer(truth_rate_hz=0.1, gnss_off=request.gnss_off)
         decoders[v] = Decoder()
     navs = {r.name: NavFilter(filter_config(r.method, r.params, r.setup)) for r in runs}
     by_variant = {v: [(r.name, navs[r.name]) for r in runs if r.variant == v] for v in variants}
@@ -688,7 +688,7 @@ def _report_seed(job: tuple[int, dict[str, dict[str, dict[str, Any]]]]) -> dict[
     day_log = res["logs"]["day/loop-mpc"]
     t_rg, h_rg = replay(day_cfg, day_log, baro=True)
     t_rt, h_rt = replay(day_cfg, day_log, baro=True, truth=truth)
-    qnh = P0_PA + DAY_DP_HPA * 100.0  # the issue's sea-level offset, set as a pilot would
+    qnh = ISA_P0_PA + DAY_DP_HPA * 100.0  # the issue's sea-level offset, set as a pilot would
     out["baro_bias"] = {
         # (a) raw: ISA pressure altitude, no calibration, no QNH
         "isa_pressure_altitude": baro_bias(tb, isa_height(pb), truth),

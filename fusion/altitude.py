@@ -76,11 +76,11 @@ from fusion.baro_altitude import (
     geopotential_from_geometric,
 )
 from fusion.laguerre import LaguerreMPC
+from physconst import G0_MPS2
 
 FloatArray = NDArray[np.float64]
 
-G0_MPS2 = 9.80665
-"""Standard gravity, m/s²."""
+
 EARTH_MEAN_RADIUS_M = 6371008.8
 """Mean Earth radius (IUGG), m."""
 OMEGA_S2 = G0_MPS2 / EARTH_MEAN_RADIUS_M

@@ -52,70 +52,45 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat
 
-# Constants of the US Standard Atmosphere 1976 / ISO 2533 (identical to sim.atmosphere).
-G0_MPS2 = 9.80665
-"""Standard gravity, m/s²."""
-R_AIR_JPKGK = 287.05287
-"""Specific gas constant of dry air, J/(kg·K)."""
-T0_K = 288.15
-"""Sea-level standard temperature, K."""
-P0_PA = 101325.0
-"""Sea-level standard pressure, Pa."""
-L0_KPM = -0.0065
-"""Tropospheric temperature gradient dT/dH, K/m (P4's ``L`` in eq. 1)."""
-H0_M = 0.0
-"""Base altitude of the standard atmosphere, m (P4's ``H0``)."""
-R0_GEOPOTENTIAL_M = 6356766.0
-"""Earth radius of the geopotential altitude definition (US Standard Atmosphere 1976), m."""
-BIAS_PER_PRESSURE_M_PER_PA = R_AIR_JPKGK * T0_K / (G0_MPS2 * P0_PA)
+from physconst import (
+    G0_MPS2,
+    ISA_H0_M,
+    ISA_H_MAX_M,
+    ISA_H_MIN_M,
+    ISA_L0_KPM,
+    ISA_LAYER_BASE_M,
+    ISA_LAYER_LAPSE_KPM,
+    ISA_LAYER_P_PA,
+    ISA_LAYER_T_K,
+    ISA_P0_PA,
+    ISA_R0_GEOPOTENTIAL_M,
+    ISA_R_AIR_JPKGK,
+    ISA_T0_K,
+)
+
+BIAS_PER_PRESSURE_M_PER_PA = ISA_R_AIR_JPKGK * ISA_T0_K / (G0_MPS2 * ISA_P0_PA)
 """P4's ``b/ΔP = R·T0/(g·P0)``, m/Pa (8.32 m per hPa)."""
 
-_LAYER_BASE_M = (0.0, 11000.0, 20000.0, 32000.0)
-_LAYER_LAPSE_KPM = (L0_KPM, 0.0, 0.001, 0.0028)
-H_MIN_M = -5000.0
-"""Lowest geopotential altitude of the model, m."""
-H_MAX_M = 47000.0
-"""Highest geopotential altitude of the model, m."""
-
-
-def _layer_bases() -> tuple[tuple[float, ...], tuple[float, ...]]:
-    temps = [T0_K]
-    pressures = [P0_PA]
-    for i in range(1, len(_LAYER_BASE_M)):
-        dh = _LAYER_BASE_M[i] - _LAYER_BASE_M[i - 1]
-        lapse = _LAYER_LAPSE_KPM[i - 1]
-        t_prev, p_prev = temps[-1], pressures[-1]
-        t_next = t_prev + lapse * dh
-        if lapse == 0.0:
-            p_next = p_prev * math.exp(-G0_MPS2 * dh / (R_AIR_JPKGK * t_prev))
-        else:
-            p_next = p_prev * (t_next / t_prev) ** (-G0_MPS2 / (lapse * R_AIR_JPKGK))
-        temps.append(t_next)
-        pressures.append(p_next)
-    return tuple(temps), tuple(pressures)
-
-
-_LAYER_T_K, _LAYER_P_PA = _layer_bases()
 
 
 def _pressure_in_layer(i: int, h_gp_m: float) -> float:
-    dh = h_gp_m - _LAYER_BASE_M[i]
-    lapse = _LAYER_LAPSE_KPM[i]
+    dh = h_gp_m - ISA_LAYER_BASE_M[i]
+    lapse = ISA_LAYER_LAPSE_KPM[i]
     if lapse == 0.0:
-        return _LAYER_P_PA[i] * math.exp(-G0_MPS2 * dh / (R_AIR_JPKGK * _LAYER_T_K[i]))
-    t = _LAYER_T_K[i] + lapse * dh
-    return _LAYER_P_PA[i] * (t / _LAYER_T_K[i]) ** (-G0_MPS2 / (lapse * R_AIR_JPKGK))
+        return ISA_LAYER_P_PA[i] * math.exp(-G0_MPS2 * dh / (ISA_R_AIR_JPKGK * ISA_LAYER_T_K[i]))
+    t = ISA_LAYER_T_K[i] + lapse * dh
+    return ISA_LAYER_P_PA[i] * (t / ISA_LAYER_T_K[i]) ** (-G0_MPS2 / (lapse * ISA_R_AIR_JPKGK))
 
 
-P_MAX_PA = _pressure_in_layer(0, H_MIN_M)
-"""Pressure at :data:`H_MIN_M` (≈ 177.7 kPa): the highest pressure the model accepts, Pa."""
-P_MIN_PA = _pressure_in_layer(len(_LAYER_BASE_M) - 1, H_MAX_M)
-"""Pressure at :data:`H_MAX_M` (≈ 110.9 Pa): the lowest pressure the model accepts, Pa."""
+P_MAX_PA = _pressure_in_layer(0, ISA_H_MIN_M)
+"""Pressure at :data:`ISA_H_MIN_M` (≈ 177.7 kPa): the highest pressure the model accepts, Pa."""
+P_MIN_PA = _pressure_in_layer(len(ISA_LAYER_BASE_M) - 1, ISA_H_MAX_M)
+"""Pressure at :data:`ISA_H_MAX_M` (≈ 110.9 Pa): the lowest pressure the model accepts, Pa."""
 
 
 def _layer_of_altitude(h_gp_m: float) -> int:
     i = 0
-    while i + 1 < len(_LAYER_BASE_M) and h_gp_m >= _LAYER_BASE_M[i + 1]:
+    while i + 1 < len(ISA_LAYER_BASE_M) and h_gp_m >= ISA_LAYER_BASE_M[i + 1]:
         i += 1
     return i
 
@@ -147,21 +122,21 @@ def check_pressure(pressure_pa: float) -> None:
 def _check_altitude(h_gp_m: float, name: str) -> None:
     if not math.isfinite(h_gp_m):
         raise ValueError(f"{name} must be finite (got {h_gp_m!r})")
-    if not H_MIN_M <= h_gp_m <= H_MAX_M:
+    if not ISA_H_MIN_M <= h_gp_m <= ISA_H_MAX_M:
         raise ValueError(
             f"{name} = {h_gp_m:.1f} m outside the atmosphere model range "
-            f"[{H_MIN_M:.0f}, {H_MAX_M:.0f}] m"
+            f"[{ISA_H_MIN_M:.0f}, {ISA_H_MAX_M:.0f}] m"
         )
 
 
 def geopotential_from_geometric(h_m: float) -> float:
     """Geopotential altitude ``r0·h/(r0 + h)`` (m) from geometric height above MSL (m)."""
-    return R0_GEOPOTENTIAL_M * h_m / (R0_GEOPOTENTIAL_M + h_m)
+    return ISA_R0_GEOPOTENTIAL_M * h_m / (ISA_R0_GEOPOTENTIAL_M + h_m)
 
 
 def geometric_from_geopotential(h_gp_m: float) -> float:
     """Geometric height above MSL ``r0·H/(r0 − H)`` (m) from geopotential altitude (m)."""
-    return R0_GEOPOTENTIAL_M * h_gp_m / (R0_GEOPOTENTIAL_M - h_gp_m)
+    return ISA_R0_GEOPOTENTIAL_M * h_gp_m / (ISA_R0_GEOPOTENTIAL_M - h_gp_m)
 
 
 def isa_temperature_k(h_gp_m: float) -> float:
@@ -174,7 +149,7 @@ def isa_temperature_k(h_gp_m: float) -> float:
     """
     _check_altitude(h_gp_m, "h_gp_m")
     i = _layer_of_altitude(h_gp_m)
-    return _LAYER_T_K[i] + _LAYER_LAPSE_KPM[i] * (h_gp_m - _LAYER_BASE_M[i])
+    return ISA_LAYER_T_K[i] + ISA_LAYER_LAPSE_KPM[i] * (h_gp_m - ISA_LAYER_BASE_M[i])
 
 
 def isa_pressure_pa(h_gp_m: float) -> float:
@@ -212,16 +187,16 @@ def pressure_altitude_m(pressure_pa: float) -> float:
     """
     check_pressure(pressure_pa)
     i = 0
-    while i + 1 < len(_LAYER_P_PA) and pressure_pa <= _LAYER_P_PA[i + 1]:
+    while i + 1 < len(ISA_LAYER_P_PA) and pressure_pa <= ISA_LAYER_P_PA[i + 1]:
         i += 1
-    base_h, base_t, base_p = _LAYER_BASE_M[i], _LAYER_T_K[i], _LAYER_P_PA[i]
-    lapse = _LAYER_LAPSE_KPM[i]
+    base_h, base_t, base_p = ISA_LAYER_BASE_M[i], ISA_LAYER_T_K[i], ISA_LAYER_P_PA[i]
+    lapse = ISA_LAYER_LAPSE_KPM[i]
     if lapse == 0.0:
-        return base_h - (R_AIR_JPKGK * base_t / G0_MPS2) * math.log(pressure_pa / base_p)
+        return base_h - (ISA_R_AIR_JPKGK * base_t / G0_MPS2) * math.log(pressure_pa / base_p)
     return (
         base_h
-        + (base_t / lapse) * ((pressure_pa / base_p) ** (-lapse * R_AIR_JPKGK / G0_MPS2) - 1.0)
-        + H0_M
+        + (base_t / lapse) * ((pressure_pa / base_p) ** (-lapse * ISA_R_AIR_JPKGK / G0_MPS2) - 1.0)
+        + ISA_H0_M
     )
 
 
@@ -263,14 +238,14 @@ def nonstandard_scale_bias(sea_level_dt_k: float, sea_level_dp_pa: float) -> tup
     """
     if not (math.isfinite(sea_level_dt_k) and math.isfinite(sea_level_dp_pa)):
         raise ValueError("sea_level_dt_k and sea_level_dp_pa must be finite")
-    if sea_level_dt_k <= -T0_K:
-        raise ValueError(f"sea_level_dt_k must be > {-T0_K} K (got {sea_level_dt_k!r})")
-    return sea_level_dt_k / T0_K, BIAS_PER_PRESSURE_M_PER_PA * sea_level_dp_pa
+    if sea_level_dt_k <= -ISA_T0_K:
+        raise ValueError(f"sea_level_dt_k must be > {-ISA_T0_K} K (got {sea_level_dt_k!r})")
+    return sea_level_dt_k / ISA_T0_K, BIAS_PER_PRESSURE_M_PER_PA * sea_level_dp_pa
 
 
 def sea_level_offsets(scale: float, bias_m: float) -> tuple[float, float]:
     """Inverse of :func:`nonstandard_scale_bias`: ``(ΔT, ΔP)`` in (K, Pa) from ``(s, b)``."""
-    return scale * T0_K, bias_m / BIAS_PER_PRESSURE_M_PER_PA
+    return scale * ISA_T0_K, bias_m / BIAS_PER_PRESSURE_M_PER_PA
 
 
 def calibrated_altitude_m(pressure_altitude: float, scale: float, bias_m: float) -> float:
@@ -285,7 +260,7 @@ def calibrated_altitude_m(pressure_altitude: float, scale: float, bias_m: float)
     bias_m : float
         ``b``, m.
     """
-    return pressure_altitude + scale * (pressure_altitude - H0_M) + bias_m
+    return pressure_altitude + scale * (pressure_altitude - ISA_H0_M) + bias_m
 
 
 def scale_from_temperature(temperature_k: float, pressure_altitude: float) -> float:
@@ -328,8 +303,8 @@ def p4_sea_level_conditions(pressure_pa: float, temperature_k: float) -> tuple[f
     hp = pressure_altitude_m(pressure_pa)
     if not (math.isfinite(temperature_k) and temperature_k > 0.0):
         raise ValueError(f"temperature_k must be finite and > 0 K (got {temperature_k!r})")
-    rho = pressure_pa / (R_AIR_JPKGK * temperature_k)
-    return temperature_k - L0_KPM * hp, pressure_pa + rho * G0_MPS2 * hp
+    rho = pressure_pa / (ISA_R_AIR_JPKGK * temperature_k)
+    return temperature_k - ISA_L0_KPM * hp, pressure_pa + rho * G0_MPS2 * hp
 
 
 # --------------------------------------------------------------------------------------------
@@ -457,7 +432,7 @@ class BaroCalibration:
     @property
     def sea_level_dt_k(self) -> float:
         """Estimated sea-level temperature offset ``ΔT = s·T0``, K."""
-        return self.scale * T0_K
+        return self.scale * ISA_T0_K
 
     @property
     def sea_level_dp_pa(self) -> float:
@@ -466,7 +441,7 @@ class BaroCalibration:
 
     def altitude_gp_m(self, pressure_altitude: float) -> float:
         """Calibrated geopotential altitude ``Hp + s·(Hp − H0) + b``, m."""
-        return pressure_altitude + self.scale * (pressure_altitude - H0_M) + self.bias_m
+        return pressure_altitude + self.scale * (pressure_altitude - ISA_H0_M) + self.bias_m
 
     def freeze(self) -> None:
         """Stop learning (GNSS outage). The estimate stays; covariance stops growing."""
@@ -596,7 +571,7 @@ class BaroCalibration:
             raise ValueError(f"reference must be 'msl' or 'ellipsoid' (got {reference!r})")
         cfg = self.config
         h_gp = geopotential_from_geometric(h_msl)
-        h0 = pressure_altitude - H0_M
+        h0 = pressure_altitude - ISA_H0_M
         before = self.altitude_gp_m(pressure_altitude)
         innovation = h_gp - before
         if self.frozen:

@@ -120,6 +120,7 @@ from fusion.bridge import (
 from fusion.config import BRIDGE_FEATURES, BridgeConfig
 from fusion.gmdh import GmdhRegressor
 from fusion.regressors import BpNet, NarxMLP, RbfNet
+from physconst import G0_MPS2
 
 FloatArray = NDArray[np.float64]
 
@@ -157,7 +158,6 @@ trainers (Levenberg-Marquardt, back-propagation) refit less often and on fewer p
 their refits is a bounded continuation of the previous one (``mlp_max_nfev``,
 ``bp_epochs``)."""
 
-_G = 9.80665
 
 # ------------------------------------------------------------------------------ base row layout
 # Every training pair and prediction epoch is first reduced to one row of these quantities;
@@ -297,7 +297,7 @@ def base_row(t: float, start: BridgeEpoch, ep: BridgeEpoch, origin: _Origin) -> 
         (ep.lat_rad - origin.lat) * kn, (ep.lon_rad - origin.lon) * ke,
         origin.alt - ep.alt_msl_m, v[0], v[1], v[2],
         dn, de, dd, v[0] - v0[0], v[1] - v0[1], v[2] - v0[2],
-        v[0], v[1], v[2], f[0], f[1], f[2] + _G,
+        v[0], v[1], v[2], f[0], f[1], f[2] + G0_MPS2,
     ]  # fmt: skip
 
 

@@ -18,18 +18,21 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+import physconst
+
+# The WGS-84 ellipsoid (physconst), under the short names of this model's equations.
 #: Semi-major axis, m.
-A = 6378137.0
+A = physconst.WGS84_A_M
 #: Flattening.
-F = 1.0 / 298.257223563
+F = physconst.WGS84_F
 #: Semi-minor axis, m.
-B = A * (1.0 - F)
+B = physconst.WGS84_B_M
 #: First eccentricity squared.
-E2 = F * (2.0 - F)
+E2 = physconst.WGS84_E2
 #: Earth rotation rate w.r.t. inertial space, rad/s.
-RATE = 7.292115e-5
+RATE = physconst.EARTH_RATE_RPS
 #: Earth gravitational constant GM (with atmosphere), m^3/s^2.
-GM = 3.986004418e14
+GM = physconst.WGS84_GM_M3PS2
 #: Normal gravity at the equator / at the poles, m/s^2 (Somigliana).
 GE = 9.7803253359
 GP = 9.8321849378

@@ -100,6 +100,7 @@ from numpy.typing import ArrayLike
 from pydantic import BaseModel, ConfigDict, PositiveFloat
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from physconst import G0_MPS2, ISA_L0_KPM, ISA_P0_PA, ISA_T0_K  # G0: MAVLink's mG is 1e-3 G0
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Sample, Truth
 
 __all__ = [
@@ -116,8 +117,6 @@ __all__ = [
 ]
 
 # --- wire units -----------------------------------------------------------------------------
-G0_MPS2: Final = 9.80665
-"""Standard gravity: MAVLink's mG means 1e-3 * G0 m/s^2."""
 TESLA_PER_GAUSS: Final = 1e-4
 PA_PER_HPA: Final = 100.0
 KELVIN_AT_0_CELSIUS: Final = 273.15
@@ -132,9 +131,9 @@ UINT64_MAX: Final = 0xFFFF_FFFF_FFFF_FFFF
 FLOAT32_MAX: Final = float(np.finfo(np.float32).max)
 
 # ISA troposphere, for HIL_SENSOR.pressure_alt only (the fusion never reads it back).
-_ISA_P0_PA: Final = 101325.0
-_ISA_T0_K: Final = 288.15
-_ISA_LAPSE_KPM: Final = 0.0065
+_ISA_P0_PA: Final = ISA_P0_PA
+_ISA_T0_K: Final = ISA_T0_K
+_ISA_LAPSE_KPM: Final = -ISA_L0_KPM
 _ISA_EXPONENT: Final = 0.190263  # R * L / (g0 * M) for dry air
 
 SENSOR_COMPONENT_ID: Final = int(mavlink2.MAV_COMP_ID_IMU)  # 200

@@ -52,6 +52,7 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticCustomError
 
+from physconst import G0_MPS2
 from scenarios.metrics import ERROR_AT_S
 from scenarios.summary import Criterion
 from sim import faults, presets
@@ -85,7 +86,6 @@ ALTITUDE_METHODS: tuple[str, ...] = ("ekf", "loop", "loop-mpc", "loop-kf")
 LIBRARY_DIR = Path(__file__).resolve().parent / "library"
 """The scenario library shipped with hilnav."""
 
-G0_MPS2 = 9.80665
 
 # Turbulence names -> severity of sim.flight's MIL-F-8785C mapping (see sim/flight.py).
 _TURBULENCE: dict[str, float] = {"none": 0.0, "light": 0.43, "moderate": 0.57, "severe": 0.86}

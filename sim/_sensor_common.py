@@ -9,6 +9,8 @@ from typing import Annotated, Any, Self
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from physconst import WGS84_A_M, WGS84_E2
+
 NonNegative = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
 """A finite float ≥ 0 (noise and error magnitudes)."""
 Positive = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
@@ -20,10 +22,6 @@ BLOCK_STEPS = 1024
 """Random numbers are drawn in blocks of this many samples (hot-loop cost, see sensors.py).
 Changing it changes every sensor stream for a given seed."""
 
-# WGS-84
-WGS84_A_M = 6378137.0
-WGS84_F = 1.0 / 298.257223563
-WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
 
 
 def _deep_merge(base: dict[str, Any], update: Mapping[str, Any]) -> dict[str, Any]:

@@ -41,58 +41,33 @@ from typing import TypeVar, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from physconst import (
+    G0_MPS2,
+    ISA_H0_M,
+    ISA_H_MAX_M,
+    ISA_H_MIN_M,
+    ISA_L0_KPM,
+    ISA_LAYER_BASE_M,
+    ISA_LAYER_LAPSE_KPM,
+    ISA_LAYER_P_PA,
+    ISA_LAYER_T_K,
+    ISA_P0_PA,
+    ISA_R0_GEOPOTENTIAL_M,
+    ISA_R_AIR_JPKGK,
+    ISA_T0_K,
+)
+
 FloatOrArray = TypeVar("FloatOrArray", float, NDArray[np.float64])
 
-# Constants of the US Standard Atmosphere 1976 / ISO 2533.
-G0_MPS2 = 9.80665
-"""Standard gravity, m/s²."""
-R_AIR_JPKGK = 287.05287
-"""Specific gas constant of dry air, J/(kg·K)."""
-T0_K = 288.15
-"""Sea-level standard temperature, K."""
-P0_PA = 101325.0
-"""Sea-level standard pressure, Pa."""
-L0_KPM = -0.0065
-"""Tropospheric temperature gradient dT/dH, K/m (P4's ``L``)."""
-H0_M = 0.0
-"""Reference (base) altitude of the standard atmosphere, m (P4's ``H0``)."""
-R0_GEOPOTENTIAL_M = 6356766.0
-"""Earth radius used for geopotential altitude in the US Standard Atmosphere 1976, m."""
-
-# Layers: base geopotential altitude (m), temperature gradient (K/m). Base temperatures and
-# pressures follow from continuity and are computed once below.
-_LAYER_BASE_M = (0.0, 11000.0, 20000.0, 32000.0)
-_LAYER_LAPSE_KPM = (L0_KPM, 0.0, 0.001, 0.0028)
-H_MIN_M = -5000.0
-"""Lowest geopotential altitude of the model, m (the ICAO table starts at -5 km)."""
-H_MAX_M = 47000.0
-"""Highest geopotential altitude of the model, m (top of the second stratospheric layer)."""
-
-
-def _layer_bases() -> tuple[tuple[float, ...], tuple[float, ...]]:
-    temps = [T0_K]
-    pressures = [P0_PA]
-    for i in range(1, len(_LAYER_BASE_M)):
-        dh = _LAYER_BASE_M[i] - _LAYER_BASE_M[i - 1]
-        lapse = _LAYER_LAPSE_KPM[i - 1]
-        t_prev, p_prev = temps[-1], pressures[-1]
-        t_next = t_prev + lapse * dh
-        if lapse == 0.0:
-            p_next = p_prev * math.exp(-G0_MPS2 * dh / (R_AIR_JPKGK * t_prev))
-        else:
-            p_next = p_prev * (t_next / t_prev) ** (-G0_MPS2 / (lapse * R_AIR_JPKGK))
-        temps.append(t_next)
-        pressures.append(p_next)
-    return tuple(temps), tuple(pressures)
-
-
-_LAYER_T_K, _LAYER_P_PA = _layer_bases()
-P_MAX_PA = P0_PA * ((T0_K + L0_KPM * H_MIN_M) / T0_K) ** (-G0_MPS2 / (L0_KPM * R_AIR_JPKGK))
-"""Pressure at :data:`H_MIN_M`, Pa (highest pressure the model accepts)."""
-P_MIN_PA = _LAYER_P_PA[-1] * (
-    (_LAYER_T_K[-1] + _LAYER_LAPSE_KPM[-1] * (H_MAX_M - _LAYER_BASE_M[-1])) / _LAYER_T_K[-1]
-) ** (-G0_MPS2 / (_LAYER_LAPSE_KPM[-1] * R_AIR_JPKGK))
-"""Pressure at :data:`H_MAX_M`, Pa (lowest pressure the model accepts)."""
+P_MAX_PA = ISA_P0_PA * ((ISA_T0_K + ISA_L0_KPM * ISA_H_MIN_M) / ISA_T0_K) ** (
+    -G0_MPS2 / (ISA_L0_KPM * ISA_R_AIR_JPKGK)
+)
+"""Pressure at :data:`ISA_H_MIN_M`, Pa (highest pressure the model accepts)."""
+P_MIN_PA = ISA_LAYER_P_PA[-1] * (
+    (ISA_LAYER_T_K[-1] + ISA_LAYER_LAPSE_KPM[-1] * (ISA_H_MAX_M - ISA_LAYER_BASE_M[-1]))
+    / ISA_LAYER_T_K[-1]
+) ** (-G0_MPS2 / (ISA_LAYER_LAPSE_KPM[-1] * ISA_R_AIR_JPKGK))
+"""Pressure at :data:`ISA_H_MAX_M`, Pa (lowest pressure the model accepts)."""
 
 
 def _as_array(x: float | NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
@@ -107,9 +82,9 @@ def _back(arr: NDArray[np.float64], scalar: bool) -> float | NDArray[np.float64]
 def _check_altitude(h: NDArray[np.float64], name: str) -> None:
     if not np.all(np.isfinite(h)):
         raise ValueError(f"{name} must be finite")
-    if np.any(h < H_MIN_M) or np.any(h > H_MAX_M):
+    if np.any(h < ISA_H_MIN_M) or np.any(h > ISA_H_MAX_M):
         raise ValueError(
-            f"{name} outside the atmosphere model range [{H_MIN_M:.0f}, {H_MAX_M:.0f}] m "
+            f"{name} outside the atmosphere model range [{ISA_H_MIN_M:.0f}, {ISA_H_MAX_M:.0f}] m "
             f"(got {float(np.min(h)):.1f} .. {float(np.max(h)):.1f} m)"
         )
 
@@ -127,9 +102,9 @@ def _check_pressure(p: NDArray[np.float64]) -> None:
 
 
 def _layer_index(h: NDArray[np.float64]) -> NDArray[np.intp]:
-    # Altitudes below 0 use the tropospheric layer (extended down to H_MIN_M).
-    idx = np.searchsorted(np.asarray(_LAYER_BASE_M), h, side="right") - 1
-    return np.clip(idx, 0, len(_LAYER_BASE_M) - 1)
+    # Altitudes below 0 use the tropospheric layer (extended down to ISA_H_MIN_M).
+    idx = np.searchsorted(np.asarray(ISA_LAYER_BASE_M), h, side="right") - 1
+    return np.clip(idx, 0, len(ISA_LAYER_BASE_M) - 1)
 
 
 def geopotential_from_geometric(h_m: FloatOrArray) -> FloatOrArray:
@@ -145,12 +120,12 @@ def geopotential_from_geometric(h_m: FloatOrArray) -> FloatOrArray:
     float or ndarray, same shape
         Geopotential altitude ``r0 * h / (r0 + h)``, m (r0 = 6 356 766 m).
     """
-    return cast(FloatOrArray, R0_GEOPOTENTIAL_M * h_m / (R0_GEOPOTENTIAL_M + h_m))
+    return cast(FloatOrArray, ISA_R0_GEOPOTENTIAL_M * h_m / (ISA_R0_GEOPOTENTIAL_M + h_m))
 
 
 def geometric_from_geopotential(h_gp_m: FloatOrArray) -> FloatOrArray:
     """Inverse of :func:`geopotential_from_geometric`, m -> m (any shape)."""
-    return cast(FloatOrArray, R0_GEOPOTENTIAL_M * h_gp_m / (R0_GEOPOTENTIAL_M - h_gp_m))
+    return cast(FloatOrArray, ISA_R0_GEOPOTENTIAL_M * h_gp_m / (ISA_R0_GEOPOTENTIAL_M - h_gp_m))
 
 
 def isa_temperature_k(h_gp_m: FloatOrArray) -> FloatOrArray:
@@ -174,8 +149,8 @@ def isa_temperature_k(h_gp_m: FloatOrArray) -> FloatOrArray:
     h, scalar = _as_array(h_gp_m)
     _check_altitude(h, "altitude")
     i = _layer_index(h)
-    t = np.asarray(_LAYER_T_K)[i] + np.asarray(_LAYER_LAPSE_KPM)[i] * (
-        h - np.asarray(_LAYER_BASE_M)[i]
+    t = np.asarray(ISA_LAYER_T_K)[i] + np.asarray(ISA_LAYER_LAPSE_KPM)[i] * (
+        h - np.asarray(ISA_LAYER_BASE_M)[i]
     )
     return cast(FloatOrArray, _back(t, scalar))
 
@@ -201,15 +176,17 @@ def isa_pressure_pa(h_gp_m: FloatOrArray) -> FloatOrArray:
     h, scalar = _as_array(h_gp_m)
     _check_altitude(h, "altitude")
     i = _layer_index(h)
-    base_h = np.asarray(_LAYER_BASE_M)[i]
-    base_t = np.asarray(_LAYER_T_K)[i]
-    base_p = np.asarray(_LAYER_P_PA)[i]
-    lapse = np.asarray(_LAYER_LAPSE_KPM)[i]
+    base_h = np.asarray(ISA_LAYER_BASE_M)[i]
+    base_t = np.asarray(ISA_LAYER_T_K)[i]
+    base_p = np.asarray(ISA_LAYER_P_PA)[i]
+    lapse = np.asarray(ISA_LAYER_LAPSE_KPM)[i]
     dh = h - base_h
     isothermal = lapse == 0.0
     safe_lapse = np.where(isothermal, 1.0, lapse)
-    p_grad = base_p * ((base_t + lapse * dh) / base_t) ** (-G0_MPS2 / (safe_lapse * R_AIR_JPKGK))
-    p_iso = base_p * np.exp(-G0_MPS2 * dh / (R_AIR_JPKGK * base_t))
+    p_grad = base_p * ((base_t + lapse * dh) / base_t) ** (
+        -G0_MPS2 / (safe_lapse * ISA_R_AIR_JPKGK)
+    )
+    p_iso = base_p * np.exp(-G0_MPS2 * dh / (ISA_R_AIR_JPKGK * base_t))
     p = np.where(isothermal, p_iso, p_grad)
     return cast(FloatOrArray, _back(p, scalar))
 
@@ -238,19 +215,19 @@ def pressure_altitude_m(pressure_pa: FloatOrArray) -> FloatOrArray:
     p, scalar = _as_array(pressure_pa)
     _check_pressure(p)
     # Layer index from the (decreasing) base pressures.
-    base_p_all = np.asarray(_LAYER_P_PA)
+    base_p_all = np.asarray(ISA_LAYER_P_PA)
     i = np.clip(np.searchsorted(-base_p_all, -p, side="right") - 1, 0, len(base_p_all) - 1)
-    base_h = np.asarray(_LAYER_BASE_M)[i]
-    base_t = np.asarray(_LAYER_T_K)[i]
+    base_h = np.asarray(ISA_LAYER_BASE_M)[i]
+    base_t = np.asarray(ISA_LAYER_T_K)[i]
     base_p = base_p_all[i]
-    lapse = np.asarray(_LAYER_LAPSE_KPM)[i]
+    lapse = np.asarray(ISA_LAYER_LAPSE_KPM)[i]
     isothermal = lapse == 0.0
     safe_lapse = np.where(isothermal, 1.0, lapse)
     h_grad = base_h + (base_t / safe_lapse) * (
-        (p / base_p) ** (-safe_lapse * R_AIR_JPKGK / G0_MPS2) - 1.0
+        (p / base_p) ** (-safe_lapse * ISA_R_AIR_JPKGK / G0_MPS2) - 1.0
     )
-    h_iso = base_h - (R_AIR_JPKGK * base_t / G0_MPS2) * np.log(p / base_p)
-    h = np.where(isothermal, h_iso, h_grad) + H0_M
+    h_iso = base_h - (ISA_R_AIR_JPKGK * base_t / G0_MPS2) * np.log(p / base_p)
+    h = np.where(isothermal, h_iso, h_grad) + ISA_H0_M
     return cast(FloatOrArray, _back(h, scalar))
 
 
@@ -278,10 +255,10 @@ def nonstandard_scale_bias(sea_level_dt_k: float, sea_level_dp_pa: float) -> tup
     """
     if not (math.isfinite(sea_level_dt_k) and math.isfinite(sea_level_dp_pa)):
         raise ValueError("sea-level temperature and pressure offsets must be finite")
-    if sea_level_dt_k <= -T0_K:
-        raise ValueError(f"sea-level temperature offset must be > {-T0_K} K")
-    s = sea_level_dt_k / T0_K
-    b = (R_AIR_JPKGK * T0_K / G0_MPS2) * (sea_level_dp_pa / P0_PA)
+    if sea_level_dt_k <= -ISA_T0_K:
+        raise ValueError(f"sea-level temperature offset must be > {-ISA_T0_K} K")
+    s = sea_level_dt_k / ISA_T0_K
+    b = (ISA_R_AIR_JPKGK * ISA_T0_K / G0_MPS2) * (sea_level_dp_pa / ISA_P0_PA)
     return s, b
 
 
@@ -305,7 +282,7 @@ def altitude_from_pressure_altitude(
         Altitude ``H``, m (geopotential).
     """
     s, b = nonstandard_scale_bias(sea_level_dt_k, sea_level_dp_pa)
-    return cast(FloatOrArray, pressure_altitude + s * (pressure_altitude - H0_M) + b)
+    return cast(FloatOrArray, pressure_altitude + s * (pressure_altitude - ISA_H0_M) + b)
 
 
 def pressure_altitude_from_altitude(
@@ -326,7 +303,7 @@ def pressure_altitude_from_altitude(
         Pressure altitude ``Hp``, m.
     """
     s, b = nonstandard_scale_bias(sea_level_dt_k, sea_level_dp_pa)
-    return cast(FloatOrArray, (altitude_m - b + s * H0_M) / (1.0 + s))
+    return cast(FloatOrArray, (altitude_m - b + s * ISA_H0_M) / (1.0 + s))
 
 
 def pressure_from_altitude(
@@ -426,7 +403,7 @@ def density_from_altitude(
     """
     p = pressure_from_altitude(altitude_m, sea_level_dt_k, sea_level_dp_pa)
     t = temperature_from_altitude(altitude_m, sea_level_dt_k, sea_level_dp_pa)
-    return cast(FloatOrArray, p / (R_AIR_JPKGK * t))
+    return cast(FloatOrArray, p / (ISA_R_AIR_JPKGK * t))
 
 
 class TroposphereBaro:
@@ -447,17 +424,17 @@ class TroposphereBaro:
     def __init__(self, sea_level_dt_k: float) -> None:
         s, _ = nonstandard_scale_bias(sea_level_dt_k, 0.0)
         self._s = s
-        self._exp = -G0_MPS2 / (L0_KPM * R_AIR_JPKGK)
+        self._exp = -G0_MPS2 / (ISA_L0_KPM * ISA_R_AIR_JPKGK)
         self._t_scale = 1.0 + s
 
     def pressure_temperature(
         self, altitude_m: float, sea_level_dp_pa: float
     ) -> tuple[float, float]:
         """Pressure (Pa) and temperature (K) at geopotential altitude ``altitude_m`` (m)."""
-        b = (R_AIR_JPKGK * T0_K / G0_MPS2) * (sea_level_dp_pa / P0_PA)
-        hp = (altitude_m - b + self._s * H0_M) / self._t_scale
-        if 0.0 <= hp < _LAYER_BASE_M[1] or (H_MIN_M <= hp < 0.0):
-            t_isa = T0_K + L0_KPM * (hp - H0_M)
-            return P0_PA * (t_isa / T0_K) ** self._exp, t_isa * self._t_scale
+        b = (ISA_R_AIR_JPKGK * ISA_T0_K / G0_MPS2) * (sea_level_dp_pa / ISA_P0_PA)
+        hp = (altitude_m - b + self._s * ISA_H0_M) / self._t_scale
+        if 0.0 <= hp < ISA_LAYER_BASE_M[1] or (ISA_H_MIN_M <= hp < 0.0):
+            t_isa = ISA_T0_K + ISA_L0_KPM * (hp - ISA_H0_M)
+            return ISA_P0_PA * (t_isa / ISA_T0_K) ** self._exp, t_isa * self._t_scale
         # Outside the troposphere (or out of range: the array function raises).
         return float(isa_pressure_pa(hp)), float(isa_temperature_k(hp)) * self._t_scale

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from physconst import ISA_R0_GEOPOTENTIAL_M
 from sim._sensor_common import (
     BLOCK_STEPS,
     Finite,
@@ -34,7 +35,7 @@ from sim._sensor_common import (
     SensorConfigModel,
     gauss_markov_coefficients,
 )
-from sim.atmosphere import R0_GEOPOTENTIAL_M, TroposphereBaro
+from sim.atmosphere import TroposphereBaro
 from sim.samples import BaroSample
 
 
@@ -156,7 +157,7 @@ class BaroModel:
         if first:
             self._t_first_us = time_us
         d_p = self.sea_level_pressure_offset_pa(time_us)
-        h_gp = R0_GEOPOTENTIAL_M * alt_msl_m / (R0_GEOPOTENTIAL_M + alt_msl_m)
+        h_gp = ISA_R0_GEOPOTENTIAL_M * alt_msl_m / (ISA_R0_GEOPOTENTIAL_M + alt_msl_m)
         p_air, t_air = self._atm.pressure_temperature(h_gp, d_p)
         dt = (time_us - self._t_last_us) * 1e-6
         if first or p.lag_time_constant_s <= 0.0:

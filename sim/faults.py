@@ -7,7 +7,7 @@ Times
     ``[start_s, start_s + duration_s)``; ``duration_s = None`` means until the end of the
     flight. A sample belongs to an event when *its own* time is inside the window: a GNSS fix
     by its time of validity (``GnssFix.time_us``, so a fix measured before an outage but
-    emitted after its start still goes out, as with ``hil.bridge.GnssWindow``), every other
+    emitted after its start still goes out, as with ``hil.streamer.GnssWindow``), every other
     sample by its ``time_us``.
 
 Events (frozen, slotted dataclasses; the field names are the scenario schema's)

@@ -79,6 +79,7 @@ import jsbsim
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from physconst import WGS84_A_M
 from sim.guidance import Controls, Guidance, GuidanceGains, GuidanceInput, TrimPoint
 from sim.plans import FlightPlan, Leg
 from sim.samples import Truth
@@ -91,8 +92,10 @@ PSF_PA = LBF_N / FT_M**2
 RANKINE_K = 5.0 / 9.0
 KT_MPS = 1852.0 / 3600.0
 
-# WGS-84 ellipsoid, for the local north/east offsets the guidance law uses
-_A_M = 6378137.0
+# WGS-84 ellipsoid, for the local north/east offsets the guidance law uses. e² is the
+# published rounded value (NIMA TR8350.2, table 3.3), 2e-13 from physconst's exact F(2 - F);
+# kept so that every seed flies the trajectory it always flew.
+_A_M = WGS84_A_M
 _E2 = 6.69437999014e-3
 
 # The wheel aircraft this adapter offers: each was checked (jsbsim 1.3.3, 50 Hz, cruise plan)

@@ -28,9 +28,8 @@ from typing import NamedTuple
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from physconst import G0_MPS2
 from sim.plans import FlightPlan, Leg
-
-G0 = 9.80665
 
 
 def _wrap(angle_rad: float) -> float:
@@ -290,7 +289,7 @@ class Guidance:
                 limit = math.radians(abs(leg.bank_deg))
             elif leg is not None and leg.kind == "turn":
                 limit = g.default_turn_bank_rad
-            phi_cmd = _clip(math.atan(v * g.k_course * course_err / G0), -limit, limit)
+            phi_cmd = _clip(math.atan(v * g.k_course * course_err / G0_MPS2), -limit, limit)
             # the trimmed bank (propeller torque, asymmetric thrust) is "wings level"
             phi_cmd += self._trim.phi_rad
         phi_cmd *= 1.0 - 0.5 * protect
@@ -330,7 +329,7 @@ class Guidance:
             self._i_phi += sched * g.ki_phi * phi_err * dt
 
         # pitch: rate command with coordinated-turn feed-forward, PI to elevator
-        q_turn = G0 / v * math.sin(s.phi_rad) * math.tan(_clip(s.phi_rad, -1.2, 1.2))
+        q_turn = G0_MPS2 / v * math.sin(s.phi_rad) * math.tan(_clip(s.phi_rad, -1.2, 1.2))
         theta_err = theta_cmd - s.theta_rad
         q_cmd = _clip(g.k_theta * theta_err, -g.max_q_rps, g.max_q_rps) + q_turn
         if not pitch_direct and alpha_margin < 0.0:
@@ -342,7 +341,7 @@ class Guidance:
             self._i_theta += sched * g.ki_theta * theta_err * dt
 
         # yaw: sideslip PI and a yaw damper around the coordinated-turn yaw rate
-        r_turn = G0 / v * math.sin(s.phi_rad) * math.cos(s.theta_rad)
+        r_turn = G0_MPS2 / v * math.sin(s.phi_rad) * math.cos(s.theta_rad)
         rudder_unsat = (
             trim.rudder
             - sched * (g.k_beta * s.beta_rad - g.k_r * (s.r_rps - r_turn))

@@ -48,9 +48,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import lfilter
 
+from physconst import G0_MPS2
 from sim._sensor_common import BLOCK_STEPS, NonNegative, Positive, SensorConfigModel
 
-G0_MPS2 = 9.80665
 DEG = math.pi / 180.0
 GM_ALLAN_PEAK_RATIO = 0.6174
 """Peak Allan deviation of a first-order Gauss–Markov process divided by its sigma."""

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import physconst as pc
 from sim import atmosphere as atm
 
 
@@ -56,14 +57,14 @@ def test_pressure_altitude_is_p4_formula_in_troposphere() -> None:
     p = np.linspace(30000.0, 105000.0, 50)
     hp = atm.pressure_altitude_m(p)
     # P4: Hp = (T0/L)·((Ps/P0)^(−L·R/g) − 1) + H0
-    p4 = (atm.T0_K / atm.L0_KPM) * (
-        (p / atm.P0_PA) ** (-atm.L0_KPM * atm.R_AIR_JPKGK / atm.G0_MPS2) - 1.0
+    p4 = (pc.ISA_T0_K / pc.ISA_L0_KPM) * (
+        (p / pc.ISA_P0_PA) ** (-pc.ISA_L0_KPM * pc.ISA_R_AIR_JPKGK / pc.G0_MPS2) - 1.0
     ) + atm.H0_M
     np.testing.assert_allclose(hp, p4, rtol=0, atol=1e-9)
 
 
 def test_isa_inverse_round_trips_over_all_layers() -> None:
-    h = np.linspace(atm.H_MIN_M, atm.H_MAX_M, 5001)
+    h = np.linspace(pc.ISA_H_MIN_M, pc.ISA_H_MAX_M, 5001)
     np.testing.assert_allclose(atm.pressure_altitude_m(atm.isa_pressure_pa(h)), h, atol=1e-6)
 
 
@@ -78,7 +79,7 @@ def test_nonstandard_round_trip(h: float, d_t: float, d_p: float) -> None:
     assert atm.altitude_from_pressure(p, d_t, d_p) == pytest.approx(h, abs=1e-6)
     hp = atm.pressure_altitude_m(p)
     # P4: H = Hp + s·(Hp − H0) + b
-    s, b = d_t / atm.T0_K, (atm.R_AIR_JPKGK * atm.T0_K / atm.G0_MPS2) * (d_p / atm.P0_PA)
+    s, b = d_t / pc.ISA_T0_K, (pc.ISA_R_AIR_JPKGK * pc.ISA_T0_K / pc.G0_MPS2) * (d_p / pc.ISA_P0_PA)
     assert hp + s * (hp - atm.H0_M) + b == pytest.approx(h, abs=1e-6)
 
 
@@ -86,23 +87,23 @@ def test_pure_temperature_offset_equals_warm_atmosphere_with_same_lapse_rate() -
     # P4's scale s = dT/T0 is exact for a troposphere with sea-level temperature T0 + dT.
     d_t = 15.0
     h = np.linspace(0.0, 10000.0, 21)
-    exact = atm.P0_PA * (1.0 + atm.L0_KPM * h / (atm.T0_K + d_t)) ** (
-        -atm.G0_MPS2 / (atm.L0_KPM * atm.R_AIR_JPKGK)
+    exact = pc.ISA_P0_PA * (1.0 + pc.ISA_L0_KPM * h / (pc.ISA_T0_K + d_t)) ** (
+        -pc.G0_MPS2 / (pc.ISA_L0_KPM * pc.ISA_R_AIR_JPKGK)
     )
     np.testing.assert_allclose(atm.pressure_from_altitude(h, d_t, 0.0), exact, rtol=1e-12)
     # Warmer air: higher pressure aloft than ISA, so pressure altitude under-reads.
     assert np.all(atm.pressure_from_altitude(h[1:], d_t) > atm.isa_pressure_pa(h[1:]))
-    assert atm.temperature_from_altitude(0.0, d_t, 0.0) == pytest.approx(atm.T0_K + d_t)
+    assert atm.temperature_from_altitude(0.0, d_t, 0.0) == pytest.approx(pc.ISA_T0_K + d_t)
 
 
 def test_pressure_offset_shifts_sea_level_pressure() -> None:
     d_p = 1500.0  # +15 hPa, a strong high
     p0 = atm.pressure_from_altitude(0.0, 0.0, d_p)
     # P4's bias b is linear in dP; the sea-level pressure is P0 + dP to first order.
-    assert p0 - atm.P0_PA == pytest.approx(d_p, rel=0.01)
+    assert p0 - pc.ISA_P0_PA == pytest.approx(d_p, rel=0.01)
     s, b = atm.nonstandard_scale_bias(0.0, d_p)
     assert s == 0.0
-    assert b == pytest.approx(8434.5 * d_p / atm.P0_PA, rel=1e-3)
+    assert b == pytest.approx(8434.5 * d_p / pc.ISA_P0_PA, rel=1e-3)
     # The altimeter set to standard reads low by b in a high.
     assert atm.pressure_altitude_m(atm.pressure_from_altitude(1000.0, 0.0, d_p)) == (
         pytest.approx(1000.0 - b, abs=1e-6)
@@ -115,7 +116,7 @@ def test_nonstandard_atmosphere_is_hydrostatic() -> None:
         atm.pressure_from_altitude(h + dh, d_t, d_p) - atm.pressure_from_altitude(h - dh, d_t, d_p)
     ) / (2.0 * dh)
     rho = atm.density_from_altitude(h, d_t, d_p)
-    assert dp_dh == pytest.approx(-rho * atm.G0_MPS2, rel=1e-6)
+    assert dp_dh == pytest.approx(-rho * pc.G0_MPS2, rel=1e-6)
 
 
 def test_geopotential_conversion_round_trip() -> None:

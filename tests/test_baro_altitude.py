@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import physconst as pc
 from fusion import baro_altitude as ba
 from sim import atmosphere as atm
 
@@ -91,11 +92,12 @@ def test_model_range_limits_are_the_simulators():
 def test_qnh_altimeter_reads_zero_at_qnh_and_first_order_p4_bias():
     qnh = 102325.0  # +10 hPa
     assert ba.qnh_altitude_m(qnh, qnh) == 0.0
-    assert ba.qnh_altitude_m(90000.0, ba.P0_PA) == pytest.approx(ba.pressure_altitude_m(90000.0))
+    assert ba.qnh_altitude_m(90000.0, pc.ISA_P0_PA) == pytest.approx(
+        ba.pressure_altitude_m(90000.0))
     # Against the simulator's atmosphere with the same sea-level pressure offset: the QNH
     # altimeter is P4's bias to first order (0.3 m at 1 km per the atmosphere docstring).
     for h in (0.0, 1000.0, 3000.0):
-        p = float(atm.pressure_from_altitude(h, 0.0, qnh - ba.P0_PA))
+        p = float(atm.pressure_from_altitude(h, 0.0, qnh - pc.ISA_P0_PA))
         assert ba.qnh_altitude_m(p, qnh) == pytest.approx(h, abs=1.0)
     alt = ba.BaroAltimeter(ba.BaroAltimeterConfig(mode="qnh", qnh_pa=qnh))
     p = float(atm.pressure_from_altitude(1000.0, 0.0, 1000.0))
@@ -123,9 +125,9 @@ def test_p4_eq4_temperature_is_sound_but_its_pressure_is_not():
     # temperature, but a sea-level pressure 5.5 hPa low (-46 m of bias): documented flaw.
     p, t = ba.isa_pressure_pa(1000.0), ba.isa_temperature_k(1000.0)
     ti, pi = ba.p4_sea_level_conditions(p, t)
-    assert ti == pytest.approx(ba.T0_K, abs=1e-9)
-    assert pi - ba.P0_PA == pytest.approx(-549.0, abs=2.0)
-    assert ba.BIAS_PER_PRESSURE_M_PER_PA * (pi - ba.P0_PA) == pytest.approx(-45.7, abs=0.3)
+    assert ti == pytest.approx(pc.ISA_T0_K, abs=1e-9)
+    assert pi - pc.ISA_P0_PA == pytest.approx(-549.0, abs=2.0)
+    assert ba.BIAS_PER_PRESSURE_M_PER_PA * (pi - pc.ISA_P0_PA) == pytest.approx(-45.7, abs=0.3)
 
 
 def _climb(

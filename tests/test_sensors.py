@@ -11,6 +11,7 @@ import pytest
 from numpy.typing import NDArray
 from pydantic import ValidationError
 
+import physconst as pc
 from sim import atmosphere as atm
 from sim._sensor_common import meridian_prime_radii_m
 from sim.baro import BaroModel
@@ -402,12 +403,12 @@ def test_baro_in_nonstandard_atmosphere_inverts_with_p4() -> None:
     # T0 + dT − L·b (P4's bias shifts the whole profile by b; −0.49 K here).
     s_, b = atm.nonstandard_scale_bias(12.0, -900.0)
     t_sea = model.measure(100_000, 0.0).temperature_k
-    assert t_sea == pytest.approx(atm.T0_K + 12.0 - atm.L0_KPM * b, abs=1e-9)
+    assert t_sea == pytest.approx(pc.ISA_T0_K + 12.0 - pc.ISA_L0_KPM * b, abs=1e-9)
     warm = BaroModel(
         baro_preset("ideal").model_copy(update={"sea_level_temperature_offset_k": 12.0}),
         np.random.default_rng(0),
     )
-    assert warm.measure(0, 0.0).temperature_k == pytest.approx(atm.T0_K + 12.0, abs=1e-9)
+    assert warm.measure(0, 0.0).temperature_k == pytest.approx(pc.ISA_T0_K + 12.0, abs=1e-9)
 
 
 @pytest.mark.parametrize("alt_m", [0.0, 3000.0])

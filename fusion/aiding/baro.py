@@ -28,13 +28,12 @@ import numpy as np
 from fusion.aiding import Observation
 from fusion.config import BaroConfig
 from fusion.error_model import StateLayout
+from physconst import G0_MPS2, ISA_L0_KPM, ISA_LAYER_BASE_M, ISA_P0_PA, ISA_R_AIR_JPKGK, ISA_T0_K
 
-ISA_T0_K = 288.15
-ISA_P0_PA = 101325.0
-ISA_LAPSE_K_PER_M = 0.0065
-ISA_R_J_PER_KG_K = 287.05287
-ISA_G0_MPS2 = 9.80665
-ISA_H11_M = 11000.0
+ISA_LAPSE_K_PER_M = -ISA_L0_KPM  # temperature decrease with height, K/m (> 0)
+ISA_R_J_PER_KG_K = ISA_R_AIR_JPKGK
+ISA_G0_MPS2 = G0_MPS2
+ISA_H11_M = ISA_LAYER_BASE_M[1]
 ISA_T11_K = ISA_T0_K - ISA_LAPSE_K_PER_M * ISA_H11_M
 _EXP = ISA_R_J_PER_KG_K * ISA_LAPSE_K_PER_M / ISA_G0_MPS2
 ISA_P11_PA = ISA_P0_PA * (ISA_T11_K / ISA_T0_K) ** (1.0 / _EXP)
