@@ -3,7 +3,7 @@
 Each run flies one plan for 600 s (Cessna 172, ``industrial-mems`` IMU, ``modern`` GNSS,
 ``ms5611`` baro, ``consumer`` magnetometer) with GNSS switched off for four 25 s outages (P0's
 repeated 25-second outages) at 150, 230, 310 and 390 s and a 60 s outage at 470 s. The frames
-go through the same in-memory MAVLink path as ``hilnav replay`` (SensorBridge -> Decoder), the
+go through the same in-memory MAVLink path as ``hilnav replay`` (SensorStreamer -> Decoder), the
 filter is tuned from the IMU datasheet (:func:`hil.tuning.filter_config_for_imu`).
 
 How the methods are run
@@ -159,9 +159,9 @@ def simulate(plan: str, seed: int, cache: Path | None) -> list[Any]:
     if path is not None and path.is_file():
         items: list[Any] = pickle.loads(path.read_bytes())
         return items
-    from hil.bridge import SensorBridge, run_lockstep
     from hil.codec import Decoder
     from hil.recording import SimRequest
+    from hil.streamer import SensorStreamer, run_lockstep
     from sim.flight import Flight
     from sim.sensors import SensorSuite
 
@@ -169,7 +169,7 @@ def simulate(plan: str, seed: int, cache: Path | None) -> list[Any]:
         plan=plan, imu=IMU, gnss=GNSS, duration_s=DURATION_S, seed=seed,
         gnss_off=[f"{s:g}:{d:g}" for s, d in OUTAGES])  # fmt: skip
     suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)
-    bridge = SensorBridge(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
+    bridge = SensorStreamer(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
     decoder = Decoder()
     items = []
 

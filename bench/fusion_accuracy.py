@@ -4,7 +4,7 @@ Each run flies one flight plan (default: racetrack and manoeuvre, 600 s, Cessna 
 with the ``industrial-mems`` IMU, the ``modern`` GNSS receiver, the ``ms5611`` barometer and
 the ``consumer`` magnetometer. GNSS is switched off (no HIL_GPS sent) for a 30 s outage at
 200 s and a 60 s outage at 400 s. Frames go through the same in-memory path as ``hilnav
-replay``: :class:`hil.bridge.SensorBridge` -> :class:`hil.codec.Decoder` ->
+replay``: :class:`hil.streamer.SensorStreamer` -> :class:`hil.codec.Decoder` ->
 :class:`scenarios.collect.Collector` / :class:`fusion.filter.NavFilter` (no bridging method:
 outages are flown free-inertial), scored by :func:`scenarios.summary.build_summary`.
 
@@ -104,9 +104,9 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
     import numpy as np
 
     from fusion.filter import NavFilter
-    from hil.bridge import SensorBridge, run_lockstep
     from hil.codec import Decoder
     from hil.recording import SimRequest
+    from hil.streamer import SensorStreamer, run_lockstep
     from hil.tuning import filter_config_for_presets
     from scenarios import metrics
     from scenarios.collect import Collector
@@ -119,7 +119,7 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
         plan=plan, imu=IMU, gnss=GNSS, duration_s=duration_s, seed=seed,
         gnss_off=[f"{s}:{d}" for s, d in OUTAGES])
     suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)
-    bridge = SensorBridge(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
+    streamer = SensorStreamer(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
     cfg = filter_config_for_presets(IMU, GNSS)
     if gnss_bias != "default":
         cfg = cfg.model_copy(
@@ -139,7 +139,7 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
         fusion_s += time.perf_counter() - t0
 
     with Flight(request.flight, request.plan) as flight:
-        report = run_lockstep(flight, suite, bridge, request.duration_s, sink)
+        report = run_lockstep(flight, suite, streamer, request.duration_s, sink)
 
     estimate = col.estimate_track()
     truth = col.truth_track()

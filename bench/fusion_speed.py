@@ -3,7 +3,7 @@
 The sample stream is generated once: ``--duration`` s (default 120) of the racetrack with the
 ``industrial-mems`` IMU at 200 Hz, ``modern`` GNSS at 5 Hz, ``ms5611`` baro and ``consumer``
 magnetometer at 50 Hz, through :class:`sim.sensors.SensorSuite` and
-:class:`hil.bridge.SensorBridge`. It is kept twice: as the list of SI samples in emission
+:class:`hil.streamer.SensorStreamer`. It is kept twice: as the list of SI samples in emission
 order (truth dropped) and as the list of encoded MAVLink frames (truth frames included, as on
 the wire).
 
@@ -53,8 +53,8 @@ def generate(duration_s: float, seed: int) -> tuple[list[Any], list[bytes], int]
     seed : int
         Scenario seed.
     """
-    from hil.bridge import SensorBridge, run_lockstep
     from hil.recording import SimRequest
+    from hil.streamer import SensorStreamer, run_lockstep
     from sim.flight import Flight
     from sim.samples import ImuSample, Truth
     from sim.sensors import SensorSuite
@@ -72,10 +72,10 @@ def generate(duration_s: float, seed: int) -> tuple[list[Any], list[bytes], int]
         return out
 
     suite.step = step  # type: ignore[method-assign]  # keep the samples as emitted
-    bridge = SensorBridge(truth_rate_hz=request.truth_rate_hz)
+    streamer = SensorStreamer(truth_rate_hz=request.truth_rate_hz)
     frames: list[bytes] = []
     with Flight(request.flight, request.plan) as flight:
-        report = run_lockstep(flight, suite, bridge, request.duration_s,
+        report = run_lockstep(flight, suite, streamer, request.duration_s,
                               lambda _t, frame: frames.append(frame))
     if report.ended is not None:
         raise RuntimeError(f"flight ended early: {report.ended}")

@@ -17,7 +17,7 @@ import platform
 import time
 from pathlib import Path
 
-from hil.bridge import SensorBridge
+from hil.streamer import SensorStreamer
 from sim import presets
 from sim.flight import Flight, FlightConfig
 from sim.plans import load_plan
@@ -49,14 +49,14 @@ def time_jsbsim(cfg: FlightConfig, plan_name: str, duration_s: float) -> float:
 def time_chain(cfg: FlightConfig, plan_name: str, duration_s: float) -> tuple[float, int]:
     plan = load_plan(plan_name)
     suite = SensorSuite(presets.suite_config(), seed=1, sim_rate_hz=cfg.rate_hz)
-    bridge = SensorBridge()
+    streamer = SensorStreamer()
     frames = 0
     with Flight(cfg, plan) as flight:
         n = round(duration_s * cfg.rate_hz)
         t0 = time.process_time()
         for _ in range(n):
             truth = flight.step()
-            frames += len(bridge.frames(truth, suite.step(truth)))
+            frames += len(streamer.frames(truth, suite.step(truth)))
         return time.process_time() - t0, frames
 
 

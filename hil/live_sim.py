@@ -1,6 +1,6 @@
-"""``hilnav sim --live``: the sensor bridge on a real MAVLink link, paced against the wall clock.
+"""``hilnav sim --live``: the sensor streamer on a real MAVLink link, paced against the wall clock.
 
-The same flight, sensor models and :class:`hil.bridge.SensorBridge` as the lockstep recorder
+The same flight, sensor models and :class:`hil.streamer.SensorStreamer` as the lockstep recorder
 (same seed, same frames, byte for byte), but every frame also goes out on a
 :class:`hil.link.MavlinkLink` (role :meth:`LinkRole.simulator`). Pacing: after each simulator
 step the process sleeps until ``wall - wall0 >= (t_sim - t0) / speed``; timestamps on the wire
@@ -38,8 +38,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hil.bridge import SensorBridge
 from hil.recording import SimRequest
+from hil.streamer import SensorStreamer
 from sim.flight import Flight, FlightEnded
 from sim.samples import Truth
 from sim.sensors import SensorSuite
@@ -57,7 +57,7 @@ class LiveReport:
     ----------
     sim_duration_s : simulated seconds flown.
     wall_s : wall-clock seconds from the first step to the last.
-    frames : frames produced by the bridge.
+    frames : frames produced by the sensor streamer.
     sent : frames the link accepted (``frames - sent`` were dropped by the link, counted there).
     peer_seen : whether a heartbeat from the receiver arrived before the flight started.
     ended : a stall / ground contact that ended the flight early, else None.
@@ -173,7 +173,7 @@ def live_sim(
     stop = stop or threading.Event()
     signer = Signer(signing_key) if signing_key is not None else None
     suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)
-    bridge = SensorBridge(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
+    streamer = SensorStreamer(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
     with contextlib.ExitStack() as stack:
         link = stack.enter_context(MavlinkLink(url, LinkRole.simulator(), signer=signer))
         if lockstep:
@@ -194,7 +194,7 @@ def live_sim(
         gate = (
             _Lockstep(flight.time_us, lockstep_window_s, lockstep_timeout_s) if lockstep else None
         )
-        return _fly(flight, suite, bridge, request.duration_s, speed, link, log, bus,
+        return _fly(flight, suite, streamer, request.duration_s, speed, link, log, bus,
                     progress, on_send, gate, stop, peer_seen)
     raise AssertionError("unreachable")  # pragma: no cover (ExitStack does not swallow)
 
@@ -251,7 +251,7 @@ class _Lockstep:
 def _fly(
     flight: Flight,
     suite: SensorSuite,
-    bridge: SensorBridge,
+    streamer: SensorStreamer,
     duration_s: float,
     speed: float,
     link: Any,
@@ -279,7 +279,7 @@ def _fly(
             ended = exc
             break
         samples = suite.step(truth)
-        for time_us, frame in bridge.frames(truth, samples):
+        for time_us, frame in streamer.frames(truth, samples):
             frames += 1
             if on_send is not None:
                 on_send(time_us, frame)

@@ -6,7 +6,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from hil.bridge import GnssWindow, LockstepReport, SensorBridge, run_lockstep
+from hil.streamer import GnssWindow, LockstepReport, SensorStreamer, run_lockstep
 from hil.tlog import TlogWriter
 from sim import presets
 from sim.flight import Flight, FlightConfig, StartState
@@ -97,8 +97,8 @@ def record_flight(
     """
     path.parent.mkdir(parents=True, exist_ok=True)
     suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)
-    bridge = SensorBridge(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
+    streamer = SensorStreamer(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
     with Flight(request.flight, request.plan) as flight, TlogWriter(path) as log:
-        return run_lockstep(flight, suite, bridge, request.duration_s,
+        return run_lockstep(flight, suite, streamer, request.duration_s,
                             lambda t_us, frame: log.write(frame, t_us),
                             progress=progress)

@@ -23,8 +23,8 @@ import numpy as np
 from fusion.bridging import make_bridge
 from fusion.config import FilterConfig
 from fusion.filter import NavFilter
-from hil.bridge import LockstepReport, SensorBridge, run_lockstep
 from hil.codec import Decoder
+from hil.streamer import LockstepReport, SensorStreamer, run_lockstep
 from hil.tlog import TlogWriter
 from hil.tuning import filter_config_for_imu, filter_gnss_config
 from scenarios import metrics
@@ -102,8 +102,8 @@ def simulate(
     suite = SensorSuite(scenario.sensor_config(), scenario.seed, flight_cfg.rate_hz)
     with Flight(flight_cfg, scenario.flight_plan()) as flight:
         faults = FaultInjector(scenario.fault_events(), seed=scenario.seed, t0_us=flight.time_us)
-        bridge = SensorBridge(faults=faults)
-        report = run_lockstep(flight, suite, bridge, scenario.duration_s, sink, progress=progress)
+        streamer = SensorStreamer(faults=faults)
+        report = run_lockstep(flight, suite, streamer, scenario.duration_s, sink, progress=progress)
     return Simulated(report, list(faults.log), dict(faults.counters))
 
 

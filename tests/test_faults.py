@@ -1,5 +1,5 @@
 """sim.faults: every event changes the sensor stream the way its docstring says, the timeline
-check, determinism, and the sensor bridge dropping the HIL_GPS frames of an outage.
+check, determinism, and the sensor streamer dropping the HIL_GPS frames of an outage.
 
 GIVEN a short SensorSuite run over a synthetic truth (level, north at 20 m/s, no JSBSim), WHEN
 a fault timeline is applied, THEN the faulted stream is compared with the unfaulted one (the
@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from hil.bridge import GnssWindow, SensorBridge
 from hil.codec import Decoder
+from hil.streamer import GnssWindow, SensorStreamer
 from sim._sensor_common import ecef_from_geodetic_m, meridian_prime_radii_m
 from sim.faults import (
     EVENT_TYPES,
@@ -604,26 +604,26 @@ def test_combined_timeline_keeps_every_step_in_time_order() -> None:
                 last_fix = s.time_us
 
 
-# --------------------------------------------------------------------------- sensor bridge
+# --------------------------------------------------------------------------- sensor streamer
 
 
-def test_bridge_with_faults_drops_hil_gps_frames_of_an_outage() -> None:
+def test_streamer_with_faults_drops_hil_gps_frames_of_an_outage() -> None:
     inj = FaultInjector([GnssOutage(2.0, 2.0)], seed=0, t0_us=0)
-    bridge = SensorBridge(faults=inj, gnss_off=[GnssWindow(1.0, 0.5)])
-    plain = SensorBridge()
+    streamer = SensorStreamer(faults=inj, gnss_off=[GnssWindow(1.0, 0.5)])
+    plain = SensorStreamer()
     dec, dec_plain = Decoder(), Decoder()
     got: list[GnssFix] = []
     want: list[GnssFix] = []
     for tr, samples in baseline()[: round(6 * RATE_HZ) + 1]:
-        for _, frame in bridge.frames(tr, samples):
+        for _, frame in streamer.frames(tr, samples):
             got += [d.sample for d in dec.feed(frame) if isinstance(d.sample, GnssFix)]
         for _, frame in plain.frames(tr, samples):
             want += [d.sample for d in dec_plain.feed(frame) if isinstance(d.sample, GnssFix)]
     got_t, want_t = [f.time_us for f in got], [f.time_us for f in want]
     assert got_t == [t for t in want_t if not in_window(t, 2.0, 4.0) and not in_window(t, 1, 1.5)]
     assert len(want_t) - len(got_t) == 13
-    assert bridge.fault_counters["gnss_dropped"] == 10 and bridge.gnss_suppressed == 3
-    assert [(e.time_us, e.phase) for e in bridge.fault_log] == [
+    assert streamer.fault_counters["gnss_dropped"] == 10 and streamer.gnss_suppressed == 3
+    assert [(e.time_us, e.phase) for e in streamer.fault_log] == [
         (2_000_000, "start"),
         (4_000_000, "end"),
     ]

@@ -1,6 +1,6 @@
-"""Sensor bridge: one simulator step's truth and samples -> MAVLink 2 frames.
+"""Sensor streamer: one simulator step's truth and samples -> MAVLink 2 frames.
 
-The bridge is the only place where simulator output meets the wire. Per IMU sample it sends one
+The streamer is the only place where simulator output meets the wire. Per IMU sample it sends one
 HIL_SENSOR carrying the IMU fields plus any baro / magnetometer sample of the same step (their
 ``fields_updated`` bits set only then), HIL_GPS for each GNSS fix (emitted when the receiver
 outputs it, stamped with its time of validity), and the truth as HIL_STATE_QUATERNION from the
@@ -51,7 +51,7 @@ class GnssWindow:
         return cls(start, duration)
 
 
-class SensorBridge:
+class SensorStreamer:
     """Encodes simulator output into frames, in the order a real sensor bus would emit them.
 
     Parameters
@@ -140,7 +140,7 @@ class LockstepReport:
 def run_lockstep(
     flight: Flight,
     suite: SensorSuite,
-    bridge: SensorBridge,
+    streamer: SensorStreamer,
     duration_s: float,
     sink: FrameSink,
     *,
@@ -166,7 +166,7 @@ def run_lockstep(
         except FlightEnded as exc:
             ended = exc
             break
-        for time_us, frame in bridge.frames(truth, suite.step(truth)):
+        for time_us, frame in streamer.frames(truth, suite.step(truth)):
             sink(time_us, frame)
             n_frames += 1
         if progress is not None and truth.time_us >= next_progress_us:
