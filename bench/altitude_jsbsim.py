@@ -1,6 +1,6 @@
 """Benchmark: the altitude methods inside NavFilter on JSBSim flights (issue #5).
 
-Flights: ``SimRequest.build(plan="climb-descent", alt_msl_m=1500)``, Cessna 172 at 50 m/s,
+Flights: ``SimSetup.build(plan="climb-descent", alt_msl_m=1500)``, Cessna 172 at 50 m/s,
 JSBSim at 100 Hz, the IMU at 50 Hz (P0's INS rate; half the filter cost of 100 Hz),
 ``industrial-mems`` IMU, ``modern`` GNSS (Gauss-Markov vertical error 2.4 m / 120 s + 0.8 m
 white), ``ms5611`` barometer at 50 Hz, ``consumer`` magnetometer at 10 Hz, 660 s. GNSS is
@@ -103,7 +103,7 @@ from fusion.baro_altitude import (  # noqa: E402
 from fusion.config import AltitudeConfig, FilterConfig  # noqa: E402
 from fusion.filter import NavEstimate, NavFilter  # noqa: E402
 from hil.codec import Decoder  # noqa: E402
-from hil.recording import SimRequest  # noqa: E402
+from hil.pipeline import SimSetup  # noqa: E402
 from hil.streamer import SensorStreamer  # noqa: E402
 from hil.tuning import filter_config_for_imu  # noqa: E402
 from physconst import ISA_P0_PA  # noqa: E402
@@ -316,7 +316,7 @@ def fly(seed: int, runs: list[RunSpec]) -> dict[str, Any]:
     Returns the truth (100 Hz), per-run tracks, health and channel logs, and the baro samples
     (time, pressure) of each variant.
     """
-    request = SimRequest.build(
+    request = SimSetup.build(
         plan=PLAN,
         duration_s=DURATION_S,
         seed=seed,

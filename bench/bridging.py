@@ -160,12 +160,12 @@ def simulate(plan: str, seed: int, cache: Path | None) -> list[Any]:
         items: list[Any] = pickle.loads(path.read_bytes())
         return items
     from hil.codec import Decoder
-    from hil.recording import SimRequest
+    from hil.pipeline import SimSetup
     from hil.streamer import SensorStreamer, run_lockstep
     from sim.flight import Flight
     from sim.sensors import SensorSuite
 
-    request = SimRequest.build(
+    request = SimSetup.build(
         plan=plan, imu=IMU, gnss=GNSS, duration_s=DURATION_S, seed=seed,
         gnss_off=[f"{s:g}:{d:g}" for s, d in OUTAGES])  # fmt: skip
     suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)
@@ -191,9 +191,9 @@ def run_filter(items: list[Any], bridge: Any) -> tuple[Any, Any, list[float], fl
     import numpy as np
 
     from fusion.filter import NavFilter
+    from hil.tracks import Collector
     from hil.tuning import filter_config_for_imu
     from scenarios import metrics
-    from scenarios.collect import Collector
 
     nav = NavFilter(filter_config_for_imu(IMU), bridge=bridge)
     col = Collector()

@@ -105,17 +105,17 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
 
     from fusion.filter import NavFilter
     from hil.codec import Decoder
-    from hil.recording import SimRequest
+    from hil.pipeline import SimSetup
     from hil.streamer import SensorStreamer, run_lockstep
+    from hil.tracks import Collector
     from hil.tuning import filter_config_for_presets
     from scenarios import metrics
-    from scenarios.collect import Collector
     from scenarios.summary import RunInfo, build_summary
     from sim.flight import Flight
     from sim.samples import GnssFix
     from sim.sensors import SensorSuite
 
-    request = SimRequest.build(
+    request = SimSetup.build(
         plan=plan, imu=IMU, gnss=GNSS, duration_s=duration_s, seed=seed,
         gnss_off=[f"{s}:{d}" for s, d in OUTAGES])
     suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)

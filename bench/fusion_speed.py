@@ -53,13 +53,13 @@ def generate(duration_s: float, seed: int) -> tuple[list[Any], list[bytes], int]
     seed : int
         Scenario seed.
     """
-    from hil.recording import SimRequest
+    from hil.pipeline import SimSetup
     from hil.streamer import SensorStreamer, run_lockstep
     from sim.flight import Flight
     from sim.samples import ImuSample, Truth
     from sim.sensors import SensorSuite
 
-    request = SimRequest.build(plan="racetrack", imu=IMU, gnss="modern", baro="ms5611",
+    request = SimSetup.build(plan="racetrack", imu=IMU, gnss="modern", baro="ms5611",
                                mag="consumer", rate_hz=RATE_HZ, duration_s=duration_s,
                                seed=seed)
     suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)

@@ -107,7 +107,7 @@ def stats_ms(values_ns: list[int]) -> dict[str, float]:
 
 def hilnav(*args: str, log: Path) -> subprocess.Popen[bytes]:
     return subprocess.Popen(
-        [sys.executable, "-m", "hil.cli", *args], stdout=log.open("wb"),
+        [sys.executable, "-m", "scenarios.cli", *args], stdout=log.open("wb"),
         stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True,
         env={**os.environ, "COLUMNS": "200"})
 
@@ -120,7 +120,7 @@ def this_script(*args: str, log: Path) -> subprocess.Popen[bytes]:
 
 @contextlib.contextmanager
 def children() -> Iterator[list[subprocess.Popen[bytes]]]:
-    from hil.up import stop_process
+    from scenarios.cli.up import stop_process
 
     procs: list[subprocess.Popen[bytes]] = []
     try:
@@ -131,7 +131,7 @@ def children() -> Iterator[list[subprocess.Popen[bytes]]]:
 
 
 def free_port() -> int:
-    from hil.up import free_udp_port
+    from scenarios.cli.up import free_udp_port
 
     return free_udp_port()
 
@@ -140,7 +140,7 @@ def free_port() -> int:
 def sender_main(args: argparse.Namespace) -> int:
     """Child: ``live_sim`` (as ``hilnav sim --live``) stamping HIL_SENSOR send times."""
     from hil.live_sim import live_sim, stop_on_signals
-    from hil.recording import SimRequest
+    from hil.pipeline import SimSetup
 
     stamps: list[tuple[int, int]] = []
 
@@ -148,7 +148,7 @@ def sender_main(args: argparse.Namespace) -> int:
         if frame[7] == _HIL_SENSOR_ID and frame[8] == 0 and frame[9] == 0:
             stamps.append((time_us, time.monotonic_ns()))
 
-    request = SimRequest.build(plan="racetrack", duration_s=args.duration, seed=args.seed)
+    request = SimSetup.build(plan="racetrack", duration_s=args.duration, seed=args.seed)
     with stop_on_signals() as stop:
         report = live_sim(request, args.url, speed=args.speed, zenoh=args.zenoh,
                           vehicle=args.vehicle, wait_peer_s=60.0, on_send=on_send, stop=stop)
@@ -599,8 +599,9 @@ def main() -> int:
             print(json.dumps(result["lockstep"]), flush=True)
         if "capacity" in parts:
             recording = tmp / "capacity.tlog"
-            subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--record", str(recording),
-                            "--duration", f"{args.sweep_duration:g}", "--seed", "1"],
+            subprocess.run([sys.executable, "-m", "scenarios.cli", "sim", "--record",
+                            str(recording), "--duration", f"{args.sweep_duration:g}",
+                            "--seed", "1"],
                            check=True, capture_output=True)
             result["fusion_capacity"] = []
             for speed in (25.0, 50.0):

@@ -38,11 +38,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hil.recording import SimRequest
-from hil.streamer import SensorStreamer
-from sim.flight import Flight, FlightEnded
-from sim.samples import Truth
-from sim.sensors import SensorSuite
+from hil.pipeline import SimChain, SimSetup
+from sim.flight import FlightEnded
 
 __all__ = ["LiveReport", "live_sim"]
 
@@ -102,7 +99,7 @@ def stop_on_signals() -> Iterator[threading.Event]:
 
 
 def live_sim(
-    request: SimRequest,
+    request: SimSetup,
     url: str,
     *,
     speed: float = 1.0,
@@ -122,7 +119,7 @@ def live_sim(
 
     Parameters
     ----------
-    request : SimRequest
+    request : SimSetup
     url : str
         MAVLink link URL (:class:`hil.link.LinkUrl`), e.g. ``udpout:127.0.0.1:14560``.
     speed : float
@@ -172,8 +169,7 @@ def live_sim(
         raise ValueError(f"lockstep-timeout must be > 0 s, got {lockstep_timeout_s}")
     stop = stop or threading.Event()
     signer = Signer(signing_key) if signing_key is not None else None
-    suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)
-    streamer = SensorStreamer(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
+    chain = SimChain(request)
     with contextlib.ExitStack() as stack:
         link = stack.enter_context(MavlinkLink(url, LinkRole.simulator(), signer=signer))
         if lockstep:
@@ -187,15 +183,14 @@ def live_sim(
             from hil.bus import Bus
 
             bus = stack.enter_context(Bus(zenoh, vehicle=vehicle))
-        flight = stack.enter_context(Flight(request.flight, request.plan))
+        stack.enter_context(chain)
         if lockstep and wait_peer_s == 0.0:
             wait_peer_s = lockstep_timeout_s
         peer_seen = _wait_for_peer(link, wait_peer_s, stop)
         gate = (
-            _Lockstep(flight.time_us, lockstep_window_s, lockstep_timeout_s) if lockstep else None
+            _Lockstep(chain.start_us, lockstep_window_s, lockstep_timeout_s) if lockstep else None
         )
-        return _fly(flight, suite, streamer, request.duration_s, speed, link, log, bus,
-                    progress, on_send, gate, stop, peer_seen)
+        return _fly(chain, speed, link, log, bus, progress, on_send, gate, stop, peer_seen)
     raise AssertionError("unreachable")  # pragma: no cover (ExitStack does not swallow)
 
 
@@ -249,10 +244,7 @@ class _Lockstep:
 
 
 def _fly(
-    flight: Flight,
-    suite: SensorSuite,
-    streamer: SensorStreamer,
-    duration_s: float,
+    chain: SimChain,
     speed: float,
     link: Any,
     log: Any,
@@ -263,23 +255,18 @@ def _fly(
     stop: threading.Event,
     peer_seen: bool,
 ) -> LiveReport:
-    t0_us = flight.time_us
-    end_us = t0_us + round(duration_s * 1e6)
+    t0_us = last_us = chain.start_us
     frames = sent = 0
-    ended: FlightEnded | None = None
     stalled = False
     next_progress_us = t0_us
     next_tick = 0.0
     wall0 = time.monotonic()
-    truth: Truth = flight.truth()
-    while truth.time_us < end_us and not stop.is_set():
-        try:
-            truth = flight.step()
-        except FlightEnded as exc:
-            ended = exc
+    for step in chain.steps():
+        if stop.is_set():
             break
-        samples = suite.step(truth)
-        for time_us, frame in streamer.frames(truth, samples):
+        truth, samples = step.truth, step.samples
+        last_us = truth.time_us
+        for time_us, frame in step.frames:
             frames += 1
             if on_send is not None:
                 on_send(time_us, frame)
@@ -312,7 +299,8 @@ def _fly(
             next_progress_us += 1_000_000
     if gate is not None and not stalled and not stop.is_set():
         # the end: return once the fusion has processed every frame sent
-        stalled = not gate.wait(truth.time_us, link, stop, window_us=0)
+        stalled = not gate.wait(last_us, link, stop, window_us=0)
     wall = time.monotonic() - wall0
-    return LiveReport((truth.time_us - t0_us) * 1e-6, wall, frames, sent, peer_seen, ended,
+    ended: FlightEnded | None = chain.ended
+    return LiveReport((last_us - t0_us) * 1e-6, wall, frames, sent, peer_seen, ended,
                       stop.is_set(), 0.0 if gate is None else gate.waited_s, stalled)

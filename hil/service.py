@@ -57,7 +57,6 @@ import socket
 import threading
 import time
 from collections import OrderedDict, deque
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final, Literal
@@ -65,12 +64,13 @@ from typing import Any, Final, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from fusion.bridging import make_bridge
 from fusion.config import FilterConfig
 from fusion.error_model import StateLayout
 from fusion.filter import NavEstimate, NavFilter
 from fusion.kalman import Correction
 from hil.bus import Topic
-from hil.codec import TRUTH_COMPONENT_ID, Decoder, mavlink2
+from hil.codec import TRUTH_COMPONENT_ID, mavlink2
 from hil.link import (
     FC_SENSOR_MSG_IDS,
     HIL_MSG_IDS,
@@ -78,15 +78,15 @@ from hil.link import (
     LinkRole,
     MavlinkLink,
 )
+from hil.pipeline import FusionRun, filter_config
 from hil.shadow import CompanionEncoder, ShadowEncoder
 from hil.signing import Signer
-from hil.tuning import filter_config_for_presets
-from scenarios.collect import Collector
+from sim.presets import gnss_preset
 from sim.samples import GnssFix, Truth
 
 __all__ = [
-    "FusionOptions", "FusionService", "GcsResponder", "TappedNavFilter", "fusion_main",
-    "innovation_source", "input_role", "interpolate_truth",
+    "FusionOptions", "FusionService", "GcsResponder", "TappedNavFilter", "innovation_source",
+    "input_role", "interpolate_truth",
 ]
 
 _TRUTH_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HIL_STATE_QUATERNION)
@@ -111,6 +111,8 @@ class FusionOptions(BaseModel):
     vehicle: str = "sim1"
     imu: str = "industrial-mems"
     gnss: str = "modern"
+    bridge: str = "none"
+    altitude: str = "ekf"
     gcs: str | None = None
     shadow_system_id: int = Field(default=1, ge=1, le=255)
     companion: str | None = None
@@ -175,9 +177,9 @@ class TappedNavFilter(NavFilter):
     arithmetic is untouched (the live scorecard still equals ``hilnav replay``).
     """
 
-    def __init__(self, config: FilterConfig | None = None) -> None:
+    def __init__(self, config: FilterConfig | None = None, *, bridge: Any = None) -> None:
         self.corrections: list[tuple[np.ndarray, Correction]] = []
-        super().__init__(config)
+        super().__init__(config, bridge=bridge)
 
     def _correct(self, *args: Any, **kwargs: Any) -> Correction:
         res = super()._correct(*args, **kwargs)
@@ -266,10 +268,12 @@ class FusionService:
 
     def __init__(self, options: FusionOptions, *, signing_key: bytes | None = None) -> None:
         self.options = options
-        self.config = filter_config_for_presets(options.imu, options.gnss)
-        self.nav = TappedNavFilter(self.config)
-        self.decoder = Decoder()
-        self.collector = Collector() if options.out is not None else None
+        self.config = filter_config(options.imu, gnss_preset(options.gnss), options.altitude)
+        self.nav = TappedNavFilter(self.config,
+                                   bridge=make_bridge(options.bridge, self.config.bridge))
+        self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None,
+                                nav=self.nav)
+        self.decoder = self.fusion.decoder
         self.stats = _Stats()
         self._signing_key = signing_key
         self._recent: OrderedDict[int, NavEstimate] = OrderedDict()
@@ -350,16 +354,10 @@ class FusionService:
                 if d.component_id != TRUTH_COMPONENT_ID or d.msg_id != _TRUTH_ID:
                     self.stats.truth_other_component += 1
                     continue
-                if self.collector is not None:
-                    self.collector.feed(self.nav, [item])
+                self.fusion.feed([item])
                 self._on_truth(item)
                 continue
-            if self.collector is not None:
-                n = len(self.collector.estimates)
-                self.collector.feed(self.nav, [item])
-                ests = self.collector.estimates[n:]
-            else:
-                ests = self.nav.step(item)
+            ests = self.fusion.feed([item])
             if self.nav.corrections:
                 self._on_corrections(item)
             for est in ests:
@@ -541,42 +539,26 @@ class FusionService:
                                          force=True)
 
     # ---------------------------------------------------------------- scorecard
-    def summary(self, wall_s: float) -> dict[str, Any] | None:
-        """The live run's scorecard (as ``hilnav replay``) or None without ``--out`` / data."""
-        col = self.collector
-        if col is None:
-            return None
-        from scenarios import metrics
-        from scenarios.replay import _as_dict
-        from scenarios.summary import RunInfo, build_summary
-
-        try:
-            estimate = col.estimate_track()
-            truth = col.truth_track()
-        except ValueError:
-            return None
-        end_s = min(estimate.time_s[-1], truth.time_s[-1])
-        outages = metrics.outages_from_fix_times(
-            np.asarray(col.fix_times_us, dtype=float) * 1e-6, end_s=end_s)
-        info = RunInfo(scenario="live", seed=None, sim_duration_s=col.last_time_us * 1e-6,
-                       wall_s=wall_s, bridge="none", altitude="ekf")
-        summary, _err = build_summary(
-            info, estimate, truth, outages, settle_s=self.options.settle_s,
-            health={"filter": _as_dict(self.nav.health),
-                    "decoder": _as_dict(self.decoder.counters)})
+    def live_section(self) -> dict[str, Any]:
+        """The ``live`` section of the live scorecard: link counters and what was published."""
         counters = self.link_counters()
-        mav = counters["mavlink"]
-        summary["live"] = {
+        col = self.fusion.collector
+        return {
             "links": counters,
-            "lost_frames": mav.get("lost_seq", 0),
-            "fixes": len(col.fix_times_us),
+            "lost_frames": counters["mavlink"].get("lost_seq", 0),
+            "fixes": 0 if col is None else len(col.fix_times_us),
             "errors_published": self.stats.errors_published,
             "gcs_answers": self.stats.gcs_answers,
             "innovations_published": self.stats.innovations,
             "lockstep_acks": self.stats.lockstep_acks,
             "truth_from_other_components": self.stats.truth_other_component,
         }
-        return summary
+
+    def wall_s(self, fallback_s: float) -> float:
+        """Wall time from the first frame in to the last frame fused (``fallback_s`` before
+        any input)."""
+        first, last = self.stats.first_input_wall, self.stats.last_processed_wall
+        return last - first if first is not None and last is not None else fallback_s
 
 
 def interpolate_truth(a: Truth, b: Truth, time_us: int) -> Truth:
@@ -600,41 +582,3 @@ def interpolate_truth(a: Truth, b: Truth, time_us: int) -> Truth:
         q_nb=q / np.linalg.norm(q),
         omega_b_rps=(1.0 - w) * np.asarray(a.omega_b_rps) + w * np.asarray(b.omega_b_rps),
     )
-
-
-def fusion_main(
-    options: FusionOptions,
-    *,
-    signing_key: bytes | None = None,
-    stop: threading.Event | None = None,
-    on_ready: Callable[[FusionService], None] | None = None,
-) -> dict[str, Any] | None:
-    """Run the fusion service until stopped; write ``summary.json`` into ``options.out``.
-
-    Returns
-    -------
-    dict or None
-        The live run's summary (None without ``out`` or without estimate + truth).
-    """
-    from hil.live_sim import stop_on_signals
-    from scenarios.summary import write_summary
-
-    service = FusionService(options, signing_key=signing_key)
-    with contextlib.ExitStack() as stack:
-        if stop is None:
-            stop = stack.enter_context(stop_on_signals())
-        service.open(stack)
-        if on_ready is not None:
-            on_ready(service)
-        t0 = time.monotonic()
-        service.run(stop)
-        wall = time.monotonic() - t0
-        first, last = service.stats.first_input_wall, service.stats.last_processed_wall
-        if first is not None and last is not None:
-            wall = last - first  # first frame in -> last frame fused
-    summary = service.summary(wall)
-    if summary is not None and options.out is not None:
-        options.out.mkdir(parents=True, exist_ok=True)
-        write_summary(summary, options.out / "summary.json")
-    return summary
-

@@ -6,24 +6,17 @@ HIL_SENSOR carrying the IMU fields plus any baro / magnetometer sample of the sa
 outputs it, stamped with its time of validity), and the truth as HIL_STATE_QUATERNION from the
 simulator's truth component at ``truth_rate_hz``. An optional :class:`sim.faults.FaultInjector`
 applies the scenario's fault timeline to each step's samples before they are encoded.
-
-``run_lockstep`` flies as fast as the machine allows and hands every frame to a sink (a .tlog
-writer, an in-memory decoder, a socket): simulated time is the only clock.
+:mod:`hil.pipeline` drives it, in lockstep or paced live.
 """
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from hil.codec import Encoder
 from sim.faults import FaultInjector, FaultLogEntry
-from sim.flight import Flight, FlightEnded
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Sample, Truth
-from sim.sensors import SensorSuite
-
-FrameSink = Callable[[int, bytes], None]
 
 
 @dataclass(frozen=True)
@@ -123,54 +116,3 @@ class SensorStreamer:
             base = truth.time_us if self._next_truth_us is None else self._next_truth_us
             self._next_truth_us = base + self._truth_period_us
         return out
-
-
-@dataclass(frozen=True)
-class LockstepReport:
-    sim_duration_s: float
-    wall_s: float
-    frames: int
-    ended: FlightEnded | None
-
-    @property
-    def realtime_factor(self) -> float:
-        return self.sim_duration_s / self.wall_s if self.wall_s > 0 else float("inf")
-
-
-def run_lockstep(
-    flight: Flight,
-    suite: SensorSuite,
-    streamer: SensorStreamer,
-    duration_s: float,
-    sink: FrameSink,
-    *,
-    progress: Callable[[float], None] | None = None,
-) -> LockstepReport:
-    """Fly for ``duration_s`` of simulated time, passing every frame to ``sink``.
-
-    A stall or ground contact ends the run early; it is reported in ``ended`` (never raised),
-    so whatever the sink recorded so far stays valid.
-    """
-    if duration_s <= 0:
-        raise ValueError("duration must be > 0 s")
-    t0_us = flight.time_us
-    end_us = t0_us + round(duration_s * 1e6)
-    n_frames = 0
-    ended: FlightEnded | None = None
-    next_progress_us = t0_us
-    wall0 = time.perf_counter()
-    truth = flight.truth()
-    while truth.time_us < end_us:
-        try:
-            truth = flight.step()
-        except FlightEnded as exc:
-            ended = exc
-            break
-        for time_us, frame in streamer.frames(truth, suite.step(truth)):
-            sink(time_us, frame)
-            n_frames += 1
-        if progress is not None and truth.time_us >= next_progress_us:
-            progress((truth.time_us - t0_us) * 1e-6)
-            next_progress_us += 1_000_000
-    wall = time.perf_counter() - wall0
-    return LockstepReport((truth.time_us - t0_us) * 1e-6, wall, n_frames, ended)

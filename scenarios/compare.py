@@ -15,8 +15,9 @@ from pathlib import Path
 from typing import Any
 
 from fusion.bridging import BRIDGE_METHODS, make_bridge
+from hil.pipeline import Frame, fuse_frames
 from scenarios.jsonable import plain_dict, write_json
-from scenarios.runner import Frame, filter_config, fuse, score, simulate
+from scenarios.runner import filter_config, score, simulate
 from scenarios.schema import Scenario
 from scenarios.summary import write_summary
 
@@ -60,18 +61,18 @@ def compare(
         frames: list[Frame] = []
         if progress:
             progress(f"seed {seed}: flying {scn.duration_s:.0f} s")
-        sim = simulate(scn, _appender(frames))
+        flown = simulate(scn, _appender(frames))
         config = filter_config(scn, altitude)
         for m in methods:
             if progress:
                 progress(f"seed {seed}: fusing with {m}")
-            fused = fuse(frames, config, m)
-            status = plain_dict(getattr(fused.nav.bridge, "status", None))
+            fused = fuse_frames(frames, config, m)
+            status = plain_dict(fused.nav.bridge_status)
             summary, _ = score(
                 scn, fused, out_dir / f"seed{seed}" / m, bridge=m, altitude=altitude,
-                sim_duration_s=sim.report.sim_duration_s, wall_s=fused.wall_s,
+                sim_duration_s=flown.sim_duration_s, wall_s=fused.fuse_s,
                 health_extra={"bridge_status": status}, reports=False)
-            summary["update_us_per_sample"] = 1e6 * fused.wall_s / max(fused.samples, 1)
+            summary["update_us_per_sample"] = 1e6 * fused.fuse_s / max(fused.samples, 1)
             summary["fit_ms"] = status.get("fit_ms")
             write_summary(summary, out_dir / f"seed{seed}" / m / "summary.json")
             runs[m].append(summary)

@@ -17,29 +17,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion import earth
+from hil.tracks import Fixes, HealthSeries, Track
 
 FloatArray = NDArray[np.float64]
 
 #: Seconds into an outage at which the horizontal error is reported.
 ERROR_AT_S: tuple[int, ...] = (10, 30, 60, 120)
-
-
-@dataclass(frozen=True)
-class Track:
-    """A navigation solution or truth sampled at ``time_s``.
-
-    Shapes: ``time_s`` (N,), ``lat_rad``/``lon_rad``/``alt_m`` (N,), ``v_ned_mps`` (N, 3),
-    ``euler_rad`` (N, 3) roll/pitch/yaw. ``sigma`` (N, 9) is optional: 1-sigma of N/E/D position
-    (m), N/E/D velocity (m/s) and roll/pitch/yaw error (rad) as reported by the filter.
-    """
-
-    time_s: FloatArray
-    lat_rad: FloatArray
-    lon_rad: FloatArray
-    alt_m: FloatArray
-    v_ned_mps: FloatArray
-    euler_rad: FloatArray
-    sigma: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -474,19 +457,6 @@ def reconverge_time(
 # ---------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class Fixes:
-    """GNSS fixes as received (3-D fixes only), shapes (K,): time of validity, position."""
-
-    time_s: FloatArray
-    lat_rad: FloatArray
-    lon_rad: FloatArray
-    alt_m: FloatArray
-
-    def __post_init__(self) -> None:
-        _check_shapes(self, ("lat_rad", "lon_rad", "alt_m"), self.time_s.shape)
-
-
 def fix_errors(fixes: Fixes, truth: Track) -> FloatArray:
     """Horizontal error (m) of each fix against truth at its time of validity, shape (K,).
 
@@ -505,70 +475,6 @@ def fix_errors(fixes: Fixes, truth: Track) -> FloatArray:
     de = wrap_pi(fixes.lon_rad[keep] - lon_t) * (r_e + alt_t) * np.cos(lat_t)
     out[keep] = np.hypot(dn, de)
     return out
-
-
-#: Sensor counters in :class:`HealthSeries` (cumulative, as in ``fusion.filter.Health``).
-_COUNTERS = (
-    "gnss_fused", "gnss_rejected", "gnss_resets", "gnss_quality_rejected",
-    "baro_fused", "baro_rejected", "baro_resets", "mag_fused", "mag_rejected",
-)  # fmt: skip
-_RATIOS = ("ratio_gnss_pos", "ratio_gnss_vel", "ratio_baro", "ratio_mag")
-
-
-@dataclass(frozen=True)
-class HealthSeries:
-    """The filter's mode, innovation test ratios and counters at each estimate, shapes (N,).
-
-    Every field but ``time_s`` is optional (``None`` = not collected); detection uses what is
-    there. Counters are cumulative since the filter started (``fusion.filter.Health``); test
-    ratios are the last test's normalised innovation over its gate (> 1 = rejected, NaN before
-    the first test), so a ratio is *fresh* at a sample only where it changed.
-
-    Attributes
-    ----------
-    time_s : ndarray, shape (N,)
-    mode : ndarray of str, shape (N,)
-        ``"gnss"``, ``"free-inertial"`` or ``"bridging"``.
-    ratio_gnss_pos, ratio_gnss_vel, ratio_baro, ratio_mag : ndarray, shape (N,)
-    gnss_fused, gnss_rejected, gnss_resets : ndarray of int, shape (N,)
-    gnss_quality_rejected : ndarray of int, shape (N,)
-        Fixes refused by the quality checks (no 3-D fix, invalid, inaccurate).
-    baro_fused, baro_rejected, baro_resets, mag_fused, mag_rejected : ndarray of int, shape (N,)
-    fixes : Fixes, optional
-        The GNSS fixes received, to tell whether a fused fix was far from truth.
-    """
-
-    time_s: FloatArray
-    mode: NDArray[np.str_] | None = None
-    ratio_gnss_pos: FloatArray | None = None
-    ratio_gnss_vel: FloatArray | None = None
-    ratio_baro: FloatArray | None = None
-    ratio_mag: FloatArray | None = None
-    gnss_fused: NDArray[np.int64] | None = None
-    gnss_rejected: NDArray[np.int64] | None = None
-    gnss_resets: NDArray[np.int64] | None = None
-    gnss_quality_rejected: NDArray[np.int64] | None = None
-    baro_fused: NDArray[np.int64] | None = None
-    baro_rejected: NDArray[np.int64] | None = None
-    baro_resets: NDArray[np.int64] | None = None
-    mag_fused: NDArray[np.int64] | None = None
-    mag_rejected: NDArray[np.int64] | None = None
-    fixes: Fixes | None = None
-
-    def __post_init__(self) -> None:
-        if self.time_s.ndim != 1:
-            raise ValueError("HealthSeries.time_s must be one-dimensional")
-        if self.time_s.size > 1 and np.any(np.diff(self.time_s) < 0.0):
-            raise ValueError("HealthSeries.time_s must be non-decreasing")
-        _check_shapes(self, ("mode", *_RATIOS, *_COUNTERS), self.time_s.shape)
-
-
-def _check_shapes(obj: object, names: tuple[str, ...], shape: tuple[int, ...]) -> None:
-    for name in names:
-        a = getattr(obj, name)
-        if a is not None and np.shape(a) != shape:
-            raise ValueError(
-                f"{type(obj).__name__}.{name} has shape {np.shape(a)}, time_s has {shape}")
 
 
 #: Event kinds scored by :func:`event_metrics`.

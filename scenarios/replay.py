@@ -13,18 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from fusion.bridging import make_bridge
 from fusion.config import ALTITUDE_METHODS, FilterConfig
-from fusion.filter import NavFilter
-from hil.codec import Decoder
+from hil.pipeline import FusionRun
 from hil.tlog import read_tlog
-from scenarios import metrics
-from scenarios.collect import Collector
-from scenarios.jsonable import plain_dict
 from scenarios.report import write_plots
-from scenarios.summary import RunInfo, build_summary, write_summary
+from scenarios.summary import RunInfo, score_run, write_summary
 
 
 @dataclass(frozen=True)
@@ -61,34 +54,20 @@ def replay(
         raise ValueError(f"no such log file: {log}")
     out_dir.mkdir(parents=True, exist_ok=True)
     size = log.stat().st_size
-    nav = NavFilter(config, bridge=make_bridge(bridge, config.bridge))
-    decoder = Decoder()
-    col = Collector()
+    run = FusionRun(config, bridge)
     t0 = time.perf_counter()
     done = 0
     for _ts, frame in read_tlog(log):
         done += len(frame) + 8
-        col.feed(nav, (d.sample for d in decoder.feed(frame)))
+        run.feed_frame(frame)
         if progress is not None and done % 65536 < len(frame) + 8:
             progress(done, size)
     wall = time.perf_counter() - t0
-    estimate = col.estimate_track()
-    truth = col.truth_track()
-    end_s = min(estimate.time_s[-1], truth.time_s[-1])
-    outages = metrics.outages_from_fix_times(
-        np.asarray(col.fix_times_us, dtype=float) * 1e-6, end_s=end_s)
-    info = RunInfo(
-        scenario=log.stem, seed=None, sim_duration_s=col.last_time_us * 1e-6, wall_s=wall,
-        bridge=bridge, altitude=altitude)
-    health = nav.health
-    summary, err = build_summary(
-        info, estimate, truth, outages, settle_s=settle_s,
-        health={"filter": plain_dict(health), "decoder": plain_dict(decoder.counters)})
+    assert run.collector is not None
+    info = RunInfo(scenario=log.stem, seed=None, sim_duration_s=run.collector.last_time_us * 1e-6,
+                   wall_s=wall, bridge=bridge, altitude=altitude)
+    scored = score_run(run, info, settle_s=settle_s)
     summary_path = out_dir / "summary.json"
-    write_summary(summary, summary_path)
-    plots = write_plots(estimate, truth, err, outages, out_dir)
-    return ReplayResult(summary, summary_path, plots)
-
-
-#: Old private name; ``hil.service`` still imports it.
-_as_dict = plain_dict
+    write_summary(scored.summary, summary_path)
+    plots = write_plots(scored.estimate, scored.truth, scored.errors, scored.outages, out_dir)
+    return ReplayResult(scored.summary, summary_path, plots)

@@ -16,8 +16,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from fusion import earth
+from hil.tracks import Track
 from scenarios import metrics
-from scenarios.metrics import Errors, EventWindow, Track, Window
+from scenarios.metrics import Errors, EventWindow, Window
 
 EventLike = EventWindow | Mapping[str, Any]
 

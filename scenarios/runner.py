@@ -5,38 +5,29 @@ timeline) -> MAVLink 2 bytes (the same encoder the live path uses) -> ``run.tlog
 memory, the decoder -> NavFilter with the scenario's bridging and altitude methods. The same
 scenario and seed give the same bytes and the same numbers on every machine.
 
-The pieces are split so ``hilnav compare`` can fly once and fuse the *same* frames with several
-methods: :func:`simulate` produces frames, :func:`fuse` runs one filter over frames,
-:func:`score` turns the collected tracks into ``summary.json`` and the reports.
+The flight and the fusion are the pipeline's (:mod:`hil.pipeline`); this module turns a
+:class:`~scenarios.schema.Scenario` into its :class:`~hil.pipeline.SimSetup` and filter, scores
+the run with the one scorer (:func:`scenarios.summary.score_run`) and writes the run folder.
+``hilnav compare`` flies once (:func:`simulate`) and fuses the *same* frames with several
+methods.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from fusion.bridging import make_bridge
 from fusion.config import FilterConfig
-from fusion.filter import NavFilter
-from hil.codec import Decoder
-from hil.streamer import LockstepReport, SensorStreamer, run_lockstep
+from hil.pipeline import Flown, FusionRun, SimSetup, build_filter, fly, tee
+from hil.pipeline import filter_config as pipeline_filter_config
 from hil.tlog import TlogWriter
-from hil.tuning import filter_config_for_imu, filter_gnss_config
-from scenarios import metrics
-from scenarios.collect import Collector
 from scenarios.jsonable import plain_dict
 from scenarios.schema import Scenario
-from scenarios.summary import RunInfo, build_summary, write_summary
-from sim.faults import FaultInjector
-from sim.flight import Flight
-from sim.sensors import SensorSuite
+from scenarios.summary import RunInfo, Scored, score_run, write_summary
 
-Frame = tuple[int, bytes]
 ProgressFn = Callable[[float], None]
 
 #: Event types whose effect on the navigation is scored as an event (time to detect etc.).
@@ -46,27 +37,6 @@ _SCORED_EVENT_KINDS = {
     "gnss_jamming": "jamming",
     "baro_glitch": "glitch",
 }
-
-
-@dataclass(frozen=True)
-class Simulated:
-    """What the simulator produced for one seed."""
-
-    report: LockstepReport
-    fault_log: list[Any]
-    fault_counters: dict[str, int]
-
-
-@dataclass
-class Fused:
-    """One filter run over a frame stream."""
-
-    collector: Collector
-    nav: NavFilter
-    decoder: Decoder
-    wall_s: float
-    samples: int
-    extra: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -80,71 +50,29 @@ class RunResult:
         return bool(self.summary.get("passed"))
 
 
+def sim_setup(scenario: Scenario) -> SimSetup:
+    """What the pipeline flies for ``scenario`` (its seed, sensors, plan and fault timeline)."""
+    return SimSetup(
+        flight=scenario.flight_config(),
+        plan=scenario.flight_plan(),
+        sensors=scenario.sensor_config(),
+        duration_s=scenario.duration_s,
+        seed=scenario.seed,
+        faults=tuple(scenario.fault_events()),
+    )
+
+
 def filter_config(scenario: Scenario, altitude: str | None = None) -> FilterConfig:
     """The filter tuned from the scenario's IMU datasheet preset and its GNSS receiver's error
     model (position-bias states for a time-correlated receiver), with its altitude method."""
-    config = filter_config_for_imu(scenario.imu_preset)
-    method = altitude or scenario.fusion.altitude
-    return config.model_copy(update={
-        "altitude": config.altitude.model_copy(update={"method": method}),
-        "gnss": filter_gnss_config(scenario.sensor_config().gnss, config.gnss),
-    })
+    return pipeline_filter_config(scenario.imu_preset, scenario.sensor_config().gnss,
+                                  altitude or scenario.fusion.altitude)
 
 
-def simulate(
-    scenario: Scenario,
-    sink: Callable[[int, bytes], None],
-    *,
-    progress: ProgressFn | None = None,
-) -> Simulated:
+def simulate(scenario: Scenario, sink: Callable[[int, bytes], None], *,
+             progress: ProgressFn | None = None) -> Flown:
     """Fly ``scenario`` (its seed) and hand every frame to ``sink(time_us, frame)``."""
-    flight_cfg = scenario.flight_config()
-    suite = SensorSuite(scenario.sensor_config(), scenario.seed, flight_cfg.rate_hz)
-    with Flight(flight_cfg, scenario.flight_plan()) as flight:
-        faults = FaultInjector(scenario.fault_events(), seed=scenario.seed, t0_us=flight.time_us)
-        streamer = SensorStreamer(faults=faults)
-        report = run_lockstep(flight, suite, streamer, scenario.duration_s, sink, progress=progress)
-    return Simulated(report, list(faults.log), dict(faults.counters))
-
-
-def fuse(
-    frames: Iterable[Frame],
-    config: FilterConfig,
-    bridge: str,
-) -> Fused:
-    """Decode ``frames`` and run one NavFilter with bridging method ``bridge`` over them."""
-    nav = NavFilter(config, bridge=make_bridge(bridge, config.bridge))
-    decoder = Decoder()
-    col = Collector()
-    n = 0
-    t0 = time.perf_counter()
-    for _t, frame in frames:
-        decoded = decoder.feed(frame)
-        n += len(decoded)
-        col.feed(nav, (d.sample for d in decoded))
-    wall = time.perf_counter() - t0
-    return Fused(col, nav, decoder, wall, n)
-
-
-class _StreamingFuser:
-    """A frame sink that writes the .tlog and fuses as the simulator flies (one pass)."""
-
-    def __init__(self, log: TlogWriter | None, config: FilterConfig, bridge: str) -> None:
-        self.log = log
-        self.nav = NavFilter(config, bridge=make_bridge(bridge, config.bridge))
-        self.decoder = Decoder()
-        self.col = Collector()
-        self.samples = 0
-        self.fuse_s = 0.0
-
-    def __call__(self, time_us: int, frame: bytes) -> None:
-        if self.log is not None:
-            self.log.write(frame, time_us)
-        t0 = time.perf_counter()
-        decoded = self.decoder.feed(frame)
-        self.samples += len(decoded)
-        self.col.feed(self.nav, (d.sample for d in decoded))
-        self.fuse_s += time.perf_counter() - t0
+    return fly(sim_setup(scenario), sink, progress=progress)
 
 
 def event_windows(scenario: Scenario, end_s: float) -> list[dict[str, Any]]:
@@ -170,7 +98,7 @@ def _type_name(event: object) -> str:
 
 def score(
     scenario: Scenario,
-    fused: Fused | _StreamingFuser,
+    run: FusionRun,
     out_dir: Path,
     *,
     bridge: str,
@@ -181,21 +109,15 @@ def score(
     reports: bool = True,
 ) -> tuple[dict[str, Any], list[Path]]:
     """Build ``summary.json`` (+ JUnit XML, plots and HTML when ``reports``) in ``out_dir``."""
-    col = fused.collector if isinstance(fused, Fused) else fused.col
-    nav = fused.nav
-    estimate = col.estimate_track()
-    truth = col.truth_track()
-    end_s = min(float(estimate.time_s[-1]), float(truth.time_s[-1]))
-    outages = metrics.outages_from_fix_times(
-        np.asarray(col.fix_times_us, dtype=float) * 1e-6, end_s=end_s)
+    col = run.collector
+    assert col is not None
+    end_s = col.end_s()
     info = RunInfo(scenario=scenario.name, seed=scenario.seed, sim_duration_s=sim_duration_s,
                    wall_s=wall_s, bridge=bridge, altitude=altitude)
-    health: dict[str, Any] = {"filter": plain_dict(nav.health),
-                              "decoder": plain_dict(fused.decoder.counters)}
-    health.update(health_extra or {})
-    summary, err = build_summary(
-        info, estimate, truth, outages, criteria=scenario.criteria(), health=health,
-        events=event_windows(scenario, end_s), series=col.series())
+    scored: Scored = score_run(run, info, criteria=scenario.criteria(),
+                               events=event_windows(scenario, end_s),
+                               health_extra=health_extra, with_series=True)
+    summary = scored.summary
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [out_dir / "summary.json"]
     write_summary(summary, files[0])
@@ -206,7 +128,8 @@ def score(
 
         junit = out_dir / "junit.xml"
         write_junit(summary, junit, suite_name=f"hilnav.{scenario.name}")
-        plots = write_plots(estimate, truth, err, outages, out_dir, events=summary["events"])
+        plots = write_plots(scored.estimate, scored.truth, scored.errors, scored.outages,
+                            out_dir, events=summary["events"])
         html = out_dir / "report.html"
         write_html(summary, plots, html)
         files += [junit, *plots, html]
@@ -227,30 +150,30 @@ def run_scenario(
     bridge = bridge or scenario.fusion.bridge
     altitude = altitude or scenario.fusion.altitude
     config = filter_config(scenario, altitude)
-    make_bridge(bridge)  # bad names fail before anything flies
+    nav = build_filter(config, bridge)  # bad names fail before anything flies
     out_dir.mkdir(parents=True, exist_ok=True)
     log_path = out_dir / "run.tlog"
+    fusion = FusionRun(config, bridge, nav=nav)
     t0 = time.perf_counter()
     if tlog:
         with TlogWriter(log_path) as log:
-            sink = _StreamingFuser(log, config, bridge)
-            sim = simulate(scenario, sink, progress=progress)
+            flown = simulate(scenario, tee(lambda t, f: log.write(f, t), fusion),
+                             progress=progress)
     else:
-        sink = _StreamingFuser(None, config, bridge)
-        sim = simulate(scenario, sink, progress=progress)
+        flown = simulate(scenario, fusion, progress=progress)
     wall = time.perf_counter() - t0
     extra: dict[str, Any] = {
-        "faults": sim.fault_counters,
-        "fault_log": [plain_dict(e) for e in sim.fault_log],
-        "fusion_us_per_sample": 1e6 * sink.fuse_s / max(sink.samples, 1),
+        "faults": flown.fault_counters,
+        "fault_log": [plain_dict(e) for e in flown.fault_log],
+        "fusion_us_per_sample": fusion.fusion_us_per_sample,
     }
-    if sim.report.ended is not None:
-        extra["flight_ended"] = str(sim.report.ended)
+    if flown.ended is not None:
+        extra["flight_ended"] = str(flown.ended)
     summary, files = score(
-        scenario, sink, out_dir, bridge=bridge, altitude=altitude,
-        sim_duration_s=sim.report.sim_duration_s, wall_s=wall, health_extra=extra,
+        scenario, fusion, out_dir, bridge=bridge, altitude=altitude,
+        sim_duration_s=flown.sim_duration_s, wall_s=wall, health_extra=extra,
         reports=reports)
-    if sim.report.ended is not None:
+    if flown.ended is not None:
         # a crash is a failed run whatever the criteria say
         summary["passed"] = False
         write_summary(summary, files[0])

@@ -11,9 +11,11 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, NonNegativeFloat, PositiveFloat
 
+from hil.pipeline import FusionRun
+from hil.tracks import HealthSeries, Track
 from scenarios import metrics
-from scenarios.jsonable import write_json
-from scenarios.metrics import Errors, EventWindow, HealthSeries, Track, Window
+from scenarios.jsonable import plain_dict, write_json
+from scenarios.metrics import Errors, EventWindow, Window
 
 SCHEMA_VERSION = 1
 
@@ -223,6 +225,57 @@ def build_summary(
     summary["criteria"] = results
     summary["passed"] = all(r["ok"] for r in results)
     return summary, err
+
+
+@dataclass(frozen=True)
+class Scored:
+    """A scored run: the summary and what it was computed from (for plots and reports)."""
+
+    summary: dict[str, Any]
+    errors: Errors
+    estimate: Track
+    truth: Track
+    outages: list[Window]
+
+
+def score_run(
+    run: FusionRun,
+    info: RunInfo,
+    *,
+    settle_s: float = 60.0,
+    criteria: Sequence[Criterion] = (),
+    events: Sequence[EventWindow | Mapping[str, Any]] = (),
+    health_extra: Mapping[str, Any] | None = None,
+    with_series: bool = False,
+) -> Scored:
+    """Score what a :class:`hil.pipeline.FusionRun` collected: the one scorer of ``run``,
+    ``replay``, ``compare``, ``campaign``, the live scorecard and the benches.
+
+    GNSS outages are the gaps of more than 1 s between received 3-D fixes (up to the end of
+    the shorter of the estimate and truth tracks); ``health`` holds the filter's and the
+    decoder's final counters plus ``health_extra``; ``with_series`` adds the per-estimate
+    mode / test-ratio / counter series that event scoring needs.
+
+    Raises
+    ------
+    ValueError
+        The run collected nothing (no collector), no navigation estimate or no truth.
+    """
+    col = run.collector
+    if col is None:
+        raise ValueError("the run kept no tracks to score (collect=False)")
+    estimate = col.estimate_track()
+    truth = col.truth_track()
+    end_s = col.end_s()
+    outages = metrics.outages_from_fix_times(
+        np.asarray(col.fix_times_us, dtype=float) * 1e-6, end_s=end_s)
+    health: dict[str, Any] = {"filter": plain_dict(run.nav.health),
+                              "decoder": plain_dict(run.decoder.counters)}
+    health.update(health_extra or {})
+    summary, err = build_summary(
+        info, estimate, truth, outages, settle_s=settle_s, criteria=criteria, health=health,
+        events=events, series=col.series() if with_series else None)
+    return Scored(summary, err, estimate, truth, outages)
 
 
 def _bad_fix_threshold(

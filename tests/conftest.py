@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.recording import SimRequest, record_flight
+from hil.pipeline import SimSetup, record_flight
 
 pytest_plugins = ["pytester"]
 
@@ -15,7 +15,7 @@ pytest_plugins = ["pytester"]
 def short_flight_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """180 s racetrack, industrial-mems IMU, seed 7, GNSS off from 120 s for 30 s."""
     path = tmp_path_factory.mktemp("flight") / "run.tlog"
-    request = SimRequest.build(
+    request = SimSetup.build(
         plan="racetrack", duration_s=180.0, seed=7, gnss_off=["120:30"], rate_hz=200.0
     )
     report = record_flight(request, path)

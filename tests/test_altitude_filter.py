@@ -347,13 +347,13 @@ def test_unknown_method_lists_the_valid_ones() -> None:
 
 
 def test_replay_selects_the_altitude_method(tmp_path: Path) -> None:
-    from hil.recording import SimRequest, record_flight
+    from hil.pipeline import SimSetup, record_flight
     from scenarios.replay import replay
 
     with pytest.raises(ValueError, match="valid methods: ekf, loop, loop-mpc, loop-kf"):
         replay(tmp_path / "none.tlog", tmp_path / "x", altitude="baro")
     log = tmp_path / "short.tlog"
-    record_flight(SimRequest.build(plan="racetrack", duration_s=30.0, seed=3), log)
+    record_flight(SimSetup.build(plan="racetrack", duration_s=30.0, seed=3), log)
     summaries: dict[str, dict[str, Any]] = {}
     for m in ("ekf", "loop-mpc"):
         res = replay(log, tmp_path / m, altitude=m, settle_s=5.0)

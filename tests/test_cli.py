@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from hil.cli import app
 from hil.tlog import read_tlog
+from scenarios.cli.app import app
 
 runner = CliRunner()
 

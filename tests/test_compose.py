@@ -22,7 +22,7 @@ import typer
 import yaml
 
 from hil.bus import _arg_parser as bus_health_parser
-from hil.cli import app
+from scenarios.cli.app import app
 
 ROOT = Path(__file__).resolve().parents[1]
 COMPOSE = ROOT / "docker-compose.yml"
@@ -99,7 +99,7 @@ def test_service_command_is_a_registered_hilnav_subcommand(name: str) -> None:
     args = argv(service["command"])
     commands = typer.main.get_command(app).commands  # type: ignore[attr-defined]
     assert args[0] in commands, (
-        f"service {name!r} runs `hilnav {args[0]}`, which hil.cli does not define "
+        f"service {name!r} runs `hilnav {args[0]}`, which scenarios.cli does not define "
         f"(defined: {sorted(commands)})"
     )
     # the subcommand's own parser accepts the options (nothing runs)

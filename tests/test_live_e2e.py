@@ -36,14 +36,14 @@ from hil.bus import SCHEMAS, Bus, Message, Topic
 from hil.codec import SENSOR_COMPONENT_ID, Decoder, mavlink2
 from hil.link import LOCKSTEP_CUSTOM_MODE, LinkRole, MavlinkLink
 from hil.live_sim import live_sim
-from hil.recording import SimRequest
+from hil.pipeline import SimSetup
 from hil.router import zenoh_router
 from hil.service import TappedNavFilter, innovation_source, input_role, interpolate_truth
 from hil.signing import Signer, mavlink_timestamp
 from hil.tlog import read_tlog
+from hil.tracks import Collector
 from hil.tuning import filter_config_for_presets
-from hil.up import free_udp_port, stop_process
-from scenarios.collect import Collector
+from scenarios.cli.up import free_udp_port, stop_process
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Truth
 
 KEY = bytes(range(100, 132))
@@ -55,7 +55,7 @@ _SENT = re.compile(r"sent (\d+)/(\d+) frames")
 # ------------------------------------------------------------------------------ helpers
 def _hilnav(*args: str, log: Path) -> subprocess.Popen[bytes]:
     return subprocess.Popen(
-        [sys.executable, "-m", "hil.cli", *args], stdout=log.open("wb"),
+        [sys.executable, "-m", "scenarios.cli", *args], stdout=log.open("wb"),
         stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True,
         env={**os.environ, "COLUMNS": "200"},
     )
@@ -277,7 +277,8 @@ def fc_run(short_flight_log: Path) -> dict[str, Any]:
     """A fusion service (in a thread of this process, real sockets) fed 30 s of the recording
     as a flight controller would send it, with a GPS_INPUT companion link to a pymavlink
     client."""
-    from hil.service import FusionOptions, FusionService, fusion_main
+    from hil.service import FusionOptions, FusionService
+    from scenarios.cli.live import serve_fusion
 
     frames = _frames(short_flight_log, 30.0)
     fc = _fc_frames(frames)
@@ -287,7 +288,7 @@ def fc_run(short_flight_log: Path) -> dict[str, Any]:
                             companion=f"udpout:127.0.0.1:{client.port}")
     stop = threading.Event()
     services: list[FusionService] = []
-    thread = threading.Thread(target=fusion_main, args=(options,), daemon=True,
+    thread = threading.Thread(target=serve_fusion, args=(options,), daemon=True,
                               kwargs={"stop": stop, "on_ready": services.append})
     thread.start()
     fc_role = LinkRole(system_id=1, component_id=1, mav_type=mavlink2.MAV_TYPE_FIXED_WING,
@@ -471,7 +472,7 @@ def test_lockstep_without_acknowledgements_ends_as_stalled() -> None:
     runs in lockstep THEN it stops after its window and reports the stall (CLI: exit 1)."""
     role = LinkRole(system_id=1, component_id=191, mav_type=mavlink2.MAV_TYPE_ONBOARD_CONTROLLER,
                     autopilot=mavlink2.MAV_AUTOPILOT_INVALID)
-    request = SimRequest.build(duration_s=30.0, seed=1)
+    request = SimSetup.build(duration_s=30.0, seed=1)
     with MavlinkLink("udpin:127.0.0.1:0", role) as link:
         done = threading.Event()
         result: dict[str, Any] = {}
@@ -587,7 +588,7 @@ def test_lockstep_loses_nothing_when_the_fusion_freezes_and_innovations_match_re
 def test_lockstep_bad_input_exit_2(args: list[str], needle: str) -> None:
     from typer.testing import CliRunner
 
-    from hil.cli import app
+    from scenarios.cli.app import app
 
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 2, result.output

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from fusion import earth
+from hil.tracks import Track
 from scenarios import metrics
-from scenarios.metrics import Track, Window
+from scenarios.metrics import Window
 
 
 def _track(t: np.ndarray, north_m: np.ndarray, east_m: np.ndarray, down_m: np.ndarray,

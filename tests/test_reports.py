@@ -13,13 +13,14 @@ from typing import Any
 import numpy as np
 import pytest
 
+import hil.pipeline as pipeline_mod
 from fusion import earth
+from hil.tracks import Collector, HealthSeries, Track
 from scenarios import metrics, report
 from scenarios import replay as replay_mod
-from scenarios.collect import Collector
 from scenarios.html import write_html
 from scenarios.junit import failure_message, write_junit
-from scenarios.metrics import HealthSeries, Track, Window
+from scenarios.metrics import Window
 from scenarios.summary import Criterion, RunInfo, ScoringConfig, build_summary, write_summary
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -257,7 +258,7 @@ def test_replay_writes_what_it_wrote_before_and_the_series_match_the_filter(
             super().__init__()
             seen.append(self)
 
-    monkeypatch.setattr(replay_mod, "Collector", Spy)
+    monkeypatch.setattr(pipeline_mod, "Collector", Spy)  # the replay's FusionRun collects
     out = tmp_path / "replay"
     res = replay_mod.replay(short_flight_log, out, settle_s=30.0)
     s = json.loads((out / "summary.json").read_text())

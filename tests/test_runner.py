@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from hil.cli import app
+from scenarios.cli.app import app
 from scenarios.compare import compare, parse_methods
 from scenarios.replay import replay
 from scenarios.runner import run_scenario

@@ -15,7 +15,8 @@ import pytest
 import yaml
 
 from fusion import earth
-from scenarios.metrics import Fixes, HealthSeries, Track, Window
+from hil.tracks import Fixes, HealthSeries, Track
+from scenarios.metrics import Window
 from scenarios.schema import (
     ALTITUDE_METHODS,
     BRIDGE_METHODS,

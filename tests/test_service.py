@@ -19,16 +19,16 @@ from typer.testing import CliRunner
 from fusion import rotations
 from fusion.filter import Health, NavEstimate, TestRatios
 from hil.bus import Bus, Message, Topic, error_payload
-from hil.cli import app
 from hil.codec import Decoder, mavlink2
 from hil.link import LinkRole, MavlinkLink
 from hil.router import zenoh_router
 from hil.service import GcsResponder, interpolate_truth
 from hil.shadow import CompanionEncoder, ShadowEncoder, gps_time
 from hil.tlog import read_tlog
+from hil.tracks import Collector
 from hil.tuning import filter_config_for_presets
-from hil.up import free_udp_port, stop_process
-from scenarios.collect import Collector
+from scenarios.cli.app import app
+from scenarios.cli.up import free_udp_port, stop_process
 from scenarios.replay import replay
 
 SHADOW_SYS = 42
@@ -152,7 +152,7 @@ def test_bad_input_exit_2(args: list[str], needle: str) -> None:
 
 # ------------------------------------------------------------------------- end to end
 def _hilnav(*args: str, log: Path) -> subprocess.Popen[bytes]:
-    return subprocess.Popen([sys.executable, "-m", "hil.cli", *args], stdout=log.open("wb"),
+    return subprocess.Popen([sys.executable, "-m", "scenarios.cli", *args], stdout=log.open("wb"),
                             stderr=subprocess.STDOUT, start_new_session=True)
 
 

@@ -11,7 +11,7 @@ import sys
 import time
 from pathlib import Path
 
-from hil.up import stop_process, wait_gone
+from scenarios.cli.up import stop_process, wait_gone
 
 _PID = re.compile(r"^(fusion|monitor|sim)\s+pid (\d+):", re.M)
 
@@ -23,7 +23,7 @@ def _env() -> dict[str, str]:
 def test_up_with_duration_finishes_by_itself_and_prints_a_scorecard(tmp_path: Path) -> None:
     out = tmp_path / "up"
     proc = subprocess.run(
-        [sys.executable, "-m", "hil.cli", "up", "--duration", "30", "--speed", "20",
+        [sys.executable, "-m", "scenarios.cli", "up", "--duration", "30", "--speed", "20",
          "--out", str(out)],
         capture_output=True, text=True, timeout=150, env=_env(), check=False,
     )
@@ -42,7 +42,8 @@ def test_up_with_duration_finishes_by_itself_and_prints_a_scorecard(tmp_path: Pa
 
 def test_up_stops_every_child_on_sigint(tmp_path: Path) -> None:
     proc = subprocess.Popen(
-        [sys.executable, "-m", "hil.cli", "up", "--speed", "1", "--out", str(tmp_path / "up")],
+        [sys.executable, "-m", "scenarios.cli", "up", "--speed", "1",
+         "--out", str(tmp_path / "up")],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=_env(),
         start_new_session=True,
     )

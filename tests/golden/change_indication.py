@@ -39,13 +39,15 @@ COLUMNS = ("time_s", "mode", *NUMERIC_COLUMNS)
 
 def _estimates() -> list[Any]:
     """Fly and fuse the canonical scenario; every estimate of the filter."""
-    from scenarios.runner import filter_config, fuse, simulate
+    from hil.pipeline import fuse_frames
+    from scenarios.runner import filter_config, simulate
     from scenarios.schema import load_scenario
 
     scenario = load_scenario(SCENARIO)
     frames: list[tuple[int, bytes]] = []
     simulate(scenario, lambda t, f: frames.append((t, f)))
-    fused = fuse(frames, filter_config(scenario), scenario.fusion.bridge)
+    fused = fuse_frames(frames, filter_config(scenario), scenario.fusion.bridge)
+    assert fused.collector is not None
     return fused.collector.estimates
 
 

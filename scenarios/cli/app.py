@@ -1,4 +1,4 @@
-"""The ``hilnav`` command line: a thin typed layer over the library's entry points.
+"""The ``hilnav`` command line: a thin typed layer over the pipeline, the scorer and the services.
 
 Exit codes follow ARCHITECTURE.md: 0 success / pass, 1 run failed (criteria failed, aircraft
 crashed), 2 bad input (one line on stderr naming what is wrong, never a traceback).
@@ -35,6 +35,19 @@ R = TypeVar("R")
 # the methods the fusion offers (fusion/ imports no I/O: cheap to import here)
 from fusion.bridging import BRIDGE_METHODS  # noqa: E402
 from fusion.config import ALTITUDE_METHODS  # noqa: E402
+
+# Options of every command that runs the filter: defined once so that replay, demo, fusion
+# and up build the filter from the same choices (run / compare / campaign take them from the
+# scenario file, with --bridge / --altitude overrides).
+ImuOption = Annotated[str, typer.Option(help="IMU datasheet preset the filter is tuned for.")]
+GnssOption = Annotated[
+    str, typer.Option(help="GNSS receiver preset the filter models (its correlated error).")]
+BridgeOption = Annotated[str, typer.Option(
+    help=f"GNSS-outage bridging method: {', '.join(BRIDGE_METHODS)}.")]
+AltitudeOption = Annotated[str, typer.Option(
+    help=f"Altitude method: {', '.join(ALTITUDE_METHODS)}.")]
+SettleOption = Annotated[
+    float, typer.Option(help="Scorecard: seconds excluded after the start and each outage.")]
 
 
 class RunFailed(Exception):
@@ -147,9 +160,9 @@ def sim(
     ] = None,
 ) -> None:
     """Fly a plan and record it (lockstep, as fast as possible) or stream it live (--live)."""
-    from hil.recording import SimRequest, record_flight
+    from hil.pipeline import SimSetup, record_flight
 
-    request = SimRequest.build(
+    request = SimSetup.build(
         plan=plan, aircraft=aircraft, duration_s=duration, seed=seed, rate_hz=rate,
         imu=imu, gnss=gnss, baro=baro, mag=mag, lat_deg=lat, lon_deg=lon, alt_msl_m=alt,
         heading_deg=heading, airspeed_mps=airspeed, wind=wind, turbulence=turbulence,
@@ -221,12 +234,10 @@ def fusion(
     ] = "udpin:0.0.0.0:14560",
     zenoh: Annotated[str | None, typer.Option(help="Zenoh router endpoint to publish on.")] = None,
     vehicle: Annotated[str, typer.Option(help="Zenoh vehicle name.")] = "sim1",
-    imu: Annotated[str, typer.Option(help="IMU preset the filter is tuned for.")] = (
-        "industrial-mems"
-    ),
-    gnss: Annotated[
-        str, typer.Option(help="GNSS receiver preset the filter models (its correlated error).")
-    ] = "modern",
+    imu: ImuOption = "industrial-mems",
+    gnss: GnssOption = "modern",
+    bridge: BridgeOption = "none",
+    altitude: AltitudeOption = "ekf",
     gcs: Annotated[
         str | None,
         typer.Option(help="Shadow vehicle for ground stations, e.g. udpout:127.0.0.1:14550."),
@@ -248,15 +259,17 @@ def fusion(
     out: Annotated[
         Path | None, typer.Option(help="Write summary.json (live scorecard) here at exit.")
     ] = None,
-    settle: Annotated[float, typer.Option(help="Scorecard: seconds excluded after start/outages.")
-                      ] = 60.0,
+    settle: SettleOption = 60.0,
     signing_key_file: Annotated[
         Path | None,
         typer.Option(help="MAVLink 2 signing key file (default: env HILNAV_MAVLINK_KEY)."),
     ] = None,
 ) -> None:
     """Live fusion service: MAVLink sensors in; shadow vehicle, companion and Zenoh out."""
-    from hil.service import FusionOptions, fusion_main
+    from hil.pipeline import build_filter, filter_config
+    from hil.service import FusionOptions
+    from scenarios.cli.live import serve_fusion
+    from sim.presets import gnss_preset
 
     if zenoh is not None:
         from hil.bus import validate_endpoint, validate_vehicle
@@ -264,22 +277,22 @@ def fusion(
         validate_endpoint(zenoh)
         validate_vehicle(vehicle)
     options = FusionOptions(
-        mavlink=mavlink, zenoh=zenoh, vehicle=vehicle, imu=imu, gnss=gnss, gcs=gcs,
+        mavlink=mavlink, zenoh=zenoh, vehicle=vehicle, imu=imu, gnss=gnss, bridge=bridge,
+        altitude=altitude, gcs=gcs,
         shadow_system_id=shadow_sysid, companion=companion,
         companion_kind=companion_kind,  # type: ignore[arg-type]  # pydantic checks the literal
         companion_system_id=companion_sysid, duration_s=duration, idle_exit_s=idle_exit, out=out,
         settle_s=settle,
     )
-    from hil.tuning import filter_config_for_presets
-
-    filter_config_for_presets(imu, gnss)  # bad preset -> exit 2 before any socket opens
+    # a bad preset or method -> exit 2 before any socket opens
+    build_filter(filter_config(imu, gnss_preset(gnss), altitude), bridge)
     key = _signing_key(signing_key_file)
 
     def ready(service: Any) -> None:
         where = ", ".join(f"{n}={link.url}" for n, link in service._links.items())
         err_console.print(f"fusion: listening ({where})", highlight=False)
 
-    summary = fusion_main(options, signing_key=key, on_ready=ready)
+    summary = serve_fusion(options, signing_key=key, on_ready=ready)
     if summary is not None:
         _print_summary(summary)
         live = summary.get("live", {})
@@ -343,6 +356,11 @@ def up(
         list[str] | None,
         typer.Option("--gnss-off", help="GNSS outage START:DURATION s (repeatable)."),
     ] = None,
+    imu: Annotated[str, typer.Option(help="IMU preset (sensor and filter tuning).")] = (
+        "industrial-mems"),
+    gnss: Annotated[str, typer.Option(help="GNSS preset (sensor and filter model).")] = "modern",
+    bridge: BridgeOption = "none",
+    altitude: AltitudeOption = "ekf",
     gcs: Annotated[
         str | None, typer.Option(help="Also show the shadow vehicle to this ground station URL.")
     ] = None,
@@ -352,10 +370,11 @@ def up(
     )] = False,
 ) -> None:
     """Run router + fusion + sim (+ monitor) on loopback; Ctrl-C stops everything."""
-    from hil.up import UpOptions, run_up
+    from scenarios.cli.up import UpOptions, run_up
 
     options = UpOptions(duration_s=duration, speed=speed, out=out, vehicle=vehicle, plan=plan,
-                        seed=seed, gnss_off=tuple(gnss_off or ()), gcs=gcs, monitor=monitor,
+                        seed=seed, gnss_off=tuple(gnss_off or ()), imu=imu, gnss=gnss,
+                        bridge=bridge, altitude=altitude, gcs=gcs, monitor=monitor,
                         lockstep=lockstep)
     summary = run_up(options, log=lambda text: console.print(text, highlight=False))
     if summary is not None:
@@ -374,25 +393,21 @@ def up(
 def replay(
     log: Annotated[Path, typer.Argument(help="MAVLink log (.tlog) with HIL_SENSOR/HIL_GPS.")],
     out: Annotated[Path, typer.Option(help="Output folder for summary.json and plots.")],
-    bridge: Annotated[str, typer.Option(help="Outage bridging method.")] = "none",
-    altitude: Annotated[str, typer.Option(help="Altitude method.")] = "ekf",
-    settle: Annotated[float, typer.Option(help="Seconds excluded after start/outages.")] = 60.0,
-    imu: Annotated[
-        str, typer.Option(help="IMU datasheet preset the filter is tuned for.")
-    ] = "industrial-mems",
-    gnss: Annotated[
-        str, typer.Option(help="GNSS receiver preset the filter models (its correlated error).")
-    ] = "modern",
+    bridge: BridgeOption = "none",
+    altitude: AltitudeOption = "ekf",
+    settle: SettleOption = 60.0,
+    imu: ImuOption = "industrial-mems",
+    gnss: GnssOption = "modern",
 ) -> None:
     """Run the navigation filter on a recorded log and score it against the logged truth."""
-    from hil.tuning import filter_config_for_presets
+    from hil.pipeline import filter_config
     from scenarios.replay import replay as run_replay
+    from sim.presets import gnss_preset
 
     _choice("bridging method", bridge, BRIDGE_METHODS)
     _choice("altitude method", altitude, ALTITUDE_METHODS)
-    result = run_replay(log, out, config=filter_config_for_presets(imu, gnss),
-                        bridge=bridge,
-                        altitude=altitude, settle_s=settle)
+    result = run_replay(log, out, config=filter_config(imu, gnss_preset(gnss), altitude),
+                        bridge=bridge, altitude=altitude, settle_s=settle)
     _print_summary(result.summary)
     console.print(f"summary -> {result.summary_path}")
 
@@ -436,14 +451,14 @@ def demo(
     gnss: Annotated[str, typer.Option(help="GNSS preset (sensor and filter model).")] = "modern",
 ) -> None:
     """The main job: fly a racetrack, record it, run the filter with a GNSS outage, score it."""
-    from hil.recording import SimRequest, record_flight
-    from hil.tuning import filter_config_for_presets
+    from hil.pipeline import SimSetup, filter_config, record_flight
     from scenarios.replay import replay as run_replay
+    from sim.presets import gnss_preset
 
     out.mkdir(parents=True, exist_ok=True)
     log = out / "run.tlog"
-    config = filter_config_for_presets(imu, gnss)
-    request = SimRequest.build(plan=plan, imu=imu, gnss=gnss, duration_s=duration, seed=seed,
+    config = filter_config(imu, gnss_preset(gnss))
+    request = SimSetup.build(plan=plan, imu=imu, gnss=gnss, duration_s=duration, seed=seed,
                                gnss_off=[outage])
     with _progress(duration, "flying") as progress:
         report = record_flight(request, log, progress=progress)

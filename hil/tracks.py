@@ -1,7 +1,9 @@
-"""Run the fusion on a stream of decoded samples and collect estimate and truth tracks.
+"""What a fused run collected: the estimate, truth and GNSS-fix tracks, and the collector.
 
-Shared by ``hilnav replay`` (a recorded log) and the lockstep runners (samples straight from
-the simulator through the in-memory MAVLink path).
+The pipeline (:mod:`hil.pipeline`) feeds every decoded sample through the filter and a
+:class:`Collector`; the scorer (``scenarios``) turns its tracks into metrics. These are the data
+types that cross that boundary. Shared by ``hilnav replay``, ``run``, ``compare``, the live
+service's scorecard and the benches.
 """
 
 from __future__ import annotations
@@ -10,11 +12,108 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 
 from fusion import rotations
 from fusion.filter import NavEstimate, NavFilter
-from scenarios.metrics import Fixes, HealthSeries, Track
 from sim.samples import GnssFix, Sample, Truth
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Track:
+    """A navigation solution or truth sampled at ``time_s``.
+
+    Shapes: ``time_s`` (N,), ``lat_rad``/``lon_rad``/``alt_m`` (N,), ``v_ned_mps`` (N, 3),
+    ``euler_rad`` (N, 3) roll/pitch/yaw. ``sigma`` (N, 9) is optional: 1-sigma of N/E/D position
+    (m), N/E/D velocity (m/s) and roll/pitch/yaw error (rad) as reported by the filter.
+    """
+
+    time_s: FloatArray
+    lat_rad: FloatArray
+    lon_rad: FloatArray
+    alt_m: FloatArray
+    v_ned_mps: FloatArray
+    euler_rad: FloatArray
+    sigma: FloatArray | None = None
+
+
+@dataclass(frozen=True)
+class Fixes:
+    """GNSS fixes as received (3-D fixes only), shapes (K,): time of validity, position."""
+
+    time_s: FloatArray
+    lat_rad: FloatArray
+    lon_rad: FloatArray
+    alt_m: FloatArray
+
+    def __post_init__(self) -> None:
+        _check_shapes(self, ("lat_rad", "lon_rad", "alt_m"), self.time_s.shape)
+
+
+#: Sensor counters in :class:`HealthSeries` (cumulative, as in ``fusion.filter.Health``).
+_COUNTERS = (
+    "gnss_fused", "gnss_rejected", "gnss_resets", "gnss_quality_rejected",
+    "baro_fused", "baro_rejected", "baro_resets", "mag_fused", "mag_rejected",
+)  # fmt: skip
+_RATIOS = ("ratio_gnss_pos", "ratio_gnss_vel", "ratio_baro", "ratio_mag")
+
+
+@dataclass(frozen=True)
+class HealthSeries:
+    """The filter's mode, innovation test ratios and counters at each estimate, shapes (N,).
+
+    Every field but ``time_s`` is optional (``None`` = not collected); detection uses what is
+    there. Counters are cumulative since the filter started (``fusion.filter.Health``); test
+    ratios are the last test's normalised innovation over its gate (> 1 = rejected, NaN before
+    the first test), so a ratio is *fresh* at a sample only where it changed.
+
+    Attributes
+    ----------
+    time_s : ndarray, shape (N,)
+    mode : ndarray of str, shape (N,)
+        ``"gnss"``, ``"free-inertial"`` or ``"bridging"``.
+    ratio_gnss_pos, ratio_gnss_vel, ratio_baro, ratio_mag : ndarray, shape (N,)
+    gnss_fused, gnss_rejected, gnss_resets : ndarray of int, shape (N,)
+    gnss_quality_rejected : ndarray of int, shape (N,)
+        Fixes refused by the quality checks (no 3-D fix, invalid, inaccurate).
+    baro_fused, baro_rejected, baro_resets, mag_fused, mag_rejected : ndarray of int, shape (N,)
+    fixes : Fixes, optional
+        The GNSS fixes received, to tell whether a fused fix was far from truth.
+    """
+
+    time_s: FloatArray
+    mode: NDArray[np.str_] | None = None
+    ratio_gnss_pos: FloatArray | None = None
+    ratio_gnss_vel: FloatArray | None = None
+    ratio_baro: FloatArray | None = None
+    ratio_mag: FloatArray | None = None
+    gnss_fused: NDArray[np.int64] | None = None
+    gnss_rejected: NDArray[np.int64] | None = None
+    gnss_resets: NDArray[np.int64] | None = None
+    gnss_quality_rejected: NDArray[np.int64] | None = None
+    baro_fused: NDArray[np.int64] | None = None
+    baro_rejected: NDArray[np.int64] | None = None
+    baro_resets: NDArray[np.int64] | None = None
+    mag_fused: NDArray[np.int64] | None = None
+    mag_rejected: NDArray[np.int64] | None = None
+    fixes: Fixes | None = None
+
+    def __post_init__(self) -> None:
+        if self.time_s.ndim != 1:
+            raise ValueError("HealthSeries.time_s must be one-dimensional")
+        if self.time_s.size > 1 and np.any(np.diff(self.time_s) < 0.0):
+            raise ValueError("HealthSeries.time_s must be non-decreasing")
+        _check_shapes(self, ("mode", *_RATIOS, *_COUNTERS), self.time_s.shape)
+
+
+def _check_shapes(obj: object, names: tuple[str, ...], shape: tuple[int, ...]) -> None:
+    for name in names:
+        a = getattr(obj, name)
+        if a is not None and np.shape(a) != shape:
+            raise ValueError(
+                f"{type(obj).__name__}.{name} has shape {np.shape(a)}, time_s has {shape}")
 
 
 @dataclass
@@ -48,6 +147,15 @@ class Collector:
         if not est:
             raise ValueError("the filter produced no navigation estimate (no valid GNSS fix?)")
         return est
+
+    def end_s(self) -> float:
+        """Where scoring ends: the earlier of the last navigation estimate and the last truth
+        sample, s (the last times of :meth:`estimate_track` and :meth:`truth_track`)."""
+        est = self._navigating()
+        if len(self.truths) < 2:
+            raise ValueError("the log holds no truth (HIL_STATE_QUATERNION) to score against")
+        last_truth_us = max(s.time_us for s in self.truths)
+        return min(float(est[-1].time_us) * 1e-6, float(last_truth_us) * 1e-6)
 
     def estimate_track(self) -> Track:
         est = self._navigating()

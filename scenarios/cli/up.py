@@ -1,4 +1,4 @@
-"""``hilnav up``: the whole live chain on this machine, without Docker.
+"""``hilnav up``: the whole live chain on this machine, without Docker (composition root).
 
 An in-process Zenoh router (:mod:`hil.router`) plus three child processes on loopback with
 free ports: ``hilnav fusion`` (MAVLink in on ``udpin:127.0.0.1:<free>``, writes the live
@@ -28,6 +28,11 @@ from typing import IO, Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from hil.bus import validate_vehicle
+from hil.pipeline import SimSetup, build_filter, filter_config
+from hil.router import zenoh_router
+from sim.presets import gnss_preset
+
 __all__ = ["Child", "UpOptions", "free_udp_port", "run_up", "stop_process"]
 
 _STOP_TIMEOUT_S = 5.0
@@ -46,6 +51,14 @@ class UpOptions(BaseModel):
     vehicle: str = "sim1"
     plan: str = "racetrack"
     seed: int = Field(default=1, ge=0)
+    imu: str = "industrial-mems"
+    """IMU preset: the simulated sensor and the filter's tuning."""
+    gnss: str = "modern"
+    """GNSS receiver preset: the simulated receiver and the filter's model of it."""
+    bridge: str = "none"
+    """The fusion's GNSS-outage bridging method."""
+    altitude: str = "ekf"
+    """The fusion's altitude method."""
     gnss_off: tuple[str, ...] = ()
     gcs: str | None = None
     monitor: bool = True
@@ -66,7 +79,7 @@ def free_udp_port(host: str = "127.0.0.1") -> int:
 
 def hilnav_argv(*args: str) -> list[str]:
     """Command line running ``hilnav ARGS`` with this interpreter."""
-    return [sys.executable, "-m", "hil.cli", *args]
+    return [sys.executable, "-m", "scenarios.cli", *args]
 
 
 def stop_process(proc: subprocess.Popen[Any], timeout_s: float = _STOP_TIMEOUT_S) -> int | None:
@@ -145,14 +158,13 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
     dict or None
         The fusion's live scorecard (``<out>/summary.json``), None if it wrote none.
     """
-    from hil.bus import validate_vehicle
-    from hil.recording import SimRequest
-    from hil.router import zenoh_router
-
     validate_vehicle(options.vehicle)
-    # validate the scenario here: a typo must fail before anything starts
-    SimRequest.build(plan=options.plan, seed=options.seed, gnss_off=list(options.gnss_off),
-                     duration_s=options.duration_s or _DEFAULT_DURATION_S)
+    # validate the flight and the filter here: a typo must fail before anything starts
+    SimSetup.build(plan=options.plan, seed=options.seed, gnss_off=list(options.gnss_off),
+                   imu=options.imu, gnss=options.gnss,
+                   duration_s=options.duration_s or _DEFAULT_DURATION_S)
+    build_filter(filter_config(options.imu, gnss_preset(options.gnss), options.altitude),
+                 options.bridge)
     out = options.out
     out.mkdir(parents=True, exist_ok=True)
     summary_path = out / "summary.json"
@@ -161,7 +173,9 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
     with zenoh_router() as endpoint, _children() as children:
         log(f"zenoh router  {endpoint} (in process)")
         fusion_args = ["fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
-                       "--vehicle", options.vehicle, "--out", str(out)]
+                       "--vehicle", options.vehicle, "--out", str(out), "--imu", options.imu,
+                       "--gnss", options.gnss, "--bridge", options.bridge,
+                       "--altitude", options.altitude]
         settle = options.settle_s
         if settle is None:
             settle = min(60.0, 0.25 * (options.duration_s or _DEFAULT_DURATION_S))
@@ -183,7 +197,7 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
             log(f"monitor       pid {mon.pid}: recording {out / 'live.mcap'}; log {mon.log_path}")
         sim_args = ["sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", str(options.speed),
                     "--zenoh", endpoint, "--vehicle", options.vehicle, "--plan", options.plan,
-                    "--seed", str(options.seed),
+                    "--seed", str(options.seed), "--imu", options.imu, "--gnss", options.gnss,
                     "--duration", str(options.duration_s or _DEFAULT_DURATION_S),
                     "--record", str(out / "run.tlog"), "--wait-peer", "30"]
         for w in options.gnss_off:

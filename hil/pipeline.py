@@ -1,0 +1,358 @@
+"""The one pipeline: a flight setup -> MAVLink frames, and frames -> fused, collected tracks.
+
+Every command and bench goes through these two halves, so lockstep runs, replays, comparisons,
+campaigns, the live service and the benchmarks share every component:
+
+* **simulate**: :class:`SimSetup` (aircraft, plan, sensor models, fault timeline, GNSS-off
+  windows) -> :class:`SimChain` (JSBSim flight + sensor suite + fault injector + sensor
+  streamer) -> ``(time_us, frame)`` MAVLink 2 frames. :func:`fly` runs the chain in lockstep
+  (simulated time only) into a frame sink; the live simulator paces the same chain against
+  the wall clock.
+* **fuse**: :class:`FusionRun` decodes frames (or already decoded samples) and steps one
+  :class:`fusion.filter.NavFilter`, built by :func:`build_filter` exactly the same way for
+  every command, and collects estimate / truth / fix tracks (:class:`hil.tracks.Collector`)
+  for the scorer.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+
+from fusion.bridging import BRIDGE_METHODS, make_bridge
+from fusion.config import ALTITUDE_METHODS, FilterConfig
+from fusion.filter import NavEstimate, NavFilter
+from hil.codec import Decoder
+from hil.streamer import GnssWindow, SensorStreamer
+from hil.tlog import TlogWriter
+from hil.tracks import Collector
+from hil.tuning import filter_config_for_imu, filter_gnss_config
+from sim import presets
+from sim.faults import FaultEvent, FaultInjector, FaultLogEntry
+from sim.flight import Flight, FlightConfig, FlightEnded, StartState
+from sim.gnss import GnssConfig
+from sim.plans import FlightPlan, load_plan
+from sim.samples import Sample, Truth
+from sim.sensors import SensorSuite, SensorSuiteConfig
+
+Frame = tuple[int, bytes]
+FrameSink = Callable[[int, bytes], None]
+ProgressFn = Callable[[float], None]
+
+
+# ------------------------------------------------------------------------------ simulate
+@dataclass(frozen=True)
+class SimSetup:
+    """Everything a simulated flight needs, validated (SI units).
+
+    ``faults`` is the scenario's fault timeline; ``None`` flies without a fault injector (a
+    plain recording), an empty tuple with one that has nothing to do (a scenario without
+    events). ``gnss_off`` windows suppress HIL_GPS by time of validity.
+    """
+
+    flight: FlightConfig
+    plan: FlightPlan
+    sensors: SensorSuiteConfig
+    duration_s: float
+    seed: int
+    faults: tuple[FaultEvent, ...] | None = None
+    gnss_off: tuple[GnssWindow, ...] = ()
+    truth_rate_hz: float = 50.0
+
+    def __post_init__(self) -> None:
+        if not self.duration_s > 0:
+            raise ValueError(f"duration must be > 0 s (got {self.duration_s})")
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0 (got {self.seed})")
+
+    @classmethod
+    def build(
+        cls,
+        *,
+        plan: str = "racetrack",
+        aircraft: str = "c172x",
+        duration_s: float = 600.0,
+        seed: int = 1,
+        rate_hz: float = 200.0,
+        imu: str = "industrial-mems",
+        gnss: str = "modern",
+        baro: str = "ms5611",
+        mag: str = "consumer",
+        lat_deg: float = 47.0,
+        lon_deg: float = 8.0,
+        alt_msl_m: float = 1000.0,
+        heading_deg: float = 0.0,
+        airspeed_mps: float = 50.0,
+        wind: str = "0,0,0",
+        turbulence: float = 0.0,
+        gnss_off: Sequence[str] = (),
+        truth_rate_hz: float = 50.0,
+    ) -> SimSetup:
+        """A setup from human-facing options (preset names, ``N,E,D`` wind, ``START:DUR``
+        outages); ValueError / ValidationError name the bad one."""
+        if not duration_s > 0:
+            raise ValueError(f"duration must be > 0 s (got {duration_s})")
+        if seed < 0:
+            raise ValueError(f"seed must be >= 0 (got {seed})")
+        flight = FlightConfig(
+            aircraft=aircraft,
+            rate_hz=rate_hz,
+            start=StartState(
+                lat_deg=lat_deg, lon_deg=lon_deg, alt_msl_m=alt_msl_m,
+                heading_deg=heading_deg, airspeed_mps=airspeed_mps,
+            ),
+            wind_ned_mps=_parse_wind(wind),
+            turbulence=turbulence,
+            seed=seed,
+        )
+        return cls(
+            flight=flight,
+            plan=load_plan(plan),
+            sensors=presets.suite_config(imu=imu, gnss=gnss, baro=baro, mag=mag),
+            duration_s=duration_s,
+            seed=seed,
+            gnss_off=tuple(GnssWindow.parse(w) for w in gnss_off),
+            truth_rate_hz=truth_rate_hz,
+        )
+
+
+def _parse_wind(text: str) -> tuple[float, float, float]:
+    try:
+        n, e, d = (float(p) for p in text.split(","))
+    except ValueError:
+        raise ValueError(f"wind {text!r} must be N,E,D in m/s, e.g. 5,-3,0") from None
+    return (n, e, d)
+
+
+@dataclass(frozen=True)
+class SimStep:
+    """One simulator step: the truth, the sensor samples and the frames they became."""
+
+    truth: Truth
+    samples: list[Sample]
+    frames: list[Frame]
+
+
+class SimChain:
+    """JSBSim flight + sensor suite + fault injector + sensor streamer, opened as a context.
+
+    :meth:`steps` advances the flight one step at a time until ``duration_s`` of simulated time
+    have passed or the flight ends (stall, ground contact: kept in :attr:`ended`, never
+    raised, so whatever was produced so far stays valid).
+    """
+
+    def __init__(self, setup: SimSetup) -> None:
+        self.setup = setup
+        self.suite = SensorSuite(setup.sensors, setup.seed, setup.flight.rate_hz)
+        self.flight: Flight | None = None
+        self.faults: FaultInjector | None = None
+        self.streamer: SensorStreamer | None = None
+        self.ended: FlightEnded | None = None
+        self.start_us = 0
+        self.time_us = 0
+
+    def __enter__(self) -> SimChain:
+        s = self.setup
+        self.flight = Flight(s.flight, s.plan).__enter__()
+        try:
+            if s.faults is not None:
+                self.faults = FaultInjector(s.faults, seed=s.seed, t0_us=self.flight.time_us)
+            self.streamer = SensorStreamer(truth_rate_hz=s.truth_rate_hz, gnss_off=s.gnss_off,
+                                           faults=self.faults)
+        except BaseException:
+            self.flight.__exit__(None, None, None)
+            raise
+        self.start_us = self.time_us = self.flight.time_us
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        if self.flight is not None:
+            self.flight.__exit__(exc_type, exc, tb)
+
+    @property
+    def sim_duration_s(self) -> float:
+        """Simulated seconds flown so far."""
+        return (self.time_us - self.start_us) * 1e-6
+
+    @property
+    def fault_log(self) -> list[FaultLogEntry]:
+        """The injector's event starts and ends so far (empty without an injector)."""
+        return [] if self.streamer is None else self.streamer.fault_log
+
+    @property
+    def fault_counters(self) -> dict[str, int]:
+        """A copy of the injector's counters (empty without an injector)."""
+        return {} if self.streamer is None else self.streamer.fault_counters
+
+    def steps(self) -> Iterator[SimStep]:
+        """Fly until the setup's duration is reached or the flight ends."""
+        flight, streamer = self.flight, self.streamer
+        if flight is None or streamer is None:
+            raise RuntimeError("SimChain.steps() outside its `with` block")
+        end_us = self.start_us + round(self.setup.duration_s * 1e6)
+        truth = flight.truth()
+        suite = self.suite
+        while truth.time_us < end_us:
+            try:
+                truth = flight.step()
+            except FlightEnded as exc:
+                self.ended = exc
+                return
+            self.time_us = truth.time_us
+            samples = suite.step(truth)
+            yield SimStep(truth, samples, streamer.frames(truth, samples))
+
+
+@dataclass(frozen=True)
+class Flown:
+    """What a lockstep flight produced besides its frames."""
+
+    sim_duration_s: float
+    wall_s: float
+    frames: int
+    ended: FlightEnded | None
+    fault_log: list[FaultLogEntry]
+    fault_counters: dict[str, int]
+
+    @property
+    def realtime_factor(self) -> float:
+        return self.sim_duration_s / self.wall_s if self.wall_s > 0 else float("inf")
+
+
+def fly(setup: SimSetup, sink: FrameSink, *, progress: ProgressFn | None = None) -> Flown:
+    """Fly ``setup`` in lockstep (as fast as the machine allows) into ``sink(time_us, frame)``.
+
+    Simulated time is the only clock; ``progress(simulated_s)`` is called once per simulated
+    second.
+    """
+    n_frames = 0
+    wall0 = time.perf_counter()
+    with SimChain(setup) as chain:
+        next_progress_us = chain.start_us
+        for step in chain.steps():
+            for time_us, frame in step.frames:
+                sink(time_us, frame)
+                n_frames += 1
+            if progress is not None and step.truth.time_us >= next_progress_us:
+                progress((step.truth.time_us - chain.start_us) * 1e-6)
+                next_progress_us += 1_000_000
+    wall = time.perf_counter() - wall0
+    return Flown(chain.sim_duration_s, wall, n_frames, chain.ended, list(chain.fault_log),
+                 chain.fault_counters)
+
+
+def record_flight(setup: SimSetup, path: Path, *, progress: ProgressFn | None = None) -> Flown:
+    """Fly ``setup`` in lockstep and write every frame to the ``.tlog`` at ``path``
+    (simulated-time stamps); the log is flushed and closed even when the aircraft crashes."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with TlogWriter(path) as log:
+        return fly(setup, lambda t_us, frame: log.write(frame, t_us), progress=progress)
+
+
+# ---------------------------------------------------------------------------------- fuse
+def filter_config(imu: str, receiver: GnssConfig, altitude: str = "ekf") -> FilterConfig:
+    """The filter every command builds: tuned from the IMU datasheet preset ``imu``, modelling
+    the GNSS ``receiver`` (its time-correlated error as bias states when it has one), with the
+    altitude method ``altitude``. ValueError names a bad preset or method."""
+    if altitude not in ALTITUDE_METHODS:
+        raise ValueError(
+            f"unknown altitude method {altitude!r}; valid methods: {', '.join(ALTITUDE_METHODS)}"
+        )
+    config = filter_config_for_imu(imu)
+    return config.model_copy(update={
+        "altitude": config.altitude.model_copy(update={"method": altitude}),
+        "gnss": filter_gnss_config(receiver, config.gnss),
+    })
+
+
+def build_filter(config: FilterConfig, bridge: str = "none") -> NavFilter:
+    """A :class:`NavFilter` with the bridging method ``bridge`` (ValueError lists the valid
+    ones)."""
+    if bridge not in BRIDGE_METHODS:
+        raise ValueError(
+            f"unknown bridging method {bridge!r}; valid methods: {', '.join(BRIDGE_METHODS)}")
+    return NavFilter(config, bridge=make_bridge(bridge, config.bridge))
+
+
+class FusionRun:
+    """Frames -> decoded samples -> one filter -> collected tracks.
+
+    Parameters
+    ----------
+    config : FilterConfig
+    bridge : str
+        Bridging method (:data:`fusion.bridging.BRIDGE_METHODS`).
+    collect : bool
+        Keep the estimate, truth and fix tracks for scoring (:attr:`collector`).
+    nav : NavFilter, optional
+        A filter already built from ``config`` and ``bridge`` (for callers that own it).
+
+    A FusionRun is also a frame sink (``run(time_us, frame)``), so a lockstep flight can be
+    fused while it flies; :attr:`fuse_s` accumulates the wall time spent decoding and fusing.
+    """
+
+    def __init__(self, config: FilterConfig, bridge: str = "none", *, collect: bool = True,
+                 nav: NavFilter | None = None) -> None:
+        self.config = config
+        self.bridge = bridge
+        self.nav = nav if nav is not None else build_filter(config, bridge)
+        self.decoder = Decoder()
+        self.collector: Collector | None = Collector() if collect else None
+        self.samples = 0
+        self.fuse_s = 0.0
+
+    def feed(self, items: Iterable[Sample | Truth]) -> list[NavEstimate]:
+        """Step the filter with decoded samples (truth is only collected); new estimates."""
+        col = self.collector
+        if col is not None:
+            n = len(col.estimates)
+            col.feed(self.nav, items)
+            return col.estimates[n:]
+        out: list[NavEstimate] = []
+        for item in items:
+            if not isinstance(item, Truth):
+                out.extend(self.nav.step(item))
+        return out
+
+    def feed_frame(self, frame: bytes) -> list[NavEstimate]:
+        """Decode one frame (or a chunk of a byte stream) and fuse what it held."""
+        decoded = self.decoder.feed(frame)
+        self.samples += len(decoded)
+        return self.feed(d.sample for d in decoded)
+
+    def __call__(self, time_us: int, frame: bytes) -> None:
+        t0 = time.perf_counter()
+        self.feed_frame(frame)
+        self.fuse_s += time.perf_counter() - t0
+
+    @property
+    def fusion_us_per_sample(self) -> float:
+        """Mean wall time per decoded sample of the frames fused through ``__call__``, us."""
+        return 1e6 * self.fuse_s / max(self.samples, 1)
+
+
+def fuse_frames(frames: Iterable[Frame], config: FilterConfig, bridge: str = "none"
+                ) -> FusionRun:
+    """Decode and fuse a whole frame stream (e.g. a recording kept in memory)."""
+    run = FusionRun(config, bridge)
+    t0 = time.perf_counter()
+    for _t, frame in frames:
+        run.feed_frame(frame)
+    run.fuse_s = time.perf_counter() - t0
+    return run
+
+
+def tee(*sinks: FrameSink | None) -> FrameSink:
+    """One frame sink that hands every frame to each of ``sinks`` (``None`` entries skipped)."""
+    active = [s for s in sinks if s is not None]
+
+    def sink(time_us: int, frame: bytes) -> None:
+        for s in active:
+            s(time_us, frame)
+
+    return sink
+

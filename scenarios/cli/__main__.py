@@ -1,0 +1,5 @@
+"""``python -m scenarios.cli``: the ``hilnav`` command line."""
+
+from scenarios.cli.app import app
+
+app()
