@@ -245,3 +245,40 @@ def test_live_chain_matches_replay_of_the_same_frames(tmp_path: Path) -> None:
         want = error_payload(by_time[e["time_us"]], truth)
         assert e["horizontal_error_m"] == pytest.approx(want["horizontal_error_m"], abs=1e-9)
         assert e["vertical_error_m"] == pytest.approx(want["vertical_error_m"], abs=1e-9)
+
+
+def test_live_fusion_with_gmdh_and_loop_mpc_equals_replay_with_the_same_options(
+    tmp_path: Path,
+) -> None:
+    """GIVEN `hilnav fusion --bridge gmdh --altitude loop-mpc` fed live by `hilnav sim --live
+    --lockstep` (no frame can be lost) WHEN the flight ends THEN its scorecard equals `hilnav
+    replay --bridge gmdh --altitude loop-mpc` of the sim's recording: the live service and the
+    replay build the same filter."""
+    port = free_udp_port()
+    options = ["--bridge", "gmdh", "--altitude", "loop-mpc"]
+    fusion = _hilnav(
+        "fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--out", str(tmp_path / "live"),
+        "--idle-exit", "3", "--settle", "20", *options, log=tmp_path / "fusion.log")
+    sim = _hilnav(
+        "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "50", "--lockstep",
+        "--duration", "150", "--seed", "4", "--gnss-off", "100:20",
+        "--record", str(tmp_path / "run.tlog"), "--wait-peer", "30", log=tmp_path / "sim.log")
+    try:
+        assert sim.wait(240) == 0, (tmp_path / "sim.log").read_text()
+        assert fusion.wait(60) == 0, (tmp_path / "fusion.log").read_text()
+    finally:
+        for p in (sim, fusion):
+            stop_process(p)
+    import json
+
+    live = json.loads((tmp_path / "live" / "summary.json").read_text())
+    assert (live["bridge"], live["altitude"]) == ("gmdh", "loop-mpc")
+    assert live["live"]["lost_frames"] == 0
+    result = CliRunner().invoke(app, ["replay", str(tmp_path / "run.tlog"), "--out",
+                                      str(tmp_path / "replay"), "--settle", "20", *options])
+    assert result.exit_code == 0, result.output
+    ref = json.loads((tmp_path / "replay" / "summary.json").read_text())
+    assert len(ref["outages"]) == 1
+    for key in ("bridge", "altitude", "outages", "gnss_on", "nees", "containment_3sigma"):
+        assert live[key] == ref[key], key
+    assert live["health"]["filter"] == ref["health"]["filter"]
