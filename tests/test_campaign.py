@@ -16,13 +16,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from typer.testing import CliRunner
 
 from scenarios.campaign import (
     VARY_KEYS,
     CampaignResult,
     aggregate,
     apply_point,
-    campaign_main,
     grid_points,
     parse_vary,
     plan_runs,
@@ -30,6 +30,7 @@ from scenarios.campaign import (
     run_id,
     stats,
 )
+from scenarios.cli.app import app
 from scenarios.runner import run_scenario
 from scenarios.schema import load_scenario
 
@@ -189,8 +190,9 @@ def test_plan_is_the_full_product_with_stable_ids(tiny: Path, tmp_path: Path) ->
 
 
 def test_bad_campaign_input(tiny: Path, tmp_path: Path) -> None:
-    with pytest.raises(ValueError, match="seeds"):
-        campaign_main([tiny], 0, 1, [], tmp_path, None, None, False)
+    result = CliRunner().invoke(app, ["campaign", str(tiny), "--seeds", "0", "--out",
+                                      str(tmp_path)])
+    assert result.exit_code == 2 and "seeds" in result.output
     with pytest.raises(ValueError, match="workers"):
         run_campaign([tiny], SEEDS, {}, tmp_path, workers=0)
     with pytest.raises(ValueError, match="scheduler"):
@@ -286,8 +288,9 @@ def test_a_run_that_raises_is_reported(tmp_path: Path, scheduler: str) -> None:
     bad = tmp_path / "unflyable.yaml"
     bad.write_text(UNFLYABLE)
     out = tmp_path / "c"
-    code = campaign_main([bad], 1, 7, [], out, scheduler, None, False)
-    assert code == 1
+    result = CliRunner().invoke(app, ["campaign", str(bad), "--seeds", "1", "--seed-base", "7",
+                                      "--out", str(out), "--scheduler", scheduler])
+    assert result.exit_code == 1, result.output
     rep = json.loads((out / "campaign.json").read_text())
     assert len(rep["failed"]) == 1
     failed = rep["failed"][0]

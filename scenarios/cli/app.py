@@ -601,14 +601,40 @@ def campaign(
     keep_tlogs: Annotated[bool, typer.Option(help="Keep each run's run.tlog.")] = False,
 ) -> None:
     """Monte Carlo sweep over seeds and parameter grids on Dask; exit 1 if any run failed."""
-    from scenarios.campaign import campaign_main
+    from rich.progress import MofNCompleteColumn, TimeElapsedColumn
 
-    code = campaign_main(scenarios, seeds, seed_base, vary or [], out, scheduler, workers,
-                         keep_tlogs)
-    if code == 1:
+    from scenarios.campaign import parse_vary, run_campaign
+    from scenarios.campaign.report import point_label
+
+    if seed_base < 0:
+        raise ValueError(f"--seed-base must be >= 0, got {seed_base}")
+    grid = parse_vary(vary or [])
+    seed_list = list(range(seed_base, seed_base + seeds))
+    bar = Progress(TextColumn("[bold]campaign"), BarColumn(), MofNCompleteColumn(),
+                   TextColumn("runs"), TimeElapsedColumn(), TimeRemainingColumn(),
+                   console=err_console, transient=False)
+    task_id = None
+
+    def progress(done: int, total: int, _rid: str) -> None:
+        nonlocal task_id
+        if task_id is None:
+            task_id = bar.add_task("runs", total=total)
+        bar.update(task_id, completed=done)
+
+    with bar:
+        result = run_campaign(scenarios, seed_list, grid, out, scheduler=scheduler,
+                              workers=workers, keep_tlogs=keep_tlogs, progress=progress)
+    rep = result.report
+    err_console.print(
+        f"{len(rep['runs'])} runs: {result.executed} executed, {result.resumed} resumed, "
+        f"{len(rep['failed'])} raised, {len(rep['not_passed'])} did not pass -> "
+        f"{out / 'campaign.json'}, {out / 'campaign.md'}, {out / 'distributions.png'}",
+        highlight=False)
+    for f in rep["failed"]:
+        err_console.print(f"[red]run {f['id']}[/] ({f['scenario']}, seed {f['seed']}, "
+                          f"{point_label(f['point'])}): {f['error']}", highlight=False)
+    if not result.all_passed:
         raise RunFailed(f"some runs failed their criteria or errored; see {out / 'campaign.md'}")
-    if code == 2:
-        raise typer.Exit(2)
 
 
 if __name__ == "__main__":
