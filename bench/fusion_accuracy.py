@@ -107,7 +107,7 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
     from hil.codec import Decoder
     from hil.pipeline import SimSetup
     from hil.streamer import SensorStreamer, run_lockstep
-    from hil.tracks import Collector
+    from hil.tracks import Collector, Track
     from hil.tuning import filter_config_for_presets
     from scenarios import metrics
     from scenarios.summary import RunInfo, build_summary
@@ -153,7 +153,7 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
                                           "decoder": decoder.counters.as_dict()})
 
     # Raw GNSS: the fixes as a track (attitude unused), scored like the filter.
-    gnss_track = metrics.Track(
+    gnss_track = Track(
         time_s=np.array([f.time_us for f in fixes], dtype=float) * 1e-6,
         lat_rad=np.array([f.lat_rad for f in fixes]),
         lon_rad=np.array([f.lon_rad for f in fixes]),

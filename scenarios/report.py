@@ -18,7 +18,8 @@ import numpy as np
 from fusion import earth
 from hil.tracks import Track
 from scenarios import metrics
-from scenarios.metrics import Errors, EventWindow, Window
+from scenarios.event_metrics import EventWindow
+from scenarios.metrics import Errors, Window
 
 EventLike = EventWindow | Mapping[str, Any]
 

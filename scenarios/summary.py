@@ -13,9 +13,10 @@ from pydantic import BaseModel, ConfigDict, NonNegativeFloat, PositiveFloat
 
 from hil.pipeline import FusionRun
 from hil.tracks import HealthSeries, Track
-from scenarios import metrics
+from scenarios import event_metrics, metrics
+from scenarios.event_metrics import EventWindow
 from scenarios.jsonable import plain_dict, write_json
-from scenarios.metrics import Errors, EventWindow, Window
+from scenarios.metrics import Errors, Window
 
 SCHEMA_VERSION = 1
 
@@ -186,11 +187,11 @@ def build_summary(
     fix_err = None
     bad_fix_m = cfg.bad_fix_m
     if series is not None and series.fixes is not None and series.fixes.time_s.size:
-        fix_err = metrics.fix_errors(series.fixes, truth)
+        fix_err = event_metrics.fix_errors(series.fixes, truth)
         if bad_fix_m is None:
             bad_fix_m = _bad_fix_threshold(series.fixes.time_s, fix_err, windows, cfg)
     event_rows = [
-        metrics.event_metrics(
+        event_metrics.event_metrics(
             err, ev, health=series, fix_err_m=fix_err, bad_fix_m=bad_fix_m,
             reconverge_threshold_m=threshold, hold_s=cfg.reconverge_hold_s,
             until_s=next_start(ev.end_s)).as_dict()
@@ -218,7 +219,7 @@ def build_summary(
     if series is not None:
         quiet = [(w.start_s, w.end_s + settle_s) for w in outages]
         quiet += [(e.start_s, min(e.end_s, end_data) + settle_s) for e in windows]
-        summary["rejections_outside_events"] = metrics.rejections_outside(
+        summary["rejections_outside_events"] = event_metrics.rejections_outside(
             series, quiet, after_s=float(series.time_s[0]) + settle_s if series.time_s.size
             else 0.0)
     results = [c.evaluate(summary) for c in criteria]

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from fusion import earth
-from hil.tracks import Track
-from scenarios import metrics
+from hil.tracks import Fixes, HealthSeries, Track
+from scenarios import event_metrics, metrics
 from scenarios.metrics import Window
 
 
@@ -203,8 +203,8 @@ def test_reconverge_time_waits_for_the_hold() -> None:
 # ------------------------------------------------------------------ events
 
 
-def _series(t: np.ndarray, **fields: object) -> metrics.HealthSeries:
-    return metrics.HealthSeries(time_s=t, **fields)  # type: ignore[arg-type]
+def _series(t: np.ndarray, **fields: object) -> HealthSeries:
+    return HealthSeries(time_s=t, **fields)  # type: ignore[arg-type]
 
 
 def _steps(t: np.ndarray, times: list[float] | np.ndarray) -> np.ndarray:
@@ -226,9 +226,9 @@ def test_spoof_detected_then_reaccepted_after_a_reset() -> None:
     health = _series(
         T50, gnss_fused=_steps(T50, fused_t), gnss_rejected=_steps(T50, np.arange(103.0, 130.0,
         0.2)), gnss_resets=_steps(T50, [130.0]))  # fmt: skip
-    ev = metrics.EventWindow("gnss_spoof_hijack", 100.0, 160.0)
+    ev = event_metrics.EventWindow("gnss_spoof_hijack", 100.0, 160.0)
     assert ev.kind == "spoof" and ev.sensor == "gnss"
-    em = metrics.event_metrics(err, ev, health=health)
+    em = event_metrics.event_metrics(err, ev, health=health)
     assert em.detect_s == pytest.approx(3.0)
     assert em.max_horizontal_m == pytest.approx(60.0)
     expected = 1 + np.count_nonzero((fused_t > 103.0) & (fused_t <= 160.0))
@@ -236,7 +236,7 @@ def test_spoof_detected_then_reaccepted_after_a_reset() -> None:
     # the same filter without the reset and the re-fusion is clean
     clean = _series(T50, gnss_fused=_steps(T50, fused_t[fused_t < 103.0]),
                     gnss_rejected=_steps(T50, np.arange(103.0, 160.0, 0.2)))
-    em2 = metrics.event_metrics(err, ev, health=clean)
+    em2 = event_metrics.event_metrics(err, ev, health=clean)
     assert em2.detect_s == pytest.approx(3.0)
     assert em2.reaccepted_early is False and em2.reaccept_count == 0
     assert em2.as_dict()["detected"] is True
@@ -250,25 +250,25 @@ def test_detection_ignores_stale_ratios_and_uses_the_events_sensor() -> None:
     r[T50 >= 105.0] = 1.5  # a new test at 105 s
     health = _series(T50, ratio_gnss_pos=r, gnss_rejected=_steps(T50, [100.5]),
                      baro_rejected=_steps(T50, [101.5]))
-    stale = metrics.HealthSeries(T50, ratio_gnss_pos=r)
-    ev = metrics.EventWindow("gnss_spoof_drift", 100.0, 150.0)
-    assert metrics.event_metrics(_h_errors(T50, T50 * 0), ev, health=stale).detect_s == \
+    stale = HealthSeries(T50, ratio_gnss_pos=r)
+    ev = event_metrics.EventWindow("gnss_spoof_drift", 100.0, 150.0)
+    assert event_metrics.event_metrics(_h_errors(T50, T50 * 0), ev, health=stale).detect_s == \
         pytest.approx(5.0)
-    baro = metrics.EventWindow("baro_glitch", 100.0, 150.0)
+    baro = event_metrics.EventWindow("baro_glitch", 100.0, 150.0)
     assert baro.kind == "glitch" and baro.sensor == "baro"
-    assert metrics.detect_time(health, 100.0, 150.0, "baro") == pytest.approx(101.5)
-    assert metrics.detect_time(health, 100.0, 150.0, "gnss") == pytest.approx(100.5)
-    assert metrics.detect_time(health, 100.0, 150.0, "mag") is None
+    assert event_metrics.detect_time(health, 100.0, 150.0, "baro") == pytest.approx(101.5)
+    assert event_metrics.detect_time(health, 100.0, 150.0, "gnss") == pytest.approx(100.5)
+    assert event_metrics.detect_time(health, 100.0, 150.0, "mag") is None
     # a test before the window and none in it: never detected
-    assert metrics.detect_time(stale, 100.0, 104.9, "gnss") is None
+    assert event_metrics.detect_time(stale, 100.0, 104.9, "gnss") is None
 
 
 def test_jamming_detected_when_the_filter_declares_gnss_lost() -> None:
     mode = np.where((T50 >= 112.0) & (T50 < 140.0), "free-inertial", "gnss")
     health = _series(T50, mode=mode)
-    ev = metrics.EventWindow("gnss_jamming", 100.0, 140.0)
+    ev = event_metrics.EventWindow("gnss_jamming", 100.0, 140.0)
     assert ev.kind == "jamming"
-    em = metrics.event_metrics(_h_errors(T50, T50 * 0), ev, health=health)
+    em = event_metrics.event_metrics(_h_errors(T50, T50 * 0), ev, health=health)
     assert em.detect_s == pytest.approx(12.0)
     # jamming: no fix data, so the re-accept check does not apply
     assert em.reaccepted_early is None and em.reaccept_count is None
@@ -280,12 +280,12 @@ def test_undetected_slow_spoof_counts_the_bad_fixes_fused() -> None:
     the fixes of 109.1 ... 119.9 s (55) are counted and the event is flagged."""
     fix_t = np.round(np.arange(0.1, 200.0, 0.2), 6)
     fix_err = np.where(fix_t >= 100.0, 1.0 + (fix_t - 100.0), 1.0)
-    fixes = metrics.Fixes(fix_t, fix_t * 0, fix_t * 0, fix_t * 0)
+    fixes = Fixes(fix_t, fix_t * 0, fix_t * 0, fix_t * 0)
     fused_at = fix_t[fix_t < 120.0] + 0.01  # fused 10 ms after the time of validity
     health = _series(T50, gnss_fused=_steps(T50, fused_at), gnss_rejected=T50 * 0,
                      fixes=fixes)
-    ev = metrics.EventWindow("gnss_spoof_drift", 100.0, 160.0)
-    em = metrics.event_metrics(_h_errors(T50, T50 * 0), ev, health=health, fix_err_m=fix_err,
+    ev = event_metrics.EventWindow("gnss_spoof_drift", 100.0, 160.0)
+    em = event_metrics.event_metrics(_h_errors(T50, T50 * 0), ev, health=health, fix_err_m=fix_err,
                                bad_fix_m=10.0)
     assert em.detect_s is None
     assert em.bad_fixes_fused == 55
@@ -297,30 +297,31 @@ def test_fix_errors_against_truth() -> None:
     zero = np.zeros_like(t)
     truth = _track(t, zero, zero, zero)
     spoofed = _track(t, zero + 30.0, zero + 40.0, zero)
-    fixes = metrics.Fixes(np.r_[t, 20.0], np.r_[spoofed.lat_rad, 0.0], np.r_[spoofed.lon_rad, 0.0],
+    fixes = Fixes(np.r_[t, 20.0], np.r_[spoofed.lat_rad, 0.0], np.r_[spoofed.lon_rad, 0.0],
                           np.r_[spoofed.alt_m, 0.0])
-    e = metrics.fix_errors(fixes, truth)
+    e = event_metrics.fix_errors(fixes, truth)
     np.testing.assert_allclose(e[:-1], 50.0, rtol=1e-6)
     assert math.isnan(e[-1])  # after the truth ends
 
 
 def test_event_and_series_validation() -> None:
     with pytest.raises(ValueError, match="kind"):
-        metrics.EventWindow("gnss_outage", 10.0, 20.0, kind="meteor")
+        event_metrics.EventWindow("gnss_outage", 10.0, 20.0, kind="meteor")
     with pytest.raises(ValueError, match="end_s"):
-        metrics.EventWindow("gnss_outage", 10.0, 5.0)
+        event_metrics.EventWindow("gnss_outage", 10.0, 5.0)
     with pytest.raises(ValueError, match="gnss_fused"):
-        metrics.HealthSeries(np.arange(5.0), gnss_fused=np.zeros(4, dtype=np.int64))
+        HealthSeries(np.arange(5.0), gnss_fused=np.zeros(4, dtype=np.int64))
     with pytest.raises(ValueError, match="no 'start_s'"):
-        metrics.EventWindow.from_mapping({"type": "gnss_outage"})
-    ev = metrics.EventWindow.from_mapping({"type": "weather_front", "start_s": 5, "end_s": None})
+        event_metrics.EventWindow.from_mapping({"type": "gnss_outage"})
+    ev = event_metrics.EventWindow.from_mapping(
+        {"type": "weather_front", "start_s": 5, "end_s": None})
     assert ev.sensor == "baro" and ev.kind == "generic" and ev.end_s == math.inf
-    assert metrics.event_sensor("imu_bias_step") == "imu"
-    assert metrics.event_sensor("solar_flare") == "any"
+    assert event_metrics.event_sensor("imu_bias_step") == "imu"
+    assert event_metrics.event_sensor("solar_flare") == "any"
 
 
 def test_rejections_outside_windows() -> None:
     health = _series(T50, gnss_rejected=_steps(T50, [5.0, 50.0, 101.0, 150.0]),
                      baro_rejected=_steps(T50, [120.0]))
-    out = metrics.rejections_outside(health, [(100.0, 130.0)], after_s=10.0)
+    out = event_metrics.rejections_outside(health, [(100.0, 130.0)], after_s=10.0)
     assert out == {"gnss_rejected": 2, "baro_rejected": 0}

@@ -15,7 +15,7 @@ import pytest
 
 import hil.pipeline as pipeline_mod
 from fusion import earth
-from hil.tracks import Collector, HealthSeries, Track
+from hil.tracks import Collector, Fixes, HealthSeries, Track
 from scenarios import metrics, report
 from scenarios import replay as replay_mod
 from scenarios.html import write_html
@@ -68,7 +68,7 @@ def _run() -> tuple[Track, Track, HealthSeries]:
     fused_t = fix_t[(fix_t < 252.0) | (fix_t > 300.0)]
     rejected_t = fix_t[(fix_t >= 252.0) & (fix_t <= 300.0)]
     spoof = (fix_t >= 250.0) & (fix_t <= 300.0)
-    fixes = metrics.Fixes(fix_t, truth.lat_rad[0] + spoof * 500.0 / 6.4e6,
+    fixes = Fixes(fix_t, truth.lat_rad[0] + spoof * 500.0 / 6.4e6,
                           np.asarray(np.interp(fix_t, T, truth.lon_rad)),
                           np.full(fix_t.size, 500.0))
     mode = np.where((T > 101.0) & (T < 160.0), "free-inertial", "gnss")
