@@ -160,24 +160,18 @@ def simulate(plan: str, seed: int, cache: Path | None) -> list[Any]:
         items: list[Any] = pickle.loads(path.read_bytes())
         return items
     from hil.codec import Decoder
-    from hil.pipeline import SimSetup
-    from hil.streamer import SensorStreamer, run_lockstep
-    from sim.flight import Flight
-    from sim.sensors import SensorSuite
+    from hil.pipeline import SimSetup, fly
 
-    request = SimSetup.build(
+    setup = SimSetup.build(
         plan=plan, imu=IMU, gnss=GNSS, duration_s=DURATION_S, seed=seed,
         gnss_off=[f"{s:g}:{d:g}" for s, d in OUTAGES])  # fmt: skip
-    suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)
-    bridge = SensorStreamer(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
     decoder = Decoder()
-    items = []
+    items: list[Any] = []
 
     def sink(_t_us: int, frame: bytes) -> None:
         items.extend(d.sample for d in decoder.feed(frame))
 
-    with Flight(request.flight, request.plan) as flight:
-        report = run_lockstep(flight, suite, bridge, request.duration_s, sink)
+    report = fly(setup, sink)
     if report.ended is not None:
         raise RuntimeError(f"{plan} seed {seed}: flight ended early ({report.ended})")
     if path is not None:
@@ -191,14 +185,16 @@ def run_filter(items: list[Any], bridge: Any) -> tuple[Any, Any, list[float], fl
     import numpy as np
 
     from fusion.filter import NavFilter
-    from hil.tracks import Collector
+    from hil.pipeline import FusionRun
     from hil.tuning import filter_config_for_imu
     from scenarios import metrics
 
-    nav = NavFilter(filter_config_for_imu(IMU), bridge=bridge)
-    col = Collector()
+    config = filter_config_for_imu(IMU)
+    run = FusionRun(config, nav=NavFilter(config, bridge=bridge))
+    col = run.collector
+    assert col is not None
     t0 = time.process_time()
-    col.feed(nav, items)
+    run.feed(items)
     cpu = time.process_time() - t0
     est, truth = col.estimate_track(), col.truth_track()
     err = metrics.errors(est, truth)

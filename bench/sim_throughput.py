@@ -17,11 +17,10 @@ import platform
 import time
 from pathlib import Path
 
-from hil.streamer import SensorStreamer
+from hil.pipeline import SimChain, SimSetup
 from sim import presets
 from sim.flight import Flight, FlightConfig
 from sim.plans import load_plan
-from sim.sensors import SensorSuite
 
 
 def time_jsbsim_bare(cfg: FlightConfig, plan_name: str, duration_s: float) -> float:
@@ -47,16 +46,15 @@ def time_jsbsim(cfg: FlightConfig, plan_name: str, duration_s: float) -> float:
 
 
 def time_chain(cfg: FlightConfig, plan_name: str, duration_s: float) -> tuple[float, int]:
-    plan = load_plan(plan_name)
-    suite = SensorSuite(presets.suite_config(), seed=1, sim_rate_hz=cfg.rate_hz)
-    streamer = SensorStreamer()
+    """The simulator half of the pipeline (:class:`hil.pipeline.SimChain`): JSBSim + guidance
+    + sensor models + MAVLink encode."""
+    setup = SimSetup(flight=cfg, plan=load_plan(plan_name), sensors=presets.suite_config(),
+                     duration_s=duration_s, seed=1)
     frames = 0
-    with Flight(cfg, plan) as flight:
-        n = round(duration_s * cfg.rate_hz)
+    with SimChain(setup) as chain:
         t0 = time.process_time()
-        for _ in range(n):
-            truth = flight.step()
-            frames += len(streamer.frames(truth, suite.step(truth)))
+        for step in chain.steps():
+            frames += len(step.frames)
         return time.process_time() - t0, frames
 
 
