@@ -59,7 +59,7 @@ def test_pressure_altitude_is_p4_formula_in_troposphere() -> None:
     # P4: Hp = (T0/L)·((Ps/P0)^(−L·R/g) − 1) + H0
     p4 = (pc.ISA_T0_K / pc.ISA_L0_KPM) * (
         (p / pc.ISA_P0_PA) ** (-pc.ISA_L0_KPM * pc.ISA_R_AIR_JPKGK / pc.G0_MPS2) - 1.0
-    ) + atm.H0_M
+    ) + pc.ISA_H0_M
     np.testing.assert_allclose(hp, p4, rtol=0, atol=1e-9)
 
 
@@ -80,7 +80,7 @@ def test_nonstandard_round_trip(h: float, d_t: float, d_p: float) -> None:
     hp = atm.pressure_altitude_m(p)
     # P4: H = Hp + s·(Hp − H0) + b
     s, b = d_t / pc.ISA_T0_K, (pc.ISA_R_AIR_JPKGK * pc.ISA_T0_K / pc.G0_MPS2) * (d_p / pc.ISA_P0_PA)
-    assert hp + s * (hp - atm.H0_M) + b == pytest.approx(h, abs=1e-6)
+    assert hp + s * (hp - pc.ISA_H0_M) + b == pytest.approx(h, abs=1e-6)
 
 
 def test_pure_temperature_offset_equals_warm_atmosphere_with_same_lapse_rate() -> None:
