@@ -265,6 +265,8 @@ class CompanionEncoder:
 
 def _dcm(w: float, x: float, y: float, z: float) -> np.ndarray:
     """Body -> NED direction cosine matrix of a scalar-first unit quaternion."""
+    # not fusion.rotations.quat_to_dcm: its diagonal is w²+x²-y²-z², not 1-2(y²+z²), which
+    # rounds differently and changes about one ODOMETRY frame in a million on the wire
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],

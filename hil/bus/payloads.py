@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 
 from fusion.earth import ned_offset_m
+from fusion.rotations import quat_conjugate, quat_multiply
 from hil.bus.keys import Topic
 from hil.bus.schemas import SCHEMA_VERSION
 
@@ -112,13 +113,7 @@ def _euler_deg(q: Sequence[float]) -> list[float]:
 
 def _angle_between_deg(q1: Sequence[float], q2: Sequence[float]) -> float:
     """Rotation angle of ``q1 * conj(q2)``, deg (atan2 form: accurate for tiny angles)."""
-    w1, x1, y1, z1 = q1
-    w2, x2, y2, z2 = q2
-    # q1 * conj(q2), Hamilton product
-    w = w1 * w2 + x1 * x2 + y1 * y2 + z1 * z2
-    x = -w1 * x2 + x1 * w2 - y1 * z2 + z1 * y2
-    y = -w1 * y2 + x1 * z2 + y1 * w2 - z1 * x2
-    z = -w1 * z2 - x1 * y2 + y1 * x2 + z1 * w2
+    w, x, y, z = quat_multiply(q1, quat_conjugate(q2)).tolist()
     return math.degrees(2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w)))
 
 
