@@ -3,7 +3,7 @@
 This module sits next to :mod:`hil.codec` and follows its rule: wire units (degE7, mm, cm/s,
 cdeg) are known only here and in the codec; callers hand over SI
 :class:`fusion.filter.NavEstimate` objects and get whole MAVLink 2 frames back. The unit
-constants are the codec's own.
+constants are the codec's own (:mod:`hil.codec.wire`).
 
 Shadow vehicle (towards ground stations; own system id, component 1)
     HEARTBEAT comes from the link; this module builds GLOBAL_POSITION_INT,
@@ -27,7 +27,7 @@ import numpy as np
 
 from fusion.earth import ned_offset_m
 from fusion.filter import NavEstimate
-from hil.codec import (
+from hil.codec.wire import (
     DEGE7_PER_RAD,
     INT16_MAX,
     INT16_MIN,
@@ -265,6 +265,8 @@ class CompanionEncoder:
 
 def _dcm(w: float, x: float, y: float, z: float) -> np.ndarray:
     """Body -> NED direction cosine matrix of a scalar-first unit quaternion."""
+    # not fusion.rotations.quat_to_dcm: its diagonal is w²+x²-y²-z², not 1-2(y²+z²), which
+    # rounds differently and changes about one ODOMETRY frame in a million on the wire
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],

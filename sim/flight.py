@@ -62,12 +62,9 @@ same configuration gives bit-identical truth.
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import math
-import os
 import re
 import shutil
-import sys
 import tempfile
 from collections.abc import Iterator
 from functools import lru_cache
@@ -279,7 +276,7 @@ def _load_without_io(fdm: Any, aircraft: str) -> None:
             if cleaned != text:
                 xml.write_text(cleaned, encoding="utf-8", errors="surrogateescape")
         try:
-            with _console_silenced():  # load-time warnings of some wheel aircraft
+            with _jsbsim_log_discarded():  # load-time warnings of some wheel aircraft
                 loaded = fdm.load_model_with_paths(
                     aircraft, tmp, str(root / "engine"), str(root / "systems"), True
                 )
@@ -304,30 +301,41 @@ def _euler_to_quat(phi: float, theta: float, psi: float) -> np.ndarray:
     return np.array((w, x, y, z))
 
 
-@contextlib.contextmanager
-def _console_silenced() -> Iterator[None]:
-    """Discard what C/C++ code writes to fds 1 and 2 (JSBSim's trim reports) meanwhile.
+class _DiscardLog(jsbsim.FGLogger):
+    """A JSBSim log backend that drops every record."""
 
-    JSBSim prints trim diagnostics through std::cout whatever its debug level; they would
-    corrupt a CLI's or a test's output. The descriptors are restored before returning.
+    def set_level(self, level: jsbsim.LogLevel) -> None:
+        pass
+
+    def file_location(self, filename: str, line: int) -> None:
+        pass
+
+    def message(self, message: str) -> None:
+        pass
+
+    def format(self, format: jsbsim.LogFormat) -> None:
+        pass
+
+    def flush(self) -> None:
+        pass
+
+
+@contextlib.contextmanager
+def _jsbsim_log_discarded() -> Iterator[None]:
+    """Drop what JSBSim logs from this thread meanwhile (trim reports, load-time warnings).
+
+    JSBSim reports a failed trim axis and the XML warnings of some wheel aircraft whatever its
+    debug level; on the console they would corrupt a CLI's or a test's output. JSBSim sends
+    every such record to the calling thread's ``FGLogger``, so swapping that logger silences
+    them without touching a file descriptor or another thread. The previous logger is
+    restored on exit.
     """
-    libc = ctypes.CDLL(None)
-    sys.stdout.flush()
-    sys.stderr.flush()
-    saved = [os.dup(1), os.dup(2)]
+    previous = jsbsim.get_logger()
+    jsbsim.set_logger(_DiscardLog())
     try:
-        with tempfile.TemporaryFile() as sink:
-            os.dup2(sink.fileno(), 1)
-            os.dup2(sink.fileno(), 2)
-            try:
-                yield
-            finally:
-                libc.fflush(None)
-                os.dup2(saved[0], 1)
-                os.dup2(saved[1], 2)
+        yield
     finally:
-        for fd in saved:
-            os.close(fd)
+        jsbsim.set_logger(previous)
 
 
 class _Props:
@@ -463,7 +471,7 @@ class Flight:
             fdm["ic/alpha-rad"] = alpha_rad
         fdm["gear/gear-cmd-norm"] = 0.0  # airborne start: gear up where it retracts
         self._set_wind_ic()
-        with _console_silenced():
+        with _jsbsim_log_discarded():
             fdm.run_ic()
 
     def _start(self) -> TrimPoint:
@@ -497,7 +505,7 @@ class Flight:
 
     def _try_trim(self) -> bool:
         try:
-            with _console_silenced():
+            with _jsbsim_log_discarded():
                 self._fdm.do_trim(1)
         except jsbsim.TrimFailureError:
             return False

@@ -29,14 +29,13 @@ from hil.bus import (
     BusConfig,
     Message,
     Topic,
-    check_main,
+    check_bus,
     encode,
     error_payload,
     estimate_payload,
     event_payload,
     innovation_payload,
     key,
-    main,
     parse_key,
     sample_payload,
     status_payload,
@@ -502,11 +501,13 @@ def test_publisher_started_before_router_then_router_restart() -> None:
             router.close()
 
 
-def test_health_check_command(router: str) -> None:
+def test_health_check(router: str) -> None:
+    lines: list[str] = []
     with Bus(router, vehicle="hc", config=UNLIMITED) as fusion:
-        assert check_main(connect=router, vehicle="hc", alive=True, timeout_s=2.0) == 1
+        assert check_bus(router, "hc", alive=True, timeout_s=2.0, report=lines.append) == 1
+        assert lines == ["no hilnav/hc/fusion/alive token"]
         fusion.declare_liveliness()
-        assert check_main(connect=router, vehicle="hc", alive=True, timeout_s=5.0) == 0
+        assert check_bus(router, "hc", alive=True, timeout_s=5.0) == 0
         stop = threading.Event()
 
         def ticker() -> None:
@@ -519,13 +520,24 @@ def test_health_check_command(router: str) -> None:
         t = threading.Thread(target=ticker)
         t.start()
         try:
-            assert main(["check", "--connect", router, "--key", "hilnav/hc/sim/truth"]) == 0
+            assert check_bus(router, keys=["hilnav/hc/sim/truth"]) == 0
         finally:
             stop.set()
             t.join()
     dead = f"tcp/127.0.0.1:{free_tcp_port()}"
-    assert check_main(connect=dead, timeout_s=0.3) == 1
-    assert main(["check", "--connect", "localhost:7447"]) == 2
+    lines.clear()
+    assert check_bus(dead, timeout_s=0.3, report=lines.append) == 1
+    assert lines == [f"no router at {dead}"]
+    lines.clear()
+    assert check_bus("localhost:7447", report=lines.append) == 2
+    assert len(lines) == 1 and lines[0].startswith("error: invalid Zenoh endpoint")
+
+
+def test_health_check_prints_nothing_itself(capsys: pytest.CaptureFixture[str]) -> None:
+    dead = f"tcp/127.0.0.1:{free_tcp_port()}"
+    assert check_bus(dead, timeout_s=0.3) == 1
+    assert check_bus("localhost:7447") == 2
+    assert capsys.readouterr() == ("", "")
 
 
 def test_router_runs_for_a_duration_and_reports_a_busy_port(router: str) -> None:

@@ -132,3 +132,20 @@ def test_list_json() -> None:
     assert "c172x" in choices["aircraft"] and "c310" in choices["aircraft"]
     assert set(choices["plans"]) == {"cruise", "racetrack", "climb-descent", "survey", "manoeuvre"}
     assert {"consumer-mems", "industrial-mems", "tactical", "paper-p2"} <= set(choices["imu"])
+
+
+def test_check_command_reports_the_deployment_health() -> None:
+    """GIVEN a running router with no fusion service WHEN `hilnav check` asks for the router
+    THEN exit 0, for the fusion's liveliness token THEN exit 1 with one line saying what is
+    missing, and a bad endpoint exits 2."""
+    from hil.router import zenoh_router
+
+    with zenoh_router() as endpoint:
+        ok = CliRunner().invoke(app, ["check", "--connect", endpoint, "--timeout", "3"])
+        assert ok.exit_code == 0, ok.output
+        missing = CliRunner().invoke(app, ["check", "--connect", endpoint, "--alive",
+                                           "--vehicle", "nobody", "--timeout", "1"])
+        assert missing.exit_code == 1
+        assert "alive" in missing.output and len(missing.output.strip().splitlines()) == 1
+    bad = CliRunner().invoke(app, ["check", "--connect", "not-an-endpoint"])
+    assert bad.exit_code == 2

@@ -338,6 +338,28 @@ def router(
         raise typer.Exit(code)
 
 
+# ------------------------------------------------------------------------------------- check
+@app.command()
+@cli_errors
+def check(
+    connect: Annotated[str, typer.Option(help="Zenoh router endpoint.")] = "tcp/127.0.0.1:7447",
+    vehicle: Annotated[str, typer.Option(help="Vehicle whose fusion/alive token --alive asks for.")
+                       ] = "sim1",
+    alive: Annotated[bool, typer.Option(help="Require the fusion service's liveliness token.")
+                     ] = False,
+    key: Annotated[list[str] | None, typer.Option(
+        "--key", help="A sample must arrive on this key expression (repeatable).")] = None,
+    timeout: Annotated[float, typer.Option(help="Overall time budget, s.")] = 5.0,
+) -> None:
+    """Health check of a running deployment (container health checks): exit 0 healthy, 1 not."""
+    from hil.bus import check_bus
+
+    code = check_bus(connect, vehicle, alive=alive, keys=tuple(key or ()), timeout_s=timeout,
+                     report=lambda line: err_console.print(line, highlight=False))
+    if code:
+        raise typer.Exit(code)
+
+
 # ---------------------------------------------------------------------------------------- up
 @app.command()
 @cli_errors

@@ -1,48 +1,27 @@
-"""``hilnav monitor``: live dashboard of one vehicle's Zenoh topics, and an MCAP recorder.
+"""Live dashboard of one vehicle: what the monitor knows from the bus, as a table or one line.
 
-The dashboard (``rich.live``) shows the filter mode, the position, the errors against truth,
-the GNSS outage timer, innovation test ratios and the health of every link (message rates, age
-of the last message, MAVLink link and Zenoh bus counters, the fusion service's liveliness
-token). Without a terminal (``--headless``, containers, CI) it prints one line per second.
-
-``--record FILE.mcap`` writes every sample of the vehicle's subtree to MCAP: one channel per
-key (``hilnav/<vehicle>/<topic>``), message encoding ``json``, each channel carrying its
-topic's JSON Schema (encoding ``jsonschema``, :data:`hil.bus.SCHEMAS`), so Foxglove Studio and
-PlotJuggler replay it as is. ``log_time`` is the wall-clock receive time; the simulated time is
-the payload's ``time_us``.
+The dashboard (``rich``) shows the filter mode, the position, the errors against truth, the
+GNSS outage timer, innovation test ratios and the health of every link (message rates, age of
+the last message, MAVLink link and Zenoh bus counters, the fusion service's liveliness token);
+:meth:`MonitorState.summary_line` is the one-line form for a headless monitor.
 """
 
 from __future__ import annotations
 
-import json
 import math
-import signal
-import sys
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Mapping
-from pathlib import Path
-from typing import IO, Any, Final, Self
+from collections.abc import Callable
+from typing import Any, Final
 
-from mcap.writer import CompressionType, Writer
-from rich.console import Console, Group
-from rich.live import Live
+from rich.console import Group
 from rich.table import Table
 from rich.text import Text
 
-from hil.bus import (
-    PUBLISHED_TOPICS,
-    SCHEMA_VERSION,
-    SCHEMAS,
-    Bus,
-    BusStats,
-    Message,
-    Topic,
-    validate_vehicle,
-)
+from hil.bus import PUBLISHED_TOPICS, BusStats, Message, Topic
 
-__all__ = ["McapRecorder", "MonitorState", "monitor_main"]
+__all__ = ["MonitorState"]
 
 _RATE_WINDOW_S: Final = 2.0
 _MODE_STYLE: Final = {
@@ -52,105 +31,6 @@ _MODE_STYLE: Final = {
     "initializing": "cyan",
 }
 
-
-class McapRecorder:
-    """Write :class:`hil.bus.Message` s to an MCAP file (thread-safe).
-
-    Parameters
-    ----------
-    path : Path
-        Output file (overwritten). Its folder must exist.
-    metadata : mapping of str -> str, optional
-        Written as an MCAP metadata record named ``hilnav``.
-
-    Attributes
-    ----------
-    messages : int
-        Messages written.
-    skipped : int
-        Samples not written because their payload is not a JSON object.
-    """
-
-    def __init__(self, path: Path, *, metadata: Mapping[str, str] | None = None) -> None:
-        path = Path(path)
-        if not path.parent.is_dir():
-            raise ValueError(f"record: folder {path.parent} does not exist")
-        self.path = path
-        self._file: IO[bytes] = path.open("wb")
-        self._writer = Writer(self._file, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
-        self._writer.start(profile="", library="hilnav")
-        self._writer.add_metadata(
-            "hilnav", {"schema_version": str(SCHEMA_VERSION), **dict(metadata or {})}
-        )
-        self._lock = threading.Lock()
-        self._schemas: dict[Topic, int] = {}
-        self._channels: dict[str, int] = {}
-        self._sequence: dict[int, int] = {}
-        self._closed = False
-        self.messages = 0
-        self.skipped = 0
-
-    def _channel(self, msg: Message) -> int:
-        cid = self._channels.get(msg.key)
-        if cid is not None:
-            return cid
-        schema_id = 0  # 0 = no schema (a key outside the key space)
-        if msg.topic is not None:
-            schema_id = self._schemas.get(msg.topic, 0)
-            if schema_id == 0:
-                schema = SCHEMAS[msg.topic]
-                schema_id = self._writer.register_schema(
-                    name=schema["title"],
-                    encoding="jsonschema",
-                    data=json.dumps(schema).encode(),
-                )
-                self._schemas[msg.topic] = schema_id
-        cid = self._writer.register_channel(
-            topic=msg.key, message_encoding="json", schema_id=schema_id, metadata={}
-        )
-        self._channels[msg.key] = cid
-        return cid
-
-    def write(self, msg: Message) -> None:
-        """Append one received sample (ignored after :meth:`close`)."""
-        with self._lock:
-            if self._closed:
-                return
-            if msg.payload is None:
-                self.skipped += 1
-                return
-            cid = self._channel(msg)
-            seq = self._sequence.get(cid, 0)
-            self._sequence[cid] = seq + 1
-            self._writer.add_message(
-                channel_id=cid,
-                log_time=msg.received_ns,
-                data=msg.raw,
-                publish_time=msg.received_ns,
-                sequence=seq,
-            )
-            self.messages += 1
-
-    @property
-    def topics(self) -> list[str]:
-        """Keys recorded so far."""
-        with self._lock:
-            return sorted(self._channels)
-
-    def close(self) -> None:
-        """Write the summary section and close the file (idempotent)."""
-        with self._lock:
-            if self._closed:
-                return
-            self._closed = True
-            self._writer.finish()
-            self._file.close()
-
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(self, *_exc: object) -> None:
-        self.close()
 
 
 def _f(v: Any, spec: str = ".2f", unit: str = "") -> str:
@@ -380,98 +260,3 @@ class MonitorState:
         grid.add_column()
         grid.add_row(nav, errs)
         return Group(head, grid, links)
-
-
-def monitor_main(
-    *,
-    connect: str,
-    vehicle: str,
-    record: Path | None,
-    duration_s: float | None,
-    headless: bool,
-) -> int:
-    """Subscribe to ``hilnav/<vehicle>/**`` and show it; optionally record it to MCAP.
-
-    Parameters
-    ----------
-    connect : str
-        Zenoh router endpoint, e.g. ``tcp/127.0.0.1:7447``. The monitor keeps running (and
-        says "no router") until the router answers, and reconnects when it restarts.
-    vehicle : str
-        Vehicle key chunk.
-    record : Path, optional
-        MCAP file to write (overwritten); its folder must exist.
-    duration_s : float, optional
-        Stop after this many wall-clock seconds (None: until Ctrl-C / SIGTERM).
-    headless : bool
-        One text line per second instead of the live table (also used when stdout is not a
-        terminal).
-
-    Returns
-    -------
-    int
-        0 after a clean stop. Bad input raises ``ValueError``.
-    """
-    validate_vehicle(vehicle)
-    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0.0):
-        raise ValueError(f"duration must be > 0 s, got {duration_s}")
-    if record is not None and Path(record).suffix.lower() != ".mcap":
-        raise ValueError(f"record: expected a .mcap file name, got {record}")
-    console = Console()
-    live_table = not headless and console.is_terminal
-    state = MonitorState(vehicle)
-    stop = threading.Event()
-    previous = None
-    if threading.current_thread() is threading.main_thread():
-        # `docker stop` sends SIGTERM: finish the MCAP file instead of dying mid-chunk
-        previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    recorder = (
-        McapRecorder(Path(record), metadata={"vehicle": vehicle, "connect": connect})
-        if record is not None
-        else None
-    )
-
-    def on_message(msg: Message) -> None:
-        state.ingest(msg)
-        if recorder is not None:
-            recorder.write(msg)
-
-    deadline = None if duration_s is None else time.monotonic() + duration_s
-    try:
-        with Bus(connect, vehicle=vehicle) as bus:
-            bus.subscribe("**", on_message)
-            bus.subscribe_liveliness(state.set_alive)
-            if live_table:
-                with Live(state.render(), console=console, refresh_per_second=4) as live:
-                    while _wait(stop, deadline, 0.25):
-                        state.set_bus(bus.stats())
-                        live.update(state.render())
-            else:
-                while _wait(stop, deadline, 1.0):
-                    state.set_bus(bus.stats())
-                    print(state.summary_line(), flush=True)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        if recorder is not None:
-            recorder.close()
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
-    total = sum(state.counts.values())
-    print(f"received {total} messages on {len(state.counts)} topics", file=sys.stderr)
-    if recorder is not None:
-        print(
-            f"recorded {recorder.messages} messages on {len(recorder.topics)} channels -> "
-            f"{recorder.path}",
-            file=sys.stderr,
-        )
-    return 0
-
-
-def _wait(stop: threading.Event, deadline: float | None, period_s: float) -> bool:
-    """Sleep one display period; False when it is time to stop."""
-    if deadline is not None:
-        period_s = min(period_s, deadline - time.monotonic())
-        if period_s <= 0.0:
-            return False
-    return not stop.wait(period_s)

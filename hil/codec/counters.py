@@ -1,0 +1,48 @@
+"""Decoder counters: what the decoder saw, every dropped frame or message counted once."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+__all__ = ["DecoderCounters"]
+
+
+@dataclass(slots=True)
+class DecoderCounters:
+    """What the decoder saw. Every frame or message dropped is counted in exactly one place.
+
+    Attributes
+    ----------
+    frames_ok : CRC-checked frames of known message ids.
+    bad_crc : frames with a CRC mismatch (dropped).
+    bad_signature : signed frames rejected by a configured signing key (dropped).
+    bad_frames : other framing errors: bad length, unknown incompat flags (dropped).
+    garbage_bytes : bytes skipped between frames (no start-of-frame marker).
+    unknown_msg_id : frames whose id the dialect does not know; pymavlink cannot check their
+        CRC (no CRC_EXTRA), so they are dropped.
+    ignored_msgs : valid messages that carry no sensor or truth data hilnav decodes.
+    samples : SI samples produced.
+    incomplete_fields : HIL_SENSOR / HIGHRES_IMU with only part of the accel+gyro or mag bits.
+    unscaled_raw_imu : RAW_IMU messages dropped because no :class:`RawImuScale` was given.
+    imu_duplicates : IMU messages with the same timestamp as the previous one (dropped).
+    imu_time_resets : IMU timestamps that went backwards (source restarted).
+    sim_resets : HIL_SENSOR frames with bit 31 ("simulation reset") set.
+    """
+
+    frames_ok: int = 0
+    bad_crc: int = 0
+    bad_signature: int = 0
+    bad_frames: int = 0
+    garbage_bytes: int = 0
+    unknown_msg_id: int = 0
+    ignored_msgs: int = 0
+    samples: int = 0
+    incomplete_fields: int = 0
+    unscaled_raw_imu: int = 0
+    imu_duplicates: int = 0
+    imu_time_resets: int = 0
+    sim_resets: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        """Counters as a plain dict (for JSON status output)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}

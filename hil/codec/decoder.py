@@ -1,0 +1,188 @@
+"""The MAVLink decoder: parses a byte stream, counts what it drops, and dispatches each sensor
+or truth message to its decoder.
+
+Messages of our simulator go to :mod:`hil.codec.hil_messages`, those of a real flight
+controller to :mod:`hil.codec.fc_messages`; IMU intervals and temperatures are remembered per
+source (:mod:`hil.codec.sources`). Everything dropped is counted in :class:`DecoderCounters`.
+
+CRCs are checked by pymavlink, except when the ``MAV_IGNORE_CRC`` environment variable is set
+(pymavlink reads it at import; never set it for hilnav).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from hil.codec.counters import DecoderCounters
+from hil.codec.fc_messages import (
+    SCALED_IMU_IDS,
+    SCALED_PRESSURE_IDS,
+    RawImuScale,
+    decode_gps_raw_int,
+    decode_raw_imu,
+    decode_scaled_imu,
+    decode_scaled_pressure,
+)
+from hil.codec.hil_messages import (
+    decode_hil_gps,
+    decode_hil_sensor,
+    decode_hil_state_quaternion,
+)
+from hil.codec.sources import DEFAULT_FIRST_IMU_DT_S, SourceState
+from hil.codec.wire import mavlink2
+from sim.samples import Sample, Truth
+
+__all__ = ["Decoded", "Decoder"]
+
+
+@dataclass(frozen=True, slots=True)
+class Decoded:
+    """One SI sample decoded from a MAVLink message, with where it came from."""
+
+    sample: Sample | Truth
+    system_id: int
+    component_id: int
+    msg_id: int
+
+
+class Decoder:
+    """Parse a MAVLink byte stream and turn sensor and truth messages into SI samples.
+
+    Stateful: it keeps partial frames between :meth:`feed` calls, the previous IMU timestamp
+    of each source (to infer ``ImuSample.dt_s``) and the last temperature of each HIL_SENSOR /
+    HIGHRES_IMU source.
+
+    Parameters
+    ----------
+    imu_dt_s : float, optional
+        ``dt_s`` given to the first IMU sample of each source (> 0). Default
+        :data:`DEFAULT_FIRST_IMU_DT_S` (0.0: unknown interval).
+    raw_imu_scale : RawImuScale, optional
+        Enables RAW_IMU decoding; without it RAW_IMU is counted and dropped.
+
+    Attributes
+    ----------
+    counters : DecoderCounters
+    mav : pymavlink MAVLink
+        The parser (robust parsing on). Configure signing on ``mav.signing`` to reject
+        unsigned or badly signed frames.
+    """
+
+    def __init__(
+        self, *, imu_dt_s: float | None = None, raw_imu_scale: RawImuScale | None = None
+    ) -> None:
+        if imu_dt_s is not None and not (math.isfinite(imu_dt_s) and imu_dt_s > 0.0):
+            raise ValueError(f"imu_dt_s must be a finite number > 0, got {imu_dt_s!r}")
+        first_dt_s = DEFAULT_FIRST_IMU_DT_S if imu_dt_s is None else float(imu_dt_s)
+        self._raw_imu_scale = raw_imu_scale
+        self.mav = mavlink2.MAVLink(None, srcSystem=0, srcComponent=0)
+        # Robust parsing returns MAVLink_bad_data objects (counted) instead of raising.
+        self.mav.robust_parsing = True
+        self.counters = DecoderCounters()
+        self._sources = SourceState(first_dt_s)
+
+    # -- bytes -> messages --
+    def parse(self, data: bytes) -> list[Any]:
+        """Parse bytes into valid pymavlink messages of known ids; count and drop the rest.
+
+        Parameters
+        ----------
+        data : bytes
+            Any slice of a MAVLink byte stream; an incomplete trailing frame is kept for the
+            next call.
+
+        Returns
+        -------
+        list of pymavlink MAVLink_message
+        """
+        msgs = self.mav.parse_buffer(data)
+        if not msgs:
+            return []
+        return [m for m in msgs if self._accept(m)]
+
+    def _accept(self, msg: Any) -> bool:
+        msg_id = msg.get_msgId()
+        if msg_id == mavlink2.MAVLINK_MSG_ID_BAD_DATA:
+            reason = str(getattr(msg, "reason", ""))
+            if reason == "Bad prefix":
+                self.counters.garbage_bytes += len(msg.data)
+            elif "CRC" in reason:
+                self.counters.bad_crc += 1
+            elif "signature" in reason:
+                self.counters.bad_signature += 1
+            else:
+                self.counters.bad_frames += 1
+            return False
+        if msg_id == mavlink2.MAVLINK_MSG_ID_UNKNOWN:
+            self.counters.unknown_msg_id += 1
+            return False
+        self.counters.frames_ok += 1
+        return True
+
+    def feed(self, data: bytes) -> list[Decoded]:
+        """Parse bytes and decode every sensor / truth message in them.
+
+        Parameters
+        ----------
+        data : bytes
+            Any slice of a MAVLink byte stream (partial frames are kept for the next call).
+
+        Returns
+        -------
+        list of Decoded
+            In stream order; one message may give several samples (HIL_SENSOR: IMU, mag, baro).
+        """
+        out: list[Decoded] = []
+        for msg in self.parse(data):
+            out.extend(self._decode(msg))
+        return out
+
+    def decode_message(self, msg: Any) -> list[Decoded]:
+        """Decode one pymavlink message object (e.g. from ``mavutil`` or a tlog reader).
+
+        Bad-data and unknown-id placeholders are counted and give no sample.
+
+        Parameters
+        ----------
+        msg : pymavlink MAVLink_message
+
+        Returns
+        -------
+        list of Decoded
+        """
+        if not self._accept(msg):
+            return []
+        return self._decode(msg)
+
+    # -- messages -> samples --
+    def _decode(self, msg: Any) -> list[Decoded]:
+        msg_id = msg.get_msgId()
+        sys_id = msg.get_srcSystem()
+        comp_id = msg.get_srcComponent()
+        samples: list[Sample | Truth]
+        if msg_id in (mavlink2.MAVLINK_MSG_ID_HIL_SENSOR, mavlink2.MAVLINK_MSG_ID_HIGHRES_IMU):
+            key = (sys_id, comp_id, msg_id, int(msg.id))
+            samples = decode_hil_sensor(msg, key, self._sources, self.counters)
+        elif msg_id == mavlink2.MAVLINK_MSG_ID_HIL_GPS:
+            samples = [decode_hil_gps(msg)]
+        elif msg_id == mavlink2.MAVLINK_MSG_ID_HIL_STATE_QUATERNION:
+            samples = [decode_hil_state_quaternion(msg)]
+        elif msg_id in SCALED_IMU_IDS:
+            key = (sys_id, comp_id, msg_id, SCALED_IMU_IDS[msg_id])
+            samples = decode_scaled_imu(msg, key, self._sources, self.counters)
+        elif msg_id == mavlink2.MAVLINK_MSG_ID_RAW_IMU:
+            key = (sys_id, comp_id, msg_id, int(msg.id))
+            samples = decode_raw_imu(
+                msg, key, self._sources, self.counters, self._raw_imu_scale
+            )
+        elif msg_id == mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT:
+            samples = [decode_gps_raw_int(msg)]
+        elif msg_id in SCALED_PRESSURE_IDS:
+            samples = [decode_scaled_pressure(msg, SCALED_PRESSURE_IDS[msg_id])]
+        else:
+            self.counters.ignored_msgs += 1
+            return []
+        self.counters.samples += len(samples)
+        return [Decoded(s, sys_id, comp_id, msg_id) for s in samples]

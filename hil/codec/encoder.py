@@ -1,0 +1,447 @@
+"""HIL encoder: SI samples and truth -> HIL_SENSOR, HIL_GPS and HIL_STATE_QUATERNION frames.
+
+Messages written (:class:`Encoder`)
+    ================================  ======================================================
+    HIL_SENSOR (107)                  IMU, magnetometer, barometer (one frame, one time)
+    HIL_GPS (113)                     GNSS fix; ``time_usec`` is the fix's time of validity
+    HIL_STATE_QUATERNION (115)        truth, sent from its own component id
+    ================================  ======================================================
+
+    HIL_SENSOR ``fields_updated`` carries only the bits of what was given (bits 0-2 accel,
+    3-5 gyro, 6-8 mag, 9 abs_pressure, 10 diff_pressure, 11 pressure_alt, 12 temperature).
+    Following PX4's reading ("temperature only updated with baro"), the temperature field and
+    bits 11/12 are sent only together with a barometer sample; ``pressure_alt`` is the ISA
+    pressure altitude of the static pressure. An IMU's own temperature is therefore not
+    transmitted.
+
+    HIL_GPS ``eph`` / ``epv``: the MAVLink text calls them "dilution of position", but PX4's
+    simulator interface (``simulator_mavlink``) and MAVROS read them as centimetres of 1-sigma
+    horizontal / vertical position accuracy (``eph * 1e-2`` = metres). hilnav follows PX4:
+    ``eph = round(100 * GnssFix.eph_m)``; ``UINT16_MAX`` (65535) means unknown (a NaN or
+    infinite accuracy is sent as unknown, an unknown is decoded as NaN). HIL_GPS has no speed
+    accuracy field: decoded fixes carry ``speed_accuracy_mps = nan``. ``vel`` is the ground
+    speed, ``cog`` the course over ground derived from the NED velocity (65535 when the ground
+    speed is zero) and ``yaw`` is 0 (= unknown); on decode only ``vn/ve/vd`` are used.
+
+    HIL_STATE_QUATERNION ``xacc/yacc/zacc`` carry the truth's specific force in body FRD
+    (mG, 1 mG = 9.80665e-3 m/s^2). The message has no pressure or temperature: a decoded
+    :class:`~sim.samples.Truth` has ``static_pressure_pa = temperature_k = nan``.
+
+Saturation
+    Values beyond a wire field's range are clipped to that range, never wrapped; every clip is
+    counted in :attr:`Encoder.saturations` under ``"MESSAGE.field"`` (e.g. a velocity above
+    327.67 m/s in an int16 cm/s field). Non-finite values where a number is required, or values
+    outside their physical domain (``|lat| > 90 deg``, negative time), raise ``ValueError``.
+
+Wire quantisation (what a round trip may lose)
+    float32 fields round to half a float32 ulp: a relative error <= 2**-24 (6.0e-8).
+    ``abs_pressure`` is float32 hPa: from 512 to 1024 hPa (sea level up to ~5 km) one ulp is
+    2**-14 hPa = 6.1e-3 Pa, so the round-trip error is <= 3.1e-3 Pa (<= 6.1e-3 Pa from 1024 to
+    2048 hPa, smaller still at altitude) — about 0.3 mm of height, far below any barometer's
+    noise. The temperature (float32 degC) loses <= 1e-6 K at room temperature. degE7 angles
+    round to 5e-8 deg (<= 5.6 mm on the ground); ``alt`` rounds to 0.5 mm; cm/s velocities to
+    5 mm/s; ``eph/epv`` to 5 mm; mG specific forces to 4.9e-3 m/s^2.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from hil.codec.wire import (
+    DEGE7_PER_RAD,
+    FLOAT32_MAX,
+    INT16_MAX,
+    INT16_MIN,
+    INT32_MAX,
+    INT32_MIN,
+    KELVIN_AT_0_CELSIUS,
+    PA_PER_HPA,
+    SENSOR_COMPONENT_ID,
+    TESLA_PER_GAUSS,
+    TRUTH_COMPONENT_ID,
+    UINT8_MAX,
+    UINT16_MAX,
+    UINT64_MAX,
+    HilSensorField,
+    mavlink2,
+)
+from physconst import G0_MPS2, ISA_L0_KPM, ISA_P0_PA, ISA_T0_K  # G0: MAVLink's mG is 1e-3 G0
+from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Truth
+
+__all__ = ["Encoder"]
+
+# ISA troposphere, for HIL_SENSOR.pressure_alt only (the fusion never reads it back).
+_ISA_P0_PA: Final = ISA_P0_PA
+_ISA_T0_K: Final = ISA_T0_K
+_ISA_LAPSE_KPM: Final = -ISA_L0_KPM
+_ISA_EXPONENT: Final = 0.190263  # R * L / (g0 * M) for dry air
+
+
+def _finite(value: float, name: str) -> float:
+    x = float(value)
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be finite, got {x!r}")
+    return x
+
+
+def _vec(value: ArrayLike, name: str, n: int = 3) -> list[float]:
+    """A length-``n`` finite vector as Python floats (cheaper than numpy for 3 elements)."""
+    v = np.asarray(value, dtype=np.float64)
+    if v.shape != (n,):
+        raise ValueError(f"{name} must have shape ({n},), got {v.shape}")
+    xs: list[float] = v.tolist()
+    if not all(math.isfinite(x) for x in xs):
+        raise ValueError(f"{name} must be finite, got {xs}")
+    return xs
+
+
+def _time_us(value: int, name: str) -> int:
+    try:
+        t = int(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be an integer number of microseconds") from exc
+    if t != value or not 0 <= t <= UINT64_MAX:
+        raise ValueError(f"{name} must be an integer in [0, 2**64), got {value!r}")
+    return t
+
+
+def _uint8(value: int, name: str) -> int:
+    v = int(value)
+    if v != value or not 0 <= v <= UINT8_MAX:
+        raise ValueError(f"{name} must be an integer in [0, 255], got {value!r}")
+    return v
+
+
+def _component_id(value: int, name: str) -> int:
+    v = int(value)
+    if v != value or not 1 <= v <= UINT8_MAX:
+        raise ValueError(f"{name} must be an integer in [1, 255] (0 is broadcast), got {value!r}")
+    return v
+
+
+def _isa_pressure_altitude_m(pressure_pa: float) -> float:
+    """ISA (troposphere) pressure altitude of a static pressure.
+
+    Parameters
+    ----------
+    pressure_pa : float
+        Static pressure, Pa (> 0).
+
+    Returns
+    -------
+    float
+        Pressure altitude, m: ``T0 / L * (1 - (p / p0) ** (R L / g M))``.
+    """
+    return _ISA_T0_K / _ISA_LAPSE_KPM * (1.0 - (pressure_pa / _ISA_P0_PA) ** _ISA_EXPONENT)
+
+
+class Encoder:
+    """Encode SI samples into MAVLink 2 frames (HIL_SENSOR, HIL_GPS, HIL_STATE_QUATERNION).
+
+    Parameters
+    ----------
+    system_id : int
+        MAVLink system id of the simulated vehicle, 1..255.
+    sensor_component_id : int
+        Component that sends HIL_SENSOR and HIL_GPS (default 200, ``MAV_COMP_ID_IMU``).
+    truth_component_id : int
+        Component that sends HIL_STATE_QUATERNION (default 25, ``MAV_COMP_ID_USER1``); must
+        differ from ``sensor_component_id`` so a receiver can tell truth from sensors.
+
+    Attributes
+    ----------
+    saturations : collections.Counter[str]
+        Number of values clipped to their wire range, keyed ``"MESSAGE.field"``.
+    """
+
+    def __init__(
+        self,
+        *,
+        system_id: int = 1,
+        sensor_component_id: int = SENSOR_COMPONENT_ID,
+        truth_component_id: int = TRUTH_COMPONENT_ID,
+    ) -> None:
+        sys_id = _component_id(system_id, "system_id")
+        sensor_comp = _component_id(sensor_component_id, "sensor_component_id")
+        truth_comp = _component_id(truth_component_id, "truth_component_id")
+        if sensor_comp == truth_comp:
+            raise ValueError(
+                "truth_component_id must differ from sensor_component_id "
+                f"(both are {sensor_comp}): receivers tell truth from sensors by component"
+            )
+        self.system_id = sys_id
+        self.sensor_component_id = sensor_comp
+        self.truth_component_id = truth_comp
+        self._sensor_mav = mavlink2.MAVLink(None, srcSystem=sys_id, srcComponent=sensor_comp)
+        self._truth_mav = mavlink2.MAVLink(None, srcSystem=sys_id, srcComponent=truth_comp)
+        self.saturations: Counter[str] = Counter()
+
+    # -- helpers that clip to the wire range and count it --
+    def _f32(self, value: float, field: str) -> float:
+        if value > FLOAT32_MAX:
+            self.saturations[field] += 1
+            return FLOAT32_MAX
+        if value < -FLOAT32_MAX:
+            self.saturations[field] += 1
+            return -FLOAT32_MAX
+        return value
+
+    def _f32_vec(self, xs: list[float], names: tuple[str, ...], msg: str) -> list[float]:
+        if all(-FLOAT32_MAX <= x <= FLOAT32_MAX for x in xs):
+            return xs
+        return [self._f32(x, f"{msg}.{n}") for x, n in zip(xs, names, strict=True)]
+
+    def _int(self, value: float, lo: int, hi: int, field: str) -> int:
+        if value > hi:
+            self.saturations[field] += 1
+            return hi
+        if value < lo:
+            self.saturations[field] += 1
+            return lo
+        return round(value)
+
+    @staticmethod
+    def _pack(msg: Any, mav: Any) -> bytes:
+        frame: bytes = msg.pack(mav)
+        # MAVLink.send() would advance the sequence; pack() alone does not.
+        mav.seq = (mav.seq + 1) % 256
+        return frame
+
+    def sensors(
+        self,
+        imu: ImuSample | None,
+        baro: BaroSample | None = None,
+        mag: MagSample | None = None,
+        *,
+        time_us: int | None = None,
+        diff_pressure_pa: float | None = None,
+    ) -> bytes:
+        """One HIL_SENSOR frame with ``fields_updated`` bits for exactly what is given.
+
+        Parameters
+        ----------
+        imu : ImuSample or None
+            Specific force (m/s^2, FRD) and angular rate (rad/s) -> bits 0-5.
+            ``dt_s`` and ``temperature_k`` are not transmitted.
+        baro : BaroSample or None
+            Static pressure -> ``abs_pressure`` hPa (bit 9), ISA ``pressure_alt`` (bit 11),
+            temperature degC (bit 12).
+        mag : MagSample or None
+            Flux density, T -> gauss (bits 6-8).
+        time_us : int, optional
+            ``time_usec`` of the frame (simulated time). Default: the samples' common
+            ``time_us``; samples with different times need it explicitly.
+        diff_pressure_pa : float, optional
+            Differential (pitot) pressure, Pa -> ``diff_pressure`` hPa (bit 10).
+
+        Returns
+        -------
+        bytes
+            One MAVLink 2 frame from the sensor component.
+
+        Raises
+        ------
+        ValueError
+            Nothing given, samples disagreeing on time or sensor id, non-finite values.
+        """
+        given: list[tuple[str, ImuSample | BaroSample | MagSample]] = [
+            (name, s) for name, s in (("imu", imu), ("baro", baro), ("mag", mag)) if s is not None
+        ]
+        if not given and diff_pressure_pa is None:
+            raise ValueError("sensors() needs at least one of imu, baro, mag, diff_pressure_pa")
+        if time_us is None:
+            if not given:
+                raise ValueError("time_us is required when only diff_pressure_pa is given")
+            first_name, first = given[0]
+            for name, s in given[1:]:
+                if s.time_us != first.time_us:
+                    raise ValueError(
+                        f"{name}.time_us ({s.time_us}) differs from {first_name}.time_us "
+                        f"({first.time_us}); pass time_us explicitly"
+                    )
+            t = _time_us(first.time_us, f"{first_name}.time_us")
+        else:
+            t = _time_us(time_us, "time_us")
+        sensor_id = 0
+        if given:
+            first_name, first = given[0]
+            sensor_id = _uint8(first.sensor_id, f"{first_name}.sensor_id")
+            for name, s in given[1:]:
+                if s.sensor_id != first.sensor_id:
+                    raise ValueError(
+                        f"{name}.sensor_id ({s.sensor_id}) differs from {first_name}.sensor_id "
+                        f"({first.sensor_id}): HIL_SENSOR has one id field"
+                    )
+
+        bits = 0
+        acc = gyro = mag_g = [0.0, 0.0, 0.0]  # sent as zeros when their bits are clear
+        abs_hpa = diff_hpa = alt_m = temp_c = 0.0
+        if imu is not None:
+            f = _vec(imu.specific_force_b_mps2, "imu.specific_force_b_mps2")
+            w = _vec(imu.angular_rate_b_rps, "imu.angular_rate_b_rps")
+            acc = self._f32_vec(f, ("xacc", "yacc", "zacc"), "HIL_SENSOR")
+            gyro = self._f32_vec(w, ("xgyro", "ygyro", "zgyro"), "HIL_SENSOR")
+            bits |= HilSensorField.IMU
+        if mag is not None:
+            b_gauss = [x / TESLA_PER_GAUSS for x in _vec(mag.field_b_tesla, "mag.field_b_tesla")]
+            mag_g = self._f32_vec(b_gauss, ("xmag", "ymag", "zmag"), "HIL_SENSOR")
+            bits |= HilSensorField.MAG
+        if baro is not None:
+            p = _finite(baro.pressure_pa, "baro.pressure_pa")
+            if p <= 0.0:
+                raise ValueError(f"baro.pressure_pa must be > 0, got {p!r}")
+            temp_k = _finite(baro.temperature_k, "baro.temperature_k")
+            abs_hpa = self._f32(p / PA_PER_HPA, "HIL_SENSOR.abs_pressure")
+            alt_m = _isa_pressure_altitude_m(p)
+            temp_c = self._f32(temp_k - KELVIN_AT_0_CELSIUS, "HIL_SENSOR.temperature")
+            bits |= HilSensorField.BARO
+        if diff_pressure_pa is not None:
+            diff_hpa = self._f32(
+                _finite(diff_pressure_pa, "diff_pressure_pa") / PA_PER_HPA,
+                "HIL_SENSOR.diff_pressure",
+            )
+            bits |= HilSensorField.DIFF_PRESSURE
+        msg = mavlink2.MAVLink_hil_sensor_message(
+            t, *acc, *gyro, *mag_g, abs_hpa, diff_hpa, alt_m, temp_c, bits, sensor_id
+        )
+        return self._pack(msg, self._sensor_mav)
+
+    def gnss(self, fix: GnssFix) -> bytes:
+        """One HIL_GPS frame (``time_usec`` = the fix's time of validity).
+
+        Parameters
+        ----------
+        fix : GnssFix
+            Position (rad, m MSL), NED velocity (m/s), 1-sigma accuracies (m; NaN/inf =
+            unknown), fix type, satellites, receiver id.
+
+        Returns
+        -------
+        bytes
+            One MAVLink 2 frame from the sensor component.
+        """
+        t = _time_us(fix.time_us, "fix.time_us")
+        lat_e7, lon_e7 = self._lat_lon_e7(fix.lat_rad, fix.lon_rad, "fix")
+        alt_mm = self._int(
+            _finite(fix.alt_msl_m, "fix.alt_msl_m") * 1e3, INT32_MIN, INT32_MAX, "HIL_GPS.alt"
+        )
+        v = [x * 100.0 for x in _vec(fix.v_ned_mps, "fix.v_ned_mps")]
+        vn, ve, vd = (
+            self._int(x, INT16_MIN, INT16_MAX, f"HIL_GPS.{n}")
+            for x, n in zip(v, ("vn", "ve", "vd"), strict=True)
+        )
+        ground_cms = math.hypot(v[0], v[1])
+        vel = self._int(ground_cms, 0, UINT16_MAX - 1, "HIL_GPS.vel")
+        if ground_cms > 0.0:
+            cog_deg = math.degrees(math.atan2(v[1], v[0])) % 360.0
+            cog = round(cog_deg * 100.0) % 36000
+        else:
+            cog = UINT16_MAX
+        eph = self._accuracy_cm(fix.eph_m, "fix.eph_m", "HIL_GPS.eph")
+        epv = self._accuracy_cm(fix.epv_m, "fix.epv_m", "HIL_GPS.epv")
+        msg = mavlink2.MAVLink_hil_gps_message(
+            t,
+            _uint8(fix.fix_type, "fix.fix_type"),
+            lat_e7,
+            lon_e7,
+            alt_mm,
+            eph,
+            epv,
+            vel,
+            vn,
+            ve,
+            vd,
+            cog,
+            _uint8(fix.satellites_visible, "fix.satellites_visible"),
+            _uint8(fix.sensor_id, "fix.sensor_id"),
+            0,  # yaw: 0 = unknown (no dual-antenna heading in GnssFix)
+        )
+        return self._pack(msg, self._sensor_mav)
+
+    def truth(self, truth: Truth) -> bytes:
+        """One HIL_STATE_QUATERNION frame from the truth component.
+
+        Parameters
+        ----------
+        truth : Truth
+            True state; pressure and temperature are not transmitted.
+
+        Returns
+        -------
+        bytes
+            One MAVLink 2 frame from the truth component.
+        """
+        t = _time_us(truth.time_us, "truth.time_us")
+        q = _vec(truth.q_nb, "truth.q_nb", 4)
+        w = _vec(truth.omega_b_rps, "truth.omega_b_rps")
+        m = "HIL_STATE_QUATERNION"
+        lat_e7, lon_e7 = self._lat_lon_e7(truth.lat_rad, truth.lon_rad, "truth")
+        alt_mm = self._int(
+            _finite(truth.alt_msl_m, "truth.alt_msl_m") * 1e3, INT32_MIN, INT32_MAX, f"{m}.alt"
+        )
+        v = [x * 100.0 for x in _vec(truth.v_ned_mps, "truth.v_ned_mps")]
+        vx, vy, vz = (
+            self._int(x, INT16_MIN, INT16_MAX, f"{m}.{n}")
+            for x, n in zip(v, ("vx", "vy", "vz"), strict=True)
+        )
+        ias = self._int(
+            _finite(truth.indicated_airspeed_mps, "truth.indicated_airspeed_mps") * 100.0,
+            0,
+            UINT16_MAX,
+            f"{m}.ind_airspeed",
+        )
+        tas = self._int(
+            _finite(truth.airspeed_mps, "truth.airspeed_mps") * 100.0,
+            0,
+            UINT16_MAX,
+            f"{m}.true_airspeed",
+        )
+        f_b = _vec(truth.specific_force_b_mps2, "truth.specific_force_b_mps2")
+        f_mg = [x / (G0_MPS2 * 1e-3) for x in f_b]
+        xacc, yacc, zacc = (
+            self._int(x, INT16_MIN, INT16_MAX, f"{m}.{n}")
+            for x, n in zip(f_mg, ("xacc", "yacc", "zacc"), strict=True)
+        )
+        msg = mavlink2.MAVLink_hil_state_quaternion_message(
+            t,
+            self._f32_vec(q, ("attitude_quaternion",) * 4, m),
+            *self._f32_vec(w, ("rollspeed", "pitchspeed", "yawspeed"), m),
+            lat_e7,
+            lon_e7,
+            alt_mm,
+            vx,
+            vy,
+            vz,
+            ias,
+            tas,
+            xacc,
+            yacc,
+            zacc,
+        )
+        return self._pack(msg, self._truth_mav)
+
+    @staticmethod
+    def _lat_lon_e7(lat_rad: float, lon_rad: float, owner: str) -> tuple[int, int]:
+        lat = _finite(lat_rad, f"{owner}.lat_rad")
+        lon = _finite(lon_rad, f"{owner}.lon_rad")
+        if abs(lat) > math.pi / 2:
+            raise ValueError(f"{owner}.lat_rad must be in [-pi/2, pi/2], got {lat!r}")
+        # Longitude is periodic: normalise to [-180, 180) deg rather than reject.
+        lon = (lon + math.pi) % (2.0 * math.pi) - math.pi
+        lat_e7 = round(lat * DEGE7_PER_RAD)
+        lon_e7 = round(lon * DEGE7_PER_RAD)
+        return lat_e7, lon_e7
+
+    def _accuracy_cm(self, value_m: float, name: str, field: str) -> int:
+        x = float(value_m)
+        if math.isnan(x) or math.isinf(x):
+            return UINT16_MAX  # unknown
+        if x < 0.0:
+            raise ValueError(f"{name} must be >= 0 (or NaN for unknown), got {x!r}")
+        # 65535 means unknown, so the largest known accuracy is 655.34 m.
+        return self._int(x * 100.0, 0, UINT16_MAX - 1, field)

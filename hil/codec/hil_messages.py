@@ -1,0 +1,133 @@
+"""Decoder of hilnav's HIL messages: HIL_SENSOR, HIL_GPS, HIL_STATE_QUATERNION -> SI samples.
+
+HIL_SENSOR (and HIGHRES_IMU, which has the same fields and ``fields_updated`` bits)
+    -> ImuSample (needs all six accel+gyro bits), MagSample (bits 6-8), BaroSample (bit 9; the
+    temperature is the last one received with bit 12 from that source, NaN before the first).
+    ImuSample's temperature is that same last temperature.
+HIL_GPS -> GnssFix; HIL_STATE_QUATERNION -> Truth (from any component: filtering truth from
+    sensors is the consumer's decision, made on ``Decoded.component_id``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from hil.codec.counters import DecoderCounters
+from hil.codec.sources import SourceKey, SourceState
+from hil.codec.wire import (
+    DEGE7_PER_RAD,
+    KELVIN_AT_0_CELSIUS,
+    PA_PER_HPA,
+    TESLA_PER_GAUSS,
+    UINT16_MAX,
+    HilSensorField,
+)
+from physconst import G0_MPS2  # MAVLink's mG is 1e-3 G0
+from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Sample, Truth
+
+__all__ = ["decode_hil_gps", "decode_hil_sensor", "decode_hil_state_quaternion"]
+
+
+def decode_hil_sensor(
+    msg: Any, key: SourceKey, sources: SourceState, counters: DecoderCounters
+) -> list[Sample | Truth]:
+    """HIL_SENSOR or HIGHRES_IMU -> ImuSample, MagSample, BaroSample, as its bits say.
+
+    Parameters
+    ----------
+    msg : pymavlink HIL_SENSOR or HIGHRES_IMU message
+    key : SourceKey
+        (system, component, message id, sensor id) of the message.
+    sources : SourceState
+        IMU timestamps and temperatures of the decoder, updated here.
+    counters : DecoderCounters
+        Incomplete field sets and simulation resets are counted here.
+
+    Returns
+    -------
+    list of ImuSample, MagSample, BaroSample
+    """
+    bits = int(msg.fields_updated)
+    t = int(msg.time_usec)
+    sensor_id = key[3]
+    out: list[Sample | Truth] = []
+    if bits & HilSensorField.SIM_RESET:
+        counters.sim_resets += 1
+        sources.restart(key)
+    if bits & HilSensorField.TEMPERATURE:
+        sources.last_temperature_k[key] = float(msg.temperature) + KELVIN_AT_0_CELSIUS
+    temperature_k = sources.last_temperature_k.get(key, math.nan)
+    imu_bits = bits & HilSensorField.IMU
+    if imu_bits == HilSensorField.IMU:
+        dt = sources.imu_dt_s(key, t, counters)
+        if dt is not None:
+            out.append(
+                ImuSample(
+                    time_us=t,
+                    dt_s=dt,
+                    specific_force_b_mps2=np.array(
+                        [msg.xacc, msg.yacc, msg.zacc], dtype=np.float64
+                    ),
+                    angular_rate_b_rps=np.array(
+                        [msg.xgyro, msg.ygyro, msg.zgyro], dtype=np.float64
+                    ),
+                    temperature_k=temperature_k,
+                    sensor_id=sensor_id,
+                )
+            )
+    elif imu_bits:
+        counters.incomplete_fields += 1
+    mag_bits = bits & HilSensorField.MAG
+    if mag_bits == HilSensorField.MAG:
+        field_g = np.array([msg.xmag, msg.ymag, msg.zmag], dtype=np.float64)
+        out.append(MagSample(t, field_g * TESLA_PER_GAUSS, sensor_id))
+    elif mag_bits:
+        counters.incomplete_fields += 1
+    if bits & HilSensorField.ABS_PRESSURE:
+        out.append(
+            BaroSample(t, float(msg.abs_pressure) * PA_PER_HPA, temperature_k, sensor_id)
+        )
+    return out
+
+
+def decode_hil_gps(msg: Any) -> GnssFix:
+    """HIL_GPS -> GnssFix (accuracies NaN when unknown; no speed accuracy on the wire)."""
+
+    def accuracy_m(cm: int) -> float:
+        return math.nan if cm == UINT16_MAX else cm * 1e-2
+
+    return GnssFix(
+        time_us=int(msg.time_usec),
+        lat_rad=msg.lat / DEGE7_PER_RAD,
+        lon_rad=msg.lon / DEGE7_PER_RAD,
+        alt_msl_m=msg.alt * 1e-3,
+        v_ned_mps=np.array([msg.vn, msg.ve, msg.vd], dtype=np.float64) * 1e-2,
+        eph_m=accuracy_m(msg.eph),
+        epv_m=accuracy_m(msg.epv),
+        speed_accuracy_mps=math.nan,  # HIL_GPS has no speed accuracy field
+        fix_type=int(msg.fix_type),
+        satellites_visible=int(msg.satellites_visible),
+        sensor_id=int(msg.id),
+    )
+
+
+def decode_hil_state_quaternion(msg: Any) -> Truth:
+    """HIL_STATE_QUATERNION -> Truth (no pressure or temperature on the wire: NaN)."""
+    mg = G0_MPS2 * 1e-3
+    return Truth(
+        time_us=int(msg.time_usec),
+        lat_rad=msg.lat / DEGE7_PER_RAD,
+        lon_rad=msg.lon / DEGE7_PER_RAD,
+        alt_msl_m=msg.alt * 1e-3,
+        v_ned_mps=np.array([msg.vx, msg.vy, msg.vz], dtype=np.float64) * 1e-2,
+        q_nb=np.array(msg.attitude_quaternion, dtype=np.float64),
+        omega_b_rps=np.array([msg.rollspeed, msg.pitchspeed, msg.yawspeed], dtype=np.float64),
+        specific_force_b_mps2=np.array([msg.xacc, msg.yacc, msg.zacc], dtype=np.float64) * mg,
+        static_pressure_pa=math.nan,  # not in HIL_STATE_QUATERNION
+        temperature_k=math.nan,  # not in HIL_STATE_QUATERNION
+        airspeed_mps=msg.true_airspeed * 1e-2,
+        indicated_airspeed_mps=msg.ind_airspeed * 1e-2,
+    )

@@ -1,0 +1,88 @@
+"""MAVLink wire conventions of hilnav: the dialect, wire units, integer ranges, component ids.
+
+This package (:mod:`hil.codec`) is the only part of hilnav that knows MAVLink's wire units
+(degE7, mm, cm/s, cdeg, hPa, mG, gauss, cdegC); what it returns is SI (see ``sim.samples`` and
+``fusion``'s package docstring for frames and quaternion order).
+
+Dialect
+    One explicit dialect module, ``pymavlink.dialects.v20.ardupilotmega`` (a superset of
+    ``common``; ArduPilot-specific messages in a real flight controller's stream are then
+    "known, ignored" instead of "unknown"), MAVLink 2 framing. The process-global dialect that
+    ``pymavlink.mavutil`` picks from environment variables is never used. Import the dialect
+    from here (:data:`mavlink2`, also ``hil.codec.mavlink2``) so every hilnav module agrees on
+    it.
+
+Component ids
+    Sensors (HIL_SENSOR, HIL_GPS) come from :data:`SENSOR_COMPONENT_ID` = 200
+    (``MAV_COMP_ID_IMU``), truth from :data:`TRUTH_COMPONENT_ID` = 25 (``MAV_COMP_ID_USER1``,
+    the private-use range: no autopilot or ground station gives it a meaning, and a consumer
+    separates truth from sensors by component). Each component has its own sequence counter,
+    as MAVLink requires.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+__all__ = [
+    "DEGE7_PER_RAD",
+    "FLOAT32_MAX",
+    "INT16_MAX",
+    "INT16_MIN",
+    "INT32_MAX",
+    "INT32_MIN",
+    "KELVIN_AT_0_CELSIUS",
+    "PA_PER_HPA",
+    "SENSOR_COMPONENT_ID",
+    "TESLA_PER_GAUSS",
+    "TRUTH_COMPONENT_ID",
+    "UINT8_MAX",
+    "UINT16_MAX",
+    "UINT64_MAX",
+    "HilSensorField",
+    "mavlink2",
+]
+
+TESLA_PER_GAUSS: Final = 1e-4
+PA_PER_HPA: Final = 100.0
+KELVIN_AT_0_CELSIUS: Final = 273.15
+DEGE7_PER_RAD: Final = 1e7 * 180.0 / math.pi
+UINT8_MAX: Final = 0xFF
+UINT16_MAX: Final = 0xFFFF
+INT16_MIN: Final = -0x8000
+INT16_MAX: Final = 0x7FFF
+INT32_MIN: Final = -0x8000_0000
+INT32_MAX: Final = 0x7FFF_FFFF
+UINT64_MAX: Final = 0xFFFF_FFFF_FFFF_FFFF
+FLOAT32_MAX: Final = float(np.finfo(np.float32).max)
+
+SENSOR_COMPONENT_ID: Final = int(mavlink2.MAV_COMP_ID_IMU)  # 200
+TRUTH_COMPONENT_ID: Final = int(mavlink2.MAV_COMP_ID_USER1)  # 25
+
+
+class HilSensorField:
+    """Bits of HIL_SENSOR / HIGHRES_IMU ``fields_updated`` (same layout in both messages)."""
+
+    XACC: Final = 1 << 0
+    YACC: Final = 1 << 1
+    ZACC: Final = 1 << 2
+    XGYRO: Final = 1 << 3
+    YGYRO: Final = 1 << 4
+    ZGYRO: Final = 1 << 5
+    XMAG: Final = 1 << 6
+    YMAG: Final = 1 << 7
+    ZMAG: Final = 1 << 8
+    ABS_PRESSURE: Final = 1 << 9
+    DIFF_PRESSURE: Final = 1 << 10
+    PRESSURE_ALT: Final = 1 << 11
+    TEMPERATURE: Final = 1 << 12
+    SIM_RESET: Final = 1 << 31
+    ACCEL: Final = XACC | YACC | ZACC
+    GYRO: Final = XGYRO | YGYRO | ZGYRO
+    IMU: Final = ACCEL | GYRO
+    MAG: Final = XMAG | YMAG | ZMAG
+    BARO: Final = ABS_PRESSURE | PRESSURE_ALT | TEMPERATURE

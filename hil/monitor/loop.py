@@ -1,0 +1,118 @@
+"""``hilnav monitor``: subscribe to one vehicle's topics, show them, optionally record them.
+
+Without a terminal (``headless``, containers, CI) the dashboard prints one line per second;
+``record`` writes every sample of the vehicle's subtree to MCAP (:mod:`hil.monitor.recorder`).
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+from rich.console import Console
+from rich.live import Live
+
+from hil.bus import Bus, Message, validate_vehicle
+from hil.monitor.dashboard import MonitorState
+from hil.monitor.recorder import McapRecorder
+
+__all__ = ["monitor_main"]
+
+
+def monitor_main(
+    *,
+    connect: str,
+    vehicle: str,
+    record: Path | None,
+    duration_s: float | None,
+    headless: bool,
+) -> int:
+    """Subscribe to ``hilnav/<vehicle>/**`` and show it; optionally record it to MCAP.
+
+    Parameters
+    ----------
+    connect : str
+        Zenoh router endpoint, e.g. ``tcp/127.0.0.1:7447``. The monitor keeps running (and
+        says "no router") until the router answers, and reconnects when it restarts.
+    vehicle : str
+        Vehicle key chunk.
+    record : Path, optional
+        MCAP file to write (overwritten); its folder must exist.
+    duration_s : float, optional
+        Stop after this many wall-clock seconds (None: until Ctrl-C / SIGTERM).
+    headless : bool
+        One text line per second instead of the live table (also used when stdout is not a
+        terminal).
+
+    Returns
+    -------
+    int
+        0 after a clean stop. Bad input raises ``ValueError``.
+    """
+    validate_vehicle(vehicle)
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0.0):
+        raise ValueError(f"duration must be > 0 s, got {duration_s}")
+    if record is not None and Path(record).suffix.lower() != ".mcap":
+        raise ValueError(f"record: expected a .mcap file name, got {record}")
+    console = Console()
+    live_table = not headless and console.is_terminal
+    state = MonitorState(vehicle)
+    stop = threading.Event()
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        # `docker stop` sends SIGTERM: finish the MCAP file instead of dying mid-chunk
+        previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    recorder = (
+        McapRecorder(Path(record), metadata={"vehicle": vehicle, "connect": connect})
+        if record is not None
+        else None
+    )
+
+    def on_message(msg: Message) -> None:
+        state.ingest(msg)
+        if recorder is not None:
+            recorder.write(msg)
+
+    deadline = None if duration_s is None else time.monotonic() + duration_s
+    try:
+        with Bus(connect, vehicle=vehicle) as bus:
+            bus.subscribe("**", on_message)
+            bus.subscribe_liveliness(state.set_alive)
+            if live_table:
+                with Live(state.render(), console=console, refresh_per_second=4) as live:
+                    while _wait(stop, deadline, 0.25):
+                        state.set_bus(bus.stats())
+                        live.update(state.render())
+            else:
+                while _wait(stop, deadline, 1.0):
+                    state.set_bus(bus.stats())
+                    print(state.summary_line(), flush=True)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if recorder is not None:
+            recorder.close()
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+    total = sum(state.counts.values())
+    print(f"received {total} messages on {len(state.counts)} topics", file=sys.stderr)
+    if recorder is not None:
+        print(
+            f"recorded {recorder.messages} messages on {len(recorder.topics)} channels -> "
+            f"{recorder.path}",
+            file=sys.stderr,
+        )
+    return 0
+
+
+def _wait(stop: threading.Event, deadline: float | None, period_s: float) -> bool:
+    """Sleep one display period; False when it is time to stop."""
+    if deadline is not None:
+        period_s = min(period_s, deadline - time.monotonic())
+        if period_s <= 0.0:
+            return False
+    return not stop.wait(period_s)
