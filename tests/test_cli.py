@@ -147,5 +147,7 @@ def test_check_command_reports_the_deployment_health() -> None:
                                            "--vehicle", "nobody", "--timeout", "1"])
         assert missing.exit_code == 1
         assert "alive" in missing.output and len(missing.output.strip().splitlines()) == 1
+        bad_key = CliRunner().invoke(app, ["check", "--connect", endpoint, "--key", "a//b"])
+        assert bad_key.exit_code == 2 and "Traceback" not in bad_key.output
     bad = CliRunner().invoke(app, ["check", "--connect", "not-an-endpoint"])
     assert bad.exit_code == 2

@@ -7,6 +7,7 @@ import time
 from collections.abc import Callable, Sequence
 
 import pydantic
+import zenoh
 
 from hil.bus.config import BusConfig
 from hil.bus.keys import Topic
@@ -52,6 +53,9 @@ def check_bus(
     try:
         return _check(connect, vehicle, alive=alive, keys=keys, timeout_s=timeout_s, say=say)
     except (ValueError, pydantic.ValidationError) as exc:
+        say(f"error: {exc}")
+        return 2
+    except zenoh.ZError as exc:  # a key expression zenoh refuses (bad input, not ill health)
         say(f"error: {exc}")
         return 2
 
