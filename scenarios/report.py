@@ -9,11 +9,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
+import matplotlib as mpl
 import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
 from fusion import earth
 from hil.tracks import Track
@@ -31,11 +30,19 @@ def _local_ne(track: Track, lat0: float, lon0: float, h0: float) -> tuple[np.nda
     return north, east
 
 
+def _subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float],
+              **kwargs: Any) -> tuple[Figure, Any]:
+    """A figure and its axes made without pyplot: no global backend choice and no figure
+    registry to close (``Figure.savefig`` renders PNG through the Agg canvas by file type)."""
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(nrows, ncols, **kwargs)
+
+
 def _events(events: Sequence[EventLike]) -> list[EventWindow]:
     return [e if isinstance(e, EventWindow) else EventWindow.from_mapping(e) for e in events]
 
 
-def _shade(ax: plt.Axes, outages: list[Window], events: Sequence[EventWindow] = ()) -> None:
+def _shade(ax: Axes, outages: list[Window], events: Sequence[EventWindow] = ()) -> None:
     for i, w in enumerate(outages):
         ax.axvspan(w.start_s, w.end_s, color="tab:red", alpha=0.12,
                    label="GNSS outage" if i == 0 else None)
@@ -50,7 +57,7 @@ def plot_ground_track(estimate: Track, truth: Track, outages: list[Window], path
     lat0, lon0, h0 = truth.lat_rad[0], truth.lon_rad[0], truth.alt_m[0]
     n_t, e_t = _local_ne(truth, lat0, lon0, h0)
     n_e, e_e = _local_ne(estimate, lat0, lon0, h0)
-    fig, ax = plt.subplots(figsize=(7, 7))
+    fig, ax = _subplots(figsize=(7, 7))
     ax.plot(e_t, n_t, color="k", lw=1.2, label="truth")
     ax.plot(e_e, n_e, color="tab:blue", lw=0.9, label="estimate")
     for i, w in enumerate(outages):
@@ -77,14 +84,13 @@ def plot_ground_track(estimate: Track, truth: Track, outages: list[Window], path
     ax.set_title("Ground track")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def plot_errors(err: Errors, outages: list[Window], path: Path, *,
                 events: Sequence[EventLike] = ()) -> None:
     """Position, velocity and attitude errors per axis with the filter's ±3-sigma envelope."""
     evs = _events(events)
-    fig, axes = plt.subplots(3, 3, figsize=(14, 9), sharex=True)
+    fig, axes = _subplots(3, 3, figsize=(14, 9), sharex=True)
     groups = (
         ("position error (m)", err.pos_ned_m, ("north", "east", "down"), 0, 1.0),
         ("velocity error (m/s)", err.vel_ned_mps, ("north", "east", "down"), 3, 1.0),
@@ -106,7 +112,6 @@ def plot_errors(err: Errors, outages: list[Window], path: Path, *,
         ax.set_xlabel("time (s)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 def plot_horizontal_vertical(err: Errors, outages: list[Window], path: Path, *,
@@ -115,7 +120,7 @@ def plot_horizontal_vertical(err: Errors, outages: list[Window], path: Path, *,
     filter's 99.73 % ("3-sigma") bounds: the horizontal one is the radius of
     :func:`scenarios.metrics.horizontal_bound_3sigma`, the vertical one ±3 s_D."""
     evs = _events(events)
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
+    fig, (a1, a2) = _subplots(2, 1, figsize=(11, 6), sharex=True)
     a1.plot(err.time_s, err.horizontal_m, lw=0.9, label="horizontal error")
     if err.sigma is not None:
         a1.fill_between(err.time_s, 0.0, metrics.horizontal_bound_3sigma(err.sigma),
@@ -136,13 +141,12 @@ def plot_horizontal_vertical(err: Errors, outages: list[Window], path: Path, *,
     a2.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 def plot_drift(err: Errors, outages: list[Window], path: Path) -> None:
     """Horizontal error vs time into each outage (one line per outage, its 3σ bound dashed)."""
-    fig, ax = plt.subplots(figsize=(8, 5))
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    fig, ax = _subplots(figsize=(8, 5))
+    colors = mpl.rcParams["axes.prop_cycle"].by_key()["color"]
     for i, w in enumerate(outages):
         m = w.mask(err.time_s)
         if not np.any(m):
@@ -168,7 +172,6 @@ def plot_drift(err: Errors, outages: list[Window], path: Path) -> None:
     ax.set_title("Drift during GNSS outages")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 Curve = tuple[np.ndarray, np.ndarray]
@@ -204,8 +207,8 @@ def plot_drift_compare(
     step_s : float
         Grid of the mean curve, s.
     """
-    fig, ax = plt.subplots(figsize=(8, 5))
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    fig, ax = _subplots(figsize=(8, 5))
+    colors = mpl.rcParams["axes.prop_cycle"].by_key()["color"]
     for i, (name, rows) in enumerate(curves.items()):
         c = colors[i % len(colors)]
         rows = list(rows)
@@ -224,7 +227,6 @@ def plot_drift_compare(
     ax.set_title(title)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 def write_plots(estimate: Track, truth: Track, err: Errors, outages: list[Window],

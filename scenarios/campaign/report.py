@@ -72,10 +72,7 @@ def markdown(report: Mapping[str, Any]) -> str:
 def plot_distributions(report: Mapping[str, Any], out_dir: Path, path: Path) -> None:
     """Box plots (with every value drawn) of the outage horizontal RMSE and the error 60 s into
     an outage, one box per grid point and one row per scenario."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     by_scenario: dict[str, list[dict[str, Any]]] = {}
     for g in report["groups"]:
@@ -96,7 +93,8 @@ def plot_distributions(report: Mapping[str, Any], out_dir: Path, path: Path) -> 
               ("outage_horizontal_error_m_at_60s", "horizontal error 60 s into outage (m)"))
     rows = max(1, len(by_scenario))
     width = max(8.0, 1.3 * max((len(v) for v in by_scenario.values()), default=1) * 2)
-    fig, axes = plt.subplots(rows, 2, figsize=(min(width, 24.0), 3.6 * rows), squeeze=False)
+    fig = Figure(figsize=(min(width, 24.0), 3.6 * rows))
+    axes = fig.subplots(rows, 2, squeeze=False)
     for row, (spath, groups) in enumerate(sorted(by_scenario.items())):
         for col, (metric, label) in enumerate(panels):
             ax = axes[row][col]
@@ -122,7 +120,6 @@ def plot_distributions(report: Mapping[str, Any], out_dir: Path, path: Path) -> 
                  fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def write_reports(report: dict[str, Any], out_dir: Path) -> list[Path]:
