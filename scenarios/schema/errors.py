@@ -12,7 +12,8 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from scenarios.schema.base import clean_msg, unknown_name
-from scenarios.schema.events import EVENT_SPECS
+from scenarios.schema.events import FileKey, file_loc
+from sim.faults.events import EVENT_TYPES
 
 __all__ = ["KeyLines", "ScenarioError", "allowed_keys", "dotted", "scenario_error", "schema_of"]
 
@@ -132,6 +133,10 @@ def allowed_keys(schema: dict[str, Any], loc: Sequence[str | int], data: Any) ->
     return list(node.get("properties", {}))
 
 
+# pydantic's bound errors: type -> (operator, context key of the bound).
+_BOUNDS = {"greater_than_equal": (">=", "ge"), "greater_than": (">", "gt"),
+           "less_than_equal": ("<=", "le"), "less_than": ("<", "lt")}
+
 # Error types whose message already says enough without echoing the input value.
 _NO_INPUT_ECHO = frozenset({"scenario", "value_error", "assertion_error", "extra_forbidden",
                             "missing", "union_tag_invalid", "union_tag_not_found"})
@@ -143,6 +148,8 @@ def scenario_error(
     path: Path | None,
     lines: KeyLines | None,
     data: Any,
+    *,
+    file_units: bool = False,
 ) -> ScenarioError:
     """The first validation problem as a one-line ScenarioError (file, line, key, message).
 
@@ -153,17 +160,38 @@ def scenario_error(
         stands).
     path, lines : the file and the line numbers of its keys, if the data came from a file.
     data : the data validated.
+    file_units : ``data``'s events are written as in a file: a problem the event model found
+        in an SI field is reported at the file's key, with the file's value.
     """
     e = error.errors()[0]
     loc: tuple[str | int, ...] = tuple(e["loc"])
     ctx = e.get("ctx") or {}
     msg = clean_msg(e["msg"])
+    given = e.get("input")
+    file_key: FileKey | None = None
     other_line = None
     if e["type"] == "scenario":
         loc = loc + tuple(ctx.get("loc", ()))
         msg = ctx.get("message", msg)
         if lines is not None and ctx.get("other"):
             other_line, _ = lines.locate(tuple(ctx["other"]))
+    if file_units and len(loc) > 2 and loc[0] == "events" and isinstance(loc[1], int):
+        events = data.get("events") if isinstance(data, dict) else None
+        if isinstance(events, list) and 0 <= loc[1] < len(events):
+            event, inner = events[loc[1]], loc[2:]
+            if inner[0] not in EVENT_TYPES:  # a check of the timeline, at an event's field
+                tag = event.get("type") if isinstance(event, dict) else None
+                inner, given, file_key = file_loc(event, (str(tag), *inner))
+                inner = inner[1:]
+            elif e["type"] != "scenario":  # the event model's own check, at a field
+                inner, given, file_key = file_loc(event, inner)
+            # (a "scenario" error behind the tag comes from reading the file: file keys)
+            loc = (*loc[:2], *inner)
+            if file_key is not None and file_key.quantity and e["type"] in _BOUNDS:
+                # "90 s", "5 min" are both accepted: a bound names its unit
+                op, name = _BOUNDS[e["type"]]
+                msg = f"must be {op} {ctx[name]:g} {file_key.unit} (got {given!r})"
+                given = None
     line, kept = lines.locate(loc) if lines is not None else (None, list(loc))
     if e["type"] == "extra_forbidden" and kept:
         allowed = allowed_keys(schema_of(model), kept[:-1], data if isinstance(data, dict) else {})
@@ -172,17 +200,15 @@ def scenario_error(
     elif e["type"] == "missing":
         msg = "required key is missing"
     elif e["type"] == "union_tag_invalid":
-        msg = unknown_name("event type", str(ctx.get("tag")), list(EVENT_SPECS))
+        msg = unknown_name("event type", str(ctx.get("tag")), list(EVENT_TYPES))
         kept = [*kept, "type"]
         if lines is not None:
             line, _ = lines.locate(kept)
     elif e["type"] == "union_tag_not_found":
-        msg = f"each event needs a 'type': one of {', '.join(EVENT_SPECS)}"
+        msg = f"each event needs a 'type': one of {', '.join(EVENT_TYPES)}"
     if other_line is not None:
         msg += f" (see line {other_line})"
-    elif e["type"] not in _NO_INPUT_ECHO and isinstance(
-        e.get("input"), str | int | float
-    ):
-        msg += f" (got {e['input']!r})"
+    elif e["type"] not in _NO_INPUT_ECHO and isinstance(given, str | int | float):
+        msg += f" (got {given!r})"
     return ScenarioError(msg, path=path, line=line, key=dotted(kept))
 

@@ -1,343 +1,375 @@
-"""The fault-event part of a scenario file."""
+"""Fault events as scenario files write them: the file's keys and units, converted to the
+:mod:`sim.faults.events` models on load.
+
+The event models are :mod:`sim.faults`' own (SI fields, validated there); this module only
+knows how a file spells them:
+
+* ``at`` and ``duration`` give ``start_s`` and ``duration_s``: a number of seconds or a string
+  with a time unit ("90 s", "5 min", "1.5 h"); ``duration`` omitted or null: to the end of the
+  flight.
+* A few fields are written in human units under a key naming the unit (the table
+  ``_IN_FILE_UNITS`` below), e.g. a baro glitch's ``offset_pa`` as ``offset_pa`` or
+  ``offset_hpa`` (give one), an IMU bias step's ``value`` as ``value_deg_per_h`` (gyro) or
+  ``value_mg`` (accelerometer). The conversions are :func:`scenarios.schema.units.to_si`.
+* Every other field is written under its own name, in its own unit.
+
+:data:`Event` is the type of one item of a scenario's ``events``: it converts a file mapping
+when the validation context says ``{FILE_UNITS: True}`` (what :func:`load_scenario` passes);
+otherwise it takes the SI fields (``Scenario.model_validate`` of a ``model_dump``). Its JSON
+Schema is the file form. Errors found here point at the file's key; errors the event model
+finds are pointed back at the file's key by :func:`file_loc`.
+"""
 
 from __future__ import annotations
 
-import math
-from typing import Annotated, Any, Literal, Self
-
-from pydantic import BaseModel, BeforeValidator, Field, model_validator
-
-from physconst import G0_MPS2
-from scenarios.schema.base import Strict, key_error
-from scenarios.schema.units import Span, StartTime
-from sim import faults
-
-
-def _axis(value: Any) -> Any:
-    if isinstance(value, str) and value.lower() in ("x", "y", "z"):
-        return "xyz".index(value.lower())
-    return value
-
-
-Axis = Annotated[
-    Literal[0, 1, 2], BeforeValidator(_axis, json_schema_input_type=Literal[0, 1, 2, "x", "y", "z"])
-]
-"""Body axis (FRD): 0/x forward, 1/y right, 2/z down."""
-
-
-class _Event(Strict):
-    """Common fields: ``at`` (start, s since the flight began) and ``duration`` (None: to the
-    end of the flight)."""
-
-    type: str
-    at: StartTime = Field(description="Start: seconds after the flight begins, or '5 min'.")
-    duration: Span | None = Field(
-        default=None,
-        description="Length (s or '90 s', '2 min'); omitted: until the end of the flight.",
-    )
-
-    def to_fault(self) -> faults.FaultEvent:  # pragma: no cover - every subclass overrides
-        raise NotImplementedError
-
-
-    def describe(self) -> str:
-        """``type (start-end s)`` for messages; ``end`` is 'end' when open-ended."""
-        end = "end" if self.duration is None else f"{self.at + self.duration:g} s"
-        return f"{self.type} ({self.at:g} s to {end})"
-
-
-class GnssOutageEvent(_Event):
-    """No GNSS fix at all (HIL_GPS stops)."""
-
-    type: Literal["gnss_outage"]
-
-    def to_fault(self) -> faults.FaultEvent:
-        return faults.GnssOutage(start_s=self.at, duration_s=self.duration)
-
-
-class GnssJammingEvent(_Event):
-    """Jamming: a blackout, then intermittent fixes with degraded flags and noisy positions."""
-
-    type: Literal["gnss_jamming"]
-    blackout_s: float = Field(default=10.0, ge=0.0, description="Initial blackout, s.")
-    flap_period_s: float = Field(default=2.0, gt=0.0, description="Intermittent period, s.")
-    flap_duty: float = Field(default=0.5, ge=0.0, le=1.0, description="Fraction with fixes.")
-    garbage_sigma_m: float = Field(default=50.0, ge=0.0,
-                                   description="Position noise of bad fixes, m.")
-    garbage_velocity_sigma_mps: float = Field(default=5.0, ge=0.0,
-                                              description="Velocity noise of bad fixes, m/s.")
-
-    def to_fault(self) -> faults.FaultEvent:
-        return faults.GnssJamming(
-            start_s=self.at, duration_s=self.duration, blackout_s=self.blackout_s,
-            flap_period_s=self.flap_period_s, flap_duty=self.flap_duty,
-            garbage_sigma_m=self.garbage_sigma_m,
-            garbage_velocity_sigma_mps=self.garbage_velocity_sigma_mps,
-        )
-
-
-class GnssDegradationEvent(_Event):
-    """Position/velocity noise and the reported accuracy multiplied by ``factor``."""
-
-    type: Literal["gnss_degradation"]
-    factor: float = Field(default=5.0, ge=1.0, description="Noise multiplier.")
-    ramp_s: float = Field(default=0.0, ge=0.0, description="Ramp-in time, s.")
-
-    def to_fault(self) -> faults.FaultEvent:
-        return faults.GnssDegradation(
-            start_s=self.at, duration_s=self.duration, factor=self.factor, ramp_s=self.ramp_s
-        )
-
-
-class GnssSpoofDriftEvent(_Event):
-    """Slow spoof: the reported position is pulled off at ``rate_mps`` towards ``bearing_deg``."""
-
-    type: Literal["gnss_spoof_drift"]
-    rate_mps: float = Field(default=1.0, ge=0.0, le=1000.0, description="Drift rate, m/s.")
-    bearing_deg: float = Field(
-        default=90.0, ge=-360.0, le=360.0, description="Drift direction, deg from true north."
-    )
-    vertical_rate_mps: float = Field(default=0.0, ge=-100.0, le=100.0,
-                                     description="Drift rate up (+) or down (-), m/s.")
-    consistent_velocity: bool = Field(
-        default=True, description="The reported velocity carries the drift rate too."
-    )
-
-    def to_fault(self) -> faults.FaultEvent:
-        return faults.GnssSpoofDrift(
-            start_s=self.at, duration_s=self.duration, rate_mps=self.rate_mps,
-            bearing_deg=self.bearing_deg, vertical_rate_mps=self.vertical_rate_mps,
-            consistent_velocity=self.consistent_velocity,
-        )
-
-
-class GnssSpoofHijackEvent(_Event):
-    """Sudden hijack: the reported position jumps by ``offset_ned_m`` and stays there."""
-
-    type: Literal["gnss_spoof_hijack"]
-    offset_ned_m: tuple[float, float, float] = Field(
-        default=(500.0, 0.0, 0.0), description="Jump north, east, down, m."
-    )
-
-    def to_fault(self) -> faults.FaultEvent:
-        return faults.GnssSpoofHijack(
-            start_s=self.at, duration_s=self.duration, offset_ned_m=self.offset_ned_m
-        )
-
-
-class GnssDelayEvent(_Event):
-    """Fixes emitted ``extra_latency_s`` later (time of validity kept)."""
-
-    type: Literal["gnss_delay"]
-    extra_latency_s: float = Field(default=0.5, gt=0.0, le=60.0, description="Extra delay, s.")
-
-    def to_fault(self) -> faults.FaultEvent:
-        return faults.GnssDelay(
-            start_s=self.at, duration_s=self.duration, extra_latency_s=self.extra_latency_s
-        )
-
-
-class GnssRateEvent(_Event):
-    """Fixes decimated to ``rate_hz`` (at most the receiver's rate)."""
-
-    type: Literal["gnss_rate"]
-    rate_hz: float = Field(default=1.0, gt=0.0, description="Reduced fix rate, Hz.")
-
-    def to_fault(self) -> faults.FaultEvent:
-        return faults.GnssRate(start_s=self.at, duration_s=self.duration, rate_hz=self.rate_hz)
-
-
-class BaroDriftEvent(_Event):
-    """Sensor pressure offset growing linearly (give one rate; default -0.1 Pa/s)."""
-
-    type: Literal["baro_drift"]
-    rate_pa_per_s: float | None = Field(default=None, description="Drift, Pa/s.")
-    rate_hpa_per_h: float | None = Field(default=None, description="Drift, hPa/h.")
-
-    @model_validator(mode="after")
-    def _one_rate(self) -> Self:
-        _one_of(self, ("rate_pa_per_s", "rate_hpa_per_h"))
-        return self
-
-    def to_fault(self) -> faults.FaultEvent:
-        rate = -0.1
-        if self.rate_pa_per_s is not None:
-            rate = self.rate_pa_per_s
-        elif self.rate_hpa_per_h is not None:
-            rate = self.rate_hpa_per_h * 100.0 / 3600.0
-        return faults.BaroDrift(start_s=self.at, duration_s=self.duration, rate_pa_per_s=rate)
-
-
-class BaroGlitchEvent(_Event):
-    """Sensor pressure offset while active (give one; default 500 Pa = 5 hPa)."""
-
-    type: Literal["baro_glitch"]
-    offset_pa: float | None = Field(default=None, description="Offset, Pa.")
-    offset_hpa: float | None = Field(default=None, description="Offset, hPa.")
-
-    @model_validator(mode="after")
-    def _one_offset(self) -> Self:
-        _one_of(self, ("offset_pa", "offset_hpa"))
-        return self
-
-    def to_fault(self) -> faults.FaultEvent:
-        offset = 500.0
-        if self.offset_pa is not None:
-            offset = self.offset_pa
-        elif self.offset_hpa is not None:
-            offset = 100.0 * self.offset_hpa
-        return faults.BaroGlitch(start_s=self.at, duration_s=self.duration, offset_pa=offset)
-
-
-class BaroFreezeEvent(_Event):
-    """Pressure and temperature stuck at their last values."""
-
-    type: Literal["baro_freeze"]
-
-    def to_fault(self) -> faults.FaultEvent:
-        return faults.BaroFreeze(start_s=self.at, duration_s=self.duration)
-
-
-class WeatherFrontEvent(_Event):
-    """Ambient pressure change (true altitude unchanged): ramps while active, stays after.
-    Give one rate; default -1 hPa per 10 min."""
-
-    type: Literal["weather_front"]
-    rate_hpa_per_10min: float | None = Field(default=None, description="hPa per 10 min.")
-    rate_hpa_per_h: float | None = Field(default=None, description="hPa per hour.")
-
-    @model_validator(mode="after")
-    def _one_rate(self) -> Self:
-        _one_of(self, ("rate_hpa_per_10min", "rate_hpa_per_h"))
-        return self
-
-    def to_fault(self) -> faults.FaultEvent:
-        rate = -100.0 / 600.0
-        if self.rate_hpa_per_10min is not None:
-            rate = self.rate_hpa_per_10min * 100.0 / 600.0
-        elif self.rate_hpa_per_h is not None:
-            rate = self.rate_hpa_per_h * 100.0 / 3600.0
-        return faults.WeatherFront(start_s=self.at, duration_s=self.duration, rate_pa_per_s=rate)
-
-
-class ImuBiasStepEvent(_Event):
-    """A bias step on one axis: ``value_deg_per_h`` for the gyro, ``value_mg`` for the
-    accelerometer."""
-
-    type: Literal["imu_bias_step"]
-    sensor: Literal["gyro", "accel"]
-    axis: Axis
-    value_deg_per_h: float | None = Field(default=None, description="Gyro step, deg/h.")
-    value_mg: float | None = Field(default=None, description="Accelerometer step, mg.")
-
-    @model_validator(mode="after")
-    def _value_matches_sensor(self) -> Self:
-        want, other = (
-            ("value_deg_per_h", "value_mg") if self.sensor == "gyro"
-            else ("value_mg", "value_deg_per_h")
-        )
-        if getattr(self, other) is not None:
-            raise key_error(f"a {self.sensor} step takes {want}, not {other}", (other,))
-        if getattr(self, want) is None:
-            raise key_error(f"a {self.sensor} step needs {want}")
-        return self
-
-
-    def to_fault(self) -> faults.FaultEvent:
-        if self.sensor == "gyro":
-            value = float(self.value_deg_per_h or 0.0) * math.pi / 180.0 / 3600.0
-        else:
-            value = float(self.value_mg or 0.0) * 1e-3 * G0_MPS2
-        return faults.ImuBiasStep(
-            start_s=self.at, duration_s=self.duration, sensor=self.sensor, axis=self.axis,
-            value=value,
-        )
-
-
-class ImuStuckEvent(_Event):
-    """One IMU axis repeats its last value."""
-
-    type: Literal["imu_stuck"]
-    sensor: Literal["gyro", "accel"]
-    axis: Axis
-
-
-    def to_fault(self) -> faults.FaultEvent:
-        return faults.ImuStuck(
-            start_s=self.at, duration_s=self.duration, sensor=self.sensor, axis=self.axis
-        )
-
-
-class ImuSaturationEvent(_Event):
-    """One IMU sensor clipped at ``limit_dps`` (gyro) or ``limit_g`` (accel), on ``axis`` or
-    (omitted) on all three."""
-
-    type: Literal["imu_saturation"]
-    sensor: Literal["gyro", "accel"]
-    axis: Axis | None = None
-    limit_dps: float | None = Field(default=None, gt=0.0, description="Gyro limit, deg/s.")
-    limit_g: float | None = Field(default=None, gt=0.0, description="Accelerometer limit, g.")
-
-    @model_validator(mode="after")
-    def _limit_matches_sensor(self) -> Self:
-        want, other = (
-            ("limit_dps", "limit_g") if self.sensor == "gyro" else ("limit_g", "limit_dps")
-        )
-        if getattr(self, other) is not None:
-            raise key_error(f"a {self.sensor} saturation takes {want}, not {other}", (other,))
-        if getattr(self, want) is None:
-            raise key_error(f"a {self.sensor} saturation needs {want}")
-        return self
-
-
-    def to_fault(self) -> faults.FaultEvent:
-        if self.sensor == "gyro":
-            limit = float(self.limit_dps or 0.0) * math.pi / 180.0
-        else:
-            limit = float(self.limit_g or 0.0) * G0_MPS2
-        return faults.ImuSaturation(
-            start_s=self.at, duration_s=self.duration, sensor=self.sensor, limit=limit,
-            axis=self.axis,
-        )
-
-
-class MagAnomalyEvent(_Event):
-    """Extra magnetic field in NED (µT), e.g. a local anomaly or a powered cable."""
-
-    type: Literal["mag_anomaly"]
-    offset_ned_ut: tuple[float, float, float] = Field(
-        default=(2.0, 0.0, 0.0), description="Extra field north, east, down, µT."
-    )
-
-    def to_fault(self) -> faults.FaultEvent:
-        n, e, d = self.offset_ned_ut
-        return faults.MagAnomaly(
-            start_s=self.at, duration_s=self.duration, offset_ned_t=(n * 1e-6, e * 1e-6, d * 1e-6)
-        )
-
-
-def _one_of(model: BaseModel, names: tuple[str, str]) -> None:
-    if sum(getattr(model, n) is not None for n in names) > 1:
-        raise key_error(f"give one of {names[0]} and {names[1]}, not both", (names[1],))
-
-
-_EVENT_CLASSES: tuple[type[_Event], ...] = (
-    GnssOutageEvent, GnssJammingEvent, GnssDegradationEvent, GnssSpoofDriftEvent,
-    GnssSpoofHijackEvent, GnssDelayEvent, GnssRateEvent, BaroDriftEvent, BaroGlitchEvent,
-    BaroFreezeEvent, WeatherFrontEvent, ImuBiasStepEvent, ImuStuckEvent, ImuSaturationEvent,
-    MagAnomalyEvent,
+import functools
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Annotated, Any, get_args
+
+from pydantic import (
+    BeforeValidator,
+    Field,
+    GetJsonSchemaHandler,
+    TypeAdapter,
+    ValidationError,
+    ValidationInfo,
 )
-EVENT_SPECS: dict[str, type[_Event]] = {
-    c.model_fields["type"].annotation.__args__[0]: c  # type: ignore[union-attr]
-    for c in _EVENT_CLASSES
+from pydantic.json_schema import JsonSchemaValue
+from pydantic_core import CoreSchema
+
+from scenarios.schema.base import key_error, unknown_name
+from scenarios.schema.units import TIME_PATTERN, parse_quantity, si_unit, to_si
+from sim.faults.events import (
+    EVENT_TYPES,
+    BaroDrift,
+    BaroGlitch,
+    FaultEvent,
+    ImuBiasStep,
+    ImuSaturation,
+    ImuSensor,
+    MagAnomaly,
+    WeatherFront,
+    field_unit,
+)
+
+__all__ = ["FILE_UNITS", "Event", "FileKey", "file_keys", "file_loc", "from_file"]
+
+FILE_UNITS = "file_units"
+"""Validation-context key: true when the events are written as in a file."""
+
+_IMU_SENSORS: tuple[str, ...] = get_args(ImuSensor)
+
+# Fields a file gives in other units: event class -> field -> (file key, its unit), in the
+# order the keys are listed. Keys of one field are alternatives (give one; null = not given);
+# for the IMU fields each unit belongs to one sensor (the one whose SI unit it converts to).
+_IN_FILE_UNITS: dict[type[FaultEvent], dict[str, tuple[tuple[str, str], ...]]] = {
+    BaroDrift: {"rate_pa_per_s": (("rate_pa_per_s", "Pa/s"), ("rate_hpa_per_h", "hPa/h"))},
+    BaroGlitch: {"offset_pa": (("offset_pa", "Pa"), ("offset_hpa", "hPa"))},
+    WeatherFront: {
+        "rate_pa_per_s": (("rate_hpa_per_10min", "hPa/10min"), ("rate_hpa_per_h", "hPa/h"))
+    },
+    ImuBiasStep: {"value": (("value_deg_per_h", "deg/h"), ("value_mg", "mg"))},
+    ImuSaturation: {"limit": (("limit_dps", "deg/s"), ("limit_g", "g"))},
+    MagAnomaly: {"offset_ned_t": (("offset_ned_ut", "uT"),)},
 }
-"""Event ``type`` name -> its model."""
+# What a sensor-dependent event is called in "a gyro step takes ...".
+_NOUN: dict[type[FaultEvent], str] = {ImuBiasStep: "step", ImuSaturation: "saturation"}
+
+_WINDOW_DOC = {
+    "start_s": "Start: seconds after the flight begins, or '5 min'.",
+    "duration_s": "Length (s or '90 s', '2 min'); omitted: until the end of the flight.",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class FileKey:
+    """One key of an event in a scenario file.
+
+    Attributes
+    ----------
+    name : the key.
+    field : the event model's field it gives.
+    unit : the unit the file writes it in (None: a field that is not a quantity).
+    quantity : a number or a string with a unit (``at``, ``duration``).
+    converted : the file's unit is not the field's (the value goes through ``to_si``).
+    alternative : one of several keys of ``field``; null means not given.
+    sensor : the IMU sensor this key belongs to (None: any).
+    """
+
+    name: str
+    field: str
+    unit: str | None
+    quantity: bool = False
+    converted: bool = False
+    alternative: bool = False
+    sensor: str | None = None
+
+
+@functools.cache
+def file_keys(cls: type[FaultEvent]) -> dict[str, FileKey]:
+    """The keys a file may give for event class ``cls``, in schema order (``type`` first).
+
+    Raises
+    ------
+    ValueError
+        The file-unit table and the event's declared units disagree (a programming error,
+        found on import).
+    """
+    keys: dict[str, FileKey] = {"type": FileKey("type", "type", None)}
+    keys["at"] = FileKey("at", "start_s", field_unit(cls, "start_s"), quantity=True)
+    keys["duration"] = FileKey(
+        "duration", "duration_s", field_unit(cls, "duration_s"), quantity=True, alternative=True
+    )
+    table = _IN_FILE_UNITS.get(cls, {})
+    for field in cls.model_fields:
+        if field in ("type", "start_s", "duration_s"):
+            continue
+        if field not in table:
+            keys[field] = FileKey(field, field, field_unit(cls, field))
+            continue
+        alternatives = table[field]
+        for name, unit in alternatives:
+            sensors = [s for s in _IMU_SENSORS if field_unit(cls, field, s) == si_unit(unit)]
+            if field_unit(cls, field) is None and len(sensors) != 1:
+                raise ValueError(f"{cls.__name__}.{field}: {unit} is no one sensor's unit")
+            if field_unit(cls, field) not in (None, si_unit(unit)):
+                raise ValueError(f"{cls.__name__}.{field} is not in {si_unit(unit)} ({unit})")
+            if any(getattr(m, bound, 0) != 0 for m in cls.model_fields[field].metadata
+                   for bound in ("gt", "ge", "lt", "le")):
+                raise ValueError(f"{cls.__name__}.{field}: a bound other than 0 would need "
+                                 f"converting to {unit}")
+            keys[name] = FileKey(
+                name, field, unit, converted=unit != si_unit(unit),
+                alternative=len(alternatives) > 1,
+                sensor=sensors[0] if field_unit(cls, field) is None else None,
+            )
+    return keys
+
+
+def _keys_of(keys: dict[str, FileKey], field: str) -> list[FileKey]:
+    return [k for k in keys.values() if k.field == field]
+
+
+def _chosen(raw: Mapping[str, Any], keys: dict[str, FileKey], field: str) -> FileKey:
+    """The key that gives ``field`` in ``raw`` (the sensor's, the one given, or the first)."""
+    options = _keys_of(keys, field)
+    sensor = raw.get("sensor")
+    for k in options:
+        if k.sensor is not None and k.sensor == sensor:
+            return k
+    for k in options:
+        if k.sensor is None and raw.get(k.name) is not None:
+            return k
+    return options[0]
+
+
+@functools.cache
+def _adapter(cls: type[FaultEvent], field: str) -> TypeAdapter[Any]:
+    # The field's own type and bounds; its bounds are 0 or none (see file_keys), which hold in
+    # any unit the file uses as well as in SI.
+    info = cls.model_fields[field]
+    annotation: Any = Annotated[info.annotation, *info.metadata] if info.metadata else (
+        info.annotation)
+    return TypeAdapter(annotation)
+
+
+def _convert(cls: type[FaultEvent], key: FileKey, value: Any) -> Any:
+    """The SI value of a converted key, or ``value`` itself when it is not a valid number
+    (then the event model reports it, at this key)."""
+    try:
+        number = _adapter(cls, key.field).validate_python(value)
+    except ValidationError:
+        return value
+    assert key.unit is not None
+    if isinstance(number, tuple):
+        return tuple(to_si(x, key.unit) for x in number)
+    return to_si(number, key.unit)
+
+
+def from_file(raw: Any) -> Any:
+    """One event as a file writes it -> the SI fields of its ``sim.faults`` model.
+
+    Parameters
+    ----------
+    raw : the event's mapping from the file. Anything else, or a mapping without a known
+        ``type``, is returned unchanged for the model to report.
+
+    Returns
+    -------
+    dict
+        ``type`` and the SI fields the file gives (the model's defaults fill the rest).
+
+    Raises
+    ------
+    pydantic_core.PydanticCustomError
+        An unreadable ``at`` / ``duration``, an unknown key, two alternative keys given, or
+        an IMU key of the other sensor; its context ``loc`` is ``(type, key)``.
+    """
+    if not isinstance(raw, Mapping) or not isinstance(raw.get("type"), str):
+        return raw
+    cls = EVENT_TYPES.get(raw["type"])
+    if cls is None:
+        return raw
+    tag = cls.type_name
+    keys = file_keys(cls)
+    out: dict[str, Any] = {"type": tag}
+    for key in keys.values():
+        if key.quantity and key.name in raw and not (key.alternative and raw[key.name] is None):
+            try:
+                out[key.field] = parse_quantity(raw[key.name], key.unit)
+            except ValueError as error:
+                raise key_error(str(error), (tag, key.name)) from None
+    for name in raw:
+        if name not in keys:
+            raise key_error(unknown_name("key", name, list(keys)), (tag, name))
+    for field in dict.fromkeys(k.field for k in keys.values()):
+        if field in out or field == "type":
+            continue
+        options = _keys_of(keys, field)
+        given = [k for k in options if k.name in raw and not (k.alternative
+                                                             and raw[k.name] is None)]
+        if any(k.sensor is not None for k in options):
+            sensor = raw.get("sensor")
+            if sensor not in _IMU_SENSORS:
+                continue  # the model reports the sensor
+            want = _chosen(raw, keys, field)
+            for k in given:
+                if k is not want:
+                    raise key_error(
+                        f"a {sensor} {_NOUN[cls]} takes {want.name}, not {k.name}", (tag, k.name)
+                    )
+            if not given:
+                raise key_error(f"a {sensor} {_NOUN[cls]} needs {want.name}", (tag,))
+        elif len(given) > 1:
+            raise key_error(
+                f"give one of {options[0].name} and {options[1].name}, not both",
+                (tag, options[1].name),
+            )
+        if given:
+            key = given[0]
+            value = raw[key.name]
+            out[field] = _convert(cls, key, value) if key.converted else value
+    return out
+
+
+def file_loc(
+    raw: Any, loc: tuple[str | int, ...]
+) -> tuple[tuple[str | int, ...], Any, FileKey | None]:
+    """Where in a file's event an error of its model is: ``(tag, field, ...)`` -> ``(tag,
+    key, ...)``.
+
+    Parameters
+    ----------
+    raw : the event as the file writes it.
+    loc : the error's location inside the event, as pydantic gives it (tag first).
+
+    Returns
+    -------
+    (loc, value, key)
+        The location with the field replaced by the file's key, the file's value there (None
+        when the file has none) and the key (None when ``loc`` names no field).
+    """
+    if not isinstance(raw, Mapping) or len(loc) < 2 or not isinstance(loc[1], str):
+        return loc, None, None
+    cls = EVENT_TYPES.get(str(loc[0]))
+    if cls is None or loc[1] not in cls.model_fields:
+        return loc, None, None
+    key = _chosen(raw, file_keys(cls), loc[1])
+    value: Any = raw.get(key.name)
+    for part in loc[2:]:
+        if isinstance(value, list | tuple) and isinstance(part, int) and 0 <= part < len(value):
+            value = value[part]
+        else:
+            value = None
+    return (loc[0], key.name, *loc[2:]), value, key
+
+
+def _from_file_context(value: Any, info: ValidationInfo) -> Any:
+    context = info.context if isinstance(info.context, Mapping) else {}
+    return from_file(value) if context.get(FILE_UNITS) else value
+
+
+# --------------------------------------------------------------------------- JSON Schema
+
+
+def _number_part(prop: Mapping[str, Any]) -> dict[str, Any]:
+    """The number branch of a field's JSON Schema (type and bounds)."""
+    for branch in prop.get("anyOf", [prop]):
+        if branch.get("type") in ("number", "array"):
+            return {k: v for k, v in branch.items() if k not in ("default", "description",
+                                                                  "title", "unit")}
+    return {"type": "number"}
+
+
+def _file_schema(cls: type[FaultEvent], si: Mapping[str, Any]) -> dict[str, Any]:
+    """The JSON Schema of ``cls`` as files write it, from its SI schema ``si``."""
+    props = si["properties"]
+    out: dict[str, Any] = {}
+    required = ["type"]
+    for key in file_keys(cls).values():
+        prop = props[key.field]
+        if key.name == "type":
+            out["type"] = {"const": cls.type_name, "title": "Type", "type": "string"}
+        elif key.quantity:
+            branches = [_number_part(prop), {"type": "string", "pattern": TIME_PATTERN}]
+            if key.alternative:
+                branches.append({"type": "null"})
+            out[key.name] = {"anyOf": branches, "description": _WINDOW_DOC[key.field],
+                             "title": key.name.title(), "unit": key.unit}
+            if key.alternative:
+                out[key.name]["default"] = None
+        elif key.converted or key.alternative:
+            part = _number_part(prop)  # its bounds are 0 (file_keys): the same in any unit
+            text = prop.get("description", "").rstrip(".")
+            if key.sensor is not None:
+                text = f"{text} ({key.sensor})"
+            out[key.name] = {"anyOf": [part, {"type": "null"}], "default": None} if (
+                key.alternative) else part
+            out[key.name].update(description=f"{text}, {key.unit}.",
+                                 title=key.name.replace("_", " ").title(), unit=key.unit)
+        else:
+            out[key.name] = dict(prop)
+            if key.field in si.get("required", []):
+                required.append(key.name)
+    if "start_s" in si.get("required", []):
+        required.insert(1, "at")
+    schema: dict[str, Any] = {
+        "additionalProperties": False,
+        "properties": out,
+        "required": required,
+        "title": si.get("title", cls.__name__),
+        "type": "object",
+    }
+    if "description" in si:
+        schema["description"] = si["description"]
+    return schema
+
+
+class _FileSchema:
+    """Turns the events' JSON Schema (pydantic's, of the SI models) into the file form."""
+
+    def __get_pydantic_json_schema__(
+        self, core_schema: CoreSchema, handler: GetJsonSchemaHandler
+    ) -> JsonSchemaValue:
+        schema = handler(core_schema)
+        mapping = schema.get("discriminator", {}).get("mapping", {})
+        for tag, ref in mapping.items():
+            target = handler.resolve_ref_schema({"$ref": ref})
+            file_form = _file_schema(EVENT_TYPES[tag], target)
+            target.clear()
+            target.update(file_form)
+        return schema
+
 
 Event = Annotated[
-    GnssOutageEvent | GnssJammingEvent | GnssDegradationEvent | GnssSpoofDriftEvent
-    | GnssSpoofHijackEvent | GnssDelayEvent | GnssRateEvent | BaroDriftEvent | BaroGlitchEvent
-    | BaroFreezeEvent | WeatherFrontEvent | ImuBiasStepEvent | ImuStuckEvent
-    | ImuSaturationEvent | MagAnomalyEvent,
+    FaultEvent,
     Field(discriminator="type"),
+    BeforeValidator(_from_file_context),
+    _FileSchema(),
 ]
+"""One item of a scenario's ``events``: a :mod:`sim.faults` event (see the module docstring)."""
 
+# Check the file-unit table against the events' declared units now, not at the first file.
+for _cls in EVENT_TYPES.values():
+    file_keys(_cls)

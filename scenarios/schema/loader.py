@@ -10,6 +10,7 @@ import yaml
 from pydantic import ValidationError
 
 from scenarios.schema.errors import KeyLines, ScenarioError, scenario_error, schema_of
+from scenarios.schema.events import FILE_UNITS
 from scenarios.schema.scenario import Scenario
 
 LIBRARY_DIR = Path(__file__).resolve().parent.parent / "library"
@@ -82,9 +83,12 @@ def load_scenario(path: str | Path) -> Scenario:
     if not data.get("name"):
         data = {**data, "name": path.stem}
     try:
-        scenario = Scenario.model_validate(data, context={"base_dir": path.parent})
+        scenario = Scenario.model_validate(
+            data, context={"base_dir": path.parent, FILE_UNITS: True}
+        )
     except ValidationError as error:
-        raise scenario_error(error, Scenario, path, KeyLines(root), data) from None
+        raise scenario_error(error, Scenario, path, KeyLines(root), data,
+                             file_units=True) from None
     return scenario
 
 

@@ -4,7 +4,7 @@ timeline, checked for consistency, with builders of the simulator's SI objects."
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal, Self
 
@@ -25,10 +25,12 @@ from pydantic_core import PydanticCustomError
 from scenarios.schema.base import Strict, first_error, key_error, listing, unknown_name
 from scenarios.schema.criteria import CriterionSpec
 from scenarios.schema.errors import scenario_error
-from scenarios.schema.events import Event, GnssRateEvent
+from scenarios.schema.events import Event
 from scenarios.schema.sections import FusionSection, Sensors, StartSection
 from scenarios.summary import Criterion
-from sim import faults, presets
+from sim import presets
+from sim.faults.events import FaultEvent, GnssJamming, GnssOutage, GnssRate
+from sim.faults.timeline import Conflict, OutsideFlight, timeline_problems
 from sim.flight import FlightConfig, StartState, available_aircraft, suggested_start
 from sim.imu import ImuConfig
 from sim.plans import FlightPlan, available_plans, load_plan
@@ -74,10 +76,14 @@ PlanRef = Annotated[
 
 
 class Scenario(Strict):
-    """One scenario file (see the module docstring; ``hilnav schema`` prints the JSON Schema).
+    """One scenario (see :mod:`scenarios.schema`; ``hilnav schema`` prints the JSON Schema).
 
     Build the simulation objects with :meth:`flight_config`, :meth:`flight_plan`,
     :meth:`sensor_config`, :meth:`fault_events` and :meth:`criteria`.
+
+    ``events`` are the :mod:`sim.faults` event models. :func:`~scenarios.schema.load_scenario`
+    reads them as files write them (``at``, ``offset_hpa``...); ``Scenario.model_validate``
+    without that context takes their SI fields, as ``model_dump`` gives them.
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid", populate_by_name=True,
@@ -146,7 +152,8 @@ class Scenario(Strict):
         except (ValueError, ValidationError) as error:
             raise key_error(_message(error), ("start",)) from None
         self._check_rates()
-        for problem in _timeline_problems(self):
+        problem = _timeline_problem(self)
+        if problem is not None:
             raise problem
         self._check_criteria()
         return self
@@ -192,8 +199,8 @@ class Scenario(Strict):
 
     def _check_criteria(self) -> None:
         spans = [
-            (e.duration if e.duration is not None else self.duration_s - e.at)
-            for e in self.events if e.type in ("gnss_outage", "gnss_jamming")
+            (e.duration_s if e.duration_s is not None else self.duration_s - e.start_s)
+            for e in self.events if isinstance(e, GnssOutage | GnssJamming)
         ]
         for i, c in enumerate(self.pass_criteria):
             if c.metric.startswith("events.") and not self.events:
@@ -273,9 +280,9 @@ class Scenario(Strict):
         base = presets.imu_preset(s.preset)
         return base.model_copy(update=update) if update else base
 
-    def fault_events(self) -> tuple[faults.FaultEvent, ...]:
+    def fault_events(self) -> tuple[FaultEvent, ...]:
         """The timeline as ``sim.faults`` events, SI units, in file order."""
-        return tuple(e.to_fault() for e in self.events)
+        return self.events
 
     def criteria(self) -> tuple[Criterion, ...]:
         """Pass criteria for :func:`scenarios.summary.build_summary`."""
@@ -285,8 +292,9 @@ class Scenario(Strict):
         """``(start_s, end_s)`` of every gnss_outage and gnss_jamming event, clipped to the
         flight, in file order (the spans the summary's ``outages`` are meant to score)."""
         return tuple(
-            (e.at, min(self.duration_s, e.at + e.duration) if e.duration else self.duration_s)
-            for e in self.events if e.type in ("gnss_outage", "gnss_jamming")
+            (e.start_s,
+             min(self.duration_s, e.start_s + e.duration_s) if e.duration_s else self.duration_s)
+            for e in self.events if isinstance(e, GnssOutage | GnssJamming)
         )
 
     def with_overrides(
@@ -330,49 +338,36 @@ def _message(error: Exception) -> str:
     return str(error)
 
 
-def _timeline_problems(s: Scenario) -> Iterator[PydanticCustomError]:
-    """Events outside the flight, contradictory overlaps and impossible rates, in file order."""
-    end = s.duration_s
+def _timeline_problem(s: Scenario) -> PydanticCustomError | None:
+    """The first of: an event outside the flight or above the receiver's rate (in file order),
+    two events that contradict each other (the pair whose later event comes first)."""
+    names = [e.type_name for e in s.events]
+    problems = timeline_problems(s.events, s.duration_s)
+    outside = {p.index: p for p in problems if isinstance(p, OutsideFlight)}
     for i, e in enumerate(s.events):
-        if e.at >= end:
-            yield key_error(
-                f"{e.type} starts at {e.at:g} s, at or after the end of the flight "
-                f"(duration_s {end:g})", ("events", i, "at"),
+        p = outside.get(i)
+        if p is not None and p.field == "start_s":
+            return key_error(
+                f"{names[i]} starts at {p.time_s:g} s, at or after the end of the flight "
+                f"(duration_s {p.flight_s:g})", ("events", i, "start_s"),
             )
-        stop = end if e.duration is None else e.at + e.duration
-        if stop > end * (1.0 + 1e-12):
-            yield key_error(
-                f"{e.type} ends at {stop:g} s, after the end of the flight (duration_s "
-                f"{end:g}); shorten it or leave duration out to last until the end",
-                ("events", i, "duration"),
+        if p is not None:
+            return key_error(
+                f"{names[i]} ends at {p.time_s:g} s, after the end of the flight (duration_s "
+                f"{p.flight_s:g}); shorten it or leave duration out to last until the end",
+                ("events", i, "duration_s"),
             )
-        if isinstance(e, GnssRateEvent):
+        if isinstance(e, GnssRate):
             receiver = s.sensors.gnss.config().rate_hz
             if e.rate_hz > receiver:
-                yield key_error(
+                return key_error(
                     f"gnss_rate {e.rate_hz:g} Hz is above the receiver's {receiver:g} Hz",
                     ("events", i, "rate_hz"),
                 )
-    built: list[faults.FaultEvent] = []
-    for i, e in enumerate(s.events):
-        try:
-            built.append(e.to_fault())
-        except ValueError as error:  # sim.faults' own field checks (ours should catch first)
-            yield key_error(str(error), ("events", i))
-            return
-    # Which overlaps contradict each other is sim.faults' rule (check_events); asking it pair
-    # by pair tells which two events clash, so the message can point at both lines.
-    for j in range(len(built)):
-        for i in range(j):
-            try:
-                faults.check_events([built[i], built[j]], end)
-            except ValueError as error:
-                reason = str(error).removeprefix("fault timeline: ")
-                reason = reason.replace("event 0 (", f"events[{i}] (", 1)
-                reason = reason.replace("event 1 (", f"events[{j}] (", 1)
-                yield key_error(reason, ("events", j), ("events", i))
-    try:
-        faults.check_events(built, end)
-    except ValueError as error:
-        yield key_error(str(error), ("events",))
-
+    conflicts = sorted((p for p in problems if isinstance(p, Conflict)),
+                       key=lambda p: (p.second, p.first))
+    if conflicts:
+        c = conflicts[0]
+        return key_error(c.describe(lambda k: f"events[{k}] ({names[k]})"),
+                         ("events", c.second), ("events", c.first))
+    return None

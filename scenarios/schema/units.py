@@ -1,15 +1,16 @@
-"""Quantities in scenario files: numbers with an optional unit ("5 min", "25 m", "2 m/s"),
-converted to one unit on load."""
+"""Units of scenario files: quantities with an optional unit ("5 min", "25 m", "2 m/s") and the
+human units of sensor faults (hPa, deg/h, mg...), converted once, on load."""
 
 from __future__ import annotations
 
 import math
 import re
-from typing import Annotated, Any
+from collections.abc import Callable
+from typing import Any
 
-from pydantic import BeforeValidator, WithJsonSchema
+from physconst import G0_MPS2
 
-__all__ = ["TIME_PATTERN", "Span", "StartTime", "parse_quantity"]
+__all__ = ["TIME_PATTERN", "parse_quantity", "si_unit", "to_si"]
 
 # unit -> (dimension, factor to the dimension's base). Bases are the units of summary.json:
 # m, s, m/s and *degrees* (the summary reports angles in degrees).
@@ -90,31 +91,44 @@ TIME_PATTERN = r"^\s*[+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*(s|ms|min|h)?\s*$"
 """JSON Schema pattern of a time >= 0 written as a string ("90 s", "5 min", "1.5 h")."""
 
 
-def _start_time(value: Any) -> float:
-    t = parse_quantity(value, "s")
-    if t < 0.0:
-        raise ValueError(f"must be >= 0 s (got {value!r})")
-    return t
+# File unit -> (SI unit, conversion). Each conversion is written as the scenario format has
+# always computed it: the operation order decides the last bit of the result.
+_TO_SI: dict[str, tuple[str, Callable[[float], float]]] = {
+    "Pa": ("Pa", lambda x: x),
+    "hPa": ("Pa", lambda x: 100.0 * x),
+    "Pa/s": ("Pa/s", lambda x: x),
+    "hPa/h": ("Pa/s", lambda x: x * 100.0 / 3600.0),
+    "hPa/10min": ("Pa/s", lambda x: x * 100.0 / 600.0),
+    "deg/h": ("rad/s", lambda x: x * math.pi / 180.0 / 3600.0),
+    "deg/s": ("rad/s", lambda x: x * math.pi / 180.0),
+    "mg": ("m/s^2", lambda x: x * 1e-3 * G0_MPS2),
+    "g": ("m/s^2", lambda x: x * G0_MPS2),
+    "uT": ("T", lambda x: x * 1e-6),
+}
 
 
-def _span(value: Any) -> float:
-    t = parse_quantity(value, "s")
-    if t <= 0.0:
-        raise ValueError(f"must be > 0 s (got {value!r})")
-    return t
+def si_unit(unit: str) -> str:
+    """The SI unit a file unit converts to (``"hPa/h"`` -> ``"Pa/s"``).
+
+    Raises
+    ------
+    KeyError
+        Not a unit of :func:`to_si`.
+    """
+    return _TO_SI[unit][0]
 
 
-StartTime = Annotated[
-    float,
-    BeforeValidator(_start_time),
-    WithJsonSchema({"anyOf": [{"type": "number", "minimum": 0},
-                              {"type": "string", "pattern": TIME_PATTERN}]}),
-]
-"""A time >= 0: seconds as a number, or a string with a unit ("90 s", "5 min", "1.5 h")."""
-Span = Annotated[
-    float,
-    BeforeValidator(_span),
-    WithJsonSchema({"anyOf": [{"type": "number", "exclusiveMinimum": 0},
-                              {"type": "string", "pattern": TIME_PATTERN}]}),
-]
-"""A length of time > 0, as :data:`StartTime`."""
+def to_si(value: float, unit: str) -> float:
+    """A value written in a file unit (hPa, hPa/h, hPa/10min, deg/h, deg/s, mg, g, uT, and
+    the SI units Pa, Pa/s themselves), in SI (Pa, Pa/s, rad/s, m/s², T).
+
+    Parameters
+    ----------
+    value : the number, in ``unit``.
+    unit : the file unit.
+
+    Returns
+    -------
+    float : the value in :func:`si_unit` of ``unit``.
+    """
+    return _TO_SI[unit][1](value)

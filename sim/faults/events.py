@@ -118,6 +118,10 @@ def _axis(value: Any) -> Any:
 Number = Annotated[float, Field(allow_inf_nan=False), BeforeValidator(_not_bool)]
 """A finite number (int or float; not a bool)."""
 
+# The bound of an optional number sits inside the union (and before the bool check), so that
+# the JSON Schema states it.
+_Positive = Annotated[float, Field(gt=0.0, allow_inf_nan=False), BeforeValidator(_not_bool)]
+
 Vec3 = tuple[Number, Number, Number]
 """Three finite numbers (N, E, D)."""
 
@@ -147,9 +151,9 @@ class FaultEventBase(BaseModel):
     type_name: ClassVar[str]
     """The event's type name (snake_case, the key of :data:`EVENT_TYPES`)."""
 
-    start_s: Number = _field(..., "s", "Start, s of flight time.", ge=0.0)
-    duration_s: Number | None = _field(
-        None, "s", "Length, s; None: until the end of the flight.", gt=0.0
+    start_s: Number = _field(..., "s", "Start, after the flight began.", ge=0.0)
+    duration_s: _Positive | None = _field(
+        None, "s", "Length; None: until the end of the flight."
     )
 
     @classmethod
@@ -202,12 +206,14 @@ class GnssJamming(FaultEventBase):
     """
 
     type: Literal["gnss_jamming"] = "gnss_jamming"
-    blackout_s: Number = _field(10.0, "s", "Initial blackout, s.", ge=0.0)
-    flap_period_s: Number = _field(2.0, "s", "Period of the intermittent fixes, s.", gt=0.0)
+    blackout_s: Number = _field(10.0, "s", "Blackout before the first fix.", ge=0.0)
+    flap_period_s: Number = _field(2.0, "s", "Period of the intermittent fixes.", gt=0.0)
     flap_duty: Number = _field(0.5, "1", "Fraction of each period with fixes.", ge=0.0, le=1.0)
-    garbage_sigma_m: Number = _field(50.0, "m", "Position noise of the fixes, m.", ge=0.0)
+    garbage_sigma_m: Number = _field(
+        50.0, "m", "Position noise of the fixes (1σ per axis).", ge=0.0
+    )
     garbage_velocity_sigma_mps: Number = _field(
-        5.0, "m/s", "Velocity noise of the fixes, m/s.", ge=0.0
+        5.0, "m/s", "Velocity noise of the fixes (1σ per axis).", ge=0.0
     )
 
 
@@ -217,7 +223,7 @@ class GnssDegradation(FaultEventBase):
 
     type: Literal["gnss_degradation"] = "gnss_degradation"
     factor: Number = _field(5.0, "1", "Error multiplier.", ge=1.0)
-    ramp_s: Number = _field(0.0, "s", "Ramp-in time, s.", ge=0.0)
+    ramp_s: Number = _field(0.0, "s", "Ramp-in time.", ge=0.0)
 
 
 class GnssSpoofDrift(FaultEventBase):
@@ -226,12 +232,12 @@ class GnssSpoofDrift(FaultEventBase):
     ``consistent_velocity`` the reported velocity carries the drift rate too."""
 
     type: Literal["gnss_spoof_drift"] = "gnss_spoof_drift"
-    rate_mps: Number = _field(1.0, "m/s", "Horizontal drift rate, m/s.", ge=0.0, le=1000.0)
+    rate_mps: Number = _field(1.0, "m/s", "Horizontal drift rate.", ge=0.0, le=1000.0)
     bearing_deg: Number = _field(
-        90.0, "deg", "Drift direction, deg clockwise from true north.", ge=-360.0, le=360.0
+        90.0, "deg", "Drift direction, clockwise from true north.", ge=-360.0, le=360.0
     )
     vertical_rate_mps: Number = _field(
-        0.0, "m/s", "Drift rate up (+) or down (-), m/s.", ge=-100.0, le=100.0
+        0.0, "m/s", "Drift rate up (+) or down (-).", ge=-100.0, le=100.0
     )
     consistent_velocity: bool = Field(
         default=True, description="The reported velocity carries the drift rate too."
@@ -243,7 +249,7 @@ class GnssSpoofHijack(FaultEventBase):
     while active; velocity and reported accuracy unchanged."""
 
     type: Literal["gnss_spoof_hijack"] = "gnss_spoof_hijack"
-    offset_ned_m: Vec3 = _field((500.0, 0.0, 0.0), "m", "Jump north, east, down, m.")
+    offset_ned_m: Vec3 = _field((500.0, 0.0, 0.0), "m", "Jump north, east, down.")
 
 
 class GnssDelay(FaultEventBase):
@@ -251,14 +257,14 @@ class GnssDelay(FaultEventBase):
     kept)."""
 
     type: Literal["gnss_delay"] = "gnss_delay"
-    extra_latency_s: Number = _field(0.5, "s", "Extra delay, s.", gt=0.0, le=60.0)
+    extra_latency_s: Number = _field(0.5, "s", "Extra delay.", gt=0.0, le=60.0)
 
 
 class GnssRate(FaultEventBase):
     """Fixes decimated to ``rate_hz`` while active (never more than the receiver makes)."""
 
     type: Literal["gnss_rate"] = "gnss_rate"
-    rate_hz: Number = _field(1.0, "Hz", "Reduced fix rate, Hz.", gt=0.0)
+    rate_hz: Number = _field(1.0, "Hz", "Reduced fix rate.", gt=0.0)
 
 
 # --------------------------------------------------------------------------- barometer
@@ -268,14 +274,14 @@ class BaroDrift(FaultEventBase):
     """Sensor pressure offset growing at ``rate_pa_per_s`` while active (gone after)."""
 
     type: Literal["baro_drift"] = "baro_drift"
-    rate_pa_per_s: Number = _field(-0.1, "Pa/s", "Drift of the sensor's pressure, Pa/s.")
+    rate_pa_per_s: Number = _field(-0.1, "Pa/s", "Drift of the sensor's pressure.")
 
 
 class BaroGlitch(FaultEventBase):
     """Sensor pressure offset ``offset_pa`` while active."""
 
     type: Literal["baro_glitch"] = "baro_glitch"
-    offset_pa: Number = _field(500.0, "Pa", "Offset of the sensor's pressure, Pa.")
+    offset_pa: Number = _field(500.0, "Pa", "Offset of the sensor's pressure.")
 
 
 class BaroFreeze(FaultEventBase):
@@ -290,7 +296,7 @@ class WeatherFront(FaultEventBase):
 
     type: Literal["weather_front"] = "weather_front"
     rate_pa_per_s: Number = _field(
-        -100.0 / 600.0, "Pa/s", "Change of the ambient pressure, Pa/s."
+        -100.0 / 600.0, "Pa/s", "Change of the ambient pressure."
     )
 
 
@@ -304,7 +310,7 @@ class ImuBiasStep(FaultEventBase):
     type: Literal["imu_bias_step"] = "imu_bias_step"
     sensor: ImuSensor
     axis: Axis
-    value: Number = _field(..., _IMU_UNIT, "Bias step, m/s² (accel) or rad/s (gyro).")
+    value: Number = _field(..., _IMU_UNIT, "Bias step.")
 
 
 class ImuStuck(FaultEventBase):
@@ -321,8 +327,7 @@ class ImuSaturation(FaultEventBase):
 
     type: Literal["imu_saturation"] = "imu_saturation"
     sensor: ImuSensor
-    limit: Number = _field(..., _IMU_UNIT, "Clipping limit, m/s² (accel) or rad/s (gyro).",
-                           gt=0.0)
+    limit: Number = _field(..., _IMU_UNIT, "Clipping limit.", gt=0.0)
     axis: Axis | None = None
 
 
@@ -331,7 +336,7 @@ class MagAnomaly(FaultEventBase):
     and added to the magnetometer output (a local anomaly, a powered cable)."""
 
     type: Literal["mag_anomaly"] = "mag_anomaly"
-    offset_ned_t: Vec3 = _field((2e-6, 0.0, 0.0), "T", "Extra field north, east, down, T.")
+    offset_ned_t: Vec3 = _field((2e-6, 0.0, 0.0), "T", "Extra field north, east, down.")
 
 
 FaultEvent = (
