@@ -12,7 +12,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from scenarios.schema.base import clean_msg, unknown_name
-from scenarios.schema.events import FileKey, file_loc
+from scenarios.schema.events import file_loc
 from sim.faults.events import EVENT_TYPES
 
 __all__ = ["KeyLines", "ScenarioError", "allowed_keys", "dotted", "scenario_error", "schema_of"]
@@ -39,7 +39,6 @@ class ScenarioError(ValueError):
         if path is not None:
             where = f"{path}:{line}: " if line is not None else f"{path}: "
         super().__init__(f"{where}{key + ': ' if key else ''}{message}")
-
 
 
 class KeyLines:
@@ -142,6 +141,32 @@ _NO_INPUT_ECHO = frozenset({"scenario", "value_error", "assertion_error", "extra
                             "missing", "union_tag_invalid", "union_tag_not_found"})
 
 
+def _at_file_key(
+    e: Any, loc: tuple[str | int, ...], data: Any, given: Any, msg: str
+) -> tuple[tuple[str | int, ...], Any, str]:
+    """An error at an SI field of an event moved to the file's key and value: ``(loc,
+    value, message)``; other errors unchanged."""
+    if len(loc) < 3 or loc[0] != "events" or not isinstance(loc[1], int):
+        return loc, given, msg
+    events = data.get("events") if isinstance(data, dict) else None
+    if not isinstance(events, list) or not 0 <= loc[1] < len(events):
+        return loc, given, msg
+    event, inner = events[loc[1]], loc[2:]
+    if inner[0] not in EVENT_TYPES:  # a check of the timeline, at a field of the event
+        tag = event.get("type") if isinstance(event, dict) else None
+        tagged, given, key = file_loc(event, (str(tag), *inner))
+        inner = tagged[1:]
+    elif e["type"] != "scenario":  # the event model's own check, at a field
+        inner, given, key = file_loc(event, inner)
+    else:  # found while reading the file's event: already at a file key
+        return loc, given, msg
+    if key is not None and key.quantity and e["type"] in _BOUNDS:
+        # "90 s" and "5 min" are both accepted: a bound names its unit
+        op, bound = _BOUNDS[e["type"]]
+        msg, given = f"must be {op} {e['ctx'][bound]:g} {key.unit} (got {given!r})", None
+    return (*loc[:2], *inner), given, msg
+
+
 def scenario_error(
     error: ValidationError,
     model: type[BaseModel],
@@ -168,30 +193,14 @@ def scenario_error(
     ctx = e.get("ctx") or {}
     msg = clean_msg(e["msg"])
     given = e.get("input")
-    file_key: FileKey | None = None
     other_line = None
     if e["type"] == "scenario":
         loc = loc + tuple(ctx.get("loc", ()))
         msg = ctx.get("message", msg)
         if lines is not None and ctx.get("other"):
             other_line, _ = lines.locate(tuple(ctx["other"]))
-    if file_units and len(loc) > 2 and loc[0] == "events" and isinstance(loc[1], int):
-        events = data.get("events") if isinstance(data, dict) else None
-        if isinstance(events, list) and 0 <= loc[1] < len(events):
-            event, inner = events[loc[1]], loc[2:]
-            if inner[0] not in EVENT_TYPES:  # a check of the timeline, at an event's field
-                tag = event.get("type") if isinstance(event, dict) else None
-                inner, given, file_key = file_loc(event, (str(tag), *inner))
-                inner = inner[1:]
-            elif e["type"] != "scenario":  # the event model's own check, at a field
-                inner, given, file_key = file_loc(event, inner)
-            # (a "scenario" error behind the tag comes from reading the file: file keys)
-            loc = (*loc[:2], *inner)
-            if file_key is not None and file_key.quantity and e["type"] in _BOUNDS:
-                # "90 s", "5 min" are both accepted: a bound names its unit
-                op, name = _BOUNDS[e["type"]]
-                msg = f"must be {op} {ctx[name]:g} {file_key.unit} (got {given!r})"
-                given = None
+    if file_units:
+        loc, given, msg = _at_file_key(e, loc, data, given, msg)
     line, kept = lines.locate(loc) if lines is not None else (None, list(loc))
     if e["type"] == "extra_forbidden" and kept:
         allowed = allowed_keys(schema_of(model), kept[:-1], data if isinstance(data, dict) else {})

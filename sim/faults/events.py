@@ -118,8 +118,8 @@ def _axis(value: Any) -> Any:
 Number = Annotated[float, Field(allow_inf_nan=False), BeforeValidator(_not_bool)]
 """A finite number (int or float; not a bool)."""
 
-# The bound of an optional number sits inside the union (and before the bool check), so that
-# the JSON Schema states it.
+# A number > 0 for an optional field: the bound goes on the number inside the union, ahead of
+# the bool check, so pydantic applies it to the float itself and the JSON Schema states it.
 _Positive = Annotated[float, Field(gt=0.0, allow_inf_nan=False), BeforeValidator(_not_bool)]
 
 Vec3 = tuple[Number, Number, Number]
@@ -190,7 +190,7 @@ class FaultEventBase(BaseModel):
 
 
 class GnssOutage(FaultEventBase):
-    """No GNSS fix at all while active (HIL_GPS stops)."""
+    """No GNSS fix at all while active."""
 
     type: Literal["gnss_outage"] = "gnss_outage"
 
