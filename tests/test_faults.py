@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import FrozenInstanceError
 from functools import cache
 from typing import Any
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 from scipy.spatial.transform import Rotation
 
 from hil.codec import Decoder
@@ -45,6 +45,8 @@ from sim.faults import (
     check_events,
     px4_failure,
 )
+from sim.faults.events import field_unit
+from sim.faults.timeline import Conflict, OutsideFlight, timeline_problems
 from sim.presets import suite_config
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Sample, Truth
 from sim.sensors import SensorSuite
@@ -154,26 +156,28 @@ def test_px4_failure_covers_every_event_type_with_valid_vocabulary() -> None:
 @pytest.mark.parametrize(
     ("make", "match"),
     [
-        (lambda: GnssOutage(-1.0, 5.0), r"GnssOutage\.start_s must be >= 0"),
-        (lambda: GnssOutage(1.0, -5.0), r"GnssOutage\.duration_s must be > 0"),
-        (lambda: GnssOutage(1.0, math.inf), r"GnssOutage\.duration_s must be finite"),
-        (lambda: GnssRate(0.0, 1.0, rate_hz=0.0), r"GnssRate\.rate_hz must be > 0"),
-        (lambda: GnssDelay(0.0, 1.0, extra_latency_s=-0.1), r"extra_latency_s must be > 0"),
-        (lambda: GnssJamming(0.0, 1.0, flap_duty=1.5), r"GnssJamming\.flap_duty"),
-        (lambda: GnssJamming(0.0, 1.0, flap_period_s=0.0), r"flap_period_s must be > 0"),
-        (lambda: GnssDegradation(0.0, 1.0, factor=0.5), r"GnssDegradation\.factor must be >= 1"),
-        (lambda: GnssSpoofDrift(0.0, 1.0, rate_mps=-1.0), r"GnssSpoofDrift\.rate_mps"),
-        (lambda: GnssSpoofHijack(0.0, 1.0, (1.0, 2.0)), r"offset_ned_m must be a sequence of 3"),  # type: ignore[arg-type]
-        (lambda: ImuStuck(0.0, 1.0, sensor="gyro", axis=3), r"ImuStuck\.axis must be 0, 1 or 2"),
-        (lambda: ImuStuck(0.0, 1.0, sensor="baro", axis=0), r"ImuStuck\.sensor must be"),  # type: ignore[arg-type]
-        (lambda: ImuSaturation(0.0, 1.0, sensor="accel", limit=0.0), r"limit must be > 0"),
-        (lambda: ImuBiasStep(0.0, 1.0, "gyro", 1, math.nan), r"ImuBiasStep\.value must be fin"),
-        (lambda: MagAnomaly(0.0, 1.0, ("a", 0.0, 0.0)), r"MagAnomaly\.offset_ned_t"),  # type: ignore[arg-type]
-        (lambda: BaroGlitch(True, 1.0), r"BaroGlitch\.start_s must be a number"),
+        (lambda: GnssOutage(-1.0, 5.0), r"GnssOutage\nstart_s\n  .* greater than or equal to 0"),
+        (lambda: GnssOutage(1.0, -5.0), r"GnssOutage\nduration_s\n  .* greater than 0"),
+        (lambda: GnssOutage(1.0, math.inf), r"GnssOutage\nduration_s\n  .* finite number"),
+        (lambda: GnssRate(0.0, 1.0, rate_hz=0.0), r"GnssRate\nrate_hz\n  .* greater than 0"),
+        (lambda: GnssDelay(0.0, 1.0, extra_latency_s=-0.1), r"extra_latency_s\n  .* than 0"),
+        (lambda: GnssJamming(0.0, 1.0, flap_duty=1.5), r"GnssJamming\nflap_duty\n"),
+        (lambda: GnssJamming(0.0, 1.0, flap_period_s=0.0), r"flap_period_s\n  .* greater than 0"),
+        (lambda: GnssDegradation(0.0, 1.0, factor=0.5), r"GnssDegradation\nfactor\n  .* to 1"),
+        (lambda: GnssSpoofDrift(0.0, 1.0, rate_mps=-1.0), r"GnssSpoofDrift\nrate_mps\n"),
+        (lambda: GnssSpoofHijack(0.0, 1.0, (1.0, 2.0)), r"offset_ned_m\.2\n  Field required"),  # type: ignore[arg-type]
+        (lambda: ImuStuck(0.0, 1.0, sensor="gyro", axis=3), r"ImuStuck\naxis\n  .* 0, 1 or 2"),
+        (lambda: ImuStuck(0.0, 1.0, sensor="gyro", axis=True), r"ImuStuck\naxis\n  .* 0, 1 or 2"),
+        (lambda: ImuStuck(0.0, 1.0, sensor="baro", axis=0), r"ImuStuck\nsensor\n  Input should be"),  # type: ignore[arg-type]
+        (lambda: ImuSaturation(0.0, 1.0, sensor="accel", limit=0.0), r"limit\n  .* greater than 0"),
+        (lambda: ImuBiasStep(0.0, 1.0, "gyro", 1, math.nan), r"ImuBiasStep\nvalue\n  .* finite"),
+        (lambda: MagAnomaly(0.0, 1.0, ("a", 0.0, 0.0)), r"MagAnomaly\noffset_ned_t\.0\n"),  # type: ignore[arg-type]
+        (lambda: BaroGlitch(True, 1.0), r"BaroGlitch\nstart_s\n  Input should be a valid number"),
     ],
 )
 def test_bad_event_fields_name_the_field(make: Any, match: str) -> None:
-    with pytest.raises(ValueError, match=match):
+    # pydantic's message: "N validation error(s) for CLASS", then the field, then the rule
+    with pytest.raises(ValidationError, match=match):
         make()
 
 
@@ -181,9 +185,26 @@ def test_events_are_frozen_and_normalised() -> None:
     ev = GnssSpoofHijack(2, None, [10, 0, 0])  # type: ignore[arg-type]
     assert ev.offset_ned_m == (10.0, 0.0, 0.0) and isinstance(ev.start_s, float)
     assert ev.end_s is None and GnssOutage(2.0, 3.0).end_s == 5.0
-    with pytest.raises(FrozenInstanceError):
+    with pytest.raises(ValidationError, match="frozen"):
         ev.start_s = 3.0  # type: ignore[misc]
     assert hash(ev) == hash(GnssSpoofHijack(2.0, None, (10.0, 0.0, 0.0)))
+    # keywords, positions and a mapping build the same event
+    assert ev == GnssSpoofHijack(start_s=2.0, offset_ned_m=(10.0, 0.0, 0.0))
+    assert ev == GnssSpoofHijack.model_validate(
+        {"type": "gnss_spoof_hijack", "start_s": 2, "offset_ned_m": [10, 0, 0]}
+    )
+    with pytest.raises(TypeError, match="positional"):
+        GnssOutage(1.0, 2.0, 3.0)  # type: ignore[call-arg]
+
+
+def test_fields_declare_their_units() -> None:
+    assert field_unit(GnssOutage, "start_s") == "s"
+    assert field_unit(BaroGlitch, "offset_pa") == "Pa"
+    assert field_unit(WeatherFront, "rate_pa_per_s") == "Pa/s"
+    assert field_unit(MagAnomaly, "offset_ned_t") == "T"
+    assert field_unit(ImuBiasStep, "value", "gyro") == "rad/s"
+    assert field_unit(ImuSaturation, "limit", "accel") == "m/s^2"
+    assert field_unit(ImuBiasStep, "value") is None and field_unit(ImuStuck, "axis") is None
 
 
 def test_injector_rejects_bad_seed_and_non_events() -> None:
@@ -232,6 +253,18 @@ def test_check_events_lists_every_problem_once() -> None:
         check_events([GnssOutage(70.0, 1.0), BaroFreeze(1.0, 5.0), BaroDrift(2.0, 1.0)], 60.0)
     text = str(info.value)
     assert text.count("event 0") == 1 and "event 1 (baro_freeze) and event 2 (baro_drift)" in text
+
+
+def test_timeline_problems_are_records_in_timeline_order() -> None:
+    events = [GnssOutage(70.0, 1.0), BaroGlitch(50.0, 20.0), BaroFreeze(1.0, 5.0),
+              BaroDrift(2.0, 1.0)]
+    assert timeline_problems(events, 60.0) == [
+        OutsideFlight(0, "start_s", 70.0, 60.0),
+        OutsideFlight(1, "duration_s", 70.0, 60.0),
+        Conflict(2, 3, 2.0, 3.0, "at most one barometer sensor fault (drift, glitch, freeze) "
+                 "may be active at a time (a weather front may overlap any of them)"),
+    ]
+    assert timeline_problems(events[2:3], 60.0) == []
 
 
 def test_check_events_accepts_compatible_timelines() -> None:

@@ -443,6 +443,60 @@ def test_event_defaults_follow_sim_faults(tmp_path: Path) -> None:
     assert hijack == faults.GnssSpoofHijack(100.0, 10.0)
 
 
+def test_events_are_the_sim_models_in_si(tmp_path: Path) -> None:
+    # GIVEN a file written in the file's units
+    scenario = load_scenario(write(tmp_path, """
+        duration_s: 600
+        events:
+          - {type: baro_glitch, at: 1 min, duration: 10, offset_hpa: 2}
+          - {type: imu_saturation, at: 100, sensor: gyro, limit_dps: 90, axis: x}
+        """))
+    glitch, sat = scenario.events
+    # THEN the scenario holds sim.faults' own events (no copy), in SI
+    assert scenario.fault_events() is scenario.events
+    assert glitch == faults.BaroGlitch(start_s=60.0, duration_s=10.0, offset_pa=200.0)
+    assert sat == faults.ImuSaturation(100.0, None, "gyro", math.pi / 2, 0)
+    # and a dump holds the SI fields, which Scenario.model_validate takes back
+    data = scenario.model_dump(by_alias=True, exclude_unset=True)
+    assert data["events"][0] == {"type": "baro_glitch", "start_s": 60.0, "duration_s": 10.0,
+                                 "offset_pa": 200.0}
+    assert Scenario.model_validate(data).fault_events() == scenario.fault_events()
+
+
+@pytest.mark.parametrize(
+    ("event", "key", "fragment"),
+    [
+        # an SI field name is not a key of the file
+        ("{type: gnss_outage, start_s: 10}", "events[0].start_s", "unknown key 'start_s'"),
+        ("{type: weather_front, at: 10, rate_pa_per_s: 1}", "events[0].rate_pa_per_s",
+         "did you mean 'rate_hpa_per_h'"),
+        # the model's bound, reported at the file's key with the file's value
+        ("{type: imu_saturation, at: 10, sensor: gyro, limit_dps: -1}", "events[0].limit_dps",
+         "greater than 0 (got -1)"),
+        ("{type: mag_anomaly, at: 10, offset_ned_ut: [1, .nan, 2]}",
+         "events[0].offset_ned_ut[1]", "finite number (got nan)"),
+        ("{type: gnss_outage, at: 10, duration: 0 s}", "events[0].duration",
+         "must be > 0 s (got '0 s')"),
+        ("{type: gnss_jamming, at: 10, blackout_s: true}", "events[0].blackout_s",
+         "valid number"),
+        ("{type: gnss_outage, at: 5 m}", "events[0].at", "is a length, expected a time"),
+    ],
+)
+def test_event_errors_name_the_file_key(tmp_path: Path, event: str, key: str,
+                                        fragment: str) -> None:
+    err = error_of(write(tmp_path, f"duration_s: 600\nevents:\n  - {event}\n"))
+    assert (err.line, err.key) == (3, key)
+    assert fragment in str(err)
+
+
+def test_json_schema_of_events_is_the_file_form() -> None:
+    defs = json_schema()["$defs"]
+    glitch = defs["BaroGlitch"]["properties"]
+    assert {"type", "at", "duration", "offset_pa", "offset_hpa"} == set(glitch)
+    assert glitch["offset_hpa"]["unit"] == "hPa" and glitch["at"]["unit"] == "s"
+    assert defs["ImuBiasStep"]["required"] == ["type", "at", "sensor", "axis"]
+
+
 # -------------------------------------------------------------------------- builders
 def test_builders_apply_overrides_and_defaults(tmp_path: Path) -> None:
     scenario = load_scenario(write(tmp_path, """
