@@ -27,6 +27,7 @@ from hil.tlog import TlogWriter
 from scenarios.jsonable import plain_dict
 from scenarios.schema import Scenario
 from scenarios.summary import RunInfo, Scored, score_run, write_summary
+from sim.faults.events import event_type_name
 
 ProgressFn = Callable[[float], None]
 
@@ -79,21 +80,12 @@ def event_windows(scenario: Scenario, end_s: float) -> list[dict[str, Any]]:
     """The scenario's timeline as scored windows ``{type, kind, start_s, end_s}``."""
     rows = []
     for ev in scenario.fault_events():
-        type_name = _type_name(ev)
+        type_name = event_type_name(ev)
         start = float(ev.start_s)
         stop = end_s if ev.duration_s is None else min(end_s, start + float(ev.duration_s))
         rows.append({"type": type_name, "kind": _SCORED_EVENT_KINDS.get(type_name, "generic"),
                      "start_s": start, "end_s": stop})
     return rows
-
-
-def _type_name(event: object) -> str:
-    from sim.faults import EVENT_TYPES
-
-    for name, cls in EVENT_TYPES.items():
-        if type(event) is cls:
-            return name
-    return type(event).__name__
 
 
 def score(
