@@ -21,7 +21,7 @@ per-seed comparisons (mean difference ± standard error, seeds won).
     PYTHONPATH=. .venv/bin/python bench/altitude_compare.py
 
 (about 30 min on 2 cores). The harness functions (:func:`simulate`, :func:`run_channel`,
-:func:`metrics`, :func:`make_config`) are also used by ``tests/test_altitude.py``.
+:func:`metrics`, :func:`make_config`) are also used by ``tests/fusion/test_altitude.py``.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ This is the only module that knows JSBSim's units (feet, slugs, lbf, psf, Rankin
 property is converted once, here.
 
 What the truth fields are, and why (checked against JSBSim 1.3.3's source and by the
-kinematic-consistency test in ``tests/test_flight.py``):
+kinematic-consistency test in ``tests/sim/test_flight.py``):
 
 * Position: ``position/lat-geod-rad``, ``position/long-gc-rad`` (WGS-84 geodetic) and
   ``position/h-sl-meters``. JSBSim's "sea level" *is* the WGS-84 ellipsoid (it has no geoid),

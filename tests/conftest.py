@@ -1,12 +1,15 @@
-"""Shared fixtures: one short recorded lockstep flight reused by the CLI / replay tests."""
+"""Shared fixtures: one short recorded lockstep flight reused by the CLI / replay tests, and an
+in-process Zenoh router for the bus tests."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from hil.pipeline import SimSetup, record_flight
+from hil.router import ZenohRouter
 
 pytest_plugins = ["pytester"]
 
@@ -21,3 +24,10 @@ def short_flight_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     report = record_flight(request, path)
     assert report.ended is None
     return path
+
+
+@pytest.fixture(scope="module")
+def router() -> Iterator[str]:
+    """An in-process Zenoh router on a free loopback port; its endpoint."""
+    with ZenohRouter() as r:
+        yield r.endpoint

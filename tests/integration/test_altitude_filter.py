@@ -14,13 +14,13 @@ from typing import Any
 
 import numpy as np
 import pytest
-from helpers.nav_synth import Flight, Prepared, SensorErrors, make_scenario, prepare
 
 from fusion import earth
 from fusion.aiding.baro import height_to_pressure
 from fusion.config import ALTITUDE_METHODS, AltitudeConfig, FilterConfig
 from fusion.filter import AltitudeStatus, NavEstimate, NavFilter
 from sim.samples import BaroSample, ImuSample
+from tests.helpers.nav_synth import Flight, Prepared, SensorErrors, make_scenario, prepare
 
 CFG = FilterConfig()
 ERRORS = SensorErrors.from_config(CFG)

@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import bisect
 import math
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -30,6 +28,7 @@ from hil.tuning import filter_config_for_presets
 from scenarios.cli.app import app
 from scenarios.cli.up import free_udp_port, stop_process
 from scenarios.replay import replay
+from tests.helpers.processes import hilnav_process
 
 SHADOW_SYS = 42
 
@@ -151,11 +150,6 @@ def test_bad_input_exit_2(args: list[str], needle: str) -> None:
 
 
 # ------------------------------------------------------------------------- end to end
-def _hilnav(*args: str, log: Path) -> subprocess.Popen[bytes]:
-    return subprocess.Popen([sys.executable, "-m", "scenarios.cli", *args], stdout=log.open("wb"),
-                            stderr=subprocess.STDOUT, start_new_session=True)
-
-
 def _gcs_role() -> LinkRole:
     return LinkRole(system_id=255, component_id=190, mav_type=mavlink2.MAV_TYPE_GCS,
                     autopilot=mavlink2.MAV_AUTOPILOT_INVALID)
@@ -182,12 +176,12 @@ def test_live_chain_matches_replay_of_the_same_frames(tmp_path: Path) -> None:
         bus.subscribe(Topic.ESTIMATE, on_msg)
         assert bus.wait_connected(10.0)
         gcs_port = gcs.local_address[1]
-        fusion = _hilnav(
+        fusion = hilnav_process(
             "fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
             "--vehicle", "t1", "--gcs", f"udpout:127.0.0.1:{gcs_port}", "--shadow-sysid",
             str(SHADOW_SYS), "--out", str(tmp_path / "live"), "--idle-exit", "3",
             "--settle", "10", log=tmp_path / "fusion.log")
-        sim = _hilnav(
+        sim = hilnav_process(
             "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "20", "--duration", "60",
             "--seed", "3", "--gnss-off", "30:10", "--record", str(tmp_path / "run.tlog"),
             "--wait-peer", "30", "--zenoh", endpoint, "--vehicle", "t1",
@@ -256,10 +250,10 @@ def test_live_fusion_with_gmdh_and_loop_mpc_equals_replay_with_the_same_options(
     replay build the same filter."""
     port = free_udp_port()
     options = ["--bridge", "gmdh", "--altitude", "loop-mpc"]
-    fusion = _hilnav(
+    fusion = hilnav_process(
         "fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--out", str(tmp_path / "live"),
         "--idle-exit", "3", "--settle", "20", *options, log=tmp_path / "fusion.log")
-    sim = _hilnav(
+    sim = hilnav_process(
         "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "50", "--lockstep",
         "--duration", "150", "--seed", "4", "--gnss-off", "100:20",
         "--record", str(tmp_path / "run.tlog"), "--wait-peer", "30", log=tmp_path / "sim.log")

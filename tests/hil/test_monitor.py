@@ -7,7 +7,6 @@ import json
 import math
 import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -34,15 +33,8 @@ from hil.bus import (
     truth_payload,
 )
 from hil.monitor import McapRecorder, MonitorState, monitor_main
-from hil.router import ZenohRouter
 
 LAT0, LON0 = math.radians(47.0), math.radians(8.0)
-
-
-@pytest.fixture(scope="module")
-def router() -> Iterator[str]:
-    with ZenohRouter() as r:
-        yield r.endpoint
 
 
 def nav(time_us: int, *, mode: str = "gnss", north_m: float = 0.0, since: float = 0.1):

@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from helpers.nav_synth import Flight
 
 from fusion import earth, strapdown
 from fusion.error_model import (
@@ -22,6 +21,7 @@ from fusion.error_model import (
 )
 from fusion.rotations import dcm_to_rotvec, quat_multiply, quat_to_dcm, rotvec_to_quat
 from fusion.trajectory import ImuIncrements, ideal_increments
+from tests.helpers.nav_synth import Flight
 
 NOISE = ProcessNoise(
     gyro_noise=1e-4, accel_noise=1e-3,

@@ -10,7 +10,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-from helpers.nav_synth import Flight, Prepared, SensorErrors, make_scenario, prepare
 from pydantic import ValidationError
 
 from fusion import earth
@@ -38,6 +37,7 @@ from fusion.config import BRIDGE_FEATURES, BridgeConfig, FilterConfig, GnssConfi
 from fusion.filter import NavEstimate, NavFilter
 from fusion.strapdown import InsState
 from sim.samples import ImuSample
+from tests.helpers.nav_synth import Flight, Prepared, SensorErrors, make_scenario, prepare
 
 CFG = FilterConfig()
 ERRORS = SensorErrors.from_config(CFG)

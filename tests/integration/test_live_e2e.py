@@ -19,7 +19,6 @@ import os
 import re
 import signal
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -45,6 +44,7 @@ from hil.tracks import Collector
 from hil.tuning import filter_config_for_presets
 from scenarios.cli.up import free_udp_port, stop_process
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Truth
+from tests.helpers.processes import hilnav_process
 
 KEY = bytes(range(100, 132))
 WRONG_KEY = bytes(range(32))
@@ -53,14 +53,6 @@ _SENT = re.compile(r"sent (\d+)/(\d+) frames")
 
 
 # ------------------------------------------------------------------------------ helpers
-def _hilnav(*args: str, log: Path) -> subprocess.Popen[bytes]:
-    return subprocess.Popen(
-        [sys.executable, "-m", "scenarios.cli", *args], stdout=log.open("wb"),
-        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True,
-        env={**os.environ, "COLUMNS": "200"},
-    )
-
-
 @contextlib.contextmanager
 def _processes() -> Iterator[list[subprocess.Popen[bytes]]]:
     procs: list[subprocess.Popen[bytes]] = []
@@ -85,7 +77,7 @@ def _wait_for_text(log: Path, text: str, proc: subprocess.Popen[bytes]) -> None:
 def _start_fusion(tmp: Path, name: str, *args: str) -> tuple[subprocess.Popen[bytes], int, Path]:
     port = free_udp_port()
     log = tmp / f"{name}.log"
-    proc = _hilnav("fusion", "--mavlink", f"udpin:127.0.0.1:{port}", *args, log=log)
+    proc = hilnav_process("fusion", "--mavlink", f"udpin:127.0.0.1:{port}", *args, log=log)
     return proc, port, log
 
 
@@ -394,7 +386,7 @@ def test_signed_sim_and_fusion_over_udp(tmp_path: Path) -> None:
             "--settle", "5")
         procs.append(fusion)
         slog = tmp_path / "sim.log"
-        sim = _hilnav("sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "50",
+        sim = hilnav_process("sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "50",
                       "--duration", "20", "--seed", "5", "--lockstep",
                       "--signing-key-file", str(key_file), log=slog)
         procs.append(sim)
@@ -432,7 +424,7 @@ def test_lockstep_sim_never_runs_ahead_of_the_acknowledgements() -> None:
     role = input_role()
     with MavlinkLink("udpin:127.0.0.1:0", role) as link, _processes() as procs:
         port = link.local_address[1]
-        sim = _hilnav("sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "1000",
+        sim = hilnav_process("sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "1000",
                       "--duration", "5", "--lockstep", "--lockstep-window", "0.1",
                       log=Path(os.devnull))
         procs.append(sim)
@@ -523,7 +515,7 @@ def test_lockstep_loses_nothing_when_the_fusion_freezes_and_innovations_match_re
             "--settle", "5")
         procs.append(fusion)
         slog = tmp_path / "sim.log"
-        sim = _hilnav("sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "1000",
+        sim = hilnav_process("sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "1000",
                       "--duration", "40", "--seed", "9", "--plan", "manoeuvre",
                       "--gnss-off", "25:5", "--lockstep",
                       "--record", str(tmp_path / "run.tlog"), log=slog)

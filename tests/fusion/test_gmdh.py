@@ -19,7 +19,7 @@ from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from fusion.gmdh import GmdhRegressor, NotFittedError
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def _quad_of_quad(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-from helpers.nav_synth import Flight
 
 from fusion import earth, strapdown
 from fusion.rotations import (
@@ -24,6 +23,7 @@ from fusion.trajectory import (
     spline_from_truth,
 )
 from sim.samples import ImuSample, Truth
+from tests.helpers.nav_synth import Flight
 
 
 def stationary_increments(lat: float, h: float, q_nb: np.ndarray, dt: float, n: int):

@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from helpers.nav_synth import FIELD_N_T
 
 from fusion import earth
 from fusion.aiding import baro, gnss, mag
@@ -15,6 +14,7 @@ from fusion.error_model import INS16, INS16_GNSS
 from fusion.rotations import euler_to_quat, quat_multiply, quat_to_dcm, rotvec_to_quat
 from fusion.strapdown import InsState
 from sim.samples import GnssFix
+from tests.helpers.nav_synth import FIELD_N_T
 
 LAY = INS16
 TRUE = InsState.from_arrays(

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -57,12 +57,6 @@ def wait_for(predicate: Callable[[], bool], timeout_s: float = 10.0) -> bool:
             return predicate()
         time.sleep(0.01)
     return True
-
-
-@pytest.fixture(scope="module")
-def router() -> Iterator[str]:
-    with ZenohRouter() as r:
-        yield r.endpoint
 
 
 # --------------------------------------------------------------------------- sample objects

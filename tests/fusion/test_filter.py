@@ -10,17 +10,6 @@ from collections.abc import Iterable
 
 import numpy as np
 import pytest
-from helpers.nav_synth import (
-    FIELD_N_T,
-    Flight,
-    Prepared,
-    Scenario,
-    SensorErrors,
-    error_state,
-    make_scenario,
-    prepare,
-    run_nees,
-)
 from scipy.stats import chi2
 
 import fusion.samples as proto
@@ -31,6 +20,17 @@ from fusion.config import FilterConfig, GnssConfig, InitConfig, MagConfig, Rates
 from fusion.filter import NavEstimate, NavFilter
 from fusion.rotations import quat_multiply, rotvec_to_quat
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample
+from tests.helpers.nav_synth import (
+    FIELD_N_T,
+    Flight,
+    Prepared,
+    Scenario,
+    SensorErrors,
+    error_state,
+    make_scenario,
+    prepare,
+    run_nees,
+)
 
 CFG = FilterConfig()
 ERRORS = SensorErrors.from_config(CFG)
