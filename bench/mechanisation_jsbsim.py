@@ -3,7 +3,8 @@
 Shows how far hilnav's strapdown (WGS-84, Somigliana normal gravity) drifts from a JSBSim
 trajectory when fed JSBSim's truth directly: the difference is JSBSim's gravity model (WGS-84 +
 J2) against normal gravity, ~1e-5 m/s^2.
-(``tests/integration/test_mechanisation_flight.py`` checks the mechanisation itself with an ideal IMU derived from the trajectory through hilnav's Earth model.)
+(``tests/integration/test_mechanisation_flight.py`` checks the mechanisation itself with an
+ideal IMU derived from the trajectory through hilnav's Earth model.)
 
     python bench/mechanisation_jsbsim.py   # writes bench/results/mechanisation_jsbsim.json
 """
