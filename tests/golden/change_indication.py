@@ -3,8 +3,8 @@
 In the manner of PX4 ECL's ``test/change_indication``: any change to the numbers the
 navigation produces shows up as a diff of ``change_indication.csv``, so a numeric change is
 always deliberate and reviewed. ``tests/integration/test_change_indication.py`` recomputes
-the flight and fails when a value moved beyond round-off (see its tolerances). After a deliberate change,
-regenerate the file with the documented command and commit it with the reason:
+the flight and fails when a value moved beyond round-off (see its tolerances). After a
+deliberate change, regenerate the file with the documented command and commit it with the reason:
 
     python -m tests.golden.change_indication          # rewrites tests/golden/change_indication.csv
 
