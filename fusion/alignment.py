@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion import earth
-from fusion.config import GnssConfig, ImuConfig, InitConfig, MagConfig
+from fusion.config import GnssTuning, ImuTuning, InitConfig, MagTuning
 from fusion.rotations import dcm_to_quat, euler_to_dcm, quat_multiply, rotvec_to_quat
 from fusion.samples import GnssFix
 from fusion.strapdown import InsState
@@ -122,10 +122,10 @@ class InFlightAlignment:
     Parameters
     ----------
     init : InitConfig
-    gnss : GnssConfig
+    gnss : GnssTuning
     """
 
-    def __init__(self, init: InitConfig, gnss: GnssConfig) -> None:
+    def __init__(self, init: InitConfig, gnss: GnssTuning) -> None:
         self.init = init
         self.gnss = gnss
         self._imu: deque[_Imu] = deque(maxlen=8192)
@@ -241,12 +241,12 @@ class StaticAlignment:
     Parameters
     ----------
     init : InitConfig
-    gnss : GnssConfig
-    mag : MagConfig
-    imu : ImuConfig
+    gnss : GnssTuning
+    mag : MagTuning
+    imu : ImuTuning
     """
 
-    def __init__(self, init: InitConfig, gnss: GnssConfig, mag: MagConfig, imu: ImuConfig) -> None:
+    def __init__(self, init: InitConfig, gnss: GnssTuning, mag: MagTuning, imu: ImuTuning) -> None:
         self.init = init
         self.gnss = gnss
         self.mag = mag

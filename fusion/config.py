@@ -23,6 +23,7 @@ from pydantic import (
 )
 
 from fusion.altitude import AltitudeChannelConfig
+from fusion.error_model import LayoutName
 
 Probability = float
 
@@ -31,8 +32,8 @@ class _Frozen(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
 
-class ImuConfig(_Frozen):
-    """IMU error model (what the filter assumes) and the sensor's measurement range."""
+class ImuTuning(_Frozen):
+    """What the filter assumes about the IMU: its error model and its measurement range."""
 
     gyro_noise_density_rps_rthz: PositiveFloat = math.radians(0.005)
     """Angle random walk, rad/s/sqrt(Hz)."""
@@ -72,8 +73,8 @@ class ImuConfig(_Frozen):
     """Unknown rotation rate assumed over a time-jump gap, rad/s."""
 
 
-class GnssConfig(_Frozen):
-    """GNSS position/velocity aiding."""
+class GnssTuning(_Frozen):
+    """What the filter assumes about the GNSS receiver, and how it fuses its fixes."""
 
     lever_arm_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """Antenna position relative to the IMU in body FRD, m."""
@@ -99,20 +100,12 @@ class GnssConfig(_Frozen):
     """Good-quality fixes rejected by the gate for this long: reset position and velocity."""
     max_delay_s: PositiveFloat = 0.5
     """Fixes whose time of validity is older than this (w.r.t. the INS) are dropped, s."""
-    bias_states: bool = False
-    """Estimate the receiver's time-correlated position error (atmosphere, orbits, multipath)
-    as three Gauss-Markov states (North, East, Down; the layout becomes ``ins16+gnss`` /
-    ``ins22+gnss``). The position update then uses only the white part of the reported
-    accuracy, ``sqrt(eph^2 - bias_sigma_h_m^2)`` (floored by ``pos_noise_floor_m``). Off: each
-    fix is fused as white noise with sigma ``eph`` / ``epv``, which makes the filter
-    overconfident when the receiver error is correlated over minutes (NEES ~200-300 instead of
-    9 on the ``modern`` receiver). Off by default because the split of ``eph`` into correlated
-    and white parts is a property of the receiver that this model cannot guess: with the
-    states on, a receiver whose error is really white at ``eph`` is fused with too small an
-    ``R`` and gated out. :func:`hil.tuning.filter_gnss_config` turns it on from a receiver
-    description."""
     bias_sigma_h_m: PositiveFloat = 1.4
-    """Steady-state sigma of the correlated position error per horizontal axis, m."""
+    """Steady-state sigma of the receiver's time-correlated position error (atmosphere, orbits,
+    multipath) per horizontal axis, m. Used by the layouts with the GNSS position-bias states
+    (``ins16+gnss`` / ``ins22+gnss``, :attr:`FilterConfig.state_layout`): the position update
+    then takes only the white part of the reported accuracy,
+    ``sqrt(eph^2 - bias_sigma_h_m^2)`` (floored by ``pos_noise_floor_m``)."""
     bias_sigma_v_m: PositiveFloat = 2.4
     """Steady-state sigma of the correlated position error, Down, m."""
     bias_tau_h_s: PositiveFloat = 120.0
@@ -121,8 +114,9 @@ class GnssConfig(_Frozen):
     """Correlation time of the vertical position bias, s."""
 
 
-class BaroConfig(_Frozen):
-    """Barometric height aiding with a Gauss-Markov bias state."""
+class BaroTuning(_Frozen):
+    """What the filter assumes about the barometer: height aiding with a Gauss-Markov bias
+    state."""
 
     noise_m: PositiveFloat = 0.5
     """Height noise sigma of one sample, m."""
@@ -139,8 +133,8 @@ class BaroConfig(_Frozen):
     """Rejected for this long: re-initialise the baro bias from the current height."""
 
 
-class MagConfig(_Frozen):
-    """Magnetometer heading aiding."""
+class MagTuning(_Frozen):
+    """What the filter assumes about the magnetometer, and how it fuses its heading."""
 
     heading_noise_rad: PositiveFloat = math.radians(3.0)
     """Heading sigma (generous: covers soft/hard-iron residuals and field errors), rad."""
@@ -315,7 +309,7 @@ class AltitudeConfig(_Frozen):
     """Where the output altitude and vertical velocity come from.
 
     ``ekf``: the error-state filter's own vertical channel (baro height fused as an EKF update
-    with a Gauss-Markov bias state, :class:`BaroConfig`). ``loop`` / ``loop-mpc`` /
+    with a Gauss-Markov bias state, :class:`BaroTuning`). ``loop`` / ``loop-mpc`` /
     ``loop-kf``: paper P4's barometric-inertial channel (:class:`fusion.altitude.AltitudeChannel`)
     runs inside the filter on the INS vertical acceleration, the barometer (pressure and
     temperature, non-standard-atmosphere calibration from GNSS height) and GNSS height; the
@@ -364,13 +358,21 @@ class AltitudeConfig(_Frozen):
 class FilterConfig(_Frozen):
     """Everything :class:`fusion.filter.NavFilter` needs."""
 
-    state_layout: Literal["ins16", "ins22"] = "ins16"
-    """``ins16``: pos, vel, att, accel bias, gyro bias, baro bias. ``ins22``: plus accelerometer
-    and gyro scale factors."""
-    imu: ImuConfig = ImuConfig()
-    gnss: GnssConfig = GnssConfig()
-    baro: BaroConfig = BaroConfig()
-    mag: MagConfig = MagConfig()
+    state_layout: LayoutName = "ins16"
+    """The error-state layout, by name (:func:`fusion.error_model.layout_for`): ``ins16``: pos,
+    vel, att, accel bias, gyro bias, baro bias. ``ins22``: plus accelerometer and gyro scale
+    factors. ``+gnss``: plus the receiver's time-correlated position error as three
+    Gauss-Markov states (North, East, Down; sigmas and correlation times in
+    :class:`GnssTuning`). Without them each fix is fused as white noise with sigma ``eph`` /
+    ``epv``, which makes the filter overconfident when the receiver error is correlated over
+    minutes (NEES ~200-300 instead of 9 on the ``modern`` receiver); with them a receiver whose
+    error is really white at ``eph`` is fused with too small an ``R`` and gated out. The split
+    of ``eph`` into correlated and white parts is a property of the receiver:
+    :func:`hil.tuning.gnss_state_layout` chooses the layout from a receiver description."""
+    imu: ImuTuning = ImuTuning()
+    gnss: GnssTuning = GnssTuning()
+    baro: BaroTuning = BaroTuning()
+    mag: MagTuning = MagTuning()
     init: InitConfig = InitConfig()
     rates: RatesConfig = RatesConfig()
     bridge: BridgeConfig = BridgeConfig()

@@ -10,7 +10,7 @@ model (*how*) in :mod:`fusion.aiding`; each accepted update (Joseph form, chi-sq
 
 Bad input never raises and is never integrated: non-finite or out-of-range IMU samples are
 replaced by the last good one (zero-order hold over their interval); duplicated or backwards
-timestamps are dropped; a forward IMU time jump larger than ``ImuConfig.time_jump_s`` is not
+timestamps are dropped; a forward IMU time jump larger than ``ImuTuning.time_jump_s`` is not
 integrated (the INS coasts at constant velocity over the gap and the covariance grows by the
 process noise); GNSS fixes without a 3-D fix, with non-finite fields or a poor accuracy are
 not fused. Everything is counted in :class:`Health`.
@@ -358,7 +358,7 @@ class NavFilter:
             None if method == "ekf" else cfg.altitude.channel.model_copy(update={"method": method})
         )
         self._omega_s2 = cfg.altitude.channel.omega_s2
-        self.layout: StateLayout = layout_for(cfg.state_layout, cfg.gnss.bias_states)
+        self.layout: StateLayout = layout_for(cfg.state_layout)
         imu = cfg.imu
         self._noise = ProcessNoise(
             gyro_noise=imu.gyro_noise_density_rps_rthz,
@@ -529,7 +529,7 @@ class NavFilter:
     @property
     def gnss_bias_ned_m(self) -> tuple[float, float, float] | None:
         """Estimated time-correlated GNSS position error (NED, m) at the current time;
-        ``None`` without the GNSS bias states (``GnssConfig.bias_states``)."""
+        ``None`` without the GNSS bias states (a layout without ``+gnss``)."""
         if self.layout.gnss is None:
             return None
         b = self._gnss_bias()
@@ -1118,7 +1118,7 @@ class NavFilter:
         delay = (now - t) * 1e-6
         lat, lon, alt = float(fix.lat_rad), float(fix.lon_rad), float(fix.alt_msl_m)
         bias = None if lay.gnss is None else self._gnss_bias()
-        w_h, w_v = gnss_aid.white_position_sigmas(sig_h, sig_v, cfg)
+        w_h, w_v = gnss_aid.white_position_sigmas(sig_h, sig_v, cfg, lay)
         obs = gnss_aid.position_model(
             lay, past, lat, lon, alt, w_h, w_v, cfg.lever_arm_b_m, delay,
             None if bias is None else (bias[0], bias[1], bias[2]),

@@ -26,7 +26,7 @@ from fusion.filter import NavFilter
 from hil.codec import Decoder
 from hil.streamer import LockstepReport, SensorStreamer, run_lockstep
 from hil.tlog import TlogWriter
-from hil.tuning import filter_config_for_imu, filter_gnss_config
+from hil.tuning import filter_config_for_imu, filter_gnss_config, gnss_state_layout
 from scenarios import metrics
 from scenarios.collect import Collector
 from scenarios.jsonable import plain_dict
@@ -88,6 +88,7 @@ def filter_config(scenario: Scenario, altitude: str | None = None) -> FilterConf
     return config.model_copy(update={
         "altitude": config.altitude.model_copy(update={"method": method}),
         "gnss": filter_gnss_config(scenario.sensor_config().gnss, config.gnss),
+        "state_layout": gnss_state_layout(scenario.sensor_config().gnss, config.state_layout),
     })
 
 

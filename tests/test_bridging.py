@@ -34,7 +34,7 @@ from fusion.bridging import (
     features_row,
     make_bridge,
 )
-from fusion.config import BRIDGE_FEATURES, BridgeConfig, FilterConfig, GnssConfig
+from fusion.config import BRIDGE_FEATURES, BridgeConfig, FilterConfig, GnssTuning
 from fusion.filter import NavEstimate, NavFilter
 from fusion.strapdown import InsState
 from sim.samples import ImuSample
@@ -419,7 +419,7 @@ def test_shadow_ins_equals_the_main_ins_when_no_update_happened(turning: Prepare
     # GIVEN a filter started from a known state and only IMU samples (no aiding at all; a long
     # outage timeout keeps it out of outage mode, so the shadows keep re-seeding)
     sc = make_scenario(turning, np.random.default_rng(3), ERRORS)
-    cfg = CFG.model_copy(update={"gnss": GnssConfig(outage_timeout_s=100.0)})
+    cfg = CFG.model_copy(update={"gnss": GnssTuning(outage_timeout_s=100.0)})
     nav = NavFilter(cfg, bridge=_Asking())
     kin = sc.traj(np.array([0.0]))
     lat, lon, h = kin.lla[0]

@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from fusion.aiding import Observation
-from fusion.config import BaroConfig
+from fusion.config import BaroTuning
 from fusion.error_model import StateLayout
 from physconst import G0_MPS2, ISA_L0_KPM, ISA_LAYER_BASE_M, ISA_P0_PA, ISA_R_AIR_JPKGK, ISA_T0_K
 
@@ -95,10 +95,10 @@ class BaroControl:
 
     Parameters
     ----------
-    cfg : BaroConfig
+    cfg : BaroTuning
     """
 
-    def __init__(self, cfg: BaroConfig) -> None:
+    def __init__(self, cfg: BaroTuning) -> None:
         self.cfg = cfg
         self._timeout_us = round(cfg.timeout_s * 1e6)
         self._reset_us = round(cfg.reset_after_rejected_s * 1e6)

@@ -9,7 +9,7 @@ validity, moved to the antenna by the lever arm, minus the fix::
 ``eph_m`` is used as the 1-sigma of *each* horizontal axis (as PX4's ekf2 does), ``epv_m`` for
 down, ``speed_accuracy_mps`` for each velocity axis, each floored by the configuration.
 
-Time-correlated receiver error (``GnssConfig.bias_states``): the fix is
+Time-correlated receiver error (layouts ``ins16+gnss`` / ``ins22+gnss``): the fix is
 ``p_fix = p + b + w`` with ``b`` a Gauss-Markov position bias (N, E, D; tau ~ minutes) and ``w``
 white. The filter carries the bias estimate ``b^`` and its error ``db = b^ - b`` (layout block
 ``gnss``), and the position observation becomes::
@@ -40,7 +40,7 @@ import numpy as np
 
 from fusion import earth
 from fusion.aiding import Observation
-from fusion.config import GnssConfig
+from fusion.config import GnssTuning
 from fusion.error_model import StateLayout
 from fusion.samples import GnssFix
 from fusion.strapdown import InsState, dcm_from_quat
@@ -213,7 +213,7 @@ def velocity_model(
     return Observation(z, H, R)
 
 
-def fix_quality(fix: GnssFix, cfg: GnssConfig) -> str | None:
+def fix_quality(fix: GnssFix, cfg: GnssTuning) -> str | None:
     """Why a fix cannot be used (``"no_fix"``, ``"invalid"``, ``"inaccurate"``), or ``None``."""
     if fix.fix_type < 3:
         return "no_fix"
@@ -239,12 +239,12 @@ def fix_quality(fix: GnssFix, cfg: GnssConfig) -> str | None:
 
 
 def white_position_sigmas(
-    sigma_h_m: float, sigma_v_m: float, cfg: GnssConfig
+    sigma_h_m: float, sigma_v_m: float, cfg: GnssTuning, layout: StateLayout
 ) -> tuple[float, float]:
     """The white part of the reported position sigmas when the bias states take the rest.
 
     The receiver's ``eph`` / ``epv`` describe its *total* error; with the Gauss-Markov bias
-    states (``cfg.bias_states``) only ``sqrt(sigma^2 - sigma_b^2)`` is left for ``R``, floored by
+    states (a ``+gnss`` layout) only ``sqrt(sigma^2 - sigma_b^2)`` is left for ``R``, floored by
     ``pos_noise_floor_m`` (a receiver reporting less than the configured bias sigma). Without
     bias states the sigmas are returned unchanged.
 
@@ -252,14 +252,16 @@ def white_position_sigmas(
     ----------
     sigma_h_m, sigma_v_m : float
         Per-axis horizontal and vertical sigmas (:func:`fix_sigmas`), m.
-    cfg : GnssConfig
+    cfg : GnssTuning
+    layout : StateLayout
+        The filter's layout (:attr:`~fusion.error_model.StateLayout.has_gnss_bias`).
 
     Returns
     -------
     (float, float)
         Horizontal and vertical white sigmas, m.
     """
-    if not cfg.bias_states:
+    if not layout.has_gnss_bias:
         return sigma_h_m, sigma_v_m
     floor2 = cfg.pos_noise_floor_m**2
     h2 = sigma_h_m * sigma_h_m - cfg.bias_sigma_h_m * cfg.bias_sigma_h_m
@@ -267,7 +269,7 @@ def white_position_sigmas(
     return math.sqrt(max(h2, floor2)), math.sqrt(max(v2, floor2))
 
 
-def fix_sigmas(fix: GnssFix, cfg: GnssConfig) -> tuple[float, float, float]:
+def fix_sigmas(fix: GnssFix, cfg: GnssTuning) -> tuple[float, float, float]:
     """Per-axis sigmas ``(horizontal m, vertical m, velocity m/s)`` with the configured floors.
 
     An accuracy the receiver did not report (NaN) takes the configured default.
@@ -286,10 +288,10 @@ class GnssControl:
 
     Parameters
     ----------
-    cfg : GnssConfig
+    cfg : GnssTuning
     """
 
-    def __init__(self, cfg: GnssConfig) -> None:
+    def __init__(self, cfg: GnssTuning) -> None:
         self.cfg = cfg
         self._timeout_us = round(cfg.outage_timeout_s * 1e6)
         self._reset_us = round(cfg.reset_after_rejected_s * 1e6)

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion.aiding import Observation
-from fusion.config import MagConfig
+from fusion.config import MagTuning
 from fusion.error_model import StateLayout
 
 LEARN_SAMPLES = 10
@@ -93,10 +93,10 @@ class MagControl:
 
     Parameters
     ----------
-    cfg : MagConfig
+    cfg : MagTuning
     """
 
-    def __init__(self, cfg: MagConfig) -> None:
+    def __init__(self, cfg: MagTuning) -> None:
         self.cfg = cfg
         self._period_us = round(1e6 / cfg.fuse_rate_hz)
         self.last_fused_us: int | None = None
