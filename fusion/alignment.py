@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from fusion import earth
 from fusion.config import GnssTuning, ImuTuning, InitConfig, MagTuning
-from fusion.rotations import dcm_to_quat, euler_to_dcm, quat_multiply, rotvec_to_quat
+from fusion.rotations import dcm_to_quat, euler_to_dcm, quat_multiply, rotvec_to_quat, wrap_pi
 from fusion.samples import GnssFix
 from fusion.strapdown import InsState
 
@@ -319,7 +319,7 @@ class StaticAlignment:
                 math.pi, max(self.init.static_yaw_sigma_rad, self.imu.gyro_bias_sigma_rps / horiz)
             )
             method = "static_gyrocompass"
-        yaw = (yaw + math.pi) % (2.0 * math.pi) - math.pi
+        yaw = wrap_pi(yaw)
         c_nb = euler_to_dcm(np.array([roll, pitch, yaw]))
         lat, lon, alt = _ins_from_antenna(fix.lat, fix.lon, fix.alt, c_nb, self.gnss.lever_arm_b_m)
         state = InsState.from_arrays(lat, lon, alt, np.zeros(3), dcm_to_quat(c_nb))

@@ -59,9 +59,9 @@ from fusion.bridge import (
 from fusion.config import ALTITUDE_METHODS, FilterConfig
 from fusion.error_model import ErrorModel, ProcessNoise, StateLayout, layout_for
 from fusion.history import InsHistory, span_capacity
-from fusion.rotations import quat_to_dcm
+from fusion.rotations import dcm_from_quat, euler_from_quat, quat_product, quat_to_dcm, rotvec_quat
 from fusion.samples import BaroSample, GnssFix, ImuSample, MagSample
-from fusion.strapdown import InsState, dcm_from_quat, rotvec_quat
+from fusion.strapdown import InsState
 
 FloatArray = NDArray[np.float64]
 _ZERO3 = (0.0, 0.0, 0.0)
@@ -977,13 +977,8 @@ class NavFilter:
         p, v, a = lay.POS, lay.VEL, lay.ATT
         lt = earth.local_terms(ins.lat_rad, ins.alt_msl_m)
         vn, ve, vd = ins.v_ned_mps
-        qw, qx, qy, qz = ins.q_nb
         # q <- q(-phi) ⊗ q
-        pw, px, py, pz = rotvec_quat(-d[a], -d[a + 1], -d[a + 2])
-        rw = pw * qw - px * qx - py * qy - pz * qz
-        rx = pw * qx + px * qw + py * qz - pz * qy
-        ry = pw * qy - px * qz + py * qw + pz * qx
-        rz = pw * qz + px * qy - py * qx + pz * qw
+        rw, rx, ry, rz = quat_product(rotvec_quat(-d[a], -d[a + 1], -d[a + 2]), ins.q_nb)
         norm = math.sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
         if rw < 0.0:
             norm = -norm
@@ -1182,7 +1177,6 @@ class NavFilter:
 
     # ------------------------------------------------------------------ bridging
     def _epoch(self, time_us: int, state: InsState) -> BridgeEpoch:
-        qw, qx, qy, qz = state.q_nb
         ba, bg = self._ba, self._bg
         shadows = self._shadows
         return BridgeEpoch(
@@ -1191,7 +1185,7 @@ class NavFilter:
             lon_rad=state.lon_rad,
             alt_msl_m=state.alt_msl_m,
             v_ned_mps=state.v_ned_mps,
-            euler_rad=_euler(qw, qx, qy, qz),
+            euler_rad=euler_from_quat(state.q_nb),
             f_n_mps2=self._f_n,
             omega_ib_b_rps=self._omega_b(),
             time_since_gnss_s=max(0.0, self._gnss_ctl.time_since_fused_s(time_us)),
@@ -1269,12 +1263,8 @@ class NavFilter:
         h = float(fix.alt_msl_m) + (ins.alt_msl_m - past.alt_msl_m)
         ax, ay, az = self.config.gnss.lever_arm_b_m
         if ax or ay or az:  # antenna height = IMU height - (C_nb arm)_D
-            qw, qx, qy, qz = past.q_nb
-            h += (
-                2.0 * (qx * qz - qw * qy) * ax
-                + 2.0 * (qy * qz + qw * qx) * ay
-                + (qw * qw - qx * qx - qy * qy + qz * qz) * az
-            )
+            c_nb = dcm_from_quat(past.q_nb)
+            h += c_nb[6] * ax + c_nb[7] * ay + c_nb[8] * az
         hh, c = ch.health, self._c
         n_cal, n_rej = hh.calibration_updates, hh.gnss_rejected
         ch.update_gnss_height(h, sigma_m, self._t_us * 1e-6)
@@ -1445,8 +1435,7 @@ class NavFilter:
             yaw_sigma = math.sqrt(self._P[self.layout.ATT + 2, self.layout.ATT + 2])
             if ctl.reference_n is None:
                 ctl.learn(c_nb @ m, yaw_sigma)
-            qw, qx, qy, qz = self._ins.q_nb
-            ctl.offer_calibration(c_nb, m, _euler(qw, qx, qy, qz)[2], yaw_sigma)
+            ctl.offer_calibration(c_nb, m, euler_from_quat(self._ins.q_nb)[2], yaw_sigma)
             if ctl.reference_n is None:
                 return []
         cfg = self.config.mag
@@ -1490,7 +1479,7 @@ class NavFilter:
             alt = ch.height_m
             v = (v[0], v[1], -ch.vz_mps)
         # one read-only array, the vector fields are views of it
-        buf = np.array((*v, *q, *_euler(*q), *self._ba, *self._bg))
+        buf = np.array((*v, *q, *euler_from_quat(q), *self._ba, *self._bg))
         buf.setflags(write=False)
         p_diag = self._P.diagonal().copy()
         p_diag.setflags(write=False)
@@ -1514,10 +1503,3 @@ class NavFilter:
             self._altitude_status(), getattr(self.bridge, "status", None),
         )  # fmt: skip
 
-
-def _euler(qw: float, qx: float, qy: float, qz: float) -> tuple[float, float, float]:
-    """Roll, pitch, yaw of a unit quaternion (scalar path of ``rotations.quat_to_euler``)."""
-    roll = math.atan2(2.0 * (qy * qz + qw * qx), qw * qw - qx * qx - qy * qy + qz * qz)
-    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (qw * qy - qx * qz))))
-    yaw = math.atan2(2.0 * (qx * qy + qw * qz), qw * qw + qx * qx - qy * qy - qz * qz)
-    return roll, pitch, yaw

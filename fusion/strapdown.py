@@ -25,7 +25,6 @@ centimetres over minutes at 50-400 Hz).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from math import cos as _cos
 from math import sin as _sin
@@ -86,31 +85,6 @@ class InsState(NamedTuple):
             (float(v[0]), float(v[1]), float(v[2])),
             (float(qn[0]), float(qn[1]), float(qn[2]), float(qn[3])),
         )
-
-
-def rotvec_quat(x: float, y: float, z: float) -> Quat:
-    """Quaternion of a rotation vector; Taylor series for the usual tiny per-sample angles."""
-    a2 = x * x + y * y + z * z
-    if a2 < 1e-4:
-        # error of the truncated series < a^6 / 46080 < 3e-17 for a < 1e-2
-        w = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
-        k = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
-    else:
-        a = math.sqrt(a2)
-        w = math.cos(0.5 * a)
-        k = math.sin(0.5 * a) / a
-    return (w, k * x, k * y, k * z)
-
-
-def dcm_from_quat(q: Sequence[float]) -> tuple[float, ...]:
-    """``C_nb`` of ``q_nb`` as 9 floats, row-major (scalar path of ``rotations.quat_to_dcm``)."""
-    qw, qx, qy, qz = q
-    ww, xx, yy, zz = qw * qw, qx * qx, qy * qy, qz * qz
-    return (
-        ww + xx - yy - zz, 2.0 * (qx * qy - qw * qz), 2.0 * (qx * qz + qw * qy),
-        2.0 * (qx * qy + qw * qz), ww - xx + yy - zz, 2.0 * (qy * qz - qw * qx),
-        2.0 * (qx * qz - qw * qy), 2.0 * (qy * qz + qw * qx), ww - xx - yy + zz,
-    )  # fmt: skip
 
 
 # Earth-model constants folded once (module globals: LOAD_GLOBAL is cached, ``earth.X`` is two
@@ -204,7 +178,8 @@ def update(
     wen_d = -mve * tan_lat / rho_e
 
     # ---- 1. attitude -------------------------------------------------------------------
-    # coning: phi = dtheta + (dtheta_prev × dtheta) / 12; q_b = q(phi) (rotvec_quat, inlined)
+    # coning: phi = dtheta + (dtheta_prev × dtheta) / 12; q_b = q(phi) (rotvec_quat inlined:
+    # this runs at the IMU rate)
     phx = ax + (pay * az - paz * ay) * _TWELFTH
     phy = ay + (paz * ax - pax * az) * _TWELFTH
     phz = az + (pax * ay - pay * ax) * _TWELFTH

@@ -20,7 +20,13 @@ from fusion.error_model import (
     StateLayout,
     layout_for,
 )
-from fusion.rotations import dcm_to_rotvec, quat_multiply, quat_to_dcm, rotvec_to_quat
+from fusion.rotations import (
+    dcm_from_quat,
+    dcm_to_rotvec,
+    quat_multiply,
+    quat_to_dcm,
+    rotvec_to_quat,
+)
 from fusion.trajectory import ImuIncrements, ideal_increments
 
 NOISE = ProcessNoise(
@@ -115,7 +121,7 @@ def analytic_transition(model: ErrorModel, inc: ImuIncrements, kin0: object) -> 
             (vd - v0[2]) / dt - t.gravity_mps2 + (cx * ve - cy * vn),
         )
         f = model.continuous_matrix(
-            s1.lat_rad, s1.alt_msl_m, s1.v_ned_mps, strapdown.dcm_from_quat(s1.q_nb), f_n,
+            s1.lat_rad, s1.alt_msl_m, s1.v_ned_mps, dcm_from_quat(s1.q_nb), f_n,
             tuple((inc.dv_b[k] / dt).tolist()), tuple((inc.dtheta_b[k] / dt).tolist()),
         )  # fmt: skip
         phi = model.transition_matrix(f, dt) @ phi

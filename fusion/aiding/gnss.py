@@ -42,8 +42,9 @@ from fusion import earth
 from fusion.aiding import Observation
 from fusion.config import GnssTuning
 from fusion.error_model import StateLayout
+from fusion.rotations import dcm_from_quat
 from fusion.samples import GnssFix
-from fusion.strapdown import InsState, dcm_from_quat
+from fusion.strapdown import InsState
 
 
 def _cross(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float, float]:

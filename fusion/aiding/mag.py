@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from fusion.aiding import Observation
 from fusion.config import MagTuning
 from fusion.error_model import StateLayout
+from fusion.rotations import wrap_pi
 
 LEARN_SAMPLES = 10
 #: Forgetting factor per calibration sample (at 5 Hz: a memory of ~10 minutes).
@@ -36,11 +37,6 @@ CAL_FORGET = 0.9997
 #: Calibration samples between two solutions.
 CAL_SOLVE_EVERY = 25
 _HEADING_BINS = 12
-
-
-def wrap_pi(angle_rad: float) -> float:
-    """Angle wrapped to [-pi, pi)."""
-    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def heading_model(
