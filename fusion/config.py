@@ -212,15 +212,15 @@ class BridgeConfig(_Frozen):
     learn from, their inputs, the training budget and the fallback rules.
 
     ``rate_hz`` is read by the filter; everything else by the learned strategies
-    (:func:`fusion.bridging.make_bridge`).
+    (:func:`fusion.bridging.registry.make_bridge`).
     """
 
     rate_hz: PositiveFloat = 5.0
     """The strategy is consulted this often during an outage, Hz."""
     training: Literal["virtual", "fix"] = "virtual"
     """``virtual``: learn the drift of shadow INS copies re-seeded from the filter while GNSS
-    is good (virtual outages, :class:`fusion.bridge.ShadowBank`). ``fix``: paper P0's pairs,
-    the filter's INS-minus-GNSS error at each fix (closed loop: about zero)."""
+    is good (virtual outages, :class:`fusion.bridging.shadows.ShadowBank`). ``fix``: paper
+    P0's pairs, the filter's INS-minus-GNSS error at each fix (closed loop: about zero)."""
     features: tuple[str, ...] | None = None
     """Network inputs (names in :data:`BRIDGE_FEATURES`); ``None``: the method's default."""
     virtual_outage_s: PositiveFloat = 90.0
@@ -243,7 +243,7 @@ class BridgeConfig(_Frozen):
     """Virtual outages started within this time of the first fix are not learned from (the
     filter is still converging: their drift says nothing about later outages), s."""
     gate_horizon_s: PositiveFloat = 60.0
-    """The fallback gate (:class:`fusion.bridging.LearnedBridge`): every virtual outage is
+    """The fallback gate (:mod:`fusion.bridging.gate`): every virtual outage is
     replayed, once it is over, through the models that were in use when it *started* (so it
     is data they never saw), and scored over its first ``gate_horizon_s``: the mean squared
     error left after the correction against the mean squared error of no correction, s."""

@@ -46,7 +46,7 @@ from fusion.aiding import mag as mag_aid
 from fusion.alignment import AlignmentResult, InFlightAlignment, StaticAlignment
 from fusion.altitude import AltitudeChannel, AltitudeChannelConfig
 from fusion.baro_altitude import P_MAX_PA, P_MIN_PA, BaroMonitor
-from fusion.bridge import (
+from fusion.bridging.interface import (
     Bridge,
     BridgeEpoch,
     BridgeStatus,
@@ -54,8 +54,8 @@ from fusion.bridge import (
     NoBridge,
     OutputCorrection,
     PseudoGnss,
-    ShadowBank,
 )
+from fusion.bridging.shadows import ShadowBank
 from fusion.config import ALTITUDE_METHODS, FilterConfig
 from fusion.error_model import ErrorModel, ProcessNoise, StateLayout, layout_for
 from fusion.history import InsHistory, span_capacity
@@ -280,7 +280,7 @@ class NavEstimate:
         The altitude method's state. With a loop method, ``alt_msl_m`` and ``v_ned_mps[2]`` are
         the altitude channel's (``P_diag`` and ``baro_bias_m`` stay the EKF's).
     bridge : BridgeStatus or None
-        The bridging strategy's state (:class:`fusion.bridge.BridgeStatus`: untrained /
+        The bridging strategy's state (:class:`fusion.bridging.interface.BridgeStatus`: untrained /
         training / trained / stale, validation errors, per-component fallback); ``None`` for a
         strategy without a ``status``.
     """
@@ -335,7 +335,7 @@ class NavFilter:
     config : FilterConfig, optional
         Defaults to ``FilterConfig()``.
     bridge : Bridge, optional
-        GNSS-outage bridging strategy; defaults to :class:`fusion.bridge.NoBridge`.
+        GNSS-outage bridging strategy; defaults to :class:`fusion.bridging.interface.NoBridge`.
 
     Examples
     --------
@@ -459,13 +459,11 @@ class NavFilter:
         self._bridge_active = False
         self._next_bridge_us = 0
         self._out_corr: OutputCorrection | None = None
-        # Virtual outages (fusion.bridge.ShadowBank) only when the strategy asks for them:
+        # Virtual outages (fusion.bridging.shadows.ShadowBank) only when the strategy asks for them:
         # otherwise None, and the IMU loop pays one attribute test.
-        v_s = float(getattr(self.bridge, "virtual_outage_s", 0.0) or 0.0)
+        v_s = self.bridge.virtual_outage_s
         self._shadows: ShadowBank | None = (
-            ShadowBank(v_s, int(getattr(self.bridge, "virtual_outage_count", 1) or 1), self._epoch)
-            if v_s > 0.0
-            else None
+            ShadowBank(v_s, self.bridge.virtual_outage_count, self._epoch) if v_s > 0.0 else None
         )
 
     def step(self, sample: ImuSample | GnssFix | BaroSample | MagSample) -> list[NavEstimate]:
@@ -512,9 +510,9 @@ class NavFilter:
         return MODE_BRIDGING if self._bridge_active else MODE_FREE_INERTIAL
 
     @property
-    def bridge_status(self) -> BridgeStatus | None:
-        """The bridging strategy's status (``None`` if it reports none)."""
-        return getattr(self.bridge, "status", None)
+    def bridge_status(self) -> BridgeStatus:
+        """The bridging strategy's status."""
+        return self.bridge.status
 
     @property
     def shadow_states(self) -> list[InsState | None]:
@@ -748,7 +746,7 @@ class NavFilter:
         self._prev_dv = dv
         self._last_dt = dt
         self._t_us = t
-        if self._shadows is not None:  # virtual outages (fusion.bridge.ShadowBank)
+        if self._shadows is not None:  # virtual outages (fusion.bridging.shadows.ShadowBank)
             self._shadows.step(t, ins, dth, dv, dt, ba, bg)
         acc_dt = self._acc_dt + dt
         self._acc_dt = acc_dt
@@ -1189,8 +1187,8 @@ class NavFilter:
             f_n_mps2=self._f_n,
             omega_ib_b_rps=self._omega_b(),
             time_since_gnss_s=max(0.0, self._gnss_ctl.time_since_fused_s(time_us)),
-            accel_bias_b=(ba[0], ba[1], ba[2]),
-            gyro_bias_b=(bg[0], bg[1], bg[2]),
+            accel_bias_b_mps2=(ba[0], ba[1], ba[2]),
+            gyro_bias_b_rps=(bg[0], bg[1], bg[2]),
             free_state=None if shadows is None else shadows.free_state,
         )
 
@@ -1500,6 +1498,6 @@ class NavFilter:
             buf[10:13], buf[13:16], self._bb,  # accel_bias_b, gyro_bias_b, baro_bias_m
             self._c.snapshot(), self._est_ratios,
             gctl.time_since_fused_s(t), self.layout.name,
-            self._altitude_status(), getattr(self.bridge, "status", None),
+            self._altitude_status(), self.bridge.status,
         )  # fmt: skip
 

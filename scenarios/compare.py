@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from fusion.bridging import BRIDGE_METHODS, make_bridge
+from fusion.bridging.registry import BRIDGE_METHODS, make_bridge
 from scenarios.jsonable import plain_dict, write_json
 from scenarios.runner import Frame, filter_config, fuse, score, simulate
 from scenarios.schema import Scenario

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from fusion.bridging import make_bridge
+from fusion.bridging.registry import make_bridge
 from fusion.config import ALTITUDE_METHODS, FilterConfig
 from fusion.filter import NavFilter
 from hil.codec import Decoder

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from fusion.bridging import make_bridge
+from fusion.bridging.registry import make_bridge
 from fusion.config import FilterConfig
 from fusion.filter import NavFilter
 from hil.codec import Decoder

@@ -79,7 +79,7 @@ __all__ = [
 ]
 
 BRIDGE_METHODS: tuple[str, ...] = ("none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel")
-"""Outage-bridging methods a scenario may name (``fusion.bridge``)."""
+"""Outage-bridging methods a scenario may name (``fusion.bridging.registry``)."""
 ALTITUDE_METHODS: tuple[str, ...] = ("ekf", "loop", "loop-mpc", "loop-kf")
 """Vertical-channel methods a scenario may name (``fusion.altitude``)."""
 

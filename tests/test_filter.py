@@ -26,7 +26,14 @@ from scipy.stats import chi2
 import fusion.samples as proto
 import sim.samples as simsamples
 from fusion import earth
-from fusion.bridge import BridgeAction, BridgeEpoch, InsError, OutputCorrection, PseudoGnss
+from fusion.bridging.interface import (
+    BridgeAction,
+    BridgeEpoch,
+    InsError,
+    NoBridge,
+    OutputCorrection,
+    PseudoGnss,
+)
 from fusion.config import FilterConfig, GnssTuning, InitConfig, MagTuning, RatesConfig
 from fusion.filter import NavEstimate, NavFilter
 from fusion.rotations import quat_multiply, rotvec_to_quat
@@ -579,7 +586,7 @@ def test_scale_factor_layout_runs(racetrack: Prepared) -> None:
 
 
 # --------------------------------------------------------------------------- bridging hooks
-class RecordingBridge:
+class RecordingBridge(NoBridge):
     """Learns nothing; records the calls and returns a fixed action during outages."""
 
     name = "recording"
