@@ -92,14 +92,14 @@ from numpy.typing import NDArray  # noqa: E402
 import fusion.filter as fusion_filter  # noqa: E402
 from bench.altitude_compare import make_config  # noqa: E402
 from fusion import earth  # noqa: E402
-from fusion.altitude import AltitudeChannel, AltitudeChannelConfig  # noqa: E402
-from fusion.baro_altitude import (  # noqa: E402
+from fusion.altitude.atmosphere import (  # noqa: E402
     geometric_from_geopotential,
     geopotential_from_geometric,
     nonstandard_scale_bias,
     pressure_altitude_m,
     qnh_altitude_m,
 )
+from fusion.altitude.channel import AltitudeChannel, AltitudeChannelConfig  # noqa: E402
 from fusion.config import AltitudeConfig, FilterConfig  # noqa: E402
 from fusion.filter import NavEstimate, NavFilter  # noqa: E402
 from hil.codec import Decoder  # noqa: E402

@@ -22,7 +22,7 @@ from pydantic import (
     model_validator,
 )
 
-from fusion.altitude import AltitudeChannelConfig
+from fusion.altitude.channel import AltitudeChannelConfig
 from fusion.error_model import LayoutName
 
 Probability = float
@@ -310,22 +310,24 @@ class AltitudeConfig(_Frozen):
 
     ``ekf``: the error-state filter's own vertical channel (baro height fused as an EKF update
     with a Gauss-Markov bias state, :class:`BaroTuning`). ``loop`` / ``loop-mpc`` /
-    ``loop-kf``: paper P4's barometric-inertial channel (:class:`fusion.altitude.AltitudeChannel`)
-    runs inside the filter on the INS vertical acceleration, the barometer (pressure and
-    temperature, non-standard-atmosphere calibration from GNSS height) and GNSS height; the
-    estimate's altitude and vertical velocity are the channel's. The EKF keeps fusing the baro
+    ``loop-kf``: paper P4's barometric-inertial channel
+    (:class:`fusion.altitude.channel.AltitudeChannel`) runs inside the filter on the INS
+    vertical acceleration, the barometer (pressure and temperature, non-standard-atmosphere
+    calibration from GNSS height) and GNSS height; the estimate's altitude and vertical velocity
+    are the channel's. The EKF keeps fusing the baro
     samples the channel accepted, for its internal state only (see :mod:`fusion.filter`).
     """
 
     method: AltitudeMethodName = "ekf"
     preset: Literal["tuned", "p4"] = "tuned"
     """Where the channel's settings come from when ``channel`` is not given: ``tuned`` (the
-    defaults of :class:`~fusion.altitude.AltitudeChannelConfig`: loop with a triple pole at
-    3 s, baro-calibration random walk 0.005 m/√s, MPC pole 0.6, KF with a near-constant baro
-    bias, all chosen on the tuning seeds of ``bench/altitude_jsbsim.py``) or ``p4`` (paper P4's
-    channel, :meth:`~fusion.altitude.AltitudeChannelConfig.p4`: gains K1 = 3.00, K2 = 0.6452,
-    K3 = 0.8710, the untuned MPC, P4's KF with a 600 s Gauss–Markov bias, and P4's baro set-up:
-    scale from the sensed temperature, bias not learned from GNSS). Giving both ``channel``
+    defaults of :class:`~fusion.altitude.channel.AltitudeChannelConfig`: loop with a triple
+    pole at 3 s, baro-calibration random walk 0.005 m/√s, MPC pole 0.6, KF with a
+    near-constant baro bias, all chosen on the tuning seeds of ``bench/altitude_jsbsim.py``) or
+    ``p4`` (paper P4's channel, :meth:`~fusion.altitude.channel.AltitudeChannelConfig.p4`:
+    gains K1 = 3.00, K2 = 0.6452, K3 = 0.8710, the untuned MPC, P4's KF with a 600 s
+    Gauss–Markov bias, and P4's baro set-up: scale from the sensed temperature, bias not learned
+    from GNSS). Giving both ``channel``
     and ``preset="p4"`` is an error."""
     channel: AltitudeChannelConfig = AltitudeChannelConfig()
     """The channel's settings for the loop methods. Its own ``method`` field is ignored

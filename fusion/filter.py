@@ -15,9 +15,9 @@ integrated (the INS coasts at constant velocity over the gap and the covariance 
 process noise); GNSS fixes without a 3-D fix, with non-finite fields or a poor accuracy are
 not fused. Everything is counted in :class:`Health`.
 
-Altitude (``FilterConfig.altitude.method``): ``ekf`` outputs the EKF's own vertical (baro
-fused as an EKF update); ``loop`` / ``loop-mpc`` / ``loop-kf`` run paper P4's baro-inertial
-channel (:class:`fusion.altitude.AltitudeChannel`) beside the EKF and output its altitude and
+Altitude (``FilterConfig.altitude.method``): ``ekf`` outputs the EKF's own vertical (baro fused
+as an EKF update); ``loop`` / ``loop-mpc`` / ``loop-kf`` run paper P4's baro-inertial channel
+(:class:`fusion.altitude.channel.AltitudeChannel`) beside the EKF and output its altitude and
 vertical velocity, while the EKF keeps fusing the baro samples the channel accepted (why: see
 the "altitude channel" section of :class:`NavFilter`). Every method screens the barometer
 (pressure out of the atmosphere model, frozen sensor; loop methods also a gate on jumps) and
@@ -44,8 +44,9 @@ from fusion.aiding import baro as baro_aid
 from fusion.aiding import gnss as gnss_aid
 from fusion.aiding import mag as mag_aid
 from fusion.alignment import AlignmentResult, InFlightAlignment, StaticAlignment
-from fusion.altitude import AltitudeChannel, AltitudeChannelConfig
-from fusion.baro_altitude import P_MAX_PA, P_MIN_PA, BaroMonitor
+from fusion.altitude.atmosphere import P_MAX_PA, P_MIN_PA
+from fusion.altitude.baro_monitor import BaroMonitor
+from fusion.altitude.channel import AltitudeChannel, AltitudeChannelConfig
 from fusion.bridging.interface import (
     Bridge,
     BridgeEpoch,
@@ -1234,7 +1235,7 @@ class NavFilter:
 
     # ------------------------------------------------------------------ altitude channel
     # With a loop method (P4's baro-inertial channel) the estimate's altitude and vertical
-    # velocity come from fusion.altitude.AltitudeChannel, fed here with the INS vertical
+    # velocity come from fusion.altitude.channel.AltitudeChannel, fed here with the INS vertical
     # acceleration (_on_imu), every baro sample (_on_baro) and the fused GNSS heights
     # (_fuse_gnss). The EKF keeps its own baro update for its internal state, but only with the
     # samples the channel accepted (range, freeze and glitch checks); the channel's output is
