@@ -39,8 +39,12 @@ def __getattr__(name: str) -> object:
         from fusion.config import FilterConfig
 
         return FilterConfig
-    if name in ("NavEstimate", "NavFilter"):
-        from fusion import filter as _filter
+    if name == "NavEstimate":
+        from fusion.estimate import NavEstimate
 
-        return getattr(_filter, name)
+        return NavEstimate
+    if name == "NavFilter":
+        from fusion.filter import NavFilter
+
+        return NavFilter
     raise AttributeError(f"module 'fusion' has no attribute {name!r}")

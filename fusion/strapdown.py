@@ -242,6 +242,85 @@ def update(
     )  # fmt: skip
 
 
+def increments(
+    fw: Sequence[float], dt_s: float, accel_bias_b_mps2: Sequence[float],
+    gyro_bias_b_rps: Sequence[float],
+) -> tuple[Vec3, Vec3]:  # fmt: skip
+    """Bias-compensated increments of one IMU interval (sensor model ``f~ = f + b_a``,
+    ``omega~ = omega + b_g``).
+
+    Parameters
+    ----------
+    fw : 6 floats
+        Specific force (m/s^2) then angular rate (rad/s), body FRD, as sampled.
+    dt_s : float
+        Interval, s.
+    accel_bias_b_mps2, gyro_bias_b_rps : 3 floats
+        Bias estimates.
+
+    Returns
+    -------
+    dtheta_b, dv_b : 3 floats each
+        Gyro increment (rad) and accelerometer increment (m/s).
+    """
+    fx, fy, fz, wx, wy, wz = fw
+    ba, bg, dt = accel_bias_b_mps2, gyro_bias_b_rps, dt_s
+    return (
+        ((wx - bg[0]) * dt, (wy - bg[1]) * dt, (wz - bg[2]) * dt),
+        ((fx - ba[0]) * dt, (fy - ba[1]) * dt, (fz - ba[2]) * dt),
+    )
+
+
+def increments_scaled(
+    fw: Sequence[float], dt_s: float, accel_bias_b_mps2: Sequence[float],
+    gyro_bias_b_rps: Sequence[float], accel_scale_b: Sequence[float],
+    gyro_scale_b: Sequence[float],
+) -> tuple[Vec3, Vec3]:  # fmt: skip
+    """:func:`increments` with scale-factor errors too (``f~ = (1 + s_a) f + b_a``,
+    ``omega~ = (1 + s_g) omega + b_g``); ``accel_scale_b`` / ``gyro_scale_b`` are the
+    dimensionless scale-factor estimates."""
+    fx, fy, fz, wx, wy, wz = fw
+    ba, bg, sa, sg, dt = accel_bias_b_mps2, gyro_bias_b_rps, accel_scale_b, gyro_scale_b, dt_s
+    return (
+        (
+            (wx - bg[0]) / (1.0 + sg[0]) * dt,
+            (wy - bg[1]) / (1.0 + sg[1]) * dt,
+            (wz - bg[2]) / (1.0 + sg[2]) * dt,
+        ),
+        (
+            (fx - ba[0]) / (1.0 + sa[0]) * dt,
+            (fy - ba[1]) / (1.0 + sa[1]) * dt,
+            (fz - ba[2]) / (1.0 + sa[2]) * dt,
+        ),
+    )
+
+
+def coast(state: InsState, gap_s: float) -> InsState:
+    """Dead reckoning at constant velocity and attitude over ``gap_s`` without IMU data.
+
+    Parameters
+    ----------
+    state : InsState
+        State at the start of the gap.
+    gap_s : float
+        Gap length, s.
+
+    Returns
+    -------
+    InsState
+        Position moved by ``v_n gap_s``; velocity and attitude unchanged.
+    """
+    lt = earth.local_terms(state.lat_rad, state.alt_msl_m)
+    vn, ve, vd = state.v_ned_mps
+    return InsState(
+        state.lat_rad + vn * gap_s / lt.rho_n_m,
+        state.lon_rad + ve * gap_s / (lt.rho_e_m * lt.cos_lat),
+        state.alt_msl_m - vd * gap_s,
+        state.v_ned_mps,
+        state.q_nb,
+    )
+
+
 def integrate(
     state: InsState,
     dtheta_b: ArrayLike,

@@ -67,7 +67,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from fusion.config import FilterConfig
 from fusion.error_model import StateLayout
-from fusion.filter import NavEstimate, NavFilter
+from fusion.estimate import NavEstimate
+from fusion.filter import NavFilter
 from fusion.kalman import Correction
 from hil.bus import Topic
 from hil.codec import TRUTH_COMPONENT_ID, Decoder, mavlink2

@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fusion import rotations
-from fusion.filter import NavEstimate, NavFilter
+from fusion.estimate import NavEstimate
+from fusion.filter import NavFilter
 from scenarios.metrics import Fixes, HealthSeries, Track
 from sim.samples import GnssFix, Sample, Truth
 

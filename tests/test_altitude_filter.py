@@ -19,7 +19,8 @@ from helpers.nav_synth import Flight, Prepared, SensorErrors, make_scenario, pre
 from fusion import earth
 from fusion.aiding.baro import height_to_pressure
 from fusion.config import ALTITUDE_METHODS, AltitudeConfig, FilterConfig
-from fusion.filter import AltitudeStatus, NavEstimate, NavFilter
+from fusion.estimate import AltitudeStatus, NavEstimate
+from fusion.filter import NavFilter
 from sim.samples import BaroSample, ImuSample
 
 CFG = FilterConfig()

@@ -34,7 +34,8 @@ from fusion.bridging.learned import LearnedBridge
 from fusion.bridging.registry import BRIDGE_METHODS, make_bridge
 from fusion.bridging.shadows import ShadowBank
 from fusion.config import BRIDGE_FEATURES, BridgeConfig, FilterConfig, GnssTuning
-from fusion.filter import NavEstimate, NavFilter
+from fusion.estimate import NavEstimate
+from fusion.filter import NavFilter
 from fusion.strapdown import InsState
 from sim.samples import ImuSample
 

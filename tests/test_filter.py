@@ -35,7 +35,8 @@ from fusion.bridging.interface import (
     PseudoGnss,
 )
 from fusion.config import FilterConfig, GnssTuning, InitConfig, MagTuning, RatesConfig
-from fusion.filter import NavEstimate, NavFilter
+from fusion.estimate import NavEstimate
+from fusion.filter import NavFilter
 from fusion.rotations import quat_multiply, rotvec_to_quat
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample
 
@@ -115,7 +116,7 @@ def test_filter_is_consistent_nees_over_20_seeds() -> None:
         nav.initialize(
             0, lat + x0[0] / t.rho_n_m, lon + x0[1] / (t.rho_e_m * t.cos_lat), h - x0[2],
             kin.v_ned_mps[0] + x0[lay.vel], quat_multiply(rotvec_to_quat(x0[lay.att]), kin.q_nb[0]),
-            covariance=p0, accel_bias_b=ba + x0[lay.ba], gyro_bias_b=bg + x0[lay.bg],
+            covariance=p0, accel_bias_b_mps2=ba + x0[lay.ba], gyro_bias_b_rps=bg + x0[lay.bg],
         )  # fmt: skip
         e, p = run_nees(nav, sc, evals)
         all_e.append(e)
@@ -216,7 +217,7 @@ def test_gnss_bias_states_make_the_filter_consistent_with_correlated_gnss_error(
                 0, lat + x0[0] / t.rho_n_m, lon + x0[1] / (t.rho_e_m * t.cos_lat), h - x0[2],
                 kin.v_ned_mps[0] + x0[lay.vel],
                 quat_multiply(rotvec_to_quat(x0[lay.att]), kin.q_nb[0]),
-                covariance=p0, accel_bias_b=ba + x0[lay.ba], gyro_bias_b=bg + x0[lay.bg],
+                covariance=p0, accel_bias_b_mps2=ba + x0[lay.ba], gyro_bias_b_rps=bg + x0[lay.bg],
             )  # fmt: skip
             errs, covs, k = [], [], 0
             for smp in sc.samples:
@@ -304,8 +305,8 @@ def test_learned_magnetometer_reference_after_the_heading_converged(racetrack: P
     sc = make_scenario(racetrack, np.random.default_rng(3), ERRORS, mag_rate_hz=10.0)
     nav = NavFilter(CFG)
     run(nav, sc.samples)
-    assert nav._mag_ctl.learned
-    ref = nav._mag_ctl.reference_n
+    assert nav._mag.control.learned
+    ref = nav._mag.control.reference_n
     assert ref is not None
     decl = math.degrees(math.atan2(ref[1], ref[0]) - math.atan2(FIELD_N_T[1], FIELD_N_T[0]))
     assert abs(decl) < 1.0
@@ -534,9 +535,9 @@ def test_bad_input_is_counted_never_integrated(racetrack: Prepared) -> None:
 
 
 def test_health_counters_cover_every_field() -> None:
-    from fusion.filter import _HEALTH_FIELDS, _Counters
+    from fusion.estimate import HEALTH_FIELDS, HealthCounters
 
-    assert set(_Counters.__annotations__) == set(_HEALTH_FIELDS)
+    assert set(HealthCounters.__annotations__) == set(HEALTH_FIELDS)
     assert NavFilter().health == type(NavFilter().health)()
 
 
