@@ -32,8 +32,9 @@ Implementation notes
   ``(u, u)``: a quadratic ``c0 + c1·u + c3·u²`` in that input (the duplicated monomials are
   dropped from its normal equations, so the printed polynomial shows no redundant terms).
 - :meth:`GmdhRegressor.predict_one` evaluates the pruned network on one sample with plain
-  Python floats: at fit time the network is written out as straight-line Python source
-  (constants from the fit only, exact ``repr``) and compiled — a few µs, no numpy overhead.
+  Python floats (no numpy dispatch): the neurons' inputs and coefficients are laid out as
+  float tuples at fit time and evaluated in a loop, with the same operations in the same
+  order as the batch path.
 
 Estimator contract
 ------------------
@@ -55,7 +56,7 @@ import itertools
 import math
 import sys
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, NamedTuple, Self, TypeVar
 
@@ -69,7 +70,7 @@ _SPLITS = ("interleaved", "tail", "random")
 # A validation MSE below this share of the target variance (relative RMS error 1e-6) counts
 # as an exact fit: further layers could only fit rounding and the ridge's bias.
 _EXACT_FIT = 1e-12
-# Batches up to this many rows are predicted row by row with the compiled fast path.
+# Batches up to this many rows are predicted row by row with the scalar path.
 _FEW_ROWS = 8
 # Multiply-adds per matrix product below which OpenBLAS stays single-threaded.
 _GEMM_SINGLE_THREAD = 200_000
@@ -696,10 +697,9 @@ class GmdhRegressor(RegressorBase):
         self.n_layers_ = len(layers)
         self.criterion_ = np.array(best) * self.y_scale_**2
         self.network_ = _prune(layers)
-        self._fast_source = _fast_source(
+        self._fast = _ScalarNetwork(
             self.network_, sc.x_mean, sc.x_scale, self.y_mean_, self.y_scale_
         )
-        self._fast = _load_fast(self._fast_source)
         return self
 
     # -- prediction ------------------------------------------------------------------------
@@ -716,7 +716,7 @@ class GmdhRegressor(RegressorBase):
         """
         Xa = self._validate_predict(X)
         if Xa.shape[0] <= _FEW_ROWS:
-            # numpy's per-call overhead dominates tiny batches: use the compiled path, which
+            # numpy's per-call overhead dominates tiny batches: use the scalar path, which
             # computes the same operations in the same order (bitwise-equal results)
             return np.array([self._fast(row) for row in Xa.tolist()])
         Z = (Xa - self.x_mean_) / self.x_scale_
@@ -726,8 +726,8 @@ class GmdhRegressor(RegressorBase):
         return out
 
     def predict_one(self, x: FloatArray | Sequence[float]) -> float:
-        """Fast prediction for one sample: the pruned network compiled at fit time into a
-        straight-line Python function over floats (no numpy dispatch, a few µs).
+        """Fast prediction for one sample: the pruned network on plain Python floats (no numpy
+        dispatch).
 
         Gives the same float as :meth:`predict` on that row (same operations, same order).
 
@@ -746,17 +746,6 @@ class GmdhRegressor(RegressorBase):
             self._check_fitted()
             raise
         return fast(x.tolist() if isinstance(x, np.ndarray) else x)
-
-    def __getstate__(self) -> dict[str, Any]:
-        # the compiled fast path is rebuilt from its source on unpickling
-        state = self.__dict__.copy()
-        state.pop("_fast", None)
-        return state
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        if "_fast_source" in state:
-            self._fast = _load_fast(state["_fast_source"])
 
     # -- inspection ------------------------------------------------------------------------
     def polynomial(self, digits: int = 6) -> str:
@@ -828,53 +817,59 @@ def _prune(layers: list[GmdhLayer]) -> list[GmdhLayer]:
     return pruned
 
 
-def _fast_source(
-    network: list[GmdhLayer],
-    x_mean: FloatArray,
-    x_scale: FloatArray,
-    y_mean: float,
-    y_scale: float,
-) -> str:
-    """Python source of ``predict_one(x)``: the pruned network as straight-line code on
-    local floats (registers ``r0…``: the standardised features, then one per neuron), with
-    exact ``repr`` constants. Generated only from numbers computed by :meth:`fit`."""
-    n = int(x_mean.shape[0])
-    xs = [f"x{k}" for k in range(n)]
-    msg = f"'X has %d features, but GmdhRegressor is expecting {n} features as input.'"
-    lines = [
-        "def predict_one(x):",
-        f"    if len(x) != {n}:",
-        f"        raise ValueError({msg} % len(x))",
-        f"    {', '.join(xs)}, = x",
-        # finite·0 is 0; NaN or ±inf gives NaN (no overflow, unlike a plain sum)
-        f"    if {' + '.join(f'{v} * 0.0' for v in xs)} != 0.0:",
-        "        raise ValueError('Input x contains NaN or infinity; GmdhRegressor needs finite"
-        " x.')",
-    ]
-    used = sorted({int(i) for i in network[0].pairs.ravel()})
-    for k in used:
-        lines.append(f"    r{k} = (x{k} - {float(x_mean[k])!r}) / {float(x_scale[k])!r}")
-    base, width, reg = 0, n, n
-    for layer in network:
-        for (i, j), c in zip(layer.pairs.tolist(), layer.coefs.tolist(), strict=True):
-            a, b = f"r{base + i}", f"r{base + j}"
-            c0, c1, c2, c3, c4, c5 = (repr(float(v)) for v in c)
-            lines.append(
-                f"    r{reg} = {c0} + {a} * ({c1} + {c3} * {a} + {c5} * {b})"
-                f" + {b} * ({c2} + {c4} * {b})"
-            )
-            reg += 1
-        base += width
-        width = layer.pairs.shape[0]
-    lines.append(f"    return {float(y_mean)!r} + {float(y_scale)!r} * r{reg - 1}")
-    return "\n".join(lines) + "\n"
+class _ScalarNetwork:
+    """The pruned network on one sample with plain Python floats (what :meth:`GmdhRegressor.
+    predict_one` and small batches run): the same operations in the same order as
+    :func:`_eval_neurons`, so the results are bitwise equal to :meth:`GmdhRegressor.predict`.
 
+    Registers ``r``: the standardised features, then one per neuron in network order (a
+    neuron's inputs are registers of the previous layer).
+    """
 
-def _load_fast(source: str) -> Callable[[Sequence[float]], float]:
-    namespace: dict[str, Any] = {}
-    exec(compile(source, "<gmdh predict_one>", "exec"), namespace)
-    fn: Callable[[Sequence[float]], float] = namespace["predict_one"]
-    return fn
+    __slots__ = ("_inputs", "_message", "_n", "_neurons", "_y_mean", "_y_scale")
+
+    def __init__(
+        self,
+        network: list[GmdhLayer],
+        x_mean: FloatArray,
+        x_scale: FloatArray,
+        y_mean: float,
+        y_scale: float,
+    ) -> None:
+        n = int(x_mean.shape[0])
+        self._n = n
+        self._message = f"X has %d features, but GmdhRegressor is expecting {n} features as input."
+        used = sorted({int(i) for i in network[0].pairs.ravel()})
+        self._inputs = [(k, float(x_mean[k]), float(x_scale[k])) for k in used]
+        neurons: list[tuple[int, int, float, float, float, float, float, float]] = []
+        base, width = 0, n
+        for layer in network:
+            for (i, j), c in zip(layer.pairs.tolist(), layer.coefs.tolist(), strict=True):
+                c0, c1, c2, c3, c4, c5 = (float(v) for v in c)
+                neurons.append((base + i, base + j, c0, c1, c2, c3, c4, c5))
+            base += width
+            width = layer.pairs.shape[0]
+        self._neurons = neurons
+        self._y_mean = float(y_mean)
+        self._y_scale = float(y_scale)
+
+    def __call__(self, x: Sequence[float]) -> float:
+        n = self._n
+        if len(x) != n:
+            raise ValueError(self._message % len(x))
+        # finite * 0 is 0; NaN or +-inf gives NaN (no overflow, unlike a plain sum)
+        for v in x:
+            if v * 0.0 != 0.0:
+                raise ValueError("Input x contains NaN or infinity; GmdhRegressor needs finite x.")
+        r = [0.0] * n
+        for k, mean, scale in self._inputs:
+            r[k] = (x[k] - mean) / scale
+        append = r.append
+        for i, j, c0, c1, c2, c3, c4, c5 in self._neurons:
+            a = r[i]
+            b = r[j]
+            append(c0 + a * (c1 + c3 * a + c5 * b) + b * (c2 + c4 * b))
+        return self._y_mean + self._y_scale * r[-1]
 
 
 def _is_int(v: object) -> bool:
