@@ -47,7 +47,13 @@ from fusion.aiding.baro import BaroAiding, pressure_to_height
 from fusion.aiding.gnss import GnssAiding, fix_sigmas
 from fusion.aiding.mag import MagAiding
 from fusion.aiding.pseudo_gnss import PseudoGnssAiding
-from fusion.alignment import AlignmentResult, InFlightAlignment, StaticAlignment
+from fusion.alignment import (
+    AlignmentResult,
+    InFlightAlignment,
+    StaticAlignment,
+    aligned_covariance,
+    initial_variances,
+)
 from fusion.altitude.channel import AltitudeChannel
 from fusion.altitude_link import AltitudeLink
 from fusion.bridging.interface import (
@@ -318,7 +324,7 @@ class NavFilter:
         n = self.layout.n
         state = InsState.from_arrays(lat_rad, lon_rad, alt_msl_m, v_ned_mps, q_nb)
         if covariance is None:
-            cov = np.diag(self._default_p0_diag())
+            cov = np.diag(initial_variances(self.layout, self.config))
         else:
             cov = np.asarray(covariance, dtype=float)
             if cov.shape == (n,):
@@ -342,7 +348,7 @@ class NavFilter:
     def default_initial_variances(self) -> FloatArray:
         """Initial error variances (n,) from ``InitConfig`` and the sensor sigmas (what
         :meth:`initialize` uses when no covariance is given)."""
-        return self._default_p0_diag()
+        return initial_variances(self.layout, self.config)
 
     # ------------------------------------------------------------------ dispatch
     def _classify(self, sample: object) -> Callable[[Any], list[NavEstimate]]:
@@ -449,40 +455,8 @@ class NavFilter:
         if res is not None:
             self._start_from_alignment(res)
 
-    def _default_p0_diag(self) -> FloatArray:
-        lay, cfg = self.layout, self.config
-        d = np.zeros(lay.n)
-        d[lay.pos] = cfg.init.pos_sigma_m**2
-        d[lay.vel] = cfg.init.vel_sigma_mps**2
-        d[lay.att] = [cfg.init.roll_pitch_sigma_rad**2] * 2 + [cfg.init.yaw_sigma_rad**2]
-        # Initial bias uncertainty: the turn-on (repeatability) bias, a random constant, plus
-        # the in-run Gauss-Markov part.
-        d[lay.ba] = cfg.imu.accel_turn_on_sigma_mps2**2 + cfg.imu.accel_bias_sigma_mps2**2
-        d[lay.bg] = cfg.imu.gyro_turn_on_sigma_rps**2 + cfg.imu.gyro_bias_sigma_rps**2
-        d[lay.baro] = cfg.baro.bias_sigma_m**2
-        if lay.has_gnss_bias:
-            g = cfg.gnss
-            d[lay.gnss] = [g.bias_sigma_h_m**2] * 2 + [g.bias_sigma_v_m**2]
-        if lay.has_scale_factors:
-            d[lay.sa] = cfg.imu.accel_scale_sigma**2
-            d[lay.sg] = cfg.imu.gyro_scale_sigma**2
-        return d
-
     def _start_from_alignment(self, res: AlignmentResult) -> None:
-        lay = self.layout
-        d = self._default_p0_diag()
-        d[lay.pos] = np.square(res.sigma_pos_ned_m)
-        d[lay.vel] = res.sigma_vel_mps**2
-        d[lay.att] = np.square(res.sigma_att_ned_rad)
-        cov = np.diag(d)
-        if lay.has_gnss_bias:
-            # the aligned position is a fix: its error is the receiver's bias plus white noise,
-            # i.e. dr = -db + w (db = b^ - b with b^ = 0), correlation -sigma_b^2 per axis
-            for i in range(3):
-                pi, gi = lay.POS + i, lay.GNSS + i
-                c = min(cov[gi, gi], 0.9 * cov[pi, pi])
-                cov[pi, gi] = cov[gi, pi] = -c
-        self._start(res.time_us, res.state, cov)
+        self._start(res.time_us, res.state, aligned_covariance(self.layout, self.config, res))
         self.alignment_method = res.method
 
     def _start(self, time_us: int, state: InsState, cov: FloatArray) -> None:
