@@ -152,8 +152,8 @@ class MagTuning(_Frozen):
     from GNSS-aided attitudes spread over headings (``m_b = C_bn m_n + b``, least squares)."""
     uncalibrated_heading_noise_rad: PositiveFloat = math.radians(10.0)
     """Heading sigma used before the hard-iron calibration completes (a hard-iron residual of
-    1 uT at 20 uT horizontal field is a heading error of +-3 deg that flips with heading; fused
-    as white noise at the calibrated sigma it pulled yaw 4-5 deg off), rad."""
+    1 uT at 20 uT horizontal field is a heading error of +-3 deg that flips with heading: fused
+    as white noise at the calibrated sigma it pulls yaw off), rad."""
     calibration_min_heading_span_rad: PositiveFloat = math.radians(150.0)
     """Headings covered (in 30-deg bins) before the calibration is trusted, rad."""
     calibration_hard_iron_sigma_tesla: PositiveFloat = 5e-6
@@ -367,10 +367,11 @@ class FilterConfig(_Frozen):
     Gauss-Markov states (North, East, Down; sigmas and correlation times in
     :class:`GnssTuning`). Without them each fix is fused as white noise with sigma ``eph`` /
     ``epv``, which makes the filter overconfident when the receiver error is correlated over
-    minutes (NEES ~200-300 instead of 9 on the ``modern`` receiver); with them a receiver whose
-    error is really white at ``eph`` is fused with too small an ``R`` and gated out. The split
-    of ``eph`` into correlated and white parts is a property of the receiver:
-    :func:`hil.tuning.gnss_state_layout` chooses the layout from a receiver description."""
+    minutes (5 fixes/s of an error that changes over 120 s are taken as independent); with
+    them a receiver whose error is really white at ``eph`` is fused with too small an ``R``
+    and gated out. The split of ``eph`` into correlated and white parts is a property of the
+    receiver: :func:`hil.tuning.gnss_state_layout` chooses the layout from a receiver
+    description."""
     imu: ImuTuning = ImuTuning()
     gnss: GnssTuning = GnssTuning()
     baro: BaroTuning = BaroTuning()

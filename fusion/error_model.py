@@ -1,4 +1,4 @@
-"""Error-state model of the NED strapdown INS: named state layout, F, Q, Phi, feedback.
+"""Error-state model of the NED strapdown INS: the named state layouts, F, Phi and Q.
 
 Error definitions (every error is *estimated minus true*):
 
@@ -33,9 +33,8 @@ and ``N_env`` that of ``omega_en_n`` w.r.t. velocity error; ``F_vr = [v×](2 N_i
 neglected (e^2-small). Every block is checked against a numerically propagated, perturbed INS in
 ``tests/test_error_model.py``.
 
-Feedback (after each measurement update the error estimate is moved into the INS and reset to
-zero): position, velocity and biases are corrected by subtraction; attitude by
-``q_nb <- q(-phi) ⊗ q_nb``.
+After each measurement update the error estimate is moved into the INS and reset to zero
+(:mod:`fusion.feedback`).
 """
 
 from __future__ import annotations

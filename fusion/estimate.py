@@ -45,7 +45,7 @@ class AidSource(StrEnum):
 
 @dataclass(frozen=True)
 class Health:
-    """Counters since construction (or :meth:`NavFilter.reset`)."""
+    """Counters since construction (or :meth:`fusion.filter.NavFilter.reset`)."""
 
     imu_ok: int = 0
     """IMU samples integrated as received."""

@@ -1,4 +1,5 @@
-"""What :class:`fusion.filter.NavFilter` reads from a sample, as structural protocols.
+"""What :class:`fusion.filter.NavFilter` reads from a sample: structural protocols, and a reader
+for their vector fields.
 
 The attribute names are those of ``sim.samples`` (so its frozen dataclasses, and anything else
 with these read-only attributes, satisfy the protocols without ``fusion`` importing ``sim``).

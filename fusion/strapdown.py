@@ -17,11 +17,15 @@ The velocity step uses the attitude at the start of the interval with the ``(I -
 and ``dtheta × dv / 2`` terms, which is the mid-interval attitude to second order; the order of
 the three updates (attitude, velocity, position) does not change the result.
 
-The hot loop runs at up to 400 Hz in pure Python, so it works on plain floats and tuples (numpy's
-per-call overhead would dominate on 3-vectors). Accuracy: errors are third order in the step
-(see ``tests/test_strapdown.py``: an analytic coordinated turn and climb is reproduced to
-centimetres over minutes at 50-400 Hz).
-"""
+The increments come from the IMU samples with the filter's sensor-error estimates removed
+(:func:`increments`, :func:`increments_scaled`); over a gap without IMU data the INS coasts at
+constant velocity (:func:`coast`).
+
+The hot loop runs at up to 400 Hz in pure Python, so it works on plain floats and tuples
+(numpy's per-call overhead would dominate on 3-vectors; the quaternion products and the
+rotation-vector quaternion of :mod:`fusion.rotations` are written out inline here for the same
+reason). Accuracy: errors are third order in the step (see ``tests/test_strapdown.py``: an
+analytic coordinated turn and climb is reproduced to centimetres over minutes at 50-400 Hz)."""
 
 from __future__ import annotations
 

@@ -131,8 +131,7 @@ class Candidate:
     """A fitted component model with its input and output ranges: predictions are made on
     inputs clipped to the training range, then clipped to the targets seen and to the
     elapsed-time envelope of the training errors (a polynomial or network far from its data
-    can return a correction of hundreds of metres 10 s into an outage; seen on a consumer
-    MEMS, seed 100 of the P0 scenario)."""
+    can return a correction of hundreds of metres a few seconds into an outage)."""
 
     __slots__ = ("env", "env_list", "env_t", "env_t_list", "feat", "hi", "lo", "model", "y_hi",
                  "y_lo")
