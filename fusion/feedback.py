@@ -24,6 +24,7 @@ from fusion.strapdown import InsState
 
 FloatArray = NDArray[np.float64]
 Vec3 = tuple[float, float, float]
+_tuple_new = tuple.__new__  # NamedTuple(...) without its Python-level __new__ frame
 
 
 class Feedback(NamedTuple):
@@ -50,8 +51,8 @@ def feedback(
     gyro_bias_b_rps: Sequence[float],
     baro_bias_m: float,
     gnss_bias_ned_m: Sequence[float] | None,
-    accel_scale_b: Sequence[float],
-    gyro_scale_b: Sequence[float],
+    accel_scale_b: Vec3,
+    gyro_scale_b: Vec3,
 ) -> Feedback:
     """Move the error estimate ``dx`` into the nominal state (subtract: errors are estimated
     minus true).
@@ -100,17 +101,16 @@ def feedback(
         gb, g = gnss_bias_ned_m, layout.GNSS
         new_gb = (gb[0] - d[g], gb[1] - d[g + 1], gb[2] - d[g + 2])
     sa, sg = accel_scale_b, gyro_scale_b
-    new_sa: Vec3 = (sa[0], sa[1], sa[2])
-    new_sg: Vec3 = (sg[0], sg[1], sg[2])
     if layout.has_scale_factors:
         b = layout.SA
-        new_sa = (sa[0] - d[b], sa[1] - d[b + 1], sa[2] - d[b + 2])
+        sa = (sa[0] - d[b], sa[1] - d[b + 1], sa[2] - d[b + 2])
         b = layout.SG
-        new_sg = (sg[0] - d[b], sg[1] - d[b + 1], sg[2] - d[b + 2])
-    return Feedback(
-        new, new_ba, new_bg, baro_bias_m - d[layout.BARO], new_gb, new_sa, new_sg,
+        sg = (sg[0] - d[b], sg[1] - d[b + 1], sg[2] - d[b + 2])
+    # this runs at every accepted update: the tuple directly, not Feedback(...)
+    return _tuple_new(Feedback, (
+        new, new_ba, new_bg, baro_bias_m - d[layout.BARO], new_gb, sa, sg,
         d[p : p + 3] + d[v : v + 3] + d[a : a + 3],
-    )  # fmt: skip
+    ))  # fmt: skip
 
 
 def reset_block(

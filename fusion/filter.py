@@ -146,6 +146,7 @@ class NavFilter:
         )
         self._model = ErrorModel(self.layout, self._noise)
         self._scale = self.layout.has_scale_factors
+        self._gnss_bias_states = self.layout.has_gnss_bias
         self._x0 = np.zeros(self.layout.n)
         rc = cfg.rates
         self._cov_period_s = 0.0 if rc.covariance_rate_hz is None else 1.0 / rc.covariance_rate_hz
@@ -174,6 +175,7 @@ class NavFilter:
         self._gb = [0.0, 0.0, 0.0]
         self._gb_us = 0
         self._history = InsHistory(span_capacity(cfg.gnss.max_delay_s))
+        self._history_push = self._history.push
         self._pending: deque[GnssFix] = deque()
         self._screen_imu = self._screen.imu
         self._gnss = GnssAiding(cfg.gnss, lay, self._c, self._correct)
@@ -183,6 +185,7 @@ class NavFilter:
         self._pseudo = PseudoGnssAiding(cfg.gnss, lay, self._correct)
         self._alt = AltitudeLink(cfg.altitude, cfg.gnss.lever_arm_b_m, self._c)
         self._outage = OutageBridging(self.bridge, cfg.bridge.rate_hz, self._epoch)
+        self._shadows = self._outage.shadows  # the IMU path's view of it
         self._aligner: InFlightAlignment | StaticAlignment = (
             InFlightAlignment(cfg.init, cfg.gnss)
             if cfg.init.mode == "in_flight"
@@ -400,7 +403,7 @@ class NavFilter:
         self._prev_dv = dv
         self._last_dt = dt
         self._t_us = t
-        shadows = self._outage.shadows
+        shadows = self._shadows
         if shadows is not None:  # virtual outages (fusion.bridging.shadows.ShadowBank)
             shadows.step(t, ins, dth, dv, dt, ba, bg)
         cov = self._cov
@@ -408,7 +411,7 @@ class NavFilter:
         cov.acc_dt = acc_dt
         if acc_dt >= self._cov_period_s - 1e-9:
             self._bb *= cov.propagate(ins)  # as _propagate, one call less on the hot path
-        self._history.push(t, ins)
+        self._history_push(t, ins)
         if self._loop_alt:
             self._alt.on_imu(t, dt, ins0.v_ned_mps[2], ins)
         if self._pending and self._pending[0].time_us <= t:
@@ -511,15 +514,15 @@ class NavFilter:
         """Move the error estimate into the INS and the sensor-error estimates."""
         ins = self._ins
         assert ins is not None
-        gb = self._gnss_bias() if self.layout.has_gnss_bias else None
-        fb = feedback(self.layout, ins, dx, self._ba, self._bg, self._bb, gb, self._sa, self._sg)
-        self._ins = fb.ins
-        self._ba, self._bg, self._bb = fb.accel_bias_b_mps2, fb.gyro_bias_b_rps, fb.baro_bias_m
-        self._sa, self._sg = fb.accel_scale_b, fb.gyro_scale_b
-        if fb.gnss_bias_ned_m is not None:
-            self._gb = list(fb.gnss_bias_ned_m)
-        self._history.add_correction(fb.nav_dx)
-        self._cov.v0 = fb.ins.v_ned_mps
+        gb = self._gnss_bias() if self._gnss_bias_states else None
+        ins, self._ba, self._bg, self._bb, new_gb, self._sa, self._sg, nav_dx = feedback(
+            self.layout, ins, dx, self._ba, self._bg, self._bb, gb, self._sa, self._sg
+        )
+        self._ins = ins
+        if new_gb is not None:
+            self._gb = list(new_gb)
+        self._history.add_correction(nav_dx)
+        self._cov.v0 = ins.v_ned_mps
 
     def _reset_velocity(self, z: FloatArray, variances: FloatArray) -> None:
         """Velocity reset to the fix (``z`` its velocity innovation)."""

@@ -155,7 +155,7 @@ class CovariancePropagator:
         else:
             f_b = w_b = _ZERO3
         model = self.model
-        Phi = model.first_order_transition(lat, h, v, c_nb, f_n, T, f_b, w_b, terms=lt)
+        Phi = model.first_order_transition(lat, h, v, c_nb, f_n, T, f_b, w_b, lt)
         # P = Phi P Phi^T + Q  (Q diagonal: white sensor noise and Gauss-Markov driving noise)
         # (np.dot: the same GEMMs as @, with less dispatch overhead on these small matrices)
         P = _dot(_dot(Phi, self.P), Phi.T)

@@ -65,11 +65,13 @@ class SampleScreen:
             the step exceeds ``time_jump_s`` and must not be integrated.
         """
         c = self._c
-        try:
-            t = int(s.time_us)
-        except (TypeError, ValueError, OverflowError):
-            c.imu_nan += 1
-            return None
+        t = s.time_us
+        if type(t) is not int:  # the common case needs no conversion
+            try:
+                t = int(t)
+            except (TypeError, ValueError, OverflowError):
+                c.imu_nan += 1
+                return None
         last = self.last_imu_us
         if last is not None and t <= last:
             if t == last:
@@ -84,7 +86,9 @@ class SampleScreen:
             except AttributeError:
                 fx, fy, fz = as_vec3(s.specific_force_b_mps2)
                 wx, wy, wz = as_vec3(s.angular_rate_b_rps)
-            dt_s = float(s.dt_s)
+            dt_s = s.dt_s
+            if type(dt_s) is not float:
+                dt_s = float(dt_s)
             # x * 0 is 0 for finite x, NaN for NaN/Inf: one test for all seven fields
             finite = (fx + fy + fz + wx + wy + wz + dt_s) * 0.0 == 0.0
         except (TypeError, ValueError, AttributeError):
@@ -96,15 +100,16 @@ class SampleScreen:
         else:
             ar = self._accel_range
             gr = self._gyro_range
+            # |x| <= range as chained comparisons (finite x: the same test as abs, no calls)
             if (
-                abs(fx) > ar or abs(fy) > ar or abs(fz) > ar
-                or abs(wx) > gr or abs(wy) > gr or abs(wz) > gr
+                -ar <= fx <= ar and -ar <= fy <= ar and -ar <= fz <= ar
+                and -gr <= wx <= gr and -gr <= wy <= gr and -gr <= wz <= gr
             ):  # fmt: skip
-                c.imu_out_of_range += 1
-            else:
                 c.imu_ok += 1
                 good = True
                 self._good_fw = fw = (fx, fy, fz, wx, wy, wz)
+            else:
+                c.imu_out_of_range += 1
         if fw is None:  # nothing good to hold yet
             self.last_imu_us = t
             return None
