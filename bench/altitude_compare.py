@@ -40,17 +40,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.altitude import (
-    OMEGA_S2,
-    AltitudeChannel,
-    AltitudeChannelConfig,
-    AltitudeMethod,
-    LoopGains,
-    MpcConfig,
-    VerticalKfConfig,
-    gains_from_poles,
-)
-from fusion.baro_altitude import BaroAltimeterConfig, BaroCalibrationConfig
+from fusion.altitude.altimeter import BaroAltimeterConfig
+from fusion.altitude.calibration import BaroCalibrationConfig
+from fusion.altitude.channel import AltitudeChannel, AltitudeChannelConfig, AltitudeMethod
+from fusion.altitude.common import OMEGA_S2
+from fusion.altitude.loop import LoopGains, gains_from_poles
+from fusion.altitude.mpc import MpcConfig
+from fusion.altitude.vertical_kf import VerticalKfConfig
 from sim import presets
 from sim.baro import BaroModel
 

@@ -89,19 +89,20 @@ from typing import Any, Literal  # noqa: E402
 import numpy as np  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
-import fusion.filter as fusion_filter  # noqa: E402
+import fusion.altitude_link as altitude_link  # noqa: E402
 from bench.altitude_compare import make_config  # noqa: E402
 from fusion import earth  # noqa: E402
-from fusion.altitude import AltitudeChannel, AltitudeChannelConfig  # noqa: E402
-from fusion.baro_altitude import (  # noqa: E402
+from fusion.altitude.atmosphere import (  # noqa: E402
     geometric_from_geopotential,
     geopotential_from_geometric,
     nonstandard_scale_bias,
     pressure_altitude_m,
     qnh_altitude_m,
 )
+from fusion.altitude.channel import AltitudeChannel, AltitudeChannelConfig  # noqa: E402
 from fusion.config import AltitudeConfig, FilterConfig  # noqa: E402
-from fusion.filter import NavEstimate, NavFilter  # noqa: E402
+from fusion.estimate import NavEstimate  # noqa: E402
+from fusion.filter import NavFilter  # noqa: E402
 from hil.codec import Decoder  # noqa: E402
 from hil.pipeline import SimSetup  # noqa: E402
 from hil.streamer import SensorStreamer  # noqa: E402
@@ -351,8 +352,8 @@ def fly(seed: int, runs: list[RunSpec]) -> dict[str, Any]:
     t_wall = time.perf_counter()
     # The filters create their altitude channel lazily (first IMU epoch after alignment): the
     # recording subclass must be in place while they run.
-    saved = fusion_filter.AltitudeChannel
-    fusion_filter.AltitudeChannel = RecordingChannel  # type: ignore[misc]
+    saved = altitude_link.AltitudeChannel
+    altitude_link.AltitudeChannel = RecordingChannel  # type: ignore[misc]
     try:
         with Flight(request.flight, request.plan) as flight:
             truth = flight.truth()
@@ -383,7 +384,7 @@ def fly(seed: int, runs: list[RunSpec]) -> dict[str, Any]:
                                     tracks[name].add(e)
                                 filter_s[name] += time.process_time() - c0
     finally:
-        fusion_filter.AltitudeChannel = saved  # type: ignore[misc]
+        altitude_link.AltitudeChannel = saved  # type: ignore[misc]
     logs: dict[str, ChannelLog] = {}
     for name, nav in navs.items():
         ch = nav.altitude_channel

@@ -8,7 +8,7 @@ filter is tuned from the IMU datasheet (:func:`hil.tuning.filter_config_for_imu`
 
 How the methods are run
 -----------------------
-An :class:`~fusion.bridge.OutputCorrection` strategy (``gmdh``, ``rbf``, ``mlp``,
+An :class:`~fusion.bridging.interface.OutputCorrection` strategy (``gmdh``, ``rbf``, ``mlp``,
 ``bp-parallel``, and the P0-input variants) never changes the filter: it only shifts the
 output during an outage. So each flight is filtered **once** with a recording strategy that
 asks for the same virtual outages (shadow INS) as the learned methods and returns nothing; the
@@ -69,6 +69,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from fusion.bridging.interface import NoBridge
 
 IMU = "industrial-mems"
 GNSS = "modern"
@@ -132,7 +134,7 @@ class Recorded:
     filter_cpu_s: float = 0.0
 
 
-class HookRecorder:
+class HookRecorder(NoBridge):
     """Asks for virtual outages like the learned strategies, records every hook call, returns
     nothing (the filter runs as ``none``)."""
 
@@ -258,7 +260,7 @@ def replay_hooks(bridge: Any, rec: Recorded) -> Replayed:
     """Feed the recorded hook calls to ``bridge``; the output correction at every estimate."""
     import numpy as np
 
-    from fusion.bridge import OutputCorrection
+    from fusion.bridging.interface import OutputCorrection
 
     events: list[tuple[int, tuple[float, float, float] | None]] = []
     fit_s: list[float] = []
@@ -316,7 +318,7 @@ def pseudo_fixes_in_replay(bridge: Any, rec: Recorded) -> int:
     """Replay the recorded hooks into a pseudo-GNSS strategy up to its first pseudo-fix;
     returns 1 if it sends one (the recording no longer matches its filter from there), else 0.
     """
-    from fusion.bridge import PseudoGnss
+    from fusion.bridging.interface import PseudoGnss
 
     for kind, epoch, error in rec.hooks:
         if kind == "g":
@@ -371,7 +373,7 @@ def ratios(base: list[dict[str, Any]], meth: list[dict[str, Any]]) -> dict[str, 
 # ------------------------------------------------------------------------------ one flight
 def make(method: str, overrides: dict[str, Any]) -> Any:
     """``make_bridge(method)`` with some settings changed (the others: method defaults)."""
-    from fusion.bridging import make_bridge
+    from fusion.bridging.registry import make_bridge
     from fusion.config import BridgeConfig
 
     return make_bridge(method, BridgeConfig(**overrides))
@@ -471,7 +473,7 @@ def _synthetic_stream(n: int, seed: int = 0) -> list[tuple[Any, Any]]:
     (a t^2 along the heading, a turning aircraft, 60 s outages)."""
     import numpy as np
 
-    from fusion.bridge import BridgeEpoch, InsError, VirtualOutage
+    from fusion.bridging.interface import BridgeEpoch, InsError, VirtualOutage
 
     rng = np.random.default_rng(seed)
     lat0, lon0 = math.radians(47.0), math.radians(8.0)
@@ -501,7 +503,7 @@ def _synthetic_stream(n: int, seed: int = 0) -> list[tuple[Any, Any]]:
 
 def cost_benchmarks(repeats: int = 5) -> dict[str, Any]:
     """GMDH refit on 60 s of 100 Hz pairs (one component, all six) and one prediction call."""
-    from fusion.bridging import make_bridge
+    from fusion.bridging.registry import make_bridge
     from fusion.config import BridgeConfig
 
     n = 6000
@@ -705,7 +707,7 @@ def main(argv: list[str] | None = None) -> int:
 
     import numpy as np
 
-    from fusion.bridging import DEFAULT_FEATURES
+    from fusion.bridging.registry import DEFAULT_FEATURES
     from fusion.config import BridgeConfig
 
     good = [r for r in rows if "error" not in r]

@@ -122,8 +122,9 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
     streamer = SensorStreamer(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
     cfg = filter_config_for_presets(IMU, GNSS)
     if gnss_bias != "default":
+        base = "ins22" if cfg.state_layout.startswith("ins22") else "ins16"
         cfg = cfg.model_copy(
-            update={"gnss": cfg.gnss.model_copy(update={"bias_states": gnss_bias == "on"})})
+            update={"state_layout": f"{base}+gnss" if gnss_bias == "on" else base})
     nav = NavFilter(cfg)
     decoder = Decoder()
     col = Collector()

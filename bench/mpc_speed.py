@@ -3,13 +3,13 @@
 Target (issue 5): the MPC step costs ≤ 20 µs per call with precomputed gains. Measured:
 
 - ``first_move_fast``: the receding-horizon move ``Δu = −K_mpc·x̃`` alone (plain floats);
-- ``compensator_step``: :meth:`fusion.altitude.MpcCompensator.step` — move, control update and
+- ``compensator_step``: :meth:`fusion.altitude.mpc.MpcCompensator.step` — move, control update and
   the error-model propagation (what the channel calls every period);
 - ``compensator_step_bounded``: the same with move bounds that are active on most calls (the
   active-set QP runs);
-- ``channel_per_imu_sample``: a whole :class:`fusion.altitude.AltitudeChannel` per IMU sample
-  at 100 Hz with baro at 25 Hz and GNSS at 5 Hz (loop, calibration, monitor, compensator),
-  amortised, for each method.
+- ``channel_per_imu_sample``: a whole :class:`fusion.altitude.channel.AltitudeChannel` per IMU
+  sample at 100 Hz with baro at 25 Hz and GNSS at 5 Hz (loop, calibration, monitor,
+  compensator), amortised, for each method.
 
     PYTHONPATH=. .venv/bin/python bench/mpc_speed.py   # writes bench/results/mpc_speed.json
 """
@@ -26,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fusion.altitude import AltitudeChannel, AltitudeChannelConfig, MpcCompensator, MpcConfig
+from fusion.altitude.channel import AltitudeChannel, AltitudeChannelConfig
+from fusion.altitude.mpc import MpcCompensator, MpcConfig
 
 
 def per_call_us(fn: Callable[[], object], n: int, repeats: int = 5) -> float:

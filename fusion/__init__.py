@@ -27,7 +27,23 @@ Position
 Randomness
     Never drawn here: ``fusion`` is deterministic. Simulators take a ``numpy.random.Generator``.
 
-``fusion`` imports nothing of hilnav but itself and performs no I/O, no clock reads.
+``fusion`` imports nothing of hilnav but itself (and the neutral ``physconst``) and performs
+no I/O, no clock reads.
+
+Layout
+------
+Foundations: :mod:`~fusion.earth`, :mod:`~fusion.rotations`, :mod:`~fusion.strapdown`
+(mechanisation), :mod:`~fusion.error_model` (state layouts, F, Phi, Q), :mod:`~fusion.kalman`
+(gated Joseph update), :mod:`~fusion.trajectory` (ideal IMU from a trajectory). The filter
+engine: :mod:`~fusion.filter` (``NavFilter``, the orchestrator) sequencing
+:mod:`~fusion.screening` (input samples), :mod:`~fusion.propagation` (covariance time update),
+:mod:`~fusion.feedback` (feedback and resets), :mod:`~fusion.history` (delayed measurements),
+:mod:`~fusion.alignment`, one module per aiding source under :mod:`fusion.aiding`,
+:mod:`~fusion.altitude_link` and :mod:`~fusion.outage`; its outputs are in
+:mod:`~fusion.estimate` and its configuration in :mod:`~fusion.config`. Methods: the altitude
+channel (:mod:`fusion.altitude`), GNSS-outage bridging (:mod:`fusion.bridging`) and its
+regressors (:mod:`~fusion.gmdh`, :mod:`~fusion.regressors`, :mod:`~fusion.regressor_base`,
+:mod:`~fusion.laguerre` for the MPC).
 """
 
 __all__ = ["FilterConfig", "NavEstimate", "NavFilter"]
@@ -39,8 +55,12 @@ def __getattr__(name: str) -> object:
         from fusion.config import FilterConfig
 
         return FilterConfig
-    if name in ("NavEstimate", "NavFilter"):
-        from fusion import filter as _filter
+    if name == "NavEstimate":
+        from fusion.estimate import NavEstimate
 
-        return getattr(_filter, name)
+        return NavEstimate
+    if name == "NavFilter":
+        from fusion.filter import NavFilter
+
+        return NavFilter
     raise AttributeError(f"module 'fusion' has no attribute {name!r}")

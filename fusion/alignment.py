@@ -22,6 +22,9 @@ Static: mean specific force over ``static_duration_s`` (levelling), heading from
 tilt-compensated mean magnetometer field against the configured reference field, or, without
 one, gyrocompassing (horizontal Earth rate; only meaningful for gyros far better than the
 Earth rate, its yaw sigma is derived from the gyro bias).
+
+The filter starts from an alignment with the error covariance of :func:`aligned_covariance`
+(the default initial variances of :func:`initial_variances` with the alignment's sigmas).
 """
 
 from __future__ import annotations
@@ -34,8 +37,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion import earth
-from fusion.config import GnssConfig, ImuConfig, InitConfig, MagConfig
-from fusion.rotations import dcm_to_quat, euler_to_dcm, quat_multiply, rotvec_to_quat
+from fusion.config import FilterConfig, GnssTuning, ImuTuning, InitConfig, MagTuning
+from fusion.error_model import StateLayout
+from fusion.rotations import dcm_to_quat, euler_to_dcm, quat_multiply, rotvec_to_quat, wrap_pi
 from fusion.samples import GnssFix
 from fusion.strapdown import InsState
 
@@ -52,6 +56,72 @@ class AlignmentResult(NamedTuple):
     sigma_att_ned_rad: tuple[float, float, float]
     method: str
     """``in_flight``, ``static_mag`` or ``static_gyrocompass``."""
+
+
+def initial_variances(layout: StateLayout, config: FilterConfig) -> FloatArray:
+    """Default initial error variances from ``InitConfig`` and the sensor sigmas.
+
+    Parameters
+    ----------
+    layout : StateLayout
+    config : FilterConfig
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        In ``layout``: position m^2, velocity (m/s)^2, attitude rad^2, sensor errors SI^2.
+    """
+    lay, cfg = layout, config
+    d = np.zeros(lay.n)
+    d[lay.pos] = cfg.init.pos_sigma_m**2
+    d[lay.vel] = cfg.init.vel_sigma_mps**2
+    d[lay.att] = [cfg.init.roll_pitch_sigma_rad**2] * 2 + [cfg.init.yaw_sigma_rad**2]
+    # Initial bias uncertainty: the turn-on (repeatability) bias, a random constant, plus the
+    # in-run Gauss-Markov part.
+    d[lay.ba] = cfg.imu.accel_turn_on_sigma_mps2**2 + cfg.imu.accel_bias_sigma_mps2**2
+    d[lay.bg] = cfg.imu.gyro_turn_on_sigma_rps**2 + cfg.imu.gyro_bias_sigma_rps**2
+    d[lay.baro] = cfg.baro.bias_sigma_m**2
+    if lay.has_gnss_bias:
+        g = cfg.gnss
+        d[lay.gnss] = [g.bias_sigma_h_m**2] * 2 + [g.bias_sigma_v_m**2]
+    if lay.has_scale_factors:
+        d[lay.sa] = cfg.imu.accel_scale_sigma**2
+        d[lay.sg] = cfg.imu.gyro_scale_sigma**2
+    return d
+
+
+def aligned_covariance(
+    layout: StateLayout, config: FilterConfig, result: AlignmentResult
+) -> FloatArray:
+    """Initial error covariance after an alignment.
+
+    The alignment's sigmas replace the default position, velocity and attitude variances.
+    With the GNSS bias states the aligned position is a fix: its error is the receiver's bias
+    plus white noise, i.e. ``dr = -db + w`` (``db = b^ - b`` with ``b^ = 0``), a correlation of
+    ``-sigma_b^2`` per axis (capped at 0.9 of the position variance).
+
+    Parameters
+    ----------
+    layout : StateLayout
+    config : FilterConfig
+    result : AlignmentResult
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+    """
+    lay = layout
+    d = initial_variances(lay, config)
+    d[lay.pos] = np.square(result.sigma_pos_ned_m)
+    d[lay.vel] = result.sigma_vel_mps**2
+    d[lay.att] = np.square(result.sigma_att_ned_rad)
+    cov = np.diag(d)
+    if lay.has_gnss_bias:
+        for i in range(3):
+            pi, gi = lay.POS + i, lay.GNSS + i
+            c = min(cov[gi, gi], 0.9 * cov[pi, pi])
+            cov[pi, gi] = cov[gi, pi] = -c
+    return cov
 
 
 def triad(v1_b: FloatArray, v1_n: FloatArray, v2_b: FloatArray, v2_n: FloatArray) -> FloatArray:
@@ -122,10 +192,10 @@ class InFlightAlignment:
     Parameters
     ----------
     init : InitConfig
-    gnss : GnssConfig
+    gnss : GnssTuning
     """
 
-    def __init__(self, init: InitConfig, gnss: GnssConfig) -> None:
+    def __init__(self, init: InitConfig, gnss: GnssTuning) -> None:
         self.init = init
         self.gnss = gnss
         self._imu: deque[_Imu] = deque(maxlen=8192)
@@ -241,12 +311,12 @@ class StaticAlignment:
     Parameters
     ----------
     init : InitConfig
-    gnss : GnssConfig
-    mag : MagConfig
-    imu : ImuConfig
+    gnss : GnssTuning
+    mag : MagTuning
+    imu : ImuTuning
     """
 
-    def __init__(self, init: InitConfig, gnss: GnssConfig, mag: MagConfig, imu: ImuConfig) -> None:
+    def __init__(self, init: InitConfig, gnss: GnssTuning, mag: MagTuning, imu: ImuTuning) -> None:
         self.init = init
         self.gnss = gnss
         self.mag = mag
@@ -319,7 +389,7 @@ class StaticAlignment:
                 math.pi, max(self.init.static_yaw_sigma_rad, self.imu.gyro_bias_sigma_rps / horiz)
             )
             method = "static_gyrocompass"
-        yaw = (yaw + math.pi) % (2.0 * math.pi) - math.pi
+        yaw = wrap_pi(yaw)
         c_nb = euler_to_dcm(np.array([roll, pitch, yaw]))
         lat, lon, alt = _ins_from_antenna(fix.lat, fix.lon, fix.alt, c_nb, self.gnss.lever_arm_b_m)
         state = InsState.from_arrays(lat, lon, alt, np.zeros(3), dcm_to_quat(c_nb))

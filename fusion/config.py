@@ -22,7 +22,8 @@ from pydantic import (
     model_validator,
 )
 
-from fusion.altitude import AltitudeChannelConfig
+from fusion.altitude.channel import AltitudeChannelConfig
+from fusion.error_model import LayoutName
 
 Probability = float
 
@@ -31,8 +32,8 @@ class _Frozen(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
 
-class ImuConfig(_Frozen):
-    """IMU error model (what the filter assumes) and the sensor's measurement range."""
+class ImuTuning(_Frozen):
+    """What the filter assumes about the IMU: its error model and its measurement range."""
 
     gyro_noise_density_rps_rthz: PositiveFloat = math.radians(0.005)
     """Angle random walk, rad/s/sqrt(Hz)."""
@@ -72,8 +73,8 @@ class ImuConfig(_Frozen):
     """Unknown rotation rate assumed over a time-jump gap, rad/s."""
 
 
-class GnssConfig(_Frozen):
-    """GNSS position/velocity aiding."""
+class GnssTuning(_Frozen):
+    """What the filter assumes about the GNSS receiver, and how it fuses its fixes."""
 
     lever_arm_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """Antenna position relative to the IMU in body FRD, m."""
@@ -99,20 +100,12 @@ class GnssConfig(_Frozen):
     """Good-quality fixes rejected by the gate for this long: reset position and velocity."""
     max_delay_s: PositiveFloat = 0.5
     """Fixes whose time of validity is older than this (w.r.t. the INS) are dropped, s."""
-    bias_states: bool = False
-    """Estimate the receiver's time-correlated position error (atmosphere, orbits, multipath)
-    as three Gauss-Markov states (North, East, Down; the layout becomes ``ins16+gnss`` /
-    ``ins22+gnss``). The position update then uses only the white part of the reported
-    accuracy, ``sqrt(eph^2 - bias_sigma_h_m^2)`` (floored by ``pos_noise_floor_m``). Off: each
-    fix is fused as white noise with sigma ``eph`` / ``epv``, which makes the filter
-    overconfident when the receiver error is correlated over minutes (NEES ~200-300 instead of
-    9 on the ``modern`` receiver). Off by default because the split of ``eph`` into correlated
-    and white parts is a property of the receiver that this model cannot guess: with the
-    states on, a receiver whose error is really white at ``eph`` is fused with too small an
-    ``R`` and gated out. :func:`hil.tuning.filter_gnss_config` turns it on from a receiver
-    description."""
     bias_sigma_h_m: PositiveFloat = 1.4
-    """Steady-state sigma of the correlated position error per horizontal axis, m."""
+    """Steady-state sigma of the receiver's time-correlated position error (atmosphere, orbits,
+    multipath) per horizontal axis, m. Used by the layouts with the GNSS position-bias states
+    (``ins16+gnss`` / ``ins22+gnss``, :attr:`FilterConfig.state_layout`): the position update
+    then takes only the white part of the reported accuracy,
+    ``sqrt(eph^2 - bias_sigma_h_m^2)`` (floored by ``pos_noise_floor_m``)."""
     bias_sigma_v_m: PositiveFloat = 2.4
     """Steady-state sigma of the correlated position error, Down, m."""
     bias_tau_h_s: PositiveFloat = 120.0
@@ -121,8 +114,9 @@ class GnssConfig(_Frozen):
     """Correlation time of the vertical position bias, s."""
 
 
-class BaroConfig(_Frozen):
-    """Barometric height aiding with a Gauss-Markov bias state."""
+class BaroTuning(_Frozen):
+    """What the filter assumes about the barometer: height aiding with a Gauss-Markov bias
+    state."""
 
     noise_m: PositiveFloat = 0.5
     """Height noise sigma of one sample, m."""
@@ -139,8 +133,8 @@ class BaroConfig(_Frozen):
     """Rejected for this long: re-initialise the baro bias from the current height."""
 
 
-class MagConfig(_Frozen):
-    """Magnetometer heading aiding."""
+class MagTuning(_Frozen):
+    """What the filter assumes about the magnetometer, and how it fuses its heading."""
 
     heading_noise_rad: PositiveFloat = math.radians(3.0)
     """Heading sigma (generous: covers soft/hard-iron residuals and field errors), rad."""
@@ -158,8 +152,8 @@ class MagConfig(_Frozen):
     from GNSS-aided attitudes spread over headings (``m_b = C_bn m_n + b``, least squares)."""
     uncalibrated_heading_noise_rad: PositiveFloat = math.radians(10.0)
     """Heading sigma used before the hard-iron calibration completes (a hard-iron residual of
-    1 uT at 20 uT horizontal field is a heading error of +-3 deg that flips with heading; fused
-    as white noise at the calibrated sigma it pulled yaw 4-5 deg off), rad."""
+    1 uT at 20 uT horizontal field is a heading error of +-3 deg that flips with heading: fused
+    as white noise at the calibrated sigma it pulls yaw off), rad."""
     calibration_min_heading_span_rad: PositiveFloat = math.radians(150.0)
     """Headings covered (in 30-deg bins) before the calibration is trusted, rad."""
     calibration_hard_iron_sigma_tesla: PositiveFloat = 5e-6
@@ -218,15 +212,15 @@ class BridgeConfig(_Frozen):
     learn from, their inputs, the training budget and the fallback rules.
 
     ``rate_hz`` is read by the filter; everything else by the learned strategies
-    (:func:`fusion.bridging.make_bridge`).
+    (:func:`fusion.bridging.registry.make_bridge`).
     """
 
     rate_hz: PositiveFloat = 5.0
     """The strategy is consulted this often during an outage, Hz."""
     training: Literal["virtual", "fix"] = "virtual"
     """``virtual``: learn the drift of shadow INS copies re-seeded from the filter while GNSS
-    is good (virtual outages, :class:`fusion.bridge.ShadowBank`). ``fix``: paper P0's pairs,
-    the filter's INS-minus-GNSS error at each fix (closed loop: about zero)."""
+    is good (virtual outages, :class:`fusion.bridging.shadows.ShadowBank`). ``fix``: paper
+    P0's pairs, the filter's INS-minus-GNSS error at each fix (closed loop: about zero)."""
     features: tuple[str, ...] | None = None
     """Network inputs (names in :data:`BRIDGE_FEATURES`); ``None``: the method's default."""
     virtual_outage_s: PositiveFloat = 90.0
@@ -249,7 +243,7 @@ class BridgeConfig(_Frozen):
     """Virtual outages started within this time of the first fix are not learned from (the
     filter is still converging: their drift says nothing about later outages), s."""
     gate_horizon_s: PositiveFloat = 60.0
-    """The fallback gate (:class:`fusion.bridging.LearnedBridge`): every virtual outage is
+    """The fallback gate (:mod:`fusion.bridging.gate`): every virtual outage is
     replayed, once it is over, through the models that were in use when it *started* (so it
     is data they never saw), and scored over its first ``gate_horizon_s``: the mean squared
     error left after the correction against the mean squared error of no correction, s."""
@@ -315,23 +309,25 @@ class AltitudeConfig(_Frozen):
     """Where the output altitude and vertical velocity come from.
 
     ``ekf``: the error-state filter's own vertical channel (baro height fused as an EKF update
-    with a Gauss-Markov bias state, :class:`BaroConfig`). ``loop`` / ``loop-mpc`` /
-    ``loop-kf``: paper P4's barometric-inertial channel (:class:`fusion.altitude.AltitudeChannel`)
-    runs inside the filter on the INS vertical acceleration, the barometer (pressure and
-    temperature, non-standard-atmosphere calibration from GNSS height) and GNSS height; the
-    estimate's altitude and vertical velocity are the channel's. The EKF keeps fusing the baro
+    with a Gauss-Markov bias state, :class:`BaroTuning`). ``loop`` / ``loop-mpc`` /
+    ``loop-kf``: paper P4's barometric-inertial channel
+    (:class:`fusion.altitude.channel.AltitudeChannel`) runs inside the filter on the INS
+    vertical acceleration, the barometer (pressure and temperature, non-standard-atmosphere
+    calibration from GNSS height) and GNSS height; the estimate's altitude and vertical velocity
+    are the channel's. The EKF keeps fusing the baro
     samples the channel accepted, for its internal state only (see :mod:`fusion.filter`).
     """
 
     method: AltitudeMethodName = "ekf"
     preset: Literal["tuned", "p4"] = "tuned"
     """Where the channel's settings come from when ``channel`` is not given: ``tuned`` (the
-    defaults of :class:`~fusion.altitude.AltitudeChannelConfig`: loop with a triple pole at
-    3 s, baro-calibration random walk 0.005 m/√s, MPC pole 0.6, KF with a near-constant baro
-    bias, all chosen on the tuning seeds of ``bench/altitude_jsbsim.py``) or ``p4`` (paper P4's
-    channel, :meth:`~fusion.altitude.AltitudeChannelConfig.p4`: gains K1 = 3.00, K2 = 0.6452,
-    K3 = 0.8710, the untuned MPC, P4's KF with a 600 s Gauss–Markov bias, and P4's baro set-up:
-    scale from the sensed temperature, bias not learned from GNSS). Giving both ``channel``
+    defaults of :class:`~fusion.altitude.channel.AltitudeChannelConfig`: loop with a triple
+    pole at 3 s, baro-calibration random walk 0.005 m/√s, MPC pole 0.6, KF with a
+    near-constant baro bias, all chosen on the tuning seeds of ``bench/altitude_jsbsim.py``) or
+    ``p4`` (paper P4's channel, :meth:`~fusion.altitude.channel.AltitudeChannelConfig.p4`:
+    gains K1 = 3.00, K2 = 0.6452, K3 = 0.8710, the untuned MPC, P4's KF with a 600 s
+    Gauss–Markov bias, and P4's baro set-up: scale from the sensed temperature, bias not learned
+    from GNSS). Giving both ``channel``
     and ``preset="p4"`` is an error."""
     channel: AltitudeChannelConfig = AltitudeChannelConfig()
     """The channel's settings for the loop methods. Its own ``method`` field is ignored
@@ -364,13 +360,22 @@ class AltitudeConfig(_Frozen):
 class FilterConfig(_Frozen):
     """Everything :class:`fusion.filter.NavFilter` needs."""
 
-    state_layout: Literal["ins16", "ins22"] = "ins16"
-    """``ins16``: pos, vel, att, accel bias, gyro bias, baro bias. ``ins22``: plus accelerometer
-    and gyro scale factors."""
-    imu: ImuConfig = ImuConfig()
-    gnss: GnssConfig = GnssConfig()
-    baro: BaroConfig = BaroConfig()
-    mag: MagConfig = MagConfig()
+    state_layout: LayoutName = "ins16"
+    """The error-state layout, by name (:func:`fusion.error_model.layout_for`): ``ins16``: pos,
+    vel, att, accel bias, gyro bias, baro bias. ``ins22``: plus accelerometer and gyro scale
+    factors. ``+gnss``: plus the receiver's time-correlated position error as three
+    Gauss-Markov states (North, East, Down; sigmas and correlation times in
+    :class:`GnssTuning`). Without them each fix is fused as white noise with sigma ``eph`` /
+    ``epv``, which makes the filter overconfident when the receiver error is correlated over
+    minutes (5 fixes/s of an error that changes over 120 s are taken as independent); with
+    them a receiver whose error is really white at ``eph`` is fused with too small an ``R``
+    and gated out. The split of ``eph`` into correlated and white parts is a property of the
+    receiver: :func:`hil.tuning.gnss_state_layout` chooses the layout from a receiver
+    description."""
+    imu: ImuTuning = ImuTuning()
+    gnss: GnssTuning = GnssTuning()
+    baro: BaroTuning = BaroTuning()
+    mag: MagTuning = MagTuning()
     init: InitConfig = InitConfig()
     rates: RatesConfig = RatesConfig()
     bridge: BridgeConfig = BridgeConfig()

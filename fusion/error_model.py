@@ -1,4 +1,4 @@
-"""Error-state model of the NED strapdown INS: named state layout, F, Q, Phi, feedback.
+"""Error-state model of the NED strapdown INS: the named state layouts, F, Phi and Q.
 
 Error definitions (every error is *estimated minus true*):
 
@@ -33,15 +33,15 @@ and ``N_env`` that of ``omega_en_n`` w.r.t. velocity error; ``F_vr = [v×](2 N_i
 neglected (e^2-small). Every block is checked against a numerically propagated, perturbed INS in
 ``tests/test_error_model.py``.
 
-Feedback (after each measurement update the error estimate is moved into the INS and reset to
-zero): position, velocity and biases are corrected by subtraction; attitude by
-``q_nb <- q(-phi) ⊗ q_nb``.
+After each measurement update the error estimate is moved into the INS and reset to zero
+(:mod:`fusion.feedback`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,18 +50,23 @@ from fusion import earth
 
 FloatArray = NDArray[np.float64]
 
+LayoutName = Literal["ins16", "ins16+gnss", "ins22", "ins22+gnss"]
+"""Names of the error-state layouts (:func:`layout_for`)."""
+
 
 @dataclass(frozen=True)
 class StateLayout:
     """Named offsets of the error-state blocks (the only place that knows them).
 
     Use the slices (``layout.pos``, ``layout.att`` ...) instead of bare numbers; ``None`` means
-    the block is not in this layout. Four layouts exist: :data:`INS16`, :data:`INS22` and the
-    same two with the GNSS position-bias block appended (``ins16+gnss``, ``ins22+gnss``,
-    :func:`layout_for`); the name always says which blocks are present.
+    the block is not in this layout (:attr:`has_scale_factors`, :attr:`has_gnss_bias` say which
+    optional blocks are present). Four layouts exist: :data:`INS16`, :data:`INS22` and the
+    same two with the GNSS position-bias block appended (:data:`INS16_GNSS`,
+    :data:`INS22_GNSS`); :func:`layout_for` picks one by name, and the name always says which
+    blocks are present.
     """
 
-    name: str
+    name: LayoutName
     n: int
     pos: slice
     vel: slice
@@ -111,6 +116,30 @@ class StateLayout:
             raise ValueError(f"layout {self.name!r} has no GNSS position-bias states")
         return int(self.gnss.start)
 
+    @property
+    def SA(self) -> int:
+        """Offset of the accelerometer scale-factor block (ValueError if the layout has none)."""
+        if self.sa is None:
+            raise ValueError(f"layout {self.name!r} has no scale-factor states")
+        return int(self.sa.start)
+
+    @property
+    def SG(self) -> int:
+        """Offset of the gyro scale-factor block (ValueError if the layout has none)."""
+        if self.sg is None:
+            raise ValueError(f"layout {self.name!r} has no scale-factor states")
+        return int(self.sg.start)
+
+    @property
+    def has_scale_factors(self) -> bool:
+        """The layout carries the accelerometer and gyro scale-factor blocks (``ins22``)."""
+        return self.sa is not None
+
+    @property
+    def has_gnss_bias(self) -> bool:
+        """The layout carries the GNSS position-bias block (``+gnss``)."""
+        return self.gnss is not None
+
 
 _LABELS16 = (
     "pos_n_m", "pos_e_m", "pos_d_m",
@@ -144,34 +173,37 @@ INS22 = StateLayout(
 _GNSS_LABELS = ("gnss_bias_n_m", "gnss_bias_e_m", "gnss_bias_d_m")
 
 
-def _with_gnss_bias(base: StateLayout) -> StateLayout:
+def _with_gnss_bias(base: StateLayout, name: LayoutName) -> StateLayout:
     n = base.n
     return StateLayout(
-        name=f"{base.name}+gnss", n=n + 3, pos=base.pos, vel=base.vel, att=base.att, ba=base.ba,
+        name=name, n=n + 3, pos=base.pos, vel=base.vel, att=base.att, ba=base.ba,
         bg=base.bg, baro=base.baro, sa=base.sa, sg=base.sg,
         labels=(*base.labels, *_GNSS_LABELS), gnss=slice(n, n + 3),
     )  # fmt: skip
 
 
 #: :data:`INS16` plus the GNSS position bias (19 states).
-INS16_GNSS = _with_gnss_bias(INS16)
+INS16_GNSS = _with_gnss_bias(INS16, "ins16+gnss")
 #: :data:`INS22` plus the GNSS position bias (25 states).
-INS22_GNSS = _with_gnss_bias(INS22)
+INS22_GNSS = _with_gnss_bias(INS22, "ins22+gnss")
 
-LAYOUTS = {lay.name: lay for lay in (INS16, INS22, INS16_GNSS, INS22_GNSS)}
+LAYOUTS: dict[str, StateLayout] = {
+    lay.name: lay for lay in (INS16, INS16_GNSS, INS22, INS22_GNSS)
+}
 
 
-def layout_for(name: str, gnss_bias: bool = False) -> StateLayout:
-    """The layout ``name`` (``"ins16"`` / ``"ins22"``), with the GNSS bias block if asked.
+def layout_for(name: str) -> StateLayout:
+    """The layout called ``name`` (one of :data:`LayoutName`).
 
     Raises
     ------
     ValueError
-        Unknown ``name``.
+        Unknown ``name`` (the message lists the valid ones).
     """
-    if name not in ("ins16", "ins22"):
-        raise ValueError(f"unknown state layout {name!r}; valid: ins16, ins22")
-    return LAYOUTS[f"{name}+gnss" if gnss_bias else name]
+    layout = LAYOUTS.get(name)
+    if layout is None:
+        raise ValueError(f"unknown state layout {name!r}; valid: {', '.join(LAYOUTS)}")
+    return layout
 
 
 @dataclass(frozen=True)
@@ -238,11 +270,10 @@ class ErrorModel:
         out = [(lay.BA + i, nz.accel_bias_tau_s) for i in range(3)]
         out += [(lay.BG + i, nz.gyro_bias_tau_s) for i in range(3)]
         out += [(lay.BARO, nz.baro_bias_tau_s)]
-        if lay.sa is not None:
-            out += [(int(lay.sa.start) + i, nz.accel_scale_tau_s) for i in range(3)]
-        if lay.sg is not None:
-            out += [(int(lay.sg.start) + i, nz.gyro_scale_tau_s) for i in range(3)]
-        if lay.gnss is not None:
+        if lay.has_scale_factors:
+            out += [(lay.SA + i, nz.accel_scale_tau_s) for i in range(3)]
+            out += [(lay.SG + i, nz.gyro_scale_tau_s) for i in range(3)]
+        if lay.has_gnss_bias:
             g = lay.GNSS
             out += [(g, nz.gnss_bias_tau_h_s), (g + 1, nz.gnss_bias_tau_h_s),
                     (g + 2, nz.gnss_bias_tau_v_s)]  # fmt: skip
@@ -271,10 +302,9 @@ class ErrorModel:
         block(a, v, [(0, 1), (1, 0), (2, 1)])  # F_phi,v
         block(a, a, off)  # F_phi,phi
         block(a, bg, full)  # F_phi,bg
-        if lay.sa is not None:
-            block(v, int(lay.sa.start), full)  # C_nb diag(f_b)
-        if lay.sg is not None:
-            block(a, int(lay.sg.start), full)  # C_nb diag(omega_b)
+        if lay.has_scale_factors:
+            block(v, lay.SA, full)  # C_nb diag(f_b)
+            block(a, lay.SG, full)  # C_nb diag(omega_b)
         return np.ravel_multi_index((np.array(rows), np.array(cols)), (lay.n, lay.n))
 
     # --- F -----------------------------------------------------------------------------------
@@ -376,8 +406,7 @@ class ErrorModel:
             # F_phi,bg = -C_nb
             c00, c01, c02, c10, c11, c12, c20, c21, c22,
         ]  # fmt: skip
-        lay = self.layout
-        if lay.sa is not None:
+        if self.layout.has_scale_factors:
             # -C_nb diag(f_b)
             fx, fy, fz = f_b_mps2
             vals += [
@@ -385,7 +414,6 @@ class ErrorModel:
                 c10 * fx, c11 * fy, c12 * fz,
                 c20 * fx, c21 * fy, c22 * fz,
             ]  # fmt: skip
-        if lay.sg is not None:
             # -C_nb diag(omega_b)
             wx, wy, wz = omega_ib_b_rps
             vals += [
@@ -492,11 +520,10 @@ class ErrorModel:
         q[lay.ba] = gm(nz.accel_bias_sigma, nz.accel_bias_tau_s)
         q[lay.bg] = gm(nz.gyro_bias_sigma, nz.gyro_bias_tau_s)
         q[lay.baro] = gm(nz.baro_bias_sigma, nz.baro_bias_tau_s)
-        if lay.sa is not None:
+        if lay.has_scale_factors:
             q[lay.sa] = gm(nz.accel_scale_sigma, nz.accel_scale_tau_s)
-        if lay.sg is not None:
             q[lay.sg] = gm(nz.gyro_scale_sigma, nz.gyro_scale_tau_s)
-        if lay.gnss is not None:
+        if lay.has_gnss_bias:
             g = lay.GNSS
             q[g] = q[g + 1] = gm(nz.gnss_bias_sigma_h_m, nz.gnss_bias_tau_h_s)
             q[g + 2] = gm(nz.gnss_bias_sigma_v_m, nz.gnss_bias_tau_v_s)

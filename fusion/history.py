@@ -14,7 +14,8 @@ import math
 from collections import deque
 
 from fusion import earth
-from fusion.strapdown import InsState, rotvec_quat
+from fusion.rotations import quat_product, rotvec_quat
+from fusion.strapdown import InsState
 
 Correction9 = tuple[float, float, float, float, float, float, float, float, float]
 _ZERO9: Correction9 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -67,15 +68,8 @@ class InsHistory:
         d = [b - a for a, b in zip(c0, c1, strict=True)]
         t = earth.local_terms(s.lat_rad, s.alt_msl_m)
         vn, ve, vd = s.v_ned_mps
-        qw, qx, qy, qz = s.q_nb
         # q <- q(-phi) ⊗ q
-        pw, px, py, pz = rotvec_quat(-d[6], -d[7], -d[8])
-        q = (
-            pw * qw - px * qx - py * qy - pz * qz,
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-        )
+        q = quat_product(rotvec_quat(-d[6], -d[7], -d[8]), s.q_nb)
         return InsState(
             s.lat_rad - d[0] / t.rho_n_m,
             s.lon_rad - d[1] / (t.rho_e_m * t.cos_lat),

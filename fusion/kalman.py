@@ -1,6 +1,7 @@
 """Kalman filter steps: prediction and Joseph-form correction with a chi-square gate.
 
-Pure functions on arrays; the error-state bookkeeping lives in :mod:`fusion.filter`.
+Pure functions on arrays; the error-state bookkeeping lives in :mod:`fusion.filter` and
+:mod:`fusion.feedback`.
 Observation model: ``z = H x + v``, ``v ~ N(0, R)``. In the error-state filter ``z`` is
 "INS-predicted minus measured" and ``x`` the error estimate (zero after every feedback).
 """

@@ -8,7 +8,7 @@
 - :class:`BpNet` (P2): one small sigmoid hidden layer, linear output, plain back-propagation
   (full-batch gradient descent with Adam steps, fixed epochs).
 
-All follow the estimator contract of :class:`fusion.gmdh.RegressorBase` (scikit-learn
+All follow the estimator contract of :class:`fusion.regressor_base.RegressorBase` (scikit-learn
 compatible without importing it), standardise inputs and target inside ``fit`` and are
 deterministic for a given ``random_state`` (``numpy.random.default_rng(random_state)``).
 """
@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 
-from fusion.gmdh import FloatArray, RegressorBase
+from fusion.regressor_base import FloatArray, RegressorBase
 
 __all__ = ["BpNet", "NarxMLP", "RbfNet"]
 

@@ -6,16 +6,25 @@ Conventions (see :mod:`fusion`): ``q_nb`` / ``C_nb`` map body FRD vectors to NED
 ``C_nb = Rz(yaw) @ Ry(pitch) @ Rx(roll)``. Quaternion products are Hamilton's:
 ``q_ac = q_ab ⊗ q_bc``.
 
-Functions broadcast over leading dimensions: a quaternion argument may be ``(4,)`` or
-``(N, 4)``, a vector ``(3,)`` or ``(N, 3)``, a matrix ``(3, 3)`` or ``(N, 3, 3)``.
+The array functions broadcast over leading dimensions: a quaternion argument may be ``(4,)``
+or ``(N, 4)``, a vector ``(3,)`` or ``(N, 3)``, a matrix ``(3, 3)`` or ``(N, 3, 3)``.
+
+The scalar functions at the end (:func:`dcm_from_quat`, :func:`euler_from_quat`,
+:func:`quat_product`, :func:`rotvec_quat`, :func:`wrap_pi`) work on plain floats and tuples:
+numpy's per-call overhead dominates on one quaternion, and the filter's per-sample loops use
+these (one definition each, used everywhere in :mod:`fusion`).
 """
 
 from __future__ import annotations
+
+import math
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
+Quat = tuple[float, float, float, float]
 
 
 def _as(a: ArrayLike, tail: tuple[int, ...], name: str) -> FloatArray:
@@ -300,3 +309,104 @@ def quat_rotate(q: ArrayLike, v: ArrayLike) -> FloatArray:
     """Rotate vectors: ``quat_rotate(q_nb, v_b) = C_nb @ v_b``; shapes (..., 4), (..., 3)."""
     c = quat_to_dcm(q)
     return np.einsum("...ij,...j->...i", c, np.asarray(v, dtype=float))
+
+
+# ---------------------------------------------------------------------------------------------
+# Scalar paths (plain floats)
+# ---------------------------------------------------------------------------------------------
+
+
+def dcm_from_quat(q: Sequence[float]) -> tuple[float, ...]:
+    """``C_nb`` of ``q_nb`` as 9 floats, row-major (scalar path of :func:`quat_to_dcm`).
+
+    Parameters
+    ----------
+    q : sequence of 4 floats
+        Unit quaternion, scalar first.
+
+    Returns
+    -------
+    tuple of 9 floats
+    """
+    qw, qx, qy, qz = q
+    ww, xx, yy, zz = qw * qw, qx * qx, qy * qy, qz * qz
+    return (
+        ww + xx - yy - zz, 2.0 * (qx * qy - qw * qz), 2.0 * (qx * qz + qw * qy),
+        2.0 * (qx * qy + qw * qz), ww - xx + yy - zz, 2.0 * (qy * qz - qw * qx),
+        2.0 * (qx * qz - qw * qy), 2.0 * (qy * qz + qw * qx), ww - xx - yy + zz,
+    )  # fmt: skip
+
+
+def euler_from_quat(q: Sequence[float]) -> tuple[float, float, float]:
+    """Roll, pitch, yaw (rad) of a unit quaternion (scalar path of :func:`quat_to_euler`).
+
+    Parameters
+    ----------
+    q : sequence of 4 floats
+        ``q_nb``, scalar first.
+
+    Returns
+    -------
+    (float, float, float)
+        Roll, pitch, yaw of the 3-2-1 sequence, rad.
+    """
+    qw, qx, qy, qz = q
+    roll = math.atan2(2.0 * (qy * qz + qw * qx), qw * qw - qx * qx - qy * qy + qz * qz)
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (qw * qy - qx * qz))))
+    yaw = math.atan2(2.0 * (qx * qy + qw * qz), qw * qw + qx * qx - qy * qy - qz * qz)
+    return roll, pitch, yaw
+
+
+def quat_product(p: Sequence[float], q: Sequence[float]) -> Quat:
+    """Hamilton product ``p ⊗ q`` of two quaternions (scalar path of :func:`quat_multiply`).
+
+    Parameters
+    ----------
+    p, q : sequence of 4 floats
+        Scalar first.
+
+    Returns
+    -------
+    tuple of 4 floats
+        Not normalised.
+    """
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    return (
+        pw * qw - px * qx - py * qy - pz * qz,
+        pw * qx + px * qw + py * qz - pz * qy,
+        pw * qy - px * qz + py * qw + pz * qx,
+        pw * qz + px * qy - py * qx + pz * qw,
+    )
+
+
+def rotvec_quat(x: float, y: float, z: float) -> Quat:
+    """Quaternion of a rotation vector (rad); a Taylor series for the usual tiny per-sample
+    angles (scalar counterpart of :func:`rotvec_to_quat`, whose series differs in the last
+    bits).
+
+    Parameters
+    ----------
+    x, y, z : float
+        Rotation vector (axis times angle), rad.
+
+    Returns
+    -------
+    tuple of 4 floats
+        Unit quaternion, scalar first.
+    """
+    a2 = x * x + y * y + z * z
+    if a2 < 1e-4:
+        # error of the truncated series < a^6 / 46080 < 3e-17 for a < 1e-2
+        w = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
+        k = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
+    else:
+        a = math.sqrt(a2)
+        w = math.cos(0.5 * a)
+        k = math.sin(0.5 * a) / a
+    return (w, k * x, k * y, k * z)
+
+
+def wrap_pi(angle_rad: float) -> float:
+    """Angle wrapped to [-pi, pi), rad."""
+    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi

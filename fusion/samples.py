@@ -1,4 +1,5 @@
-"""What :class:`fusion.filter.NavFilter` reads from a sample, as structural protocols.
+"""What :class:`fusion.filter.NavFilter` reads from a sample: structural protocols, and a reader
+for their vector fields.
 
 The attribute names are those of ``sim.samples`` (so its frozen dataclasses, and anything else
 with these read-only attributes, satisfy the protocols without ``fusion`` importing ``sim``).
@@ -7,7 +8,7 @@ SI units, frames in the names; ``time_us`` is the time of validity.
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -72,3 +73,13 @@ class MagSample(Protocol):
 
 
 Sample = ImuSample | GnssFix | BaroSample | MagSample
+
+
+def as_vec3(a: Any) -> tuple[float, float, float]:
+    """Three floats from a sample's vector field, array or sequence (``ValueError`` /
+    ``TypeError`` if it is not three numbers)."""
+    try:
+        x, y, z = a.tolist()
+    except AttributeError:
+        x, y, z = a
+    return float(x), float(y), float(z)

@@ -17,15 +17,18 @@ The velocity step uses the attitude at the start of the interval with the ``(I -
 and ``dtheta × dv / 2`` terms, which is the mid-interval attitude to second order; the order of
 the three updates (attitude, velocity, position) does not change the result.
 
-The hot loop runs at up to 400 Hz in pure Python, so it works on plain floats and tuples (numpy's
-per-call overhead would dominate on 3-vectors). Accuracy: errors are third order in the step
-(see ``tests/test_strapdown.py``: an analytic coordinated turn and climb is reproduced to
-centimetres over minutes at 50-400 Hz).
-"""
+The increments come from the IMU samples with the filter's sensor-error estimates removed
+(:func:`increments`, :func:`increments_scaled`); over a gap without IMU data the INS coasts at
+constant velocity (:func:`coast`).
+
+The hot loop runs at up to 400 Hz in pure Python, so it works on plain floats and tuples
+(numpy's per-call overhead would dominate on 3-vectors; the quaternion products and the
+rotation-vector quaternion of :mod:`fusion.rotations` are written out inline here for the same
+reason). Accuracy: errors are third order in the step (see ``tests/test_strapdown.py``: an
+analytic coordinated turn and climb is reproduced to centimetres over minutes at 50-400 Hz)."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from math import cos as _cos
 from math import sin as _sin
@@ -86,31 +89,6 @@ class InsState(NamedTuple):
             (float(v[0]), float(v[1]), float(v[2])),
             (float(qn[0]), float(qn[1]), float(qn[2]), float(qn[3])),
         )
-
-
-def rotvec_quat(x: float, y: float, z: float) -> Quat:
-    """Quaternion of a rotation vector; Taylor series for the usual tiny per-sample angles."""
-    a2 = x * x + y * y + z * z
-    if a2 < 1e-4:
-        # error of the truncated series < a^6 / 46080 < 3e-17 for a < 1e-2
-        w = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
-        k = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
-    else:
-        a = math.sqrt(a2)
-        w = math.cos(0.5 * a)
-        k = math.sin(0.5 * a) / a
-    return (w, k * x, k * y, k * z)
-
-
-def dcm_from_quat(q: Sequence[float]) -> tuple[float, ...]:
-    """``C_nb`` of ``q_nb`` as 9 floats, row-major (scalar path of ``rotations.quat_to_dcm``)."""
-    qw, qx, qy, qz = q
-    ww, xx, yy, zz = qw * qw, qx * qx, qy * qy, qz * qz
-    return (
-        ww + xx - yy - zz, 2.0 * (qx * qy - qw * qz), 2.0 * (qx * qz + qw * qy),
-        2.0 * (qx * qy + qw * qz), ww - xx + yy - zz, 2.0 * (qy * qz - qw * qx),
-        2.0 * (qx * qz - qw * qy), 2.0 * (qy * qz + qw * qx), ww - xx - yy + zz,
-    )  # fmt: skip
 
 
 # Earth-model constants folded once (module globals: LOAD_GLOBAL is cached, ``earth.X`` is two
@@ -204,7 +182,8 @@ def update(
     wen_d = -mve * tan_lat / rho_e
 
     # ---- 1. attitude -------------------------------------------------------------------
-    # coning: phi = dtheta + (dtheta_prev × dtheta) / 12; q_b = q(phi) (rotvec_quat, inlined)
+    # coning: phi = dtheta + (dtheta_prev × dtheta) / 12; q_b = q(phi) (rotvec_quat inlined:
+    # this runs at the IMU rate)
     phx = ax + (pay * az - paz * ay) * _TWELFTH
     phy = ay + (paz * ax - pax * az) * _TWELFTH
     phz = az + (pax * ay - pay * ax) * _TWELFTH
@@ -265,6 +244,85 @@ def update(
         (lat + dlat, lon_new, h_new, (vn_new, ve_new, vd_new),
          (rw / norm, rx / norm, ry / norm, rz / norm)),
     )  # fmt: skip
+
+
+def increments(
+    fw: Sequence[float], dt_s: float, accel_bias_b_mps2: Sequence[float],
+    gyro_bias_b_rps: Sequence[float],
+) -> tuple[Vec3, Vec3]:  # fmt: skip
+    """Bias-compensated increments of one IMU interval (sensor model ``f~ = f + b_a``,
+    ``omega~ = omega + b_g``).
+
+    Parameters
+    ----------
+    fw : 6 floats
+        Specific force (m/s^2) then angular rate (rad/s), body FRD, as sampled.
+    dt_s : float
+        Interval, s.
+    accel_bias_b_mps2, gyro_bias_b_rps : 3 floats
+        Bias estimates.
+
+    Returns
+    -------
+    dtheta_b, dv_b : 3 floats each
+        Gyro increment (rad) and accelerometer increment (m/s).
+    """
+    fx, fy, fz, wx, wy, wz = fw
+    ba, bg, dt = accel_bias_b_mps2, gyro_bias_b_rps, dt_s
+    return (
+        ((wx - bg[0]) * dt, (wy - bg[1]) * dt, (wz - bg[2]) * dt),
+        ((fx - ba[0]) * dt, (fy - ba[1]) * dt, (fz - ba[2]) * dt),
+    )
+
+
+def increments_scaled(
+    fw: Sequence[float], dt_s: float, accel_bias_b_mps2: Sequence[float],
+    gyro_bias_b_rps: Sequence[float], accel_scale_b: Sequence[float],
+    gyro_scale_b: Sequence[float],
+) -> tuple[Vec3, Vec3]:  # fmt: skip
+    """:func:`increments` with scale-factor errors too (``f~ = (1 + s_a) f + b_a``,
+    ``omega~ = (1 + s_g) omega + b_g``); ``accel_scale_b`` / ``gyro_scale_b`` are the
+    dimensionless scale-factor estimates."""
+    fx, fy, fz, wx, wy, wz = fw
+    ba, bg, sa, sg, dt = accel_bias_b_mps2, gyro_bias_b_rps, accel_scale_b, gyro_scale_b, dt_s
+    return (
+        (
+            (wx - bg[0]) / (1.0 + sg[0]) * dt,
+            (wy - bg[1]) / (1.0 + sg[1]) * dt,
+            (wz - bg[2]) / (1.0 + sg[2]) * dt,
+        ),
+        (
+            (fx - ba[0]) / (1.0 + sa[0]) * dt,
+            (fy - ba[1]) / (1.0 + sa[1]) * dt,
+            (fz - ba[2]) / (1.0 + sa[2]) * dt,
+        ),
+    )
+
+
+def coast(state: InsState, gap_s: float) -> InsState:
+    """Dead reckoning at constant velocity and attitude over ``gap_s`` without IMU data.
+
+    Parameters
+    ----------
+    state : InsState
+        State at the start of the gap.
+    gap_s : float
+        Gap length, s.
+
+    Returns
+    -------
+    InsState
+        Position moved by ``v_n gap_s``; velocity and attitude unchanged.
+    """
+    lt = earth.local_terms(state.lat_rad, state.alt_msl_m)
+    vn, ve, vd = state.v_ned_mps
+    return InsState(
+        state.lat_rad + vn * gap_s / lt.rho_n_m,
+        state.lon_rad + ve * gap_s / (lt.rho_e_m * lt.cos_lat),
+        state.alt_msl_m - vd * gap_s,
+        state.v_ned_mps,
+        state.q_nb,
+    )
 
 
 def integrate(

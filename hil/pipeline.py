@@ -22,14 +22,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 
-from fusion.bridging import BRIDGE_METHODS, make_bridge
+from fusion.bridging.registry import BRIDGE_METHODS, make_bridge
 from fusion.config import ALTITUDE_METHODS, FilterConfig
-from fusion.filter import NavEstimate, NavFilter
+from fusion.estimate import NavEstimate
+from fusion.filter import NavFilter
 from hil.codec import Decoder
 from hil.streamer import GnssWindow, SensorStreamer
 from hil.tlog import TlogWriter
 from hil.tracks import Collector
-from hil.tuning import filter_config_for_imu, filter_gnss_config
+from hil.tuning import filter_config_for_imu, filter_gnss_config, gnss_state_layout
 from sim import presets
 from sim.faults import FaultEvent, FaultInjector, FaultLogEntry
 from sim.flight import Flight, FlightConfig, FlightEnded, StartState
@@ -266,6 +267,7 @@ def filter_config(imu: str, receiver: GnssConfig, altitude: str = "ekf") -> Filt
     return config.model_copy(update={
         "altitude": config.altitude.model_copy(update={"method": altitude}),
         "gnss": filter_gnss_config(receiver, config.gnss),
+        "state_layout": gnss_state_layout(receiver, config.state_layout),
     })
 
 

@@ -30,12 +30,9 @@ Innovations (``fusion/innovations``)
     updates of a bridging strategy), the innovation (INS-predicted minus measured, SI units of
     the observation: m, m/s, m, rad), ``sqrt(diag(S))``, the test ratio (NIS over the gate,
     > 1 = rejected) and whether it was fused. ``time_us`` is the time of the sample whose
-    processing made the update. The filter's public :class:`~fusion.filter.NavEstimate`
-    carries only the last test ratio per source, so the service taps the filter's single
-    update funnel (``NavFilter._correct``, see :class:`TappedNavFilter`); the numbers of the
-    filter are unchanged. The source is read from which error-state block the observation
-    matrix ``H`` touches (baro bias -> baro, position -> GNSS position, velocity -> GNSS
-    velocity, attitude only -> magnetometer heading).
+    processing made the update. They are the filter's own records of each step
+    (:attr:`fusion.filter.NavFilter.innovations`), which name the source where the update is
+    made.
 
 Lockstep acknowledgements (``hilnav sim --live URL --lockstep``)
     A simulator that asks for lockstep (HEARTBEAT with ``custom_mode`` =
@@ -64,11 +61,7 @@ from typing import Any, Final, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from fusion.bridging import make_bridge
-from fusion.config import FilterConfig
-from fusion.error_model import StateLayout
-from fusion.filter import NavEstimate, NavFilter
-from fusion.kalman import Correction
+from fusion.estimate import NavEstimate
 from hil.bus import Topic
 from hil.codec import TRUTH_COMPONENT_ID, mavlink2
 from hil.link import (
@@ -82,11 +75,10 @@ from hil.pipeline import FusionRun, filter_config
 from hil.shadow import CompanionEncoder, ShadowEncoder
 from hil.signing import Signer
 from sim.presets import gnss_preset
-from sim.samples import GnssFix, Truth
+from sim.samples import Truth
 
 __all__ = [
-    "FusionOptions", "FusionService", "GcsResponder", "TappedNavFilter", "innovation_source",
-    "input_role", "interpolate_truth",
+    "FusionOptions", "FusionService", "GcsResponder", "input_role", "interpolate_truth",
 ]
 
 _TRUTH_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HIL_STATE_QUATERNION)
@@ -142,50 +134,6 @@ def shadow_role(system_id: int) -> LinkRole:
     """The shadow vehicle's role, accepting the few ground-station requests we answer."""
     base = LinkRole.shadow_vehicle(system_id=system_id)
     return base.model_copy(update={"accept_msg_ids": _GCS_MSG_IDS})
-
-
-def innovation_source(layout: StateLayout, H: np.ndarray) -> str:
-    """Aiding source of an observation from the error-state blocks its matrix touches.
-
-    Parameters
-    ----------
-    layout : fusion.error_model.StateLayout
-    H : ndarray, shape (m, n)
-        Observation matrix of the update.
-
-    Returns
-    -------
-    str
-        ``baro_hgt`` (touches the baro bias), ``gnss_pos`` (position; a GNSS position model
-        also has latency terms on velocity), ``gnss_vel`` (velocity), else ``mag_hdg``.
-    """
-    h = np.asarray(H)
-    if np.any(h[:, layout.baro]):
-        return "baro_hgt"
-    if np.any(h[:, layout.pos]):
-        return "gnss_pos"
-    if np.any(h[:, layout.vel]):
-        return "gnss_vel"
-    return "mag_hdg"
-
-
-class TappedNavFilter(NavFilter):
-    """:class:`~fusion.filter.NavFilter` that keeps every gated update of the current step.
-
-    ``corrections`` collects ``(H, Correction)`` of each update made through the filter's
-    single update funnel; the owner reads and clears it after each :meth:`step`. The filter's
-    arithmetic is untouched (the live scorecard still equals ``hilnav replay``).
-    """
-
-    def __init__(self, config: FilterConfig | None = None, *, bridge: Any = None) -> None:
-        self.corrections: list[tuple[np.ndarray, Correction]] = []
-        super().__init__(config, bridge=bridge)
-
-    def _correct(self, *args: Any, **kwargs: Any) -> Correction:
-        res = super()._correct(*args, **kwargs)
-        obs = args[0] if args else kwargs["obs"]
-        self.corrections.append((obs.H, res))
-        return res
 
 
 class GcsResponder:
@@ -269,10 +217,8 @@ class FusionService:
     def __init__(self, options: FusionOptions, *, signing_key: bytes | None = None) -> None:
         self.options = options
         self.config = filter_config(options.imu, gnss_preset(options.gnss), options.altitude)
-        self.nav = TappedNavFilter(self.config,
-                                   bridge=make_bridge(options.bridge, self.config.bridge))
-        self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None,
-                                nav=self.nav)
+        self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None)
+        self.nav = self.fusion.nav
         self.decoder = self.fusion.decoder
         self.stats = _Stats()
         self._signing_key = signing_key
@@ -358,30 +304,21 @@ class FusionService:
                 self._on_truth(item)
                 continue
             ests = self.fusion.feed([item])
-            if self.nav.corrections:
-                self._on_corrections(item)
+            if self.nav.innovations:
+                self._on_innovations()
             for est in ests:
                 self._on_estimate(est)
             new.extend(ests)
         return new
 
-    def _on_corrections(self, item: Any) -> None:
-        """Publish the updates the last step made on ``fusion/innovations``."""
-        nav = self.nav
-        corrections = list(nav.corrections)
-        nav.corrections.clear()
+    def _on_innovations(self) -> None:
+        """Publish the updates the last filter step made on ``fusion/innovations``."""
         if self._bus is None:
             return
-        t = int(item.time_us)
-        # pseudo-GNSS updates of a bridging strategy happen on IMU steps while bridging
-        bridging = not isinstance(item, GnssFix) and nav.mode == "bridging"
-        for H, res in corrections:
-            source = innovation_source(nav.layout, H)
-            if bridging and source.startswith("gnss_"):
-                source = "bridge_" + source[5:]
-            ratio = float(res.test_ratio)
-            if self._bus.publish_innovation(t, source, res.innovation, S=res.S,
-                                            test_ratio=ratio, accepted=ratio <= 1.0):
+        for inn in self.nav.innovations:
+            if self._bus.publish_innovation(inn.time_us, str(inn.source), inn.innovation,
+                                            S=inn.S, test_ratio=float(inn.test_ratio),
+                                            accepted=inn.fused):
                 self.stats.innovations += 1
 
     def _on_estimate(self, est: NavEstimate) -> None:

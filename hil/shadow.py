@@ -26,7 +26,7 @@ from typing import Any, Final
 import numpy as np
 
 from fusion.earth import ned_offset_m
-from fusion.filter import NavEstimate
+from fusion.estimate import NavEstimate
 from hil.codec.wire import (
     DEGE7_PER_RAD,
     INT16_MAX,

@@ -15,7 +15,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion import rotations
-from fusion.filter import NavEstimate, NavFilter
+from fusion.estimate import NavEstimate
+from fusion.filter import NavFilter
 from sim.samples import GnssFix, Sample, Truth
 
 FloatArray = NDArray[np.float64]

@@ -11,16 +11,15 @@ from __future__ import annotations
 
 import math
 
-from fusion.config import FilterConfig
-from fusion.config import GnssConfig as FilterGnssConfig
-from fusion.config import ImuConfig as FilterImuConfig
+from fusion.config import FilterConfig, GnssTuning, ImuTuning
+from fusion.error_model import LayoutName
 from sim.gnss import GnssConfig
 from sim.imu import ImuParams
 from sim.presets import gnss_preset, imu_preset
 from sim.sensors import ImuConfig
 
 
-def filter_imu_config(imu: ImuConfig, base: FilterImuConfig | None = None) -> FilterImuConfig:
+def filter_imu_config(imu: ImuConfig, base: ImuTuning | None = None) -> ImuTuning:
     """The filter's IMU error model for a sensor described by ``imu`` (datasheet units).
 
     White noise densities are the datasheet ARW / VRW (plus the quantisation noise
@@ -31,7 +30,7 @@ def filter_imu_config(imu: ImuConfig, base: FilterImuConfig | None = None) -> Fi
     only widens the initial covariance.
     """
     p = ImuParams.from_config(imu)
-    base = base or FilterImuConfig()
+    base = base or ImuTuning()
 
     def white(axis: int) -> float:
         q = p.resolution[axis]
@@ -64,24 +63,17 @@ def filter_config_for_imu(preset: str, base: FilterConfig | None = None) -> Filt
     return base.model_copy(update={"imu": filter_imu_config(imu_preset(preset), base.imu)})
 
 
-def filter_gnss_config(
-    gnss: GnssConfig, base: FilterGnssConfig | None = None
-) -> FilterGnssConfig:
+def filter_gnss_config(gnss: GnssConfig, base: GnssTuning | None = None) -> GnssTuning:
     """The filter's GNSS error model for a receiver described by ``gnss``.
 
-    The Gauss-Markov part of the receiver's position error becomes the filter's GNSS
-    position-bias states (sigma and correlation time, horizontal and vertical), switched on
-    when the receiver has such a part: the receiver reports its total accuracy in ``eph`` /
-    ``epv`` and the filter fuses the remainder as white noise. On the ``modern`` receiver this
-    brought the position rms(error / sigma) from 3-11 to 0.6-0.8 (``bench/README.md``,
-    navigation filter accuracy). A receiver without
-    a correlated part keeps the white model (``bias_states=False``, the sigmas floored so the
-    config stays valid).
+    The Gauss-Markov part of the receiver's position error becomes the sigma and correlation
+    time (horizontal and vertical) of the filter's GNSS position-bias states, which
+    :func:`gnss_state_layout` switches on when the receiver has such a part. A receiver
+    without a correlated part gets the sigmas floored so the tuning stays valid (they are not
+    used by a layout without the bias states).
     """
-    base = base or FilterGnssConfig()
-    correlated = gnss.horizontal_gm_sigma_m > 0.0 or gnss.vertical_gm_sigma_m > 0.0
+    base = base or GnssTuning()
     return base.model_copy(update={
-        "bias_states": correlated,
         "bias_sigma_h_m": max(float(gnss.horizontal_gm_sigma_m), 1e-3),
         "bias_sigma_v_m": max(float(gnss.vertical_gm_sigma_m), 1e-3),
         "bias_tau_h_s": float(gnss.horizontal_gm_tau_s),
@@ -89,11 +81,29 @@ def filter_gnss_config(
     })
 
 
+def gnss_state_layout(gnss: GnssConfig, layout: LayoutName = "ins16") -> LayoutName:
+    """``layout`` with the GNSS position-bias states when the receiver ``gnss`` has a
+    time-correlated (Gauss-Markov) position error, without them otherwise.
+
+    The receiver reports its total accuracy in ``eph`` / ``epv``; with the bias states the
+    filter fuses only the white remainder. On the ``modern`` receiver this brought the position
+    rms(error / sigma) from 3-11 to 0.6-0.8 (``bench/README.md``, navigation filter accuracy).
+    """
+    correlated = gnss.horizontal_gm_sigma_m > 0.0 or gnss.vertical_gm_sigma_m > 0.0
+    if layout in ("ins22", "ins22+gnss"):
+        return "ins22+gnss" if correlated else "ins22"
+    return "ins16+gnss" if correlated else "ins16"
+
+
 def filter_config_for_presets(
     imu: str, gnss: str, base: FilterConfig | None = None
 ) -> FilterConfig:
     """A :class:`FilterConfig` assuming the IMU preset ``imu`` and the GNSS preset ``gnss``
-    (:func:`filter_config_for_imu` plus :func:`filter_gnss_config`; ValueError names the valid
-    presets)."""
+    (:func:`filter_config_for_imu` plus :func:`filter_gnss_config` and
+    :func:`gnss_state_layout`; ValueError names the valid presets)."""
     cfg = filter_config_for_imu(imu, base)
-    return cfg.model_copy(update={"gnss": filter_gnss_config(gnss_preset(gnss), cfg.gnss)})
+    receiver = gnss_preset(gnss)
+    return cfg.model_copy(update={
+        "gnss": filter_gnss_config(receiver, cfg.gnss),
+        "state_layout": gnss_state_layout(receiver, cfg.state_layout),
+    })

@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from fusion.bridging import BRIDGE_METHODS, make_bridge
+from fusion.bridging.registry import BRIDGE_METHODS, make_bridge
 from hil.pipeline import Frame, fuse_frames
 from scenarios.jsonable import plain_dict, write_json
 from scenarios.runner import filter_config, score, simulate

@@ -14,20 +14,29 @@ non-standard temperature, geoid) is one slowly varying Gauss-Markov bias ``b`` (
 
     h_baro = h + b + n        ->   z = (h^ + b^) - h_baro,  H = [.. -1 (pos D) .. +1 (BARO) ..]
 
-*When* — :class:`BaroControl`: initialise the bias from the first sample (``b^ = h_baro - h^``,
-exactly correlated with the height error: the bias error is ``-dh + n``), report a timeout,
-re-initialise after a long run of gate rejections.
+*When* — :class:`BaroControl`: samples averaged over ``1 / fuse_rate_hz``, the bias initialised
+from the first batch (``b^ = h_baro - h^``, exactly correlated with the height error: the bias
+error is ``-dh + n``), a timeout reported, the bias re-initialised after a long run of gate
+rejections.
+
+*Fusion step* — :class:`BaroAiding`: a pressure through the range check, a batch through the
+bias initialisation or the height update, counted.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
-from fusion.aiding import Observation
-from fusion.config import BaroConfig
+from fusion import kalman
+from fusion.aiding import Observation, Update
+from fusion.altitude.atmosphere import P_MAX_PA, P_MIN_PA
+from fusion.config import BaroTuning
 from fusion.error_model import StateLayout
+from fusion.estimate import AidSource, HealthCounters
+from fusion.samples import BaroSample
 from physconst import G0_MPS2, ISA_L0_KPM, ISA_LAYER_BASE_M, ISA_P0_PA, ISA_R_AIR_JPKGK, ISA_T0_K
 
 ISA_LAPSE_K_PER_M = -ISA_L0_KPM  # temperature decrease with height, K/m (> 0)
@@ -95,10 +104,10 @@ class BaroControl:
 
     Parameters
     ----------
-    cfg : BaroConfig
+    cfg : BaroTuning
     """
 
-    def __init__(self, cfg: BaroConfig) -> None:
+    def __init__(self, cfg: BaroTuning) -> None:
         self.cfg = cfg
         self._timeout_us = round(cfg.timeout_s * 1e6)
         self._reset_us = round(cfg.reset_after_rejected_s * 1e6)
@@ -153,3 +162,84 @@ class BaroControl:
         if self._rejected_since_us is None:
             self._rejected_since_us = time_us
         return time_us - self._rejected_since_us >= self._reset_us
+
+
+class BaroAiding:
+    """Barometric aiding of :class:`fusion.filter.NavFilter`: range check, control, bias
+    initialisation and the height update.
+
+    Parameters
+    ----------
+    cfg : BaroTuning
+    layout : StateLayout
+    counters : HealthCounters
+        Where samples are counted (``baro_*``).
+    update : Update
+        The filter's shared measurement update.
+    init_bias : callable ``(bias_m) -> None``
+        Sets the filter's baro-bias estimate (and its covariance row) from a sample.
+    """
+
+    def __init__(
+        self, cfg: BaroTuning, layout: StateLayout, counters: HealthCounters, update: Update,
+        init_bias: Callable[[float], None],
+    ) -> None:  # fmt: skip
+        self.cfg = cfg
+        self.layout = layout
+        self.control = BaroControl(cfg)
+        self.gate = kalman.chi2_gate(1, cfg.gate_probability)
+        self._c = counters
+        self._update = update
+        self._init_bias = init_bias
+
+    def pressure(self, s: BaroSample) -> float | None:
+        """The sample's static pressure, Pa, or ``None`` (counted as invalid) when it is not
+        finite, ``<= 0`` or outside the atmosphere model (-5 km .. 47 km pressure altitude)."""
+        try:
+            p = float(s.pressure_pa)
+        except (TypeError, ValueError):
+            p = math.nan
+        if not P_MIN_PA <= p <= P_MAX_PA:  # also NaN and p <= 0
+            self._c.baro_invalid += 1
+            return None
+        return p
+
+    def fuse(
+        self, batch: tuple[int, float, int], ins_alt_m: float, baro_bias_m: float, step_us: int
+    ) -> None:
+        """One averaged batch (:meth:`BaroControl.add_sample`): initialise the bias from it, or
+        fuse its height and re-initialise the bias after a long run of rejections.
+
+        Parameters
+        ----------
+        batch : (int, float, int)
+            Mean time (us), mean ISA pressure height (m) and sample count.
+        ins_alt_m : float
+            INS height at the batch's mean time, m.
+        baro_bias_m : float
+            Current baro-bias estimate, m.
+        step_us : int
+            Time of the stepped sample (labels the update).
+        """
+        ctl, c = self.control, self._c
+        t_mean, h_mean, count = batch
+        if ctl.need_bias_init(t_mean):
+            self._init_bias(h_mean - ins_alt_m)
+            ctl.on_bias_init()
+            return
+        obs = height_model(
+            self.layout, ins_alt_m, baro_bias_m, h_mean, self.cfg.noise_m / math.sqrt(count)
+        )
+        if obs is None:
+            c.baro_invalid += 1
+            return
+        res = self._update(obs, self.gate, AidSource.BARO_HGT, step_us)
+        ok = res.test_ratio <= 1.0
+        if ok:
+            c.baro_fused += 1
+        else:
+            c.baro_rejected += 1
+        if ctl.on_result(t_mean, ok):
+            self._init_bias(h_mean - ins_alt_m)
+            ctl.on_bias_init()
+            c.baro_resets += 1

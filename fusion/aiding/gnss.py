@@ -9,7 +9,7 @@ validity, moved to the antenna by the lever arm, minus the fix::
 ``eph_m`` is used as the 1-sigma of *each* horizontal axis (as PX4's ekf2 does), ``epv_m`` for
 down, ``speed_accuracy_mps`` for each velocity axis, each floored by the configuration.
 
-Time-correlated receiver error (``GnssConfig.bias_states``): the fix is
+Time-correlated receiver error (layouts ``ins16+gnss`` / ``ins22+gnss``): the fix is
 ``p_fix = p + b + w`` with ``b`` a Gauss-Markov position bias (N, E, D; tau ~ minutes) and ``w``
 white. The filter carries the bias estimate ``b^`` and its error ``db = b^ - b`` (layout block
 ``gnss``), and the position observation becomes::
@@ -26,24 +26,36 @@ current time. Over the delay ``d`` (<= ``max_delay_s``) ``dr(t_fix) ≈ dr(now) 
 term is in ``H``; the other couplings over a fraction of a second (attitude into velocity,
 ~g phi d) are neglected, which keeps the update a plain one-epoch update.
 
-*When* — :class:`GnssControl`: quality checks (3-D fix, finite, accuracy), outage detection
-(no fused fix for ``outage_timeout_s``), re-acquisition after ``reacquire_fixes`` consecutive
-good fixes, and reset requests (re-acquisition after a real outage that the gate rejects, or
-good-quality fixes rejected for ``reset_after_rejected_s``).
+*When* — :func:`fix_quality` (3-D fix, finite, accuracy) and :class:`GnssControl`: outage
+detection (no fused fix for ``outage_timeout_s``), re-acquisition after ``reacquire_fixes``
+consecutive good fixes, and reset requests (re-acquisition after a real outage that the gate
+rejects, or good-quality fixes rejected for ``reset_after_rejected_s``).
+
+*Fusion step* — :class:`GnssAiding`: a fix through the quality checks and the control, its
+position update (then a reset when the control asks for one), its velocity update, counted.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import NDArray
 
-from fusion import earth
-from fusion.aiding import Observation
-from fusion.config import GnssConfig
+from fusion import earth, kalman
+from fusion.aiding import Observation, Update
+from fusion.config import GnssTuning
 from fusion.error_model import StateLayout
+from fusion.estimate import AidSource, HealthCounters
+from fusion.rotations import dcm_from_quat
 from fusion.samples import GnssFix
-from fusion.strapdown import InsState, dcm_from_quat
+from fusion.strapdown import InsState
+
+FloatArray = NDArray[np.float64]
+Reset = Callable[[FloatArray, FloatArray], None]
+"""``reset(z, variances)``: set a block of the INS to the measurement."""
 
 
 def _cross(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float, float]:
@@ -213,7 +225,7 @@ def velocity_model(
     return Observation(z, H, R)
 
 
-def fix_quality(fix: GnssFix, cfg: GnssConfig) -> str | None:
+def fix_quality(fix: GnssFix, cfg: GnssTuning) -> str | None:
     """Why a fix cannot be used (``"no_fix"``, ``"invalid"``, ``"inaccurate"``), or ``None``."""
     if fix.fix_type < 3:
         return "no_fix"
@@ -239,12 +251,12 @@ def fix_quality(fix: GnssFix, cfg: GnssConfig) -> str | None:
 
 
 def white_position_sigmas(
-    sigma_h_m: float, sigma_v_m: float, cfg: GnssConfig
+    sigma_h_m: float, sigma_v_m: float, cfg: GnssTuning, layout: StateLayout
 ) -> tuple[float, float]:
     """The white part of the reported position sigmas when the bias states take the rest.
 
     The receiver's ``eph`` / ``epv`` describe its *total* error; with the Gauss-Markov bias
-    states (``cfg.bias_states``) only ``sqrt(sigma^2 - sigma_b^2)`` is left for ``R``, floored by
+    states (a ``+gnss`` layout) only ``sqrt(sigma^2 - sigma_b^2)`` is left for ``R``, floored by
     ``pos_noise_floor_m`` (a receiver reporting less than the configured bias sigma). Without
     bias states the sigmas are returned unchanged.
 
@@ -252,14 +264,16 @@ def white_position_sigmas(
     ----------
     sigma_h_m, sigma_v_m : float
         Per-axis horizontal and vertical sigmas (:func:`fix_sigmas`), m.
-    cfg : GnssConfig
+    cfg : GnssTuning
+    layout : StateLayout
+        The filter's layout (:attr:`~fusion.error_model.StateLayout.has_gnss_bias`).
 
     Returns
     -------
     (float, float)
         Horizontal and vertical white sigmas, m.
     """
-    if not cfg.bias_states:
+    if not layout.has_gnss_bias:
         return sigma_h_m, sigma_v_m
     floor2 = cfg.pos_noise_floor_m**2
     h2 = sigma_h_m * sigma_h_m - cfg.bias_sigma_h_m * cfg.bias_sigma_h_m
@@ -267,7 +281,7 @@ def white_position_sigmas(
     return math.sqrt(max(h2, floor2)), math.sqrt(max(v2, floor2))
 
 
-def fix_sigmas(fix: GnssFix, cfg: GnssConfig) -> tuple[float, float, float]:
+def fix_sigmas(fix: GnssFix, cfg: GnssTuning) -> tuple[float, float, float]:
     """Per-axis sigmas ``(horizontal m, vertical m, velocity m/s)`` with the configured floors.
 
     An accuracy the receiver did not report (NaN) takes the configured default.
@@ -286,10 +300,10 @@ class GnssControl:
 
     Parameters
     ----------
-    cfg : GnssConfig
+    cfg : GnssTuning
     """
 
-    def __init__(self, cfg: GnssConfig) -> None:
+    def __init__(self, cfg: GnssTuning) -> None:
         self.cfg = cfg
         self._timeout_us = round(cfg.outage_timeout_s * 1e6)
         self._reset_us = round(cfg.reset_after_rejected_s * 1e6)
@@ -366,3 +380,195 @@ class GnssControl:
         self.last_fused_us = time_us
         if part == "pos":
             self.reacquiring = self._after_true_outage = False
+
+
+class FixUpdate(NamedTuple):
+    """The outcome of one GNSS position or velocity update."""
+
+    accepted: bool
+    """The gate accepted it (it was fused)."""
+    innovation: list[float]
+    """INS minus the fix as received, NED (position m without the bias estimate; velocity m/s,
+    NaN down when the receiver reports no vertical velocity)."""
+
+
+class GnssAiding:
+    """GNSS aiding of :class:`fusion.filter.NavFilter`: quality checks, control and the
+    position and velocity updates of a fix.
+
+    Parameters
+    ----------
+    cfg : GnssTuning
+    layout : StateLayout
+    counters : HealthCounters
+        Where fixes are counted (``gnss_*``).
+    update : Update
+        The filter's shared measurement update.
+    """
+
+    def __init__(
+        self, cfg: GnssTuning, layout: StateLayout, counters: HealthCounters, update: Update
+    ) -> None:
+        self.cfg = cfg
+        self.layout = layout
+        self.control = GnssControl(cfg)
+        self.gate = kalman.chi2_gate(3, cfg.gate_probability)
+        self._c = counters
+        self._update = update
+        self._max_delay_us = round(cfg.max_delay_s * 1e6)
+
+    def usable(self, fix: GnssFix) -> bool:
+        """Quality checks (:func:`fix_quality`); a failing fix is counted and restarts the
+        control's count of consecutive good fixes."""
+        try:
+            reason = fix_quality(fix, self.cfg)
+        except (TypeError, ValueError, AttributeError):
+            reason = "invalid"
+        if reason is None:
+            return True
+        c = self._c
+        if reason == "no_fix":
+            c.gnss_no_fix += 1
+        elif reason == "invalid":
+            c.gnss_invalid += 1
+        else:
+            c.gnss_inaccurate += 1
+        self.control.on_bad_fix()
+        return False
+
+    def admit(self, time_us: int, now_us: int, past: InsState | None) -> InsState | None:
+        """Whether a good fix of ``time_us`` is fused now (at INS time ``now_us``).
+
+        Parameters
+        ----------
+        time_us, now_us : int
+        past : InsState or None
+            The INS at the fix's time of validity (``None``: older than the history).
+
+        Returns
+        -------
+        InsState or None
+            ``past`` when the fix is to be fused; ``None`` when it is too old (counted) or
+            the control holds it back (re-acquisition).
+        """
+        if past is None or now_us - time_us > self._max_delay_us:
+            self._c.gnss_too_old += 1
+            return None
+        if not self.control.on_good_fix(time_us, now_us):
+            return None
+        return past
+
+    def fuse_position(
+        self,
+        fix: GnssFix,
+        sigmas: tuple[float, float, float],
+        past: InsState,
+        delay_s: float,
+        bias_ned_m: Sequence[float] | None,
+        step_us: int,
+        reset: Reset,
+    ) -> FixUpdate | None:
+        """The position update of a fix, or a reset to it when the control asks for one.
+
+        Parameters
+        ----------
+        fix : GnssFix
+        sigmas : 3 floats
+            :func:`fix_sigmas` of the fix.
+        past : InsState
+            The INS at the fix's time of validity.
+        delay_s : float
+            Current time minus the fix's time of validity, s.
+        bias_ned_m : 3 floats or None
+            The GNSS position-bias estimate at the current time (layouts with the bias block).
+        step_us : int
+            Time of the stepped sample (labels the update).
+        reset : callable ``(z, variances) -> None``
+            Resets the INS position to the fix.
+
+        Returns
+        -------
+        FixUpdate or None
+            ``None`` when the fix makes no valid observation (counted as invalid).
+        """
+        cfg, lay, ctl = self.cfg, self.layout, self.control
+        t = int(fix.time_us)
+        sig_h, sig_v, _ = sigmas
+        lat, lon, alt = float(fix.lat_rad), float(fix.lon_rad), float(fix.alt_msl_m)
+        w_h, w_v = white_position_sigmas(sig_h, sig_v, cfg, lay)
+        obs = position_model(
+            lay, past, lat, lon, alt, w_h, w_v, cfg.lever_arm_b_m, delay_s,
+            None if bias_ned_m is None else (bias_ned_m[0], bias_ned_m[1], bias_ned_m[2]),
+        )  # fmt: skip
+        if obs is None:
+            self._c.gnss_invalid += 1
+            return None
+        res = self._update(obs, self.gate, AidSource.GNSS_POS, step_us)
+        ok = res.test_ratio <= 1.0
+        # the bridge learns the INS minus the fix as received (without the bias estimate)
+        z_pos = obs.z if bias_ned_m is None else obs.z - np.array(bias_ned_m)
+        if not ok and ctl.on_result("pos", t, False):
+            reset(obs.z, np.diag(obs.R))
+            ctl.on_reset("pos", t)
+            self._c.gnss_resets += 1
+        elif ok:
+            ctl.on_result("pos", t, True)
+        return FixUpdate(ok, z_pos.tolist())
+
+    def fuse_velocity(
+        self,
+        fix: GnssFix,
+        sigmas: tuple[float, float, float],
+        past: InsState,
+        omega_ib_b_rps: tuple[float, float, float],
+        position: FixUpdate,
+        step_us: int,
+        reset: Reset,
+    ) -> FixUpdate | None:
+        """The velocity update of a fix (after its position update), or a reset to it when
+        the control asks for one; counts the fix as fused (both accepted) or rejected.
+
+        Parameters
+        ----------
+        fix : GnssFix
+        sigmas : 3 floats
+            :func:`fix_sigmas` of the fix.
+        past : InsState
+            The INS at the fix's time of validity (after the position update).
+        omega_ib_b_rps : 3 floats
+            Bias-corrected body rate, rad/s (for the lever-arm velocity).
+        position : FixUpdate
+            The fix's position update.
+        step_us : int
+            Time of the stepped sample.
+        reset : callable ``(z, variances) -> None``
+            Resets the INS velocity to the fix.
+
+        Returns
+        -------
+        FixUpdate or None
+            ``None`` when the fix makes no valid observation (counted as invalid).
+        """
+        cfg, ctl, c = self.cfg, self.control, self._c
+        t = int(fix.time_us)
+        v_fix = np.asarray(fix.v_ned_mps, dtype=float)
+        obs = velocity_model(self.layout, past, omega_ib_b_rps, v_fix, sigmas[2], cfg.lever_arm_b_m)
+        if obs is None:
+            c.gnss_invalid += 1
+            return None
+        res = self._update(obs, self.gate, AidSource.GNSS_VEL, step_us)
+        ok = res.test_ratio <= 1.0
+        if not ok and ctl.on_result("vel", t, False):
+            reset(obs.z, np.diag(obs.R))
+            ctl.on_reset("vel", t)
+            c.gnss_resets += 1
+        elif ok:
+            ctl.on_result("vel", t, True)
+        if position.accepted and ok:
+            c.gnss_fused += 1
+        else:
+            c.gnss_rejected += 1
+        zv = obs.z.tolist()
+        if len(zv) == 2:  # vertical velocity not reported by the receiver
+            zv.append(math.nan)
+        return FixUpdate(ok, zv)

@@ -16,19 +16,30 @@ sigma from the configuration; soft/hard-iron residuals are not modelled.
 configuration or learned: once the filter's yaw sigma is below ``learn_yaw_sigma_rad`` (GNSS
 manoeuvres made heading observable), the mean of ``C^_nb m_b`` over ``LEARN_SAMPLES`` samples
 becomes the reference. Learning at the in-flight alignment itself would freeze the alignment's
-heading error (a crabbing aircraft's track is not its heading) into the reference.
+heading error (a crabbing aircraft's track is not its heading) into the reference. With
+``hard_iron_calibration`` the body-fixed offset and the Earth field are estimated together
+(:class:`HardIronCalibrator`).
+
+*Fusion step* — :class:`MagAiding`: a sample through the checks, the rate limit, the reference
+learning and calibration, and the heading update, counted.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.aiding import Observation
-from fusion.config import MagConfig
+from fusion import kalman
+from fusion.aiding import Observation, Update
+from fusion.config import MagTuning
 from fusion.error_model import StateLayout
+from fusion.estimate import AidSource, HealthCounters
+from fusion.rotations import euler_from_quat, quat_to_dcm, wrap_pi
+from fusion.samples import MagSample, as_vec3
+from fusion.strapdown import InsState
 
 LEARN_SAMPLES = 10
 #: Forgetting factor per calibration sample (at 5 Hz: a memory of ~10 minutes).
@@ -36,11 +47,6 @@ CAL_FORGET = 0.9997
 #: Calibration samples between two solutions.
 CAL_SOLVE_EVERY = 25
 _HEADING_BINS = 12
-
-
-def wrap_pi(angle_rad: float) -> float:
-    """Angle wrapped to [-pi, pi)."""
-    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def heading_model(
@@ -93,10 +99,10 @@ class MagControl:
 
     Parameters
     ----------
-    cfg : MagConfig
+    cfg : MagTuning
     """
 
-    def __init__(self, cfg: MagConfig) -> None:
+    def __init__(self, cfg: MagTuning) -> None:
         self.cfg = cfg
         self._period_us = round(1e6 / cfg.fuse_rate_hz)
         self.last_fused_us: int | None = None
@@ -220,3 +226,90 @@ class HardIronCalibrator:
         if np.all(np.isfinite(x)):
             self.field_n = x[:3]
             self.offset_b = x[3:]
+
+
+class MagAiding:
+    """Magnetometer aiding of :class:`fusion.filter.NavFilter`: checks, control, reference and
+    calibration, and the heading update.
+
+    Parameters
+    ----------
+    cfg : MagTuning
+    layout : StateLayout
+    counters : HealthCounters
+        Where samples are counted (``mag_*``).
+    update : Update
+        The filter's shared measurement update.
+    """
+
+    def __init__(
+        self, cfg: MagTuning, layout: StateLayout, counters: HealthCounters, update: Update
+    ) -> None:
+        self.cfg = cfg
+        self.layout = layout
+        self.control = MagControl(cfg)
+        self.gate = kalman.chi2_gate(1, cfg.gate_probability)
+        self._c = counters
+        self._update = update
+
+    def field(self, s: MagSample) -> tuple[float, float, float] | None:
+        """The sample's body field, or ``None`` (counted as invalid) when it is not three
+        finite numbers."""
+        # scalar checks, and the array only for a sample that is used (most are not due):
+        # numpy's all(isfinite) on 3 values costs more than the rest of a skipped sample
+        try:
+            field = as_vec3(s.field_b_tesla)
+        except (TypeError, ValueError, AttributeError):
+            field = (math.nan, math.nan, math.nan)
+        isfinite = math.isfinite
+        if not (isfinite(field[0]) and isfinite(field[1]) and isfinite(field[2])):
+            self._c.mag_invalid += 1
+            return None
+        return field
+
+    def fuse(
+        self, field: tuple[float, float, float], time_us: int, ins: InsState,
+        yaw_sigma: Callable[[], float],
+    ) -> None:  # fmt: skip
+        """One valid sample at ``time_us``: rate limit, reference learning and hard-iron
+        calibration while the heading is good, then the heading update.
+
+        Parameters
+        ----------
+        field : 3 floats
+            Body field, T.
+        time_us : int
+            The sample's time (also labels the update).
+        ins : InsState
+            The current INS.
+        yaw_sigma : callable ``() -> float``
+            The filter's current yaw sigma, rad (asked only when the reference or the
+            calibration needs it).
+        """
+        ctl = self.control
+        if not ctl.due(time_us):
+            return
+        m = np.array(field)
+        c_nb = quat_to_dcm(ins.q_nb)
+        if ctl.reference_n is None or ctl.calibrator is not None:
+            sigma = yaw_sigma()
+            if ctl.reference_n is None:
+                ctl.learn(c_nb @ m, sigma)
+            ctl.offer_calibration(c_nb, m, euler_from_quat(ins.q_nb)[2], sigma)
+            if ctl.reference_n is None:
+                return
+        obs = heading_model(
+            self.layout, c_nb, ctl.corrected(m), ctl.reference_n, ctl.heading_noise_rad(),
+            self.cfg.min_horizontal_field_tesla,
+        )  # fmt: skip
+        c = self._c
+        if obs is None:
+            c.mag_invalid += 1
+            return
+        res = self._update(obs, self.gate, AidSource.MAG_HDG, time_us)
+        ok = res.test_ratio <= 1.0
+        ctl.on_result(time_us, ok)
+        if ok:
+            c.mag_fused += 1
+        else:
+            c.mag_rejected += 1

@@ -269,7 +269,7 @@ def estimate_payload(est: Any) -> dict[str, Any]:
 
     Required attributes: ``time_us, lat_rad, lon_rad, alt_msl_m, v_ned_mps (3,), q_nb (4,)``.
     Used when present: ``euler_rad (3,)`` (else derived from ``q_nb``), ``P_diag (n>=9,)``,
-    ``mode``, ``accel_bias_b``, ``gyro_bias_b``, ``baro_bias_m``, ``time_since_gnss_s``.
+    ``mode``, ``accel_bias_b_mps2``, ``gyro_bias_b_rps``, ``baro_bias_m``, ``time_since_gnss_s``.
     """
     pos_sd, vel_sd, att_sd = _sigmas(getattr(est, "P_diag", None))
     return {
@@ -280,8 +280,8 @@ def estimate_payload(est: Any) -> dict[str, Any]:
         "pos_sigma_ned_m": pos_sd,
         "vel_sigma_ned_mps": vel_sd,
         "att_sigma_deg": att_sd,
-        "accel_bias_b_mps2": _opt_vec(est, "accel_bias_b", 3),
-        "gyro_bias_b_rps": _opt_vec(est, "gyro_bias_b", 3),
+        "accel_bias_b_mps2": _opt_vec(est, "accel_bias_b_mps2", 3),
+        "gyro_bias_b_rps": _opt_vec(est, "gyro_bias_b_rps", 3),
         "baro_bias_m": _opt_num(est, "baro_bias_m"),
         "time_since_gnss_s": _opt_num(est, "time_since_gnss_s"),
     }

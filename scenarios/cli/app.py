@@ -33,7 +33,7 @@ P = ParamSpec("P")
 R = TypeVar("R")
 
 # the methods the fusion offers (fusion/ imports no I/O: cheap to import here)
-from fusion.bridging import BRIDGE_METHODS  # noqa: E402
+from fusion.bridging.registry import BRIDGE_METHODS  # noqa: E402
 from fusion.config import ALTITUDE_METHODS  # noqa: E402
 
 # Options of every command that runs the filter: defined once so that replay, demo, fusion

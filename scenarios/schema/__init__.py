@@ -29,7 +29,7 @@ Modules: :mod:`~scenarios.schema.units` (quantities with units), :mod:`~scenario
 library).
 """
 
-from fusion.bridging import BRIDGE_METHODS
+from fusion.bridging.registry import BRIDGE_METHODS
 from fusion.config import ALTITUDE_METHODS
 from scenarios.schema.criteria import KNOWN_METRICS, CriterionSpec, metric_unit
 from scenarios.schema.errors import ScenarioError

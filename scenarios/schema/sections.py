@@ -18,7 +18,7 @@ from pydantic import (
 )
 from pydantic.fields import FieldInfo
 
-from fusion.bridging import BRIDGE_METHODS
+from fusion.bridging.registry import BRIDGE_METHODS
 from fusion.config import ALTITUDE_METHODS
 from scenarios.schema.base import Strict, first_error, key_error, listing, unknown_name
 from sim import presets

@@ -9,7 +9,7 @@ import pytest
 
 from fusion import earth
 from fusion.aiding import baro, gnss, mag
-from fusion.config import BaroConfig, GnssConfig, MagConfig
+from fusion.config import BaroTuning, GnssTuning, MagTuning
 from fusion.error_model import INS16, INS16_GNSS
 from fusion.rotations import euler_to_quat, quat_multiply, quat_to_dcm, rotvec_to_quat
 from fusion.strapdown import InsState
@@ -125,14 +125,14 @@ def test_gnss_position_h_with_bias_states_matches_finite_differences() -> None:
 
 
 def test_white_position_sigmas_take_the_bias_out_of_the_reported_accuracy() -> None:
-    cfg = GnssConfig(bias_states=True, bias_sigma_h_m=1.4, bias_sigma_v_m=2.4)
+    cfg = GnssTuning(bias_sigma_h_m=1.4, bias_sigma_v_m=2.4)
     # the modern receiver's eph = hypot(1.4, 0.5), epv = hypot(2.4, 0.8): the white parts remain
-    h, v = gnss.white_position_sigmas(math.hypot(1.4, 0.5), math.hypot(2.4, 0.8), cfg)
+    h, v = gnss.white_position_sigmas(math.hypot(1.4, 0.5), math.hypot(2.4, 0.8), cfg, INS16_GNSS)
     assert (h, v) == (pytest.approx(0.5), pytest.approx(0.8))
     # a receiver reporting less than the bias sigma: the floor
-    assert gnss.white_position_sigmas(1.0, 2.0, cfg) == (0.5, 0.5)
+    assert gnss.white_position_sigmas(1.0, 2.0, cfg, INS16_GNSS) == (0.5, 0.5)
     # without bias states the reported sigmas are used as they are
-    assert gnss.white_position_sigmas(1.5, 2.5, GnssConfig()) == (1.5, 2.5)
+    assert gnss.white_position_sigmas(1.5, 2.5, cfg, INS16) == (1.5, 2.5)
 
 
 def test_gnss_velocity_h_matches_finite_differences() -> None:
@@ -225,7 +225,7 @@ def make_fix(t_us: int, **kw: object) -> GnssFix:
 
 
 def test_fix_quality_and_sigmas() -> None:
-    cfg = GnssConfig(max_eph_m=10.0, pos_noise_floor_m=2.0)
+    cfg = GnssTuning(max_eph_m=10.0, pos_noise_floor_m=2.0)
     assert gnss.fix_quality(make_fix(0), cfg) is None
     assert gnss.fix_quality(make_fix(0, fix_type=2), cfg) == "no_fix"
     assert gnss.fix_quality(make_fix(0, lat_rad=math.nan), cfg) == "invalid"
@@ -235,7 +235,7 @@ def test_fix_quality_and_sigmas() -> None:
 
 
 def test_gnss_control_outage_reacquisition_and_reset() -> None:
-    cfg = GnssConfig(outage_timeout_s=1.0, reacquire_fixes=3, reset_after_rejected_s=5.0)
+    cfg = GnssTuning(outage_timeout_s=1.0, reacquire_fixes=3, reset_after_rejected_s=5.0)
     ctl = gnss.GnssControl(cfg)
     ctl.start(0)
     # GIVEN fixes every 0.2 s, all fused
@@ -266,7 +266,7 @@ def test_gnss_control_outage_reacquisition_and_reset() -> None:
 
 
 def test_gnss_control_glitch_rejections_reset_only_after_the_timeout() -> None:
-    ctl = gnss.GnssControl(GnssConfig(reset_after_rejected_s=5.0))
+    ctl = gnss.GnssControl(GnssTuning(reset_after_rejected_s=5.0))
     ctl.start(0)
     t = 0
     resets = []
@@ -279,7 +279,7 @@ def test_gnss_control_glitch_rejections_reset_only_after_the_timeout() -> None:
 
 
 def test_baro_control_batches_and_bias_init() -> None:
-    ctl = baro.BaroControl(BaroConfig(fuse_rate_hz=10.0))
+    ctl = baro.BaroControl(BaroTuning(fuse_rate_hz=10.0))
     out = [ctl.add_sample(t, 100.0 + t * 1e-6) for t in range(20_000, 1_000_001, 20_000)]
     batches = [b for b in out if b is not None]
     assert batches[0] == (20_000, pytest.approx(100.02), 1)
@@ -293,7 +293,7 @@ def test_baro_control_batches_and_bias_init() -> None:
 
 
 def test_mag_control_rate_limit_and_learning() -> None:
-    ctl = mag.MagControl(MagConfig(fuse_rate_hz=5.0))
+    ctl = mag.MagControl(MagTuning(fuse_rate_hz=5.0))
     assert [ctl.due(t) for t in range(0, 1_000_000, 50_000)].count(True) == 5
     assert ctl.reference_n is None
     ctl.learn(FIELD_N_T, yaw_sigma_rad=0.2)  # heading not good enough yet
@@ -328,9 +328,9 @@ def test_hard_iron_calibration_recovers_the_offset_and_the_earth_field() -> None
 
 
 def test_mag_heading_is_fused_loosely_until_the_hard_iron_is_calibrated() -> None:
-    cfg = MagConfig()
+    cfg = MagTuning()
     ctl = mag.MagControl(cfg)
     assert ctl.heading_noise_rad() == cfg.uncalibrated_heading_noise_rad
-    off = mag.MagControl(MagConfig(hard_iron_calibration=False))
+    off = mag.MagControl(MagTuning(hard_iron_calibration=False))
     assert off.heading_noise_rad() == cfg.heading_noise_rad
     assert off.corrected(FIELD_N_T) is FIELD_N_T

@@ -1,4 +1,4 @@
-"""Tests for fusion.altitude and fusion.laguerre: P4's loop, error model, MPC, KF, channel."""
+"""Tests for fusion.altitude (loop, vertical error model, MPC, KF, channel) and fusion.laguerre."""
 
 from __future__ import annotations
 
@@ -12,23 +12,14 @@ import scipy.optimize
 import scipy.signal
 
 from bench.altitude_compare import SCENARIOS, make_config, metrics, run_channel, simulate
-from fusion.altitude import (
-    OMEGA_S2,
-    P4_K1,
-    P4_K2,
-    P4_K3,
-    AltitudeChannel,
-    AltitudeChannelConfig,
-    LoopGains,
-    MpcCompensator,
-    MpcConfig,
-    ThirdOrderLoop,
-    VerticalErrorModel,
-    VerticalKalman,
-    gains_from_poles,
-    zoh_discretise,
-)
-from fusion.baro_altitude import BaroMonitorConfig, nonstandard_scale_bias, pressure_altitude_m
+from fusion.altitude.atmosphere import nonstandard_scale_bias, pressure_altitude_m
+from fusion.altitude.baro_monitor import BaroMonitorConfig
+from fusion.altitude.channel import AltitudeChannel, AltitudeChannelConfig
+from fusion.altitude.common import OMEGA_S2, zoh_discretise
+from fusion.altitude.loop import P4_K1, P4_K2, P4_K3, LoopGains, ThirdOrderLoop, gains_from_poles
+from fusion.altitude.mpc import MpcCompensator, MpcConfig
+from fusion.altitude.vertical_kf import VerticalKalman
+from fusion.altitude.vertical_model import VerticalErrorModel
 from fusion.laguerre import LaguerreMPC, laguerre_network, laguerre_sequence, solve_qp
 
 # ---- third-order loop ---------------------------------------------------------------------
@@ -758,7 +749,7 @@ def test_filterpy_is_imported_only_when_the_kf_comparator_is_built():
     import sys
 
     code = (
-        "import sys, fusion.filter, fusion.altitude as a; "
+        "import sys, fusion.filter, fusion.altitude.vertical_kf as a; "
         "print('filterpy' in sys.modules); a.VerticalKalman(); print('filterpy' in sys.modules)"
     )
     out = subprocess.run(

@@ -1,5 +1,5 @@
 """fusion.bridging (the bridging strategies) and the virtual-outage machinery they use
-(fusion.bridge.ShadowBank inside NavFilter)."""
+(fusion.bridging.shadows.ShadowBank inside NavFilter)."""
 
 from __future__ import annotations
 
@@ -13,28 +13,28 @@ import pytest
 from pydantic import ValidationError
 
 from fusion import earth
-from fusion.bridge import (
+from fusion.bridging.features import (
+    base_row,
+    compile_features,
+    feature_spec,
+    features_matrix,
+    features_row,
+)
+from fusion.bridging.interface import (
     BridgeEpoch,
     BridgeStatus,
     InsError,
     NoBridge,
     OutputCorrection,
     PseudoGnss,
-    ShadowBank,
     VirtualOutage,
 )
-from fusion.bridging import (
-    BRIDGE_METHODS,
-    LearnedBridge,
-    base_row,
-    compile_features,
-    feature_spec,
-    features_matrix,
-    features_row,
-    make_bridge,
-)
-from fusion.config import BRIDGE_FEATURES, BridgeConfig, FilterConfig, GnssConfig
-from fusion.filter import NavEstimate, NavFilter
+from fusion.bridging.learned import LearnedBridge
+from fusion.bridging.registry import BRIDGE_METHODS, make_bridge
+from fusion.bridging.shadows import ShadowBank
+from fusion.config import BRIDGE_FEATURES, BridgeConfig, FilterConfig, GnssTuning
+from fusion.estimate import NavEstimate
+from fusion.filter import NavFilter
 from fusion.strapdown import InsState
 from sim.samples import ImuSample
 from tests.helpers.nav_synth import Flight, Prepared, SensorErrors, make_scenario, prepare
@@ -113,9 +113,9 @@ def _epoch(t_s: float, yaw: float = 0.3, n_m: float = 0.0, el: float = 0.0) -> B
 
 def test_feature_paths_agree_row_matrix_and_compiled() -> None:
     start, now = _epoch(0.0, 0.1), _epoch(12.0, 1.2, n_m=300.0, el=12.0)
-    from fusion.bridging import _Origin
+    from fusion.bridging.features import Origin
 
-    base = base_row(12.0, start, now, _Origin(start))
+    base = base_row(12.0, start, now, Origin(start))
     for k in range(6):
         spec = feature_spec(BRIDGE_FEATURES, k)
         row = features_row(base, spec)
@@ -298,7 +298,7 @@ def test_a_virtual_outage_running_past_the_gate_horizon_is_scored_once() -> None
     # THEN each is scored once, by the models of its start (never again on every later fix,
     # by models that have trained on it)
     for k in (0, 1):
-        assert 0 < len(bridge._scores[k]) <= n
+        assert 0 < len(bridge._gate.scores[k]) <= n
 
 
 def test_a_correction_never_exceeds_the_drift_seen_at_that_stage_of_training() -> None:
@@ -395,7 +395,7 @@ def test_degenerate_pairs_never_crash_and_fall_back() -> None:
 
 
 # --------------------------------------------------------------------------- shadow INS
-class _Asking:
+class _Asking(NoBridge):
     """Records the virtual outages it is handed; corrects nothing."""
 
     name = "asking"
@@ -419,7 +419,7 @@ def test_shadow_ins_equals_the_main_ins_when_no_update_happened(turning: Prepare
     # GIVEN a filter started from a known state and only IMU samples (no aiding at all; a long
     # outage timeout keeps it out of outage mode, so the shadows keep re-seeding)
     sc = make_scenario(turning, np.random.default_rng(3), ERRORS)
-    cfg = CFG.model_copy(update={"gnss": GnssConfig(outage_timeout_s=100.0)})
+    cfg = CFG.model_copy(update={"gnss": GnssTuning(outage_timeout_s=100.0)})
     nav = NavFilter(cfg, bridge=_Asking())
     kin = sc.traj(np.array([0.0]))
     lat, lon, h = kin.lla[0]

@@ -19,7 +19,13 @@ from fusion.error_model import (
     StateLayout,
     layout_for,
 )
-from fusion.rotations import dcm_to_rotvec, quat_multiply, quat_to_dcm, rotvec_to_quat
+from fusion.rotations import (
+    dcm_from_quat,
+    dcm_to_rotvec,
+    quat_multiply,
+    quat_to_dcm,
+    rotvec_to_quat,
+)
 from fusion.trajectory import ImuIncrements, ideal_increments
 from tests.helpers.nav_synth import Flight
 
@@ -115,7 +121,7 @@ def analytic_transition(model: ErrorModel, inc: ImuIncrements, kin0: object) -> 
             (vd - v0[2]) / dt - t.gravity_mps2 + (cx * ve - cy * vn),
         )
         f = model.continuous_matrix(
-            s1.lat_rad, s1.alt_msl_m, s1.v_ned_mps, strapdown.dcm_from_quat(s1.q_nb), f_n,
+            s1.lat_rad, s1.alt_msl_m, s1.v_ned_mps, dcm_from_quat(s1.q_nb), f_n,
             tuple((inc.dv_b[k] / dt).tolist()), tuple((inc.dtheta_b[k] / dt).tolist()),
         )  # fmt: skip
         phi = model.transition_matrix(f, dt) @ phi
@@ -192,10 +198,16 @@ def test_layouts_are_contiguous_and_named() -> None:
     assert (INS22_GNSS.name, INS22_GNSS.n, INS22_GNSS.GNSS) == ("ins22+gnss", 25, 22)
     assert INS22_GNSS.labels[:22] == INS22.labels and INS22_GNSS.sg == INS22.sg
     assert INS16_GNSS.labels[-3:] == ("gnss_bias_n_m", "gnss_bias_e_m", "gnss_bias_d_m")
-    assert layout_for("ins16") is INS16 and layout_for("ins22", gnss_bias=True) is INS22_GNSS
+    assert layout_for("ins16") is INS16 and layout_for("ins22+gnss") is INS22_GNSS
+    assert layout_for("ins16+gnss") is INS16_GNSS and layout_for("ins22") is INS22
+    assert INS22.has_scale_factors and not INS16_GNSS.has_scale_factors
+    assert INS16_GNSS.has_gnss_bias and not INS22.has_gnss_bias
+    assert (INS22.SA, INS22.SG) == (16, 19)
+    with pytest.raises(ValueError, match="no scale-factor"):
+        _ = INS16.SA
     with pytest.raises(ValueError, match="no GNSS"):
         _ = INS16.GNSS
-    with pytest.raises(ValueError, match="ins16, ins22"):
+    with pytest.raises(ValueError, match="ins16, ins16\\+gnss, ins22, ins22\\+gnss"):
         layout_for("ins19")
 
 

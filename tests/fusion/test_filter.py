@@ -15,9 +15,17 @@ from scipy.stats import chi2
 import fusion.samples as proto
 import sim.samples as simsamples
 from fusion import earth
-from fusion.bridge import BridgeAction, BridgeEpoch, InsError, OutputCorrection, PseudoGnss
-from fusion.config import FilterConfig, GnssConfig, InitConfig, MagConfig, RatesConfig
-from fusion.filter import NavEstimate, NavFilter
+from fusion.bridging.interface import (
+    BridgeAction,
+    BridgeEpoch,
+    InsError,
+    NoBridge,
+    OutputCorrection,
+    PseudoGnss,
+)
+from fusion.config import FilterConfig, GnssTuning, InitConfig, MagTuning, RatesConfig
+from fusion.estimate import NavEstimate
+from fusion.filter import NavFilter
 from fusion.rotations import quat_multiply, rotvec_to_quat
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample
 from tests.helpers.nav_synth import (
@@ -108,7 +116,7 @@ def test_filter_is_consistent_nees_over_20_seeds() -> None:
         nav.initialize(
             0, lat + x0[0] / t.rho_n_m, lon + x0[1] / (t.rho_e_m * t.cos_lat), h - x0[2],
             kin.v_ned_mps[0] + x0[lay.vel], quat_multiply(rotvec_to_quat(x0[lay.att]), kin.q_nb[0]),
-            covariance=p0, accel_bias_b=ba + x0[lay.ba], gyro_bias_b=bg + x0[lay.bg],
+            covariance=p0, accel_bias_b_mps2=ba + x0[lay.ba], gyro_bias_b_rps=bg + x0[lay.bg],
         )  # fmt: skip
         e, p = run_nees(nav, sc, evals)
         all_e.append(e)
@@ -172,9 +180,9 @@ def test_gnss_bias_states_make_the_filter_consistent_with_correlated_gnss_error(
     sig_h, sig_v, tau = 1.4, 2.4, 8.0
     init = InitConfig(pos_sigma_m=2.0, vel_sigma_mps=0.2, roll_pitch_sigma_rad=math.radians(1.0),
                       yaw_sigma_rad=math.radians(3.0))  # fmt: skip
-    bias = GnssConfig(bias_states=True, bias_sigma_h_m=sig_h, bias_sigma_v_m=sig_v,
-                      bias_tau_h_s=tau, bias_tau_v_s=tau)  # fmt: skip
-    cfg_on = FilterConfig(init=init, gnss=bias)
+    bias = GnssTuning(bias_sigma_h_m=sig_h, bias_sigma_v_m=sig_v, bias_tau_h_s=tau,
+                      bias_tau_v_s=tau)  # fmt: skip
+    cfg_on = FilterConfig(init=init, gnss=bias, state_layout="ins16+gnss")
     cfg_off = FilterConfig(init=init)
     duration = 40.0
     prep = prepare(
@@ -209,7 +217,7 @@ def test_gnss_bias_states_make_the_filter_consistent_with_correlated_gnss_error(
                 0, lat + x0[0] / t.rho_n_m, lon + x0[1] / (t.rho_e_m * t.cos_lat), h - x0[2],
                 kin.v_ned_mps[0] + x0[lay.vel],
                 quat_multiply(rotvec_to_quat(x0[lay.att]), kin.q_nb[0]),
-                covariance=p0, accel_bias_b=ba + x0[lay.ba], gyro_bias_b=bg + x0[lay.bg],
+                covariance=p0, accel_bias_b_mps2=ba + x0[lay.ba], gyro_bias_b_rps=bg + x0[lay.bg],
             )  # fmt: skip
             errs, covs, k = [], [], 0
             for smp in sc.samples:
@@ -281,7 +289,7 @@ def test_in_flight_alignment_converges_from_a_10_deg_heading_error_in_turns(
 def test_magnetometer_makes_heading_observable_in_straight_flight(straight: Prepared) -> None:
     # GIVEN straight flight, 10 deg of crab, a magnetometer and the local reference field
     sc = make_scenario(straight, np.random.default_rng(2), ERRORS, mag_rate_hz=10.0)
-    cfg = CFG.model_copy(update={"mag": MagConfig(reference_field_n_tesla=tuple(FIELD_N_T))})
+    cfg = CFG.model_copy(update={"mag": MagTuning(reference_field_n_tesla=tuple(FIELD_N_T))})
     nav = NavFilter(cfg)
     # WHEN it flies 30 s
     est = run(nav, sc.samples)
@@ -297,8 +305,8 @@ def test_learned_magnetometer_reference_after_the_heading_converged(racetrack: P
     sc = make_scenario(racetrack, np.random.default_rng(3), ERRORS, mag_rate_hz=10.0)
     nav = NavFilter(CFG)
     run(nav, sc.samples)
-    assert nav._mag_ctl.learned
-    ref = nav._mag_ctl.reference_n
+    assert nav._mag.control.learned
+    ref = nav._mag.control.reference_n
     assert ref is not None
     decl = math.degrees(math.atan2(ref[1], ref[0]) - math.atan2(FIELD_N_T[1], FIELD_N_T[0]))
     assert abs(decl) < 1.0
@@ -310,7 +318,7 @@ def test_static_alignment_levelling_and_mag_heading() -> None:
     prep = prepare(Flight(duration_s=8.0, speed_mps=0.0, heading0_rad=1.0, aoa_rad=0.05))
     sc = make_scenario(prep, np.random.default_rng(4), ERRORS, mag_rate_hz=10.0)
     cfg = FilterConfig(
-        init=InitConfig(mode="static"), mag=MagConfig(reference_field_n_tesla=tuple(FIELD_N_T))
+        init=InitConfig(mode="static"), mag=MagTuning(reference_field_n_tesla=tuple(FIELD_N_T))
     )
     nav = NavFilter(cfg)
     # WHEN the static alignment window (2 s) has passed
@@ -380,7 +388,7 @@ def test_gnss_latency_is_compensated(racetrack: Prepared) -> None:
 def test_lever_arm(racetrack: Prepared) -> None:
     arm = (0.5, 0.3, -0.8)
     sc = make_scenario(racetrack, np.random.default_rng(8), ERRORS, lever_arm_b_m=arm)
-    nav = NavFilter(CFG.model_copy(update={"gnss": GnssConfig(lever_arm_b_m=arm)}))
+    nav = NavFilter(CFG.model_copy(update={"gnss": GnssTuning(lever_arm_b_m=arm)}))
     est = run(nav, sc.samples)
     pos = np.array([errors_at(sc, e)[0] for e in est if e.time_us > 26_000_000])
     assert np.abs(pos).max() < 1.5
@@ -431,8 +439,9 @@ def test_gnss_bias_relaxes_to_its_prior_in_an_outage_and_is_reset_with_the_posit
     # GIVEN the GNSS bias states (tau 3 s), correlated GNSS error, an outage from 20 to 30 s
     # and, after it, a GNSS solution 60 m away (the INS is then reset to GNSS)
     tau, sb_h, sb_v = 3.0, 1.4, 2.4
-    cfg = FilterConfig(gnss=GnssConfig(bias_states=True, bias_sigma_h_m=sb_h,
-                                       bias_sigma_v_m=sb_v, bias_tau_h_s=tau, bias_tau_v_s=tau))
+    cfg = FilterConfig(gnss=GnssTuning(bias_sigma_h_m=sb_h, bias_sigma_v_m=sb_v,
+                                       bias_tau_h_s=tau, bias_tau_v_s=tau),
+                       state_layout="ins16+gnss")
     jump = {k: np.array([60.0, -40.0, 0.0]) for k in range(150, 225)}
     sc = make_scenario(racetrack, np.random.default_rng(10), ERRORS, gnss_sigma_h_m=0.5,
                        gnss_sigma_v_m=0.8, gnss_outages=[(20.0, 30.0)], gnss_glitches=jump)
@@ -526,9 +535,9 @@ def test_bad_input_is_counted_never_integrated(racetrack: Prepared) -> None:
 
 
 def test_health_counters_cover_every_field() -> None:
-    from fusion.filter import _HEALTH_FIELDS, _Counters
+    from fusion.estimate import HEALTH_FIELDS, HealthCounters
 
-    assert set(_Counters.__annotations__) == set(_HEALTH_FIELDS)
+    assert set(HealthCounters.__annotations__) == set(HEALTH_FIELDS)
     assert NavFilter().health == type(NavFilter().health)()
 
 
@@ -578,7 +587,7 @@ def test_scale_factor_layout_runs(racetrack: Prepared) -> None:
 
 
 # --------------------------------------------------------------------------- bridging hooks
-class RecordingBridge:
+class RecordingBridge(NoBridge):
     """Learns nothing; records the calls and returns a fixed action during outages."""
 
     name = "recording"
@@ -667,7 +676,7 @@ def test_config_rejects_unknown_keys_and_bad_values() -> None:
     with pytest.raises(ValidationError, match="gps"):
         FilterConfig.model_validate({"gps": {}})
     with pytest.raises(ValidationError, match="gate_probability"):
-        GnssConfig(gate_probability=1.5)
+        GnssTuning(gate_probability=1.5)
     with pytest.raises(ValidationError, match="gyro_noise_density_rps_rthz"):
         FilterConfig.model_validate({"imu": {"gyro_noise_density_rps_rthz": -1.0}})
     with pytest.raises(ValueError, match="covariance"):

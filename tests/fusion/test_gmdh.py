@@ -17,7 +17,8 @@ from sklearn.base import clone
 from sklearn.exceptions import NotFittedError as SkNotFittedError
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from fusion.gmdh import GmdhRegressor, NotFittedError
+from fusion.gmdh import GmdhRegressor
+from fusion.regressor_base import NotFittedError
 
 REPO = Path(__file__).resolve().parents[2]
 

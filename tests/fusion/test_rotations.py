@@ -110,3 +110,38 @@ def test_normalize_gives_canonical_sign() -> None:
     np.testing.assert_allclose(q, [1.0, 0.0, 0.0, 0.0])
     with pytest.raises(ValueError):
         rot.dcm_to_quat(np.eye(2))
+
+
+# --------------------------------------------------------------------------- scalar paths
+def test_scalar_dcm_and_product_are_the_array_functions_bit_for_bit() -> None:
+    # GIVEN random unit quaternions
+    qs = random_quats(200, seed=3)
+    for p, q in zip(qs, qs[::-1], strict=True):
+        # THEN the scalar paths compute the same operations in the same order
+        assert rot.dcm_from_quat(q.tolist()) == tuple(rot.quat_to_dcm(q).ravel().tolist())
+        assert rot.quat_product(p.tolist(), q.tolist()) == tuple(
+            rot.quat_multiply(p, q).tolist()
+        )
+
+
+def test_scalar_euler_matches_the_array_function() -> None:
+    for q in random_quats(200, seed=4):
+        np.testing.assert_allclose(rot.euler_from_quat(q.tolist()), rot.quat_to_euler(q),
+                                   atol=1e-12)  # fmt: skip
+
+
+def test_scalar_rotvec_quat_matches_the_array_function_on_both_branches() -> None:
+    rng = np.random.default_rng(5)
+    for scale in (1e-6, 1e-3, 0.5, 3.0):  # series (angle^2 < 1e-4) and closed form
+        v = rng.normal(size=3) * scale
+        np.testing.assert_allclose(rot.rotvec_quat(*v.tolist()), rot.rotvec_to_quat(v),
+                                   rtol=0.0, atol=1e-15)  # fmt: skip
+
+
+def test_wrap_pi_range_and_identity_inside() -> None:
+    for a in np.linspace(-20.0, 20.0, 401).tolist():
+        w = rot.wrap_pi(a)
+        assert -math.pi <= w < math.pi
+        assert math.isclose(math.cos(w), math.cos(a), abs_tol=1e-12)
+        assert math.isclose(math.sin(w), math.sin(a), abs_tol=1e-12)
+    assert rot.wrap_pi(0.25) == 0.25 and rot.wrap_pi(math.pi) == -math.pi

@@ -68,7 +68,8 @@ def rows() -> list[list[Any]]:
         out.append([
             round(t_s, 6), str(e.mode), e.lat_rad, e.lon_rad, e.alt_msl_m,
             *map(float, e.v_ned_mps), *map(float, e.euler_rad), *sig,
-            *map(float, e.accel_bias_b), *map(float, e.gyro_bias_b), float(e.baro_bias_m),
+            *map(float, e.accel_bias_b_mps2), *map(float, e.gyro_bias_b_rps),
+            float(e.baro_bias_m),
         ])
     return out
 

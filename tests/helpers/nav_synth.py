@@ -354,8 +354,8 @@ def error_state(nav: NavFilter, sc: Scenario) -> FloatArray:
     est = nav.estimate()
     assert est is not None
     ba, bg, bb = sc.true_bias_at(t)
-    e[lay.ba] = est.accel_bias_b - ba
-    e[lay.bg] = est.gyro_bias_b - bg
+    e[lay.ba] = est.accel_bias_b_mps2 - ba
+    e[lay.bg] = est.gyro_bias_b_rps - bg
     e[lay.baro] = est.baro_bias_m - bb
     return e
 

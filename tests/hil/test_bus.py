@@ -19,7 +19,7 @@ import numpy as np
 import pydantic
 import pytest
 
-from fusion.filter import Health, NavEstimate, TestRatios
+from fusion.estimate import Health, NavEstimate, TestRatios
 from fusion.rotations import euler_to_quat
 from hil.bus import (
     PUBLISHED_TOPICS,
@@ -103,8 +103,8 @@ def real_estimate(mode: str = "bridging") -> NavEstimate:
         euler_rad=np.radians([2.0, 3.0, 30.0]),
         P_diag=np.full(16, 0.25),
         mode=mode,
-        accel_bias_b=np.array([0.01, -0.02, 0.03]),
-        gyro_bias_b=np.array([1e-5, 2e-5, -1e-5]),
+        accel_bias_b_mps2=np.array([0.01, -0.02, 0.03]),
+        gyro_bias_b_rps=np.array([1e-5, 2e-5, -1e-5]),
         baro_bias_m=1.5,
         health=Health(gnss_fused=12, gnss_outages=1),
         test_ratios=TestRatios(gnss_pos=0.3),

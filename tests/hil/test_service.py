@@ -15,7 +15,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fusion import rotations
-from fusion.filter import Health, NavEstimate, TestRatios
+from fusion.estimate import Health, NavEstimate, TestRatios
 from hil.bus import Bus, Message, Topic, error_payload
 from hil.codec import Decoder, mavlink2
 from hil.link import LinkRole, MavlinkLink
@@ -40,7 +40,7 @@ def _estimate(yaw_deg: float = 90.0, mode: str = "gnss") -> NavEstimate:
         time_us=12_345_678, lat_rad=math.radians(47.123), lon_rad=math.radians(8.456),
         alt_msl_m=1012.3456, v_ned_mps=np.array([1.0, 50.0, -2.0]), q_nb=np.asarray(q),
         euler_rad=euler, P_diag=np.array([9.0, 16.0, 4.0, 0.01, 0.01, 0.04, 1e-4, 1e-4, 1e-3]),
-        mode=mode, accel_bias_b=np.zeros(3), gyro_bias_b=np.zeros(3), baro_bias_m=0.0,
+        mode=mode, accel_bias_b_mps2=np.zeros(3), gyro_bias_b_rps=np.zeros(3), baro_bias_m=0.0,
         health=Health(), test_ratios=TestRatios(gnss_pos=0.5), time_since_gnss_s=0.1,
         state_layout="ins16",
     )

@@ -18,7 +18,8 @@ import pytest
 from fusion import earth
 from fusion.aiding.baro import height_to_pressure
 from fusion.config import ALTITUDE_METHODS, AltitudeConfig, FilterConfig
-from fusion.filter import AltitudeStatus, NavEstimate, NavFilter
+from fusion.estimate import AltitudeStatus, NavEstimate
+from fusion.filter import NavFilter
 from sim.samples import BaroSample, ImuSample
 from tests.helpers.nav_synth import Flight, Prepared, SensorErrors, make_scenario, prepare
 

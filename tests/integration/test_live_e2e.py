@@ -30,6 +30,7 @@ import numpy as np
 import pytest
 
 from fusion.earth import ned_offset_m
+from fusion.filter import NavFilter
 from fusion.rotations import quat_to_euler
 from hil.bus import SCHEMAS, Bus, Message, Topic
 from hil.codec import SENSOR_COMPONENT_ID, Decoder, mavlink2
@@ -37,7 +38,7 @@ from hil.link import LOCKSTEP_CUSTOM_MODE, LinkRole, MavlinkLink
 from hil.live_sim import live_sim
 from hil.pipeline import SimSetup
 from hil.router import zenoh_router
-from hil.service import TappedNavFilter, innovation_source, input_role, interpolate_truth
+from hil.service import input_role, interpolate_truth
 from hil.signing import Signer, mavlink_timestamp
 from hil.tlog import read_tlog
 from hil.tracks import Collector
@@ -541,17 +542,18 @@ def test_lockstep_loses_nothing_when_the_fusion_freezes_and_innovations_match_re
     assert live["lockstep_acks"] > 0
 
     # the same filter on the recording, tapped the same way
-    nav = TappedNavFilter(filter_config_for_presets("industrial-mems", "modern"))
+    nav = NavFilter(filter_config_for_presets("industrial-mems", "modern"))
     col = Collector()
     dec = Decoder()
     want: list[tuple[int, str, list[float], float]] = []
     for _t, frame in read_tlog(tmp_path / "run.tlog"):
         for d in dec.feed(frame):
             col.feed(nav, [d.sample])
-            for H, res in nav.corrections:
-                want.append((d.sample.time_us, innovation_source(nav.layout, H),
-                             res.innovation.tolist(), float(res.test_ratio)))
-            nav.corrections.clear()
+            if isinstance(d.sample, Truth):
+                continue  # collected, not stepped: the filter's records are the last step's
+            for inn in nav.innovations:
+                want.append((inn.time_us, str(inn.source), inn.innovation.tolist(),
+                             float(inn.test_ratio)))
     assert live["innovations_published"] == len(want)
     assert len(innovations) == len(want), (len(innovations), len(want), bus_stats)
     schema = SCHEMAS[Topic.INNOVATIONS]

@@ -1,0 +1,401 @@
+"""The navigation filter's outputs: the estimate, its mode, health counters, test ratios,
+altitude status, and the record of each measurement update and aiding source."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from enum import StrEnum
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fusion.bridging.interface import BridgeStatus
+
+FloatArray = NDArray[np.float64]
+
+
+class Mode(StrEnum):
+    """What the estimate rests on (a string enum: ``Mode.GNSS == "gnss"``,
+    ``str(Mode.GNSS) == "gnss"``)."""
+
+    INITIALIZING = "initializing"
+    """Not aligned yet: no estimate."""
+    GNSS = "gnss"
+    """A fix was fused within ``GnssTuning.outage_timeout_s``."""
+    FREE_INERTIAL = "free-inertial"
+    """GNSS lost, the INS coasts on the remaining aiding."""
+    BRIDGING = "bridging"
+    """GNSS lost, the bridging strategy corrects the output or sends pseudo-fixes."""
+
+
+class AidSource(StrEnum):
+    """What a measurement update fused (:class:`Innovation`)."""
+
+    GNSS_POS = "gnss_pos"
+    GNSS_VEL = "gnss_vel"
+    BARO_HGT = "baro_hgt"
+    MAG_HDG = "mag_hdg"
+    BRIDGE_POS = "bridge_pos"
+    """A bridging strategy's pseudo-GNSS position."""
+    BRIDGE_VEL = "bridge_vel"
+    """A bridging strategy's pseudo-GNSS velocity."""
+
+
+@dataclass(frozen=True)
+class Health:
+    """Counters since construction (or :meth:`fusion.filter.NavFilter.reset`)."""
+
+    imu_ok: int = 0
+    """IMU samples integrated as received."""
+    imu_nan: int = 0
+    """IMU samples with NaN/Inf (or unreadable) fields: replaced by the last good sample."""
+    imu_out_of_range: int = 0
+    """IMU samples beyond the configured sensor range: replaced by the last good sample."""
+    time_backwards: int = 0
+    """Samples (any sensor) older than the previous one of the same sensor: dropped."""
+    time_jump: int = 0
+    """IMU forward time steps above ``time_jump_s``: the gap was not integrated."""
+    duplicates: int = 0
+    """Samples (any sensor) with the same timestamp as the previous one: dropped."""
+    gnss_fused: int = 0
+    """Fixes whose position and velocity both passed the gate."""
+    gnss_rejected: int = 0
+    """Fixes with the position or the velocity rejected by the gate."""
+    gnss_no_fix: int = 0
+    """Fixes with ``fix_type < 3``."""
+    gnss_invalid: int = 0
+    """Fixes with non-finite or impossible fields."""
+    gnss_inaccurate: int = 0
+    """Fixes with ``eph_m`` above ``max_eph_m``."""
+    gnss_too_old: int = 0
+    """Fixes older than ``max_delay_s`` (or than the INS history) when due."""
+    gnss_resets: int = 0
+    """Position or velocity resets to GNSS (after an outage or a long rejection)."""
+    gnss_outages: int = 0
+    """Transitions from GNSS-aided to free-inertial / bridging."""
+    baro_fused: int = 0
+    baro_rejected: int = 0
+    baro_invalid: int = 0
+    """Baro samples whose pressure is not finite, <= 0 or outside the atmosphere model
+    (-5 km .. 47 km pressure altitude): not used."""
+    baro_resets: int = 0
+    """Baro-bias re-initialisations after a long rejection."""
+    mag_fused: int = 0
+    mag_rejected: int = 0
+    mag_invalid: int = 0
+    """Magnetometer samples non-finite or with too weak a horizontal field."""
+    bridge_updates: int = 0
+    """Pseudo-GNSS updates fused or output corrections applied by the bridging strategy."""
+    baro_frozen: int = 0
+    """Baro samples rejected as coming from a frozen sensor (identical readings for
+    ``AltitudeConfig.channel.monitor.freeze_time_s``); any altitude method."""
+    baro_glitches: int = 0
+    """Baro samples rejected by the altitude channel's gate (height more than ``gate_m`` from
+    the loop's); loop methods only (``ekf``: its chi-square gate counts in ``baro_rejected``)."""
+    baro_realignments: int = 0
+    """Persistent baro steps taken as a new datum by the altitude channel (loop methods)."""
+    altitude_calibration_updates: int = 0
+    """GNSS heights that moved the baro calibration (P4's s, b); loop methods."""
+    altitude_gnss_rejected: int = 0
+    """GNSS heights rejected by the baro calibration's innovation gate; loop methods."""
+    baro_repeats_held: int = 0
+    """Baro samples held back from the EKF because the reading had not changed for more than
+    ``AltitudeConfig.ekf_repeat_hold_s`` (before the sensor is declared frozen)."""
+
+
+HEALTH_FIELDS = tuple(f.name for f in fields(Health))
+"""The counter names of :class:`Health`, in order."""
+
+
+class HealthCounters:
+    """Mutable twin of :class:`Health` (plain attribute increments in the hot path)."""
+
+    imu_ok: int
+    imu_nan: int
+    imu_out_of_range: int
+    time_backwards: int
+    time_jump: int
+    duplicates: int
+    gnss_fused: int
+    gnss_rejected: int
+    gnss_no_fix: int
+    gnss_invalid: int
+    gnss_inaccurate: int
+    gnss_too_old: int
+    gnss_resets: int
+    gnss_outages: int
+    baro_fused: int
+    baro_rejected: int
+    baro_invalid: int
+    baro_resets: int
+    mag_fused: int
+    mag_rejected: int
+    mag_invalid: int
+    bridge_updates: int
+    baro_frozen: int
+    baro_glitches: int
+    baro_realignments: int
+    altitude_calibration_updates: int
+    altitude_gnss_rejected: int
+    baro_repeats_held: int
+
+    def __init__(self) -> None:
+        for name in HEALTH_FIELDS:
+            setattr(self, name, 0)
+
+    def snapshot(self) -> Health:
+        """The counters as an immutable :class:`Health`."""
+        # Health is frozen: fill its __dict__ directly (4x faster than __init__ with 22
+        # arguments; this runs at the output rate)
+        health = object.__new__(Health)
+        health.__dict__.update(self.__dict__)
+        return health
+
+
+@dataclass(frozen=True, slots=True)
+class AltitudeStatus:
+    """State of the altitude method at one output epoch (:class:`fusion.config.AltitudeConfig`).
+
+    The counters (invalid, frozen, glitch samples, calibration updates) are in :class:`Health`;
+    this holds flags and the current calibration and compensator state. NaN / ``False`` where
+    a field does not apply (``ekf``, or the channel before its first accepted baro sample).
+    """
+
+    method: str
+    """``ekf``, ``loop``, ``loop-mpc`` or ``loop-kf``."""
+    in_use: bool = False
+    """The estimate's altitude is the channel's (loop methods, from the channel's first GNSS
+    calibration and compensator reference on; before that the EKF's)."""
+    initialised: bool = False
+    """The channel is running (loop methods: first baro sample accepted after alignment)."""
+    gnss_valid: bool = False
+    """The channel had a GNSS height within ``gnss_timeout_s``: calibration learning and
+    compensator tracking; ``False`` means the channel is holding through an outage."""
+    calibration_frozen: bool = False
+    """The baro calibration is frozen (GNSS outage)."""
+    calibration_scale: float = math.nan
+    """P4's non-standard-atmosphere scale ``s = dT/T0`` as estimated."""
+    calibration_bias_m: float = math.nan
+    """P4's bias ``b`` as estimated, m (geopotential)."""
+    sea_level_dt_k: float = math.nan
+    """Estimated sea-level temperature offset ``dT``, K."""
+    sea_level_dp_pa: float = math.nan
+    """Estimated sea-level pressure offset ``dP``, Pa."""
+    loop_height_m: float = math.nan
+    """The damping loop's own height (before the compensator's correction), m."""
+    baro_height_m: float = math.nan
+    """Last accepted calibrated baro height, m."""
+    correction_m: float = math.nan
+    """The compensator's ``dh`` (output height = loop height - dh; 0 for ``loop``), m."""
+    compensator_steps: int = 0
+    qp_active: int = 0
+    """MPC steps where a move bound was active (bounded MPC only)."""
+    undamped: bool = False
+    """The loop ran without baro feedback at the last IMU epoch (no usable baro for longer
+    than ``baro_hold_s``): free-inertial vertical."""
+    baro_frozen: bool = False
+    """The barometer currently reads as frozen."""
+    baro_rejecting: bool = False
+    """The channel's gate is currently rejecting the barometer."""
+
+
+@dataclass(frozen=True, slots=True)
+class TestRatios:
+    """Last innovation test ratios (normalised innovation squared over the chi-square gate, as
+    ESTIMATOR_STATUS reports them: > 1 means rejected). NaN before the first test."""
+
+    __test__ = False  # not a pytest class
+
+    gnss_pos: float = math.nan
+    gnss_vel: float = math.nan
+    baro_hgt: float = math.nan
+    mag_hdg: float = math.nan
+
+
+@dataclass(frozen=True, slots=True)
+class Innovation:
+    """One gated measurement update (:attr:`fusion.filter.NavFilter.innovations`).
+
+    Attributes
+    ----------
+    time_us : int
+        Time of the sample whose processing made the update (a GNSS fix fused when the IMU
+        caught up, or a bridging pseudo-fix, carries the IMU sample's time).
+    source : AidSource
+        What was fused.
+    innovation : ndarray, shape (m,)
+        INS-predicted minus measured, SI (m, m/s, rad).
+    S : ndarray, shape (m, m)
+        Innovation covariance ``H P H^T + R``.
+    test_ratio : float
+        Normalised innovation squared over the chi-square gate; > 1 means rejected.
+    fused : bool
+        The gate accepted it (``test_ratio <= 1``) and it was fed back.
+    """
+
+    time_us: int
+    source: AidSource
+    innovation: FloatArray
+    S: FloatArray
+    test_ratio: float
+    fused: bool
+
+
+_INNOVATION_SETTERS = tuple(getattr(Innovation, f.name).__set__ for f in fields(Innovation))
+
+
+def new_innovation(
+    time_us: int, source: AidSource, innovation: FloatArray, S: FloatArray, test_ratio: float,
+    fused: bool,
+) -> Innovation:  # fmt: skip
+    """``Innovation(...)`` through the slot setters (one per update, see :func:`new_estimate`)."""
+    inn = object.__new__(Innovation)
+    s0, s1, s2, s3, s4, s5 = _INNOVATION_SETTERS
+    s0(inn, time_us)
+    s1(inn, source)
+    s2(inn, innovation)
+    s3(inn, S)
+    s4(inn, test_ratio)
+    s5(inn, fused)
+    return inn
+
+
+@dataclass(frozen=True, slots=True)
+class AidSourceStatus:
+    """State of one aiding source (as PX4's ``estimator_aid_source`` messages).
+
+    Attributes
+    ----------
+    source : AidSource
+    last : Innovation or None
+        The source's last update (``None`` before the first).
+    time_last_fused_us : int or None
+        ``time_us`` of its last accepted update (``None`` before the first).
+    """
+
+    source: AidSource
+    last: Innovation | None = None
+    time_last_fused_us: int | None = None
+
+    @property
+    def test_ratio(self) -> float:
+        """Last test ratio (NaN before the first update)."""
+        return math.nan if self.last is None else self.last.test_ratio
+
+    @property
+    def fused(self) -> bool:
+        """The last update was accepted."""
+        return self.last is not None and self.last.fused
+
+    @property
+    def innovation(self) -> FloatArray | None:
+        """Last innovation, SI (``None`` before the first update)."""
+        return None if self.last is None else self.last.innovation
+
+    def after(self, update: Innovation) -> AidSourceStatus:
+        """The status once ``update`` (of this source) was made."""
+        status = object.__new__(AidSourceStatus)  # the slot setters: one per update
+        _set_source(status, self.source)
+        _set_last(status, update)
+        _set_fused_us(status, update.time_us if update.fused else self.time_last_fused_us)
+        return status
+
+
+_set_source, _set_last, _set_fused_us = (
+    getattr(AidSourceStatus, f.name).__set__ for f in fields(AidSourceStatus)
+)
+
+
+@dataclass(frozen=True, slots=True)
+class AidingStatus:
+    """Every aiding source's :class:`AidSourceStatus` at one output epoch."""
+
+    gnss_pos: AidSourceStatus = AidSourceStatus(AidSource.GNSS_POS)
+    gnss_vel: AidSourceStatus = AidSourceStatus(AidSource.GNSS_VEL)
+    baro_hgt: AidSourceStatus = AidSourceStatus(AidSource.BARO_HGT)
+    mag_hdg: AidSourceStatus = AidSourceStatus(AidSource.MAG_HDG)
+    bridge_pos: AidSourceStatus = AidSourceStatus(AidSource.BRIDGE_POS)
+    bridge_vel: AidSourceStatus = AidSourceStatus(AidSource.BRIDGE_VEL)
+
+    def __getitem__(self, source: AidSource) -> AidSourceStatus:
+        status: AidSourceStatus = getattr(self, source.value)
+        return status
+
+
+@dataclass(frozen=True, slots=True)
+class NavEstimate:
+    """Filter output at one IMU epoch (SI, NED; position errors in metres N/E/D).
+
+    Attributes
+    ----------
+    time_us : int
+        INS time (the IMU sample's time).
+    lat_rad, lon_rad, alt_msl_m : float
+        Position of the IMU.
+    v_ned_mps : ndarray, shape (3,)
+    q_nb : ndarray, shape (4,)
+        Attitude body -> NED, scalar first.
+    euler_rad : ndarray, shape (3,)
+        Roll, pitch, yaw.
+    P_diag : ndarray, shape (n,)
+        Error-state variances in the layout ``state_layout`` (``fusion.error_model``): position
+        m^2 (N, E, D), velocity (m/s)^2, attitude rad^2, biases SI^2, baro bias m^2; as of the
+        last covariance propagation (at most ``1 / covariance_rate_hz`` old).
+    mode : Mode
+        ``initializing``, ``gnss``, ``free-inertial`` or ``bridging`` (a string enum: it
+        compares and prints as its value).
+    accel_bias_b_mps2, gyro_bias_b_rps : ndarray, shape (3,)
+        Estimated sensor biases, m/s^2 and rad/s.
+    baro_bias_m : float
+        Estimated baro height bias (ISA pressure height minus navigation height), m.
+    health : Health
+    test_ratios : TestRatios
+    time_since_gnss_s : float
+        Seconds since the last fused fix (``inf`` if none yet).
+    state_layout : str
+        The error-state layout's name (``"ins16"``, ``"ins16+gnss"``, ``"ins22"``,
+        ``"ins22+gnss"``).
+    altitude : AltitudeStatus or None
+        The altitude method's state. With a loop method, ``alt_msl_m`` and ``v_ned_mps[2]`` are
+        the altitude channel's (``P_diag`` and ``baro_bias_m`` stay the EKF's).
+    bridge : BridgeStatus or None
+        The bridging strategy's state (:class:`fusion.bridging.interface.BridgeStatus`:
+        untrained / training / trained / stale, validation errors, per-component fallback).
+    aiding : AidingStatus or None
+        Per aiding source, the last update and when it last fused.
+    """
+
+    time_us: int
+    lat_rad: float
+    lon_rad: float
+    alt_msl_m: float
+    v_ned_mps: FloatArray
+    q_nb: FloatArray
+    euler_rad: FloatArray
+    P_diag: FloatArray
+    mode: Mode
+    accel_bias_b_mps2: FloatArray
+    gyro_bias_b_rps: FloatArray
+    baro_bias_m: float
+    health: Health
+    test_ratios: TestRatios
+    time_since_gnss_s: float
+    state_layout: str
+    altitude: AltitudeStatus | None = None
+    bridge: BridgeStatus | None = None
+    aiding: AidingStatus | None = None
+
+
+_ESTIMATE_SETTERS = tuple(getattr(NavEstimate, f.name).__set__ for f in fields(NavEstimate))
+
+
+def new_estimate(*values: Any) -> NavEstimate:
+    """``NavEstimate(*values)`` (every field, positionally) through the slot setters: the
+    generated frozen ``__init__`` goes through ``object.__setattr__`` per field and costs about
+    twice as much at the output rate. No validation, as with ``__init__``."""
+    est = object.__new__(NavEstimate)
+    for setter, value in zip(_ESTIMATE_SETTERS, values):  # noqa: B905  # 19 values, one caller
+        setter(est, value)
+    return est

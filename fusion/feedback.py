@@ -1,0 +1,224 @@
+"""Error feedback and resets of the error-state filter, as pure functions.
+
+After each accepted measurement update the error estimate ``dx`` (estimated minus true,
+:mod:`fusion.error_model`) is moved into the nominal state at once and the error state is zero
+again (closed loop): position, velocity and the sensor-error estimates are corrected by
+subtraction, attitude by ``q_nb <- q(-phi) ⊗ q_nb`` (:func:`feedback`). A reset sets a block of
+the state to a measurement instead (``dx = z`` on that block) and decorrelates it in ``P``
+(:func:`reset_block`, :func:`reset_position_with_bias`, :func:`reset_baro_bias`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fusion import earth
+from fusion.error_model import StateLayout
+from fusion.rotations import quat_product, rotvec_quat
+from fusion.strapdown import InsState
+
+FloatArray = NDArray[np.float64]
+Vec3 = tuple[float, float, float]
+_tuple_new = tuple.__new__  # NamedTuple(...) without its Python-level __new__ frame
+
+
+class Feedback(NamedTuple):
+    """The nominal state after :func:`feedback`."""
+
+    ins: InsState
+    accel_bias_b_mps2: Vec3
+    gyro_bias_b_rps: Vec3
+    baro_bias_m: float
+    gnss_bias_ned_m: Vec3 | None
+    """``None`` when the layout has no GNSS bias block."""
+    accel_scale_b: Vec3
+    gyro_scale_b: Vec3
+    nav_dx: list[float]
+    """The 9 position (m NED), velocity (m/s NED) and attitude (rad) corrections just
+    subtracted from the INS (:meth:`fusion.history.InsHistory.add_correction`)."""
+
+
+def feedback(
+    layout: StateLayout,
+    ins: InsState,
+    dx: FloatArray,
+    accel_bias_b_mps2: Sequence[float],
+    gyro_bias_b_rps: Sequence[float],
+    baro_bias_m: float,
+    gnss_bias_ned_m: Sequence[float] | None,
+    accel_scale_b: Vec3,
+    gyro_scale_b: Vec3,
+) -> Feedback:
+    """Move the error estimate ``dx`` into the nominal state (subtract: errors are estimated
+    minus true).
+
+    Parameters
+    ----------
+    layout : StateLayout
+    ins : InsState
+    dx : ndarray, shape (n,)
+        Error estimate in ``layout``.
+    accel_bias_b_mps2, gyro_bias_b_rps : 3 floats
+        Bias estimates, m/s^2 and rad/s.
+    baro_bias_m : float
+        Baro-bias estimate, m.
+    gnss_bias_ned_m : 3 floats or None
+        GNSS position-bias estimate at the current time, m NED (layouts with the GNSS block;
+        ``None`` otherwise).
+    accel_scale_b, gyro_scale_b : 3 floats
+        Scale-factor estimates (used by layouts with scale factors; passed through otherwise).
+
+    Returns
+    -------
+    Feedback
+    """
+    d = dx.tolist()
+    p, v, a = layout.POS, layout.VEL, layout.ATT
+    lt = earth.local_terms(ins.lat_rad, ins.alt_msl_m)
+    vn, ve, vd = ins.v_ned_mps
+    # q <- q(-phi) ⊗ q
+    rw, rx, ry, rz = quat_product(rotvec_quat(-d[a], -d[a + 1], -d[a + 2]), ins.q_nb)
+    norm = math.sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
+    if rw < 0.0:
+        norm = -norm
+    new = InsState(
+        ins.lat_rad - d[p] / lt.rho_n_m,
+        ins.lon_rad - d[p + 1] / (lt.rho_e_m * lt.cos_lat),
+        ins.alt_msl_m + d[p + 2],
+        (vn - d[v], ve - d[v + 1], vd - d[v + 2]),
+        (rw / norm, rx / norm, ry / norm, rz / norm),
+    )
+    ba, bg, b, g = accel_bias_b_mps2, gyro_bias_b_rps, layout.BA, layout.BG
+    new_ba = (ba[0] - d[b], ba[1] - d[b + 1], ba[2] - d[b + 2])
+    new_bg = (bg[0] - d[g], bg[1] - d[g + 1], bg[2] - d[g + 2])
+    new_gb: Vec3 | None = None
+    if gnss_bias_ned_m is not None:
+        gb, g = gnss_bias_ned_m, layout.GNSS
+        new_gb = (gb[0] - d[g], gb[1] - d[g + 1], gb[2] - d[g + 2])
+    sa, sg = accel_scale_b, gyro_scale_b
+    if layout.has_scale_factors:
+        b = layout.SA
+        sa = (sa[0] - d[b], sa[1] - d[b + 1], sa[2] - d[b + 2])
+        b = layout.SG
+        sg = (sg[0] - d[b], sg[1] - d[b + 1], sg[2] - d[b + 2])
+    # this runs at every accepted update: the tuple directly, not Feedback(...)
+    return _tuple_new(Feedback, (
+        new, new_ba, new_bg, baro_bias_m - d[layout.BARO], new_gb, sa, sg,
+        d[p : p + 3] + d[v : v + 3] + d[a : a + 3],
+    ))  # fmt: skip
+
+
+def reset_block(
+    P: FloatArray, n: int, block: slice, z: FloatArray, variances: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Reset one block of the state to a measurement.
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+        Covariance before the reset (not modified).
+    n : int
+        State dimension.
+    block : slice
+        The block (e.g. ``layout.vel``).
+    z : ndarray
+        The measurement innovation on that block (INS minus measurement).
+    variances : ndarray
+        The measurement's variances: the block's new (uncorrelated) variances.
+
+    Returns
+    -------
+    dx : ndarray, shape (n,)
+        The error estimate to feed back (``z`` on the block, zero elsewhere).
+    P : ndarray, shape (n, n)
+        The covariance with the block decorrelated from the rest.
+    """
+    dx = np.zeros(n)
+    dx[block] = z
+    P = P.copy()
+    P[block, :] = 0.0
+    P[:, block] = 0.0
+    P[block, block] = np.diag(variances)
+    return dx, P
+
+
+def reset_position_with_bias(
+    P: FloatArray,
+    layout: StateLayout,
+    z: FloatArray,
+    variances: FloatArray,
+    gnss_bias_ned_m: Sequence[float],
+    bias_variances: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """Reset the position to a GNSS fix in a layout with the GNSS bias block.
+
+    The bias also goes back to its prior (estimate 0, sigma_b): the INS position becomes the
+    fix itself, whose error is bias plus white noise, ``dr = -db + w``, hence the covariance
+    ``[[sb^2 + r, -sb^2], [-sb^2, sb^2]]``.
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+        Covariance before the reset (not modified).
+    layout : StateLayout
+        A layout with the GNSS bias block.
+    z : ndarray, shape (3,)
+        The position innovation, which holds ``+ b^`` (INS minus fix plus the bias estimate).
+    variances : ndarray, shape (3,)
+        The fix's white variances.
+    gnss_bias_ned_m : 3 floats
+        The bias estimate ``b^`` at the current time, m NED.
+    bias_variances : ndarray, shape (3,)
+        The bias prior ``sb^2`` (N, E, D), m^2.
+
+    Returns
+    -------
+    dx : ndarray, shape (n,)
+        The error estimate to feed back.
+    P : ndarray, shape (n, n)
+    """
+    gb = np.array(gnss_bias_ned_m)
+    dx = np.zeros(layout.n)
+    dx[layout.pos] = z - gb  # z holds + b^: the INS moves onto the fix, not onto fix - b^
+    dx[layout.gnss] = gb  # b^ <- b^ - dx = 0
+    sb2 = bias_variances
+    P = P.copy()
+    for blk in (layout.pos, layout.gnss):
+        P[blk, :] = 0.0
+        P[:, blk] = 0.0
+    P[layout.pos, layout.pos] = np.diag(variances + sb2)
+    P[layout.gnss, layout.gnss] = np.diag(sb2)
+    P[layout.pos, layout.gnss] = P[layout.gnss, layout.pos] = -np.diag(sb2)
+    return dx, P
+
+
+def reset_baro_bias(P: FloatArray, layout: StateLayout, noise_m: float) -> FloatArray:
+    """Covariance after the baro bias is set from a sample (``b^ = h_baro - h^``).
+
+    The bias error is then ``dr_D + noise``, so its covariance row is that of the
+    down-position error plus the baro noise on the diagonal.
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+        Covariance before (not modified).
+    layout : StateLayout
+    noise_m : float
+        Baro noise sigma, m.
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+    """
+    d, b = layout.POS + 2, layout.BARO
+    P = P.copy()
+    row = P[d, :].copy()
+    row[b] = P[d, d] + noise_m**2
+    P[b, :] = row
+    P[:, b] = row
+    return P
