@@ -102,15 +102,11 @@ from fusion.altitude.atmosphere import (  # noqa: E402
 from fusion.altitude.channel import AltitudeChannel, AltitudeChannelConfig  # noqa: E402
 from fusion.config import AltitudeConfig, FilterConfig  # noqa: E402
 from fusion.estimate import NavEstimate  # noqa: E402
-from fusion.filter import NavFilter  # noqa: E402
 from hil.codec import Decoder  # noqa: E402
-from hil.pipeline import SimSetup  # noqa: E402
-from hil.streamer import SensorStreamer  # noqa: E402
+from hil.pipeline import SimChain, SimSetup, build_filter  # noqa: E402
 from hil.tuning import filter_config_for_imu  # noqa: E402
 from physconst import ISA_P0_PA  # noqa: E402
-from sim.flight import Flight, FlightEnded  # noqa: E402
 from sim.samples import BaroSample, Truth  # noqa: E402
-from sim.sensors import SensorSuite  # noqa: E402
 
 FloatArray = NDArray[np.float64]
 
@@ -327,18 +323,16 @@ def fly(seed: int, runs: list[RunSpec]) -> dict[str, Any]:
         gnss_off=[f"{OUTAGE[0]}:{OUTAGE[1] - OUTAGE[0]}"],
     )
     variants = sorted({r.variant for r in runs})
-    suites, bridges, decoders = {}, {}, {}
+    setups = {}
     for v in variants:
         baro = request.sensors.baro.model_copy(update=VARIANTS[v])
         # the magnetometer at 10 Hz (the filter fuses heading at 5 Hz): cheaper, same result
         sensors = request.sensors.model_copy(
             update={"baro": baro, "imu_rate_hz": IMU_RATE_HZ, "mag_rate_hz": 10.0}
         )
-        suites[v] = SensorSuite(sensors, request.seed, request.flight.rate_hz)
         # truth is taken from the flight directly (100 Hz); its frames are not needed
-        bridges[v] = SensorStreamer(truth_rate_hz=0.1, gnss_off=request.gnss_off)
-        decoders[v] = Decoder()
-    navs = {r.name: NavFilter(filter_config(r.method, r.params, r.setup)) for r in runs}
+        setups[v] = dataclasses.replace(request, sensors=sensors, truth_rate_hz=0.1)
+    navs = {r.name: build_filter(filter_config(r.method, r.params, r.setup)) for r in runs}
     by_variant = {v: [(r.name, navs[r.name]) for r in runs if r.variant == v] for v in variants}
     tracks = {r.name: RunTrack() for r in runs}
     filter_s = dict.fromkeys(navs, 0.0)
@@ -347,7 +341,6 @@ def fly(seed: int, runs: list[RunSpec]) -> dict[str, Any]:
     truth_lat: list[float] = []
     truth_lon: list[float] = []
     baro_tp: dict[str, list[tuple[float, float]]] = {v: [] for v in variants}
-    end_us = round(DURATION_S * 1e6)
     ended = None
     t_wall = time.perf_counter()
     # The filters create their altitude channel lazily (first IMU epoch after alignment): the
@@ -355,23 +348,19 @@ def fly(seed: int, runs: list[RunSpec]) -> dict[str, Any]:
     saved = altitude_link.AltitudeChannel
     altitude_link.AltitudeChannel = RecordingChannel  # type: ignore[misc]
     try:
-        with Flight(request.flight, request.plan) as flight:
-            truth = flight.truth()
-            t0_us = truth.time_us
-            while truth.time_us - t0_us < end_us:
-                try:
-                    truth = flight.step()
-                except FlightEnded as exc:
-                    ended = str(exc)
-                    break
-                truth_t.append(truth.time_us * 1e-6)
-                truth_alt.append(truth.alt_msl_m)
-                truth_lat.append(truth.lat_rad)
-                truth_lon.append(truth.lon_rad)
-                for v in variants:
-                    samples = suites[v].step(truth)
-                    dec = decoders[v]
-                    for _t, frame in bridges[v].frames(truth, samples):
+        # one pipeline flight per baro variant: the same seed flies the same trajectory and
+        # the same IMU / GNSS / magnetometer streams; only the barometer differs
+        for i, v in enumerate(variants):
+            dec = Decoder()
+            with SimChain(setups[v]) as chain:
+                for step in chain.steps():
+                    truth = step.truth
+                    if i == 0:
+                        truth_t.append(truth.time_us * 1e-6)
+                        truth_alt.append(truth.alt_msl_m)
+                        truth_lat.append(truth.lat_rad)
+                        truth_lon.append(truth.lon_rad)
+                    for _t, frame in step.frames:
                         for d in dec.feed(frame):
                             s = d.sample
                             if isinstance(s, Truth):
@@ -383,6 +372,8 @@ def fly(seed: int, runs: list[RunSpec]) -> dict[str, Any]:
                                 for e in nav.step(s):
                                     tracks[name].add(e)
                                 filter_s[name] += time.process_time() - c0
+            if chain.ended is not None:
+                ended = str(chain.ended)
     finally:
         altitude_link.AltitudeChannel = saved  # type: ignore[misc]
     logs: dict[str, ChannelLog] = {}

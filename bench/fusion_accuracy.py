@@ -3,10 +3,10 @@
 Each run flies one flight plan (default: racetrack and manoeuvre, 600 s, Cessna 172 at 50 m/s)
 with the ``industrial-mems`` IMU, the ``modern`` GNSS receiver, the ``ms5611`` barometer and
 the ``consumer`` magnetometer. GNSS is switched off (no HIL_GPS sent) for a 30 s outage at
-200 s and a 60 s outage at 400 s. Frames go through the same in-memory path as ``hilnav
-replay``: :class:`hil.streamer.SensorStreamer` -> :class:`hil.codec.Decoder` ->
-:class:`scenarios.collect.Collector` / :class:`fusion.filter.NavFilter` (no bridging method:
-outages are flown free-inertial), scored by :func:`scenarios.summary.build_summary`.
+200 s and a 60 s outage at 400 s. The flight goes through the pipeline of every command
+(:func:`hil.pipeline.fly` into a :class:`hil.pipeline.FusionRun`: MAVLink encode, decode,
+:class:`fusion.filter.NavFilter` with no bridging method, so outages are flown
+free-inertial), scored by the one scorer (:func:`scenarios.summary.score_run`).
 
 The filter is tuned from the IMU and GNSS presets' datasheets only
 (:func:`hil.tuning.filter_config_for_presets`: IMU noise and bias model, the GNSS receiver's
@@ -46,7 +46,6 @@ thread each so two jobs do not fight over two cores).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import multiprocessing as mp
@@ -103,55 +102,30 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
     """
     import numpy as np
 
-    from fusion.filter import NavFilter
-    from hil.codec import Decoder
-    from hil.pipeline import SimSetup
-    from hil.streamer import SensorStreamer, run_lockstep
-    from hil.tracks import Collector, Track
+    from hil.pipeline import FusionRun, SimSetup, fly
+    from hil.tracks import Track
     from hil.tuning import filter_config_for_presets
     from scenarios import metrics
-    from scenarios.summary import RunInfo, build_summary
-    from sim.flight import Flight
-    from sim.samples import GnssFix
-    from sim.sensors import SensorSuite
+    from scenarios.summary import RunInfo, score_run
 
-    request = SimSetup.build(
+    setup = SimSetup.build(
         plan=plan, imu=IMU, gnss=GNSS, duration_s=duration_s, seed=seed,
         gnss_off=[f"{s}:{d}" for s, d in OUTAGES])
-    suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)
-    streamer = SensorStreamer(truth_rate_hz=request.truth_rate_hz, gnss_off=request.gnss_off)
     cfg = filter_config_for_presets(IMU, GNSS)
     if gnss_bias != "default":
         base = "ins22" if cfg.state_layout.startswith("ins22") else "ins16"
         cfg = cfg.model_copy(
             update={"state_layout": f"{base}+gnss" if gnss_bias == "on" else base})
-    nav = NavFilter(cfg)
-    decoder = Decoder()
-    col = Collector()
-    fixes: list[GnssFix] = []
-    fusion_s = 0.0
-
-    def sink(_t_us: int, frame: bytes) -> None:
-        nonlocal fusion_s
-        t0 = time.perf_counter()
-        decoded = [d.sample for d in decoder.feed(frame)]
-        fixes.extend(s for s in decoded if isinstance(s, GnssFix) and s.fix_type >= 3)
-        col.feed(nav, decoded)
-        fusion_s += time.perf_counter() - t0
-
-    with Flight(request.flight, request.plan) as flight:
-        report = run_lockstep(flight, suite, streamer, request.duration_s, sink)
-
-    estimate = col.estimate_track()
-    truth = col.truth_track()
-    end_s = min(estimate.time_s[-1], truth.time_s[-1])
-    outages = metrics.outages_from_fix_times(
-        np.array(col.fix_times_us, dtype=float) * 1e-6, end_s=end_s)
+    run = FusionRun(cfg)
+    report = fly(setup, run)
+    nav, col = run.nav, run.collector
+    assert col is not None
+    fixes = col.fixes
+    fusion_s = run.fuse_s
     info = RunInfo(scenario=plan, seed=seed, sim_duration_s=report.sim_duration_s,
                    wall_s=report.wall_s, bridge="none", altitude="ekf")
-    summary, err = build_summary(info, estimate, truth, outages, settle_s=SETTLE_S,
-                                  health={"filter": dataclasses.asdict(nav.health),
-                                          "decoder": decoder.counters.as_dict()})
+    scored = score_run(run, info, settle_s=SETTLE_S)
+    summary, err, truth, outages = scored.summary, scored.errors, scored.truth, scored.outages
 
     # Raw GNSS: the fixes as a track (attitude unused), scored like the filter.
     gnss_track = Track(

@@ -2,8 +2,8 @@
 
 The sample stream is generated once: ``--duration`` s (default 120) of the racetrack with the
 ``industrial-mems`` IMU at 200 Hz, ``modern`` GNSS at 5 Hz, ``ms5611`` baro and ``consumer``
-magnetometer at 50 Hz, through :class:`sim.sensors.SensorSuite` and
-:class:`hil.streamer.SensorStreamer`. It is kept twice: as the list of SI samples in emission
+magnetometer at 50 Hz, through the pipeline's simulator half (:class:`hil.pipeline.SimChain`).
+It is kept twice: as the list of SI samples in emission
 order (truth dropped) and as the list of encoded MAVLink frames (truth frames included, as on
 the wire).
 
@@ -11,8 +11,10 @@ Timed (best of ``--repeats``, each on a fresh filter tuned by
 :func:`hil.tuning.filter_config_for_imu`):
 
 - ``filter``: ``NavFilter.step`` over the samples;
-- ``decode+filter``: ``hil.codec.Decoder.feed`` over the frames, every decoded sample except
-  truth to ``NavFilter.step`` (the path ``hilnav replay`` takes, minus file reading).
+- ``decode+filter``: the pipeline's fusion half over the frames
+  (:meth:`hil.pipeline.FusionRun.feed_frame` without collection: decode, every decoded
+  sample except truth to ``NavFilter.step``; the path ``hilnav replay`` takes, minus file
+  reading and collection).
 
 Both with the covariance propagated at 100 Hz (``RatesConfig`` default) and at every IMU
 sample. CPU time (``time.process_time``) and wall time (``time.perf_counter``) are reported as
@@ -53,32 +55,19 @@ def generate(duration_s: float, seed: int) -> tuple[list[Any], list[bytes], int]
     seed : int
         Scenario seed.
     """
-    from hil.pipeline import SimSetup
-    from hil.streamer import SensorStreamer, run_lockstep
-    from sim.flight import Flight
-    from sim.samples import ImuSample, Truth
-    from sim.sensors import SensorSuite
+    from hil.pipeline import SimChain, SimSetup
+    from sim.samples import ImuSample
 
-    request = SimSetup.build(plan="racetrack", imu=IMU, gnss="modern", baro="ms5611",
-                               mag="consumer", rate_hz=RATE_HZ, duration_s=duration_s,
-                               seed=seed)
-    suite = SensorSuite(request.sensors, request.seed, request.flight.rate_hz)
-    samples: list[Any] = []
-    orig_step = suite.step
-
-    def step(truth: Truth) -> list[Any]:
-        out = orig_step(truth)
-        samples.extend(out)
-        return out
-
-    suite.step = step  # type: ignore[method-assign]  # keep the samples as emitted
-    streamer = SensorStreamer(truth_rate_hz=request.truth_rate_hz)
+    setup = SimSetup.build(plan="racetrack", imu=IMU, gnss="modern", baro="ms5611",
+                           mag="consumer", rate_hz=RATE_HZ, duration_s=duration_s, seed=seed)
+    samples: list[Any] = []  # as emitted by the sensor suite
     frames: list[bytes] = []
-    with Flight(request.flight, request.plan) as flight:
-        report = run_lockstep(flight, suite, streamer, request.duration_s,
-                              lambda _t, frame: frames.append(frame))
-    if report.ended is not None:
-        raise RuntimeError(f"flight ended early: {report.ended}")
+    with SimChain(setup) as chain:
+        for step in chain.steps():
+            samples.extend(step.samples)
+            frames.extend(frame for _t, frame in step.frames)
+    if chain.ended is not None:
+        raise RuntimeError(f"flight ended early: {chain.ended}")
     n_imu = sum(isinstance(s, ImuSample) for s in samples)
     return samples, frames, n_imu
 
@@ -110,21 +99,15 @@ def time_filter(samples: list[Any], cov_rate_hz: float | None) -> tuple[float, f
 
 
 def time_decode_filter(frames: list[bytes], cov_rate_hz: float | None) -> tuple[float, float, int]:
-    """(cpu_s, wall_s, estimates) of Decoder + a fresh NavFilter over ``frames``."""
-    from fusion.filter import NavFilter
-    from hil.codec import Decoder
-    from sim.samples import Truth
+    """(cpu_s, wall_s, estimates) of the pipeline's fusion half (:class:`hil.pipeline.FusionRun`
+    without collection: decode + a fresh NavFilter) over ``frames``."""
+    from hil.pipeline import FusionRun
 
-    nav = NavFilter(_config(cov_rate_hz))
-    dec = Decoder()
-    step, feed = nav.step, dec.feed
+    feed = FusionRun(_config(cov_rate_hz), collect=False).feed_frame
     n_out = 0
     c0, w0 = time.process_time(), time.perf_counter()
     for f in frames:
-        for d in feed(f):
-            s = d.sample
-            if not isinstance(s, Truth):
-                n_out += len(step(s))
+        n_out += len(feed(f))
     return time.process_time() - c0, time.perf_counter() - w0, n_out
 
 
