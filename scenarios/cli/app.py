@@ -73,11 +73,34 @@ def cli_errors(func: Callable[P, R]) -> Callable[P, R]:
         except (ValueError, FileNotFoundError) as exc:
             err_console.print(f"[red]error:[/] {exc}", highlight=False)
             raise typer.Exit(2) from None
+        except OSError as exc:  # a path the user named cannot be written or read
+            where = f": {exc.filename}" if exc.filename else ""
+            err_console.print(f"[red]error:[/] {exc.strerror or exc}{where}", highlight=False)
+            raise typer.Exit(2) from None
         except RunFailed as exc:
             err_console.print(f"[red]failed:[/] {exc}", highlight=False)
             raise typer.Exit(1) from None
 
     return wrapper
+
+
+def _out_dir(path: Path, option: str = "--out") -> Path:
+    """``path`` can be (or become) a folder: not a file, no file on the way to it."""
+    for p in (path, *path.parents):
+        if p.exists():
+            if not p.is_dir():
+                what = "is a file" if p == path else f"lies under the file {p}"
+                raise ValueError(f"{option} {path} {what}; give a folder")
+            break
+    return path
+
+
+def _out_file(path: Path, option: str) -> Path:
+    """``path`` can be (or become) a file: not a folder, no file on the way to it."""
+    if path.is_dir():
+        raise ValueError(f"{option} {path} is a folder; give a file name")
+    _out_dir(path.parent, f"{option}'s folder")
+    return path
 
 
 def _choice(name: str, value: str, valid: tuple[str, ...] | list[str]) -> str:
@@ -160,6 +183,8 @@ def sim(
     ] = None,
 ) -> None:
     """Fly a plan and record it (lockstep, as fast as possible) or stream it live (--live)."""
+    if record is not None:
+        _out_file(record, "--record")
     from hil.pipeline import SimSetup, record_flight
 
     request = SimSetup.build(
@@ -266,6 +291,8 @@ def fusion(
     ] = None,
 ) -> None:
     """Live fusion service: MAVLink sensors in; shadow vehicle, companion and Zenoh out."""
+    if out is not None:
+        _out_dir(out)
     from hil.pipeline import build_filter, filter_config
     from hil.service import FusionOptions
     from scenarios.cli.live import serve_fusion
@@ -313,6 +340,8 @@ def monitor(
     headless: Annotated[bool, typer.Option(help="One text line per second.")] = False,
 ) -> None:
     """Show (and optionally record) what the fusion service publishes."""
+    if record is not None:
+        _out_file(record, "--record")
     from hil.bus import validate_endpoint
     from hil.monitor import monitor_main
 
@@ -392,6 +421,7 @@ def up(
     )] = False,
 ) -> None:
     """Run router + fusion + sim (+ monitor) on loopback; Ctrl-C stops everything."""
+    _out_dir(out)
     from scenarios.cli.up import UpOptions, run_up
 
     options = UpOptions(duration_s=duration, speed=speed, out=out, vehicle=vehicle, plan=plan,
@@ -422,6 +452,7 @@ def replay(
     gnss: GnssOption = "modern",
 ) -> None:
     """Run the navigation filter on a recorded log and score it against the logged truth."""
+    _out_dir(out)
     from hil.pipeline import filter_config
     from scenarios.replay import replay as run_replay
     from sim.presets import gnss_preset
@@ -431,7 +462,19 @@ def replay(
     result = run_replay(log, out, config=filter_config(imu, gnss_preset(gnss), altitude),
                         bridge=bridge, altitude=altitude, settle_s=settle)
     _print_summary(result.summary)
+    _warn_input(result.summary)
     console.print(f"summary -> {result.summary_path}")
+
+
+def _warn_input(s: dict[str, Any]) -> None:
+    """Say on stderr when the log was damaged or cut (the scorecard has it in ``input``)."""
+    inp = s.get("input", {})
+    if inp.get("truncated") or inp.get("bad_frames") or inp.get("skipped_bytes"):
+        err_console.print(
+            f"[yellow]warning:[/] the log is damaged: {inp.get('bad_frames', 0)} bad frames, "
+            f"{inp.get('skipped_bytes', 0)} bytes skipped"
+            + (", the last record is truncated" if inp.get("truncated") else "")
+            + f"; scored over {s.get('sim_duration_s', 0):.0f} s", highlight=False)
 
 
 def _fmt(v: Any, spec: str = ".2f") -> str:
@@ -473,6 +516,7 @@ def demo(
     gnss: Annotated[str, typer.Option(help="GNSS preset (sensor and filter model).")] = "modern",
 ) -> None:
     """The main job: fly a racetrack, record it, run the filter with a GNSS outage, score it."""
+    _out_dir(out)
     from hil.pipeline import SimSetup, filter_config, record_flight
     from scenarios.replay import replay as run_replay
     from sim.presets import gnss_preset
@@ -544,6 +588,7 @@ def run(
     quiet: Annotated[bool, typer.Option(help="No progress bar.")] = False,
 ) -> None:
     """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
+    _out_dir(out)
     from scenarios.runner import run_scenario
 
     scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude)
@@ -578,6 +623,7 @@ def compare(
     altitude: Annotated[str | None, typer.Option(help="Override the altitude method.")] = None,
 ) -> None:
     """Every bridging method on the same sensor data per seed (the papers' Tables 1 and 2)."""
+    _out_dir(out)
     from scenarios.compare import compare as run_compare
     from scenarios.compare import markdown, parse_methods
 
@@ -595,6 +641,8 @@ def schema(
     out: Annotated[Path | None, typer.Option(help="Write to this file instead of stdout.")] = None,
 ) -> None:
     """Print the JSON Schema of scenario files (for editor completion)."""
+    if out is not None:
+        _out_file(out, "--out")
     from scenarios.schema import json_schema
 
     text = json.dumps(json_schema(), indent=2) + "\n"
@@ -623,6 +671,7 @@ def campaign(
     keep_tlogs: Annotated[bool, typer.Option(help="Keep each run's run.tlog.")] = False,
 ) -> None:
     """Monte Carlo sweep over seeds and parameter grids on Dask; exit 1 if any run failed."""
+    _out_dir(out)
     from rich.progress import MofNCompleteColumn, TimeElapsedColumn
 
     from scenarios.campaign import parse_vary, run_campaign

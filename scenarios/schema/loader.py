@@ -16,7 +16,38 @@ from scenarios.schema.scenario import Scenario
 LIBRARY_DIR = Path(__file__).resolve().parent.parent / "library"
 """The scenario library shipped with hilnav."""
 
-__all__ = ["LIBRARY_DIR", "json_schema", "list_library", "load_scenario"]
+__all__ = ["LIBRARY_DIR", "MAX_DEPTH", "MAX_FILE_BYTES", "json_schema", "list_library",
+           "load_scenario"]
+
+MAX_FILE_BYTES = 1 << 20
+"""Largest scenario file read, bytes (the library's largest is ~3 kB)."""
+MAX_DEPTH = 32
+"""Deepest nesting of mappings and sequences in a scenario file (the schema needs 4)."""
+
+
+def _check_structure(text: str, path: Path) -> None:
+    """Refuse YAML aliases and deep nesting before anything is built from the file.
+
+    An alias (``*name``) lets a few hundred bytes expand into gigabytes when the document is
+    built ("billion laughs"), and deep nesting exhausts the recursion of the YAML composer;
+    the event stream is read in one linear pass, so neither costs more than the file's size.
+    """
+    def line(event: yaml.Event) -> int | None:
+        return None if event.start_mark is None else event.start_mark.line + 1
+
+    depth = 0
+    for event in yaml.parse(text, Loader=yaml.SafeLoader):
+        if isinstance(event, yaml.AliasEvent):
+            raise ScenarioError(
+                f"YAML aliases (*{event.anchor}) are not allowed in scenario files; write the "
+                "value out", path=path, line=line(event))
+        if isinstance(event, yaml.MappingStartEvent | yaml.SequenceStartEvent):
+            depth += 1
+            if depth > MAX_DEPTH:
+                raise ScenarioError(f"nested deeper than {MAX_DEPTH} levels", path=path,
+                                    line=line(event))
+        elif isinstance(event, yaml.MappingEndEvent | yaml.SequenceEndEvent):
+            depth -= 1
 
 
 def _duplicate_keys(node: yaml.Node | None) -> tuple[int, str] | None:
@@ -57,13 +88,20 @@ def load_scenario(path: str | Path) -> Scenario:
         ``FILE:LINE: KEY: message``.
     """
     path = Path(path)
+    if path.is_dir():
+        raise ScenarioError("is a directory, not a scenario file", path=path)
     try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise ScenarioError(f"file too large for a scenario ({size} bytes, the limit is "
+                                f"{MAX_FILE_BYTES})", path=path)
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ScenarioError("no such scenario file", path=path) from None
     except (OSError, UnicodeDecodeError) as error:
         raise ScenarioError(f"cannot read the file ({error})", path=path) from None
     try:
+        _check_structure(text, path)
         root = yaml.compose(text, Loader=yaml.SafeLoader)
         data = yaml.safe_load(text)
     except yaml.MarkedYAMLError as error:

@@ -151,3 +151,55 @@ def test_check_command_reports_the_deployment_health() -> None:
         assert bad_key.exit_code == 2 and "Traceback" not in bad_key.output
     bad = CliRunner().invoke(app, ["check", "--connect", "not-an-endpoint"])
     assert bad.exit_code == 2
+
+
+@pytest.mark.parametrize(
+    ("content", "needle"),
+    [(b"", "is empty"), (b"hello world\n", "no MAVLink frame"),
+     (bytes(range(256)) * 20, "no MAVLink frame"), (b"\x00" * 8, "no MAVLink frame")],
+)
+def test_replay_names_what_a_bad_log_lacks(tmp_path: Path, content: bytes, needle: str) -> None:
+    log = tmp_path / "bad.tlog"
+    log.write_bytes(content)
+    result = CliRunner().invoke(app, ["replay", str(log), "--out", str(tmp_path / "o")])
+    assert result.exit_code == 2 and needle in result.output
+    assert "Traceback" not in result.output and len(result.output.strip().splitlines()) == 1
+
+
+def test_bad_output_paths_are_bad_input(tmp_path: Path, short_flight_log: Path) -> None:
+    """GIVEN --out naming a file, a path under a file, or --record naming a folder THEN exit 2
+    with one line, before anything runs."""
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    cases = [
+        (["replay", str(short_flight_log), "--out", str(afile)], "is a file"),
+        (["replay", str(short_flight_log), "--out", str(afile / "sub")], "under the file"),
+        (["replay", str(tmp_path), "--out", str(tmp_path / "o")], "is a folder"),
+        (["sim", "--record", str(tmp_path), "--duration", "1"], "is a folder"),
+        (["schema", "--out", str(tmp_path)], "is a folder"),
+    ]
+    for args, needle in cases:
+        result = CliRunner().invoke(app, args)
+        assert result.exit_code == 2, (args, result.output)
+        assert needle in result.output and "Traceback" not in result.output, args
+
+
+def test_a_truncated_log_is_scored_and_says_so(tmp_path: Path, short_flight_log: Path) -> None:
+    """GIVEN the recording cut in the middle of a record WHEN replayed THEN it is scored (exit
+    0), a warning says it is damaged, and summary.json's input section records the cut."""
+    data = short_flight_log.read_bytes()
+    cut = tmp_path / "cut.tlog"
+    cut.write_bytes(data[: len(data) * 2 // 3 + 5])
+    result = CliRunner().invoke(app, ["replay", str(cut), "--out", str(tmp_path / "o"),
+                                      "--settle", "20"])
+    assert result.exit_code == 0, result.output
+    assert "truncated" in result.output
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["input"]["truncated"] is True and s["input"]["frames"] > 10_000
+    assert s["sim_duration_s"] < 130.0
+    whole = CliRunner().invoke(app, ["replay", str(short_flight_log), "--out",
+                                     str(tmp_path / "w")])
+    assert whole.exit_code == 0 and "warning" not in whole.output
+    w = json.loads((tmp_path / "w" / "summary.json").read_text())
+    assert w["input"] == {"records": w["input"]["records"], "frames": w["input"]["frames"],
+                          "bad_frames": 0, "truncated": False, "skipped_bytes": 0}

@@ -304,6 +304,29 @@ def test_yaml_syntax_error_has_a_line(tmp_path: Path) -> None:
     assert err.line is not None and "not valid YAML" in str(err)
 
 
+def test_yaml_alias_bomb_is_refused_before_it_expands(tmp_path: Path) -> None:
+    """GIVEN a ~700-byte 'billion laughs' file (each level 10 aliases of the previous) WHEN
+    loaded THEN one line naming the first alias and its line, without building the document
+    (nine levels would be 10^9 strings)."""
+    lines = ['l0: &l0 "lol"']
+    lines += [f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 10)}]" for i in range(1, 10)]
+    text = "\n".join(["duration_s: 600", *lines]) + "\n"
+    assert len(text) < 1000
+    err = error_of(write(tmp_path, text))
+    assert err.line == 3 and "aliases (*l0) are not allowed" in str(err)
+    assert len(str(err).splitlines()) == 1
+
+
+def test_deep_nesting_and_huge_files_are_refused_with_one_line(tmp_path: Path) -> None:
+    deep = error_of(write(tmp_path, "duration_s: 600\nx: " + "[" * 5000 + "]" * 5000 + "\n"))
+    assert "nested deeper than 32 levels" in str(deep) and deep.line == 2
+    big = write(tmp_path, "duration_s: 600\n" + "# padding\n" * 120_000, name="big.yaml")
+    err = error_of(big)
+    assert "file too large" in str(err) and "1048576" in str(err)
+    with pytest.raises(ScenarioError, match="is a directory"):
+        load_scenario(tmp_path)
+
+
 def test_not_a_mapping_and_missing_file(tmp_path: Path) -> None:
     assert "YAML mapping" in str(error_of(write(tmp_path, "- 1\n- 2\n")))
     with pytest.raises(ScenarioError, match="no such scenario file"):
