@@ -79,6 +79,7 @@ from sim.samples import Truth
 
 __all__ = [
     "FusionOptions", "FusionService", "GcsResponder", "input_role", "interpolate_truth",
+    "parse_source",
 ]
 
 _TRUTH_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HIL_STATE_QUATERNION)
@@ -99,6 +100,8 @@ class FusionOptions(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     mavlink: str
+    source: str | None = None
+    """Accept sensors only from ``SYSID[:COMPID]``; None: lock onto the first sensor source."""
     zenoh: str | None = None
     vehicle: str = "sim1"
     imu: str = "industrial-mems"
@@ -117,16 +120,35 @@ class FusionOptions(BaseModel):
     settle_s: float = Field(default=60.0, ge=0.0)
 
 
-def input_role() -> LinkRole:
-    """The input link: an onboard computer (191) accepting simulator and flight-controller
-    sensor messages from any source."""
+def parse_source(text: str) -> tuple[int, int | None]:
+    """``"SYSID"`` or ``"SYSID:COMPID"`` -> ``(sysid, compid or None)`` (ValueError, one line)."""
+    parts = text.split(":")
+    try:
+        if len(parts) > 2:
+            raise ValueError
+        sys_id = int(parts[0])
+        comp_id = int(parts[1]) if len(parts) == 2 else None
+    except ValueError:
+        raise ValueError(f"--source {text!r} must be SYSID or SYSID:COMPID, e.g. 1 or 1:200"
+                         ) from None
+    if not 1 <= sys_id <= 255 or (comp_id is not None and not 0 <= comp_id <= 255):
+        raise ValueError(f"--source {text!r}: system id 1-255, component id 0-255")
+    return sys_id, comp_id
+
+
+def input_role(source: tuple[int, int | None] | None = None) -> LinkRole:
+    """The input link: an onboard computer (191) taking simulator and flight-controller
+    sensor messages from one source: ``source`` (system id, component id or None for any
+    component) when given, else the system of the first sensor frame (the link locks onto
+    it; every other system is counted in ``wrong_source`` and ignored)."""
     return LinkRole(
         system_id=1,
         component_id=int(mavlink2.MAV_COMP_ID_ONBOARD_COMPUTER),
         mav_type=int(mavlink2.MAV_TYPE_ONBOARD_CONTROLLER),
         autopilot=int(mavlink2.MAV_AUTOPILOT_INVALID),
-        accept_sources=None,
+        accept_sources=None if source is None else frozenset({source}),
         accept_msg_ids=HIL_MSG_IDS | FC_SENSOR_MSG_IDS,
+        lock_to_first_source=source is None,
     )
 
 
@@ -249,7 +271,9 @@ class FusionService:
         """Open every configured link and the bus (closed by ``stack``)."""
         o = self.options
         self._links["mavlink"] = stack.enter_context(
-            MavlinkLink(o.mavlink, input_role(), signer=self._signer(0)))
+            MavlinkLink(o.mavlink, input_role(None if o.source is None
+                                              else parse_source(o.source)),
+                        signer=self._signer(0)))
         if o.gcs is not None:
             self.shadow = ShadowEncoder(o.shadow_system_id)
             self.responder = GcsResponder(self.shadow)
@@ -480,7 +504,9 @@ class FusionService:
         """The ``live`` section of the live scorecard: link counters and what was published."""
         counters = self.link_counters()
         col = self.fusion.collector
+        link = self._links.get("mavlink")
         return {
+            "source_system": None if link is None else link.locked_system,
             "links": counters,
             "lost_frames": counters["mavlink"].get("lost_seq", 0),
             "fixes": 0 if col is None else len(col.fix_times_us),

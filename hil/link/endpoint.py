@@ -89,6 +89,7 @@ class MavlinkLink:
         self._rx_seq: dict[tuple[int, int], int] = {}
         self._last_heartbeat: dict[tuple[int, int], float] = {}
         self._alive: set[tuple[int, int]] = set()
+        self._locked_system: int | None = None
         self._heartbeat_state = (0, 0, int(mavlink2.MAV_STATE_ACTIVE))
         self._next_heartbeat = clock()
         self._closed = False
@@ -314,7 +315,9 @@ class MavlinkLink:
                 setattr(c, verdict.value, getattr(c, verdict.value) + 1)
                 return None
         source = (frame[5], frame[6])
-        if not self.role.accepts_source(*source):
+        if not self.role.accepts_source(*source) or (
+            self._locked_system is not None and source[0] != self._locked_system
+        ):
             c.wrong_source += 1
             return None
         self._track_seq(source, frame[4])
@@ -330,8 +333,15 @@ class MavlinkLink:
         if msg_id == HEARTBEAT_ID:
             self._last_heartbeat[source] = self._clock()
             self._alive.add(source)
+        elif self._locked_system is None and self.role.lock_to_first_source:
+            self._locked_system = source[0]
         c.accepted += 1
         return msg
+
+    @property
+    def locked_system(self) -> int | None:
+        """The system id a ``lock_to_first_source`` link bound to (None: not yet, or no lock)."""
+        return self._locked_system
 
     def _track_seq(self, source: tuple[int, int], seq: int) -> None:
         last = self._rx_seq.get(source)

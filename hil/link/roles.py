@@ -59,6 +59,11 @@ class LinkRole(BaseModel):
         None = any source (but never our own ids).
     accept_msg_ids : frozenset of int, or None
         Message ids accepted besides HEARTBEAT (always accepted); None = any known id.
+    lock_to_first_source : bool
+        Bind to the system id of the first accepted frame that is not a HEARTBEAT: from then
+        on frames of every other system are dropped (``wrong_source``), so a second sender
+        can neither feed the receiver nor move a ``udpin`` link's reply address (as PX4 and
+        ArduPilot bind HIL input to one link and system).
     heartbeat_period_s : float
         Our heartbeat period and the nominal period of the peer's, s (MAVLink: 1 Hz).
     peer_timeout_heartbeats : int
@@ -73,6 +78,7 @@ class LinkRole(BaseModel):
     autopilot: int = Field(ge=0, le=255)
     accept_sources: frozenset[tuple[int, int | None]] | None = None
     accept_msg_ids: frozenset[int] | None = None
+    lock_to_first_source: bool = False
     heartbeat_period_s: float = Field(default=1.0, gt=0.0, allow_inf_nan=False)
     peer_timeout_heartbeats: int = Field(default=5, ge=1)
 

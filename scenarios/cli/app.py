@@ -257,6 +257,9 @@ def fusion(
     mavlink: Annotated[
         str, typer.Option(help="Sensor input MAVLink URL, e.g. udpin:0.0.0.0:14560.")
     ] = "udpin:0.0.0.0:14560",
+    source: Annotated[str | None, typer.Option(
+        help="Take sensors only from SYSID[:COMPID] (default: lock onto the first sensor "
+             "source; other senders are counted and ignored).")] = None,
     zenoh: Annotated[str | None, typer.Option(help="Zenoh router endpoint to publish on.")] = None,
     vehicle: Annotated[str, typer.Option(help="Zenoh vehicle name.")] = "sim1",
     imu: ImuOption = "industrial-mems",
@@ -294,7 +297,7 @@ def fusion(
     if out is not None:
         _out_dir(out)
     from hil.pipeline import build_filter, filter_config
-    from hil.service import FusionOptions
+    from hil.service import FusionOptions, parse_source
     from scenarios.cli.live import serve_fusion
     from sim.presets import gnss_preset
 
@@ -304,14 +307,17 @@ def fusion(
         validate_endpoint(zenoh)
         validate_vehicle(vehicle)
     options = FusionOptions(
-        mavlink=mavlink, zenoh=zenoh, vehicle=vehicle, imu=imu, gnss=gnss, bridge=bridge,
+        mavlink=mavlink, source=source, zenoh=zenoh, vehicle=vehicle, imu=imu, gnss=gnss,
+        bridge=bridge,
         altitude=altitude, gcs=gcs,
         shadow_system_id=shadow_sysid, companion=companion,
         companion_kind=companion_kind,  # type: ignore[arg-type]  # pydantic checks the literal
         companion_system_id=companion_sysid, duration_s=duration, idle_exit_s=idle_exit, out=out,
         settle_s=settle,
     )
-    # a bad preset or method -> exit 2 before any socket opens
+    # a bad preset, method or source -> exit 2 before any socket opens
+    if source is not None:
+        parse_source(source)
     build_filter(filter_config(imu, gnss_preset(gnss), altitude), bridge)
     key = _signing_key(signing_key_file)
 

@@ -810,3 +810,55 @@ def test_fileno_becomes_readable_when_data_arrives(
     raw_udp.sendto(sensor_frames(1)[0], fusion_udp.link.local_address)
     assert select.select([fusion_udp.link], [], [], WAIT_LIMIT_S)[0] == [fusion_udp.link]
     assert len(fusion_udp.link.recv(0)) == 1
+
+
+def test_a_locked_link_ignores_a_second_sender_and_keeps_its_reply_address() -> None:
+    """GIVEN the fusion's input link (locks onto the first sensor source) WHEN system 1 sends
+    sensors and then system 99 sends sensors and heartbeats from another socket THEN only
+    system 1's frames come through, system 99's are counted as wrong_source, and replies still
+    go to system 1's address (it receives our heartbeat; the attacker receives nothing after
+    the lock)."""
+    from hil.service import input_role
+
+    legit = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    hostile = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    legit.bind(("127.0.0.1", 0))
+    hostile.bind(("127.0.0.1", 0))
+    try:
+        with MavlinkLink("udpin:127.0.0.1:0", input_role()) as link:
+            peer = Peer(link)
+            addr = link.local_address
+            for f in sensor_frames(5):
+                legit.sendto(f, addr)
+            pump(lambda: len(peer.data()) == 5, peer)
+            assert link.locked_system == 1
+            hostile_enc = Encoder(system_id=99)
+            heartbeat = mavlink2.MAVLink_heartbeat_message(0, 8, 0, 0, 4, 3)
+            for k in range(50):
+                hostile.sendto(hostile_enc.sensors(imu=imu(100_000 + 4000 * k)), addr)
+                hostile.sendto(frame_from(99, 1, heartbeat, seq=k), addr)
+            for f in sensor_frames(5, start_us=24_000):
+                legit.sendto(f, addr)
+            pump(lambda: len(peer.data()) == 10, peer)
+            drain(peer)
+            c = link.counters()
+            assert len(peer.data()) == 10 and c["wrong_source"] == 100
+            assert c["udp_peer_changes"] == 1
+            link.send_message(mavlink2.MAVLink_heartbeat_message(0, 8, 0, 0, 4, 3))
+            assert select.select([legit], [], [], 2.0)[0] == [legit]
+            assert select.select([hostile], [], [], 0.3)[0] == []
+    finally:
+        legit.close()
+        hostile.close()
+
+
+def test_source_option_binds_before_any_frame() -> None:
+    from hil.service import input_role, parse_source
+
+    assert parse_source("7") == (7, None) and parse_source("7:200") == (7, 200)
+    for bad in ("x", "0", "7:300", "1:2:3"):
+        with pytest.raises(ValueError, match="--source"):
+            parse_source(bad)
+    role = input_role((7, None))
+    assert not role.lock_to_first_source
+    assert role.accepts_source(7, 200) and not role.accepts_source(8, 200)
