@@ -313,8 +313,8 @@ def test_a_second_sender_flooding_the_fusion_costs_the_legitimate_stream_nothing
             k = 0
             while not stop.is_set():
                 t = 1_000_000 + 5000 * k
-                s.sendto(enc.sensors(imu=ImuSample(t, 0.005, np.array([0.0, 0.0, -9.8]), np.zeros(3))),
-                         ("127.0.0.1", port))
+                imu = ImuSample(t, 0.005, np.array([0.0, 0.0, -9.8]), np.zeros(3))
+                s.sendto(enc.sensors(imu=imu), ("127.0.0.1", port))
                 if k % 40 == 0:
                     s.sendto(enc.gnss(dataclasses.replace(fix, time_us=t)), ("127.0.0.1", port))
                 k += 1
