@@ -87,6 +87,11 @@ def initial_variances(layout: StateLayout, config: FilterConfig) -> FloatArray:
     if lay.has_scale_factors:
         d[lay.sa] = cfg.imu.accel_scale_sigma**2
         d[lay.sg] = cfg.imu.gyro_scale_sigma**2
+    if lay.has_misalignment:
+        d[lay.ma] = cfg.imu.accel_misalignment_sigma_rad**2
+        d[lay.mg] = cfg.imu.gyro_misalignment_sigma_rad**2
+    if lay.has_baro_scale:
+        d[lay.bs] = cfg.baro.scale_sigma**2
     return d
 
 

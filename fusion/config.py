@@ -51,10 +51,14 @@ class ImuTuning(_Frozen):
     accel_turn_on_sigma_mps2: NonNegativeFloat = 2e-3 * 9.80665
     """Turn-on (run-to-run) accelerometer bias sigma, m/s^2 (initial covariance only)."""
     gyro_scale_sigma: PositiveFloat = 1e-3
-    """Scale-factor sigma (only with ``state_layout="ins22"``), dimensionless."""
+    """Scale-factor sigma (only with ``state_layout="ins22"`` / ``"ins35"``), dimensionless."""
     gyro_scale_tau_s: PositiveFloat = 3600.0
     accel_scale_sigma: PositiveFloat = 1e-3
     accel_scale_tau_s: PositiveFloat = 3600.0
+    gyro_misalignment_sigma_rad: PositiveFloat = 1e-3
+    """Misalignment / cross-axis sigma per off-diagonal entry (only with
+    ``state_layout="ins35"``), rad; its correlation time is the scale factor's."""
+    accel_misalignment_sigma_rad: PositiveFloat = 1e-3
     gyro_range_rps: PositiveFloat = math.radians(2000.0)
     """Samples with any axis beyond this are rejected as garbage, rad/s."""
     accel_range_mps2: PositiveFloat = 16.0 * 9.80665
@@ -126,6 +130,13 @@ class BaroTuning(_Frozen):
     bias_sigma_m: PositiveFloat = 5.0
     """Steady-state sigma of the baro-bias Gauss-Markov process, m."""
     bias_tau_s: PositiveFloat = 1000.0
+    scale_sigma: PositiveFloat = 0.05
+    """Prior sigma of the baro scale factor (layouts with the state, ``ins35``): how much the
+    ISA pressure height's changes differ from true height changes in a non-standard
+    atmosphere, ``dT / T``: 0.05 covers a day 15 K off ISA at 1 sigma (paper P4)."""
+    scale_tau_s: PositiveFloat = 3600.0
+    """The scale factor is a random constant plus a random walk that reaches ``scale_sigma``
+    in this time (the atmosphere changes slowly), s."""
     gate_probability: Probability = Field(default=0.999, gt=0.5, lt=1.0)
     timeout_s: PositiveFloat = 1.0
     """No baro sample for this long: baro aiding reported inactive (the bias is kept)."""
@@ -138,8 +149,15 @@ class MagTuning(_Frozen):
 
     heading_noise_rad: PositiveFloat = math.radians(3.0)
     """Heading sigma (generous: covers soft/hard-iron residuals and field errors), rad."""
-    fuse_rate_hz: PositiveFloat = 5.0
-    """Highest rate at which mag samples are fused, Hz."""
+    fuse_rate_hz: PositiveFloat = 0.5
+    """Highest rate at which mag samples are fused, Hz. The heading error of a magnetometer
+    (hard/soft-iron residual, error of the reference field) is correlated over tens of seconds,
+    so fusing it as white noise at 5 Hz counts one error ten times and makes the yaw
+    overconfident; at 0.5 Hz (tuning seeds 1-2 of ``bench/consistency.py``) the yaw was both
+    more accurate and more consistent (``bench/README.md``)."""
+    learn_rate_hz: PositiveFloat = 5.0
+    """Rate at which samples feed the reference-field learning and the hard-iron calibration,
+    Hz (their samples are averaged, not fused: their rate is not the heading update's)."""
     reference_field_n_tesla: tuple[float, float, float] | None = None
     """Earth field in NED (T). ``None``: learned from the body field and the filter attitude once
     the yaw sigma is below ``learn_yaw_sigma_rad`` (no mag heading fusion before that)."""

@@ -10,22 +10,43 @@ Error definitions (every error is *estimated minus true*):
 - ``dba`` (BA), ``dbg`` (BG): accelerometer / gyro bias errors in the body frame, m/s^2, rad/s;
 - ``dbb`` (BARO): barometric height bias error, m (see :mod:`fusion.aiding.baro`);
 - optional ``dsa`` (SA) / ``dsg`` (SG): accelerometer / gyro scale-factor errors (dimensionless);
+- optional ``dma`` (MA) / ``dmg`` (MG): accelerometer / gyro misalignment (cross-axis
+  coupling, non-orthogonality) errors, the six off-diagonal entries ``m_ij`` (output axis
+  ``i``, input axis ``j``) in the order :data:`OFF_DIAGONAL` (dimensionless, rad);
+- optional ``dbs`` (BS): barometric scale-factor error (dimensionless): a non-standard
+  atmosphere makes the ISA pressure height change by ``(1 + s)`` times the true height change
+  (paper P4's scale; about 7 % for a day 20 K off ISA), ``h_baro = h + b + s (h - h_ref)``
+  (:mod:`fusion.aiding.baro`); it does not enter the INS dynamics;
 - optional ``db_gnss`` (GNSS): error of the estimated time-correlated GNSS position error
   (receiver "bias": atmosphere, orbit, multipath), North / East / Down, m; it does not enter the
   INS dynamics, only the GNSS position measurement (see :mod:`fusion.aiding.gnss`).
 
-Sensor model: ``f~ = (1 + s_a) f + b_a + w_a``, ``omega~ = (1 + s_g) omega + b_g + w_g``; biases,
-scale factors, the baro bias and the GNSS position bias are first-order Gauss-Markov,
-``b' = -b / tau + w``.
+Sensor model: ``f~ = (I + diag(s_a) + M_a) f + b_a + w_a``,
+``omega~ = (I + diag(s_g) + M_g) omega + b_g + w_g`` (``M`` zero on the diagonal; layouts
+without the blocks hold ``s`` or ``M`` at zero).
+
+The IMU's biases, scale factors and misalignments are a *random constant plus a random walk*,
+``b' = w`` (F = 0 on their diagonal): a turn-on value the datasheet bounds (the initial
+covariance, :mod:`fusion.alignment`) that stays until it is observed, plus the in-run
+variation, whose driving noise is that of the datasheet's Gauss-Markov process
+(``q = sigma^2 (1 - exp(-2 T / tau))``, :meth:`ErrorModel.process_noise`; a random walk with the
+Gauss-Markov's driving noise matches it over times short against ``tau`` and is conservative
+beyond). Modelling the whole bias as a Gauss-Markov process instead makes its covariance decay
+from the turn-on sigma to the in-run one within ``tau`` (100 s for MEMS datasheets) whether or
+not anything observed it: the filter then believes in a heading-gyro bias it never learned
+(``bench/README.md``, consistency). The baro bias and the GNSS position bias are zero-mean
+processes, first-order Gauss-Markov, ``b' = -b / tau + w``.
 
 Continuous error dynamics ``dx' = F dx + G w`` (Titterton & Weston ch. 12, Groves ch. 14.2,
 same structure as KF-GINS ``gi_engine.cpp`` with our sign of ``phi``)::
 
     dr'   = F_rr dr + dv
-    dv'   = F_vr dr + F_vv dv - [f_n×] phi - C_nb dba - C_nb diag(f_b) dsa + C_nb w_a
+    dv'   = F_vr dr + F_vv dv - [f_n×] phi - C_nb dba - C_nb diag(f_b) dsa - C_nb dM_a f_b
+            + C_nb w_a
     phi'  = -(N_ie + N_en) dr - N_env dv - [omega_in_n×] phi - C_nb dbg - C_nb diag(omega_b) dsg
-            + C_nb w_g
-    dba'  = -dba / tau_a + w_ba       (likewise dbg, dbb, dsa, dsg, db_gnss)
+            - C_nb dM_g omega_b + C_nb w_g
+    dba'  = w_ba                      (likewise dbg, dsa, dsg, dma, dmg, dbs)
+    dbb'  = -dbb / tau_b + w_bb       (likewise db_gnss)
 
 with ``N_ie``, ``N_en`` the derivatives of ``omega_ie_n``, ``omega_en_n`` w.r.t. position error
 and ``N_env`` that of ``omega_en_n`` w.r.t. velocity error; ``F_vr = [v×](2 N_ie + N_en) + dg``,
@@ -50,8 +71,12 @@ from fusion import earth
 
 FloatArray = NDArray[np.float64]
 
-LayoutName = Literal["ins16", "ins16+gnss", "ins22", "ins22+gnss"]
+LayoutName = Literal["ins16", "ins16+gnss", "ins22", "ins22+gnss", "ins35", "ins35+gnss"]
 """Names of the error-state layouts (:func:`layout_for`)."""
+
+OFF_DIAGONAL: tuple[tuple[int, int], ...] = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
+"""Order of the six misalignment entries ``m_ij`` (output axis ``i``, input axis ``j``) in the
+MA / MG blocks: ``f~_i += m_ij f_j``."""
 
 
 @dataclass(frozen=True)
@@ -59,11 +84,11 @@ class StateLayout:
     """Named offsets of the error-state blocks (the only place that knows them).
 
     Use the slices (``layout.pos``, ``layout.att`` ...) instead of bare numbers; ``None`` means
-    the block is not in this layout (:attr:`has_scale_factors`, :attr:`has_gnss_bias` say which
-    optional blocks are present). Four layouts exist: :data:`INS16`, :data:`INS22` and the
-    same two with the GNSS position-bias block appended (:data:`INS16_GNSS`,
-    :data:`INS22_GNSS`); :func:`layout_for` picks one by name, and the name always says which
-    blocks are present.
+    the block is not in this layout (:attr:`has_scale_factors`, :attr:`has_misalignment`,
+    :attr:`has_gnss_bias` say which optional blocks are present). Six layouts exist:
+    :data:`INS16`, :data:`INS22`, :data:`INS35` and the same three with the GNSS
+    position-bias block appended (:data:`INS16_GNSS`, :data:`INS22_GNSS`, :data:`INS35_GNSS`);
+    :func:`layout_for` picks one by name, and the name always says which blocks are present.
     """
 
     name: LayoutName
@@ -78,6 +103,14 @@ class StateLayout:
     sg: slice | None
     labels: tuple[str, ...]
     gnss: slice | None = None
+    ma: slice | None = None
+    mg: slice | None = None
+    bs: slice | None = None
+
+    def _optional_offset(self, block: slice | None, what: str) -> int:
+        if block is None:
+            raise ValueError(f"layout {self.name!r} has no {what}")
+        return int(block.start)
 
     @property
     def POS(self) -> int:
@@ -112,27 +145,47 @@ class StateLayout:
     @property
     def GNSS(self) -> int:
         """Offset of the GNSS position-bias block (ValueError if the layout has none)."""
-        if self.gnss is None:
-            raise ValueError(f"layout {self.name!r} has no GNSS position-bias states")
-        return int(self.gnss.start)
+        return self._optional_offset(self.gnss, "GNSS position-bias states")
 
     @property
     def SA(self) -> int:
         """Offset of the accelerometer scale-factor block (ValueError if the layout has none)."""
-        if self.sa is None:
-            raise ValueError(f"layout {self.name!r} has no scale-factor states")
-        return int(self.sa.start)
+        return self._optional_offset(self.sa, "scale-factor states")
 
     @property
     def SG(self) -> int:
         """Offset of the gyro scale-factor block (ValueError if the layout has none)."""
-        if self.sg is None:
-            raise ValueError(f"layout {self.name!r} has no scale-factor states")
-        return int(self.sg.start)
+        return self._optional_offset(self.sg, "scale-factor states")
+
+    @property
+    def MA(self) -> int:
+        """Offset of the accelerometer misalignment block (ValueError if the layout has none)."""
+        return self._optional_offset(self.ma, "misalignment states")
+
+    @property
+    def MG(self) -> int:
+        """Offset of the gyro misalignment block (ValueError if the layout has none)."""
+        return self._optional_offset(self.mg, "misalignment states")
+
+    @property
+    def BS(self) -> int:
+        """Offset of the baro scale-factor state (ValueError if the layout has none)."""
+        return self._optional_offset(self.bs, "baro scale-factor state")
+
+    @property
+    def has_baro_scale(self) -> bool:
+        """The layout carries the baro scale-factor state (``ins35``)."""
+        return self.bs is not None
+
+    @property
+    def has_misalignment(self) -> bool:
+        """The layout carries the accelerometer and gyro misalignment blocks (``ins35``)."""
+        return self.ma is not None
 
     @property
     def has_scale_factors(self) -> bool:
-        """The layout carries the accelerometer and gyro scale-factor blocks (``ins22``)."""
+        """The layout carries the accelerometer and gyro scale-factor blocks (``ins22``,
+        ``ins35``)."""
         return self.sa is not None
 
     @property
@@ -170,6 +223,25 @@ INS22 = StateLayout(
     ),
 )  # fmt: skip
 
+#: 35 states: :data:`INS22` plus accelerometer and gyro misalignments (six each) and the
+#: baro scale factor: every error a datasheet or paper P4's atmosphere names.
+INS35 = StateLayout(
+    name="ins35",
+    n=35,
+    **_BASE,
+    sa=INS22.sa,
+    sg=INS22.sg,
+    labels=(
+        *INS22.labels,
+        *(f"accel_misalignment_{i}{j}" for i, j in OFF_DIAGONAL),
+        *(f"gyro_misalignment_{i}{j}" for i, j in OFF_DIAGONAL),
+        "baro_scale",
+    ),
+    ma=slice(22, 28),
+    mg=slice(28, 34),
+    bs=slice(34, 35),
+)
+
 _GNSS_LABELS = ("gnss_bias_n_m", "gnss_bias_e_m", "gnss_bias_d_m")
 
 
@@ -178,7 +250,8 @@ def _with_gnss_bias(base: StateLayout, name: LayoutName) -> StateLayout:
     return StateLayout(
         name=name, n=n + 3, pos=base.pos, vel=base.vel, att=base.att, ba=base.ba,
         bg=base.bg, baro=base.baro, sa=base.sa, sg=base.sg,
-        labels=(*base.labels, *_GNSS_LABELS), gnss=slice(n, n + 3),
+        labels=(*base.labels, *_GNSS_LABELS), gnss=slice(n, n + 3), ma=base.ma, mg=base.mg,
+        bs=base.bs,
     )  # fmt: skip
 
 
@@ -186,9 +259,11 @@ def _with_gnss_bias(base: StateLayout, name: LayoutName) -> StateLayout:
 INS16_GNSS = _with_gnss_bias(INS16, "ins16+gnss")
 #: :data:`INS22` plus the GNSS position bias (25 states).
 INS22_GNSS = _with_gnss_bias(INS22, "ins22+gnss")
+#: :data:`INS35` plus the GNSS position bias (38 states).
+INS35_GNSS = _with_gnss_bias(INS35, "ins35+gnss")
 
 LAYOUTS: dict[str, StateLayout] = {
-    lay.name: lay for lay in (INS16, INS16_GNSS, INS22, INS22_GNSS)
+    lay.name: lay for lay in (INS16, INS16_GNSS, INS22, INS22_GNSS, INS35, INS35_GNSS)
 }
 
 
@@ -211,8 +286,9 @@ class ProcessNoise:
     """Continuous-time noise and correlation times of the sensor error model, SI.
 
     ``gyro_noise`` / ``accel_noise`` are white-noise densities (rad/s/sqrt(Hz), m/s^2/sqrt(Hz)),
-    the same on the three axes; ``*_sigma`` are the steady-state standard deviations of the
-    Gauss-Markov states and ``*_tau_s`` their correlation times.
+    the same on the three axes; ``*_sigma`` and ``*_tau_s`` are the steady-state standard
+    deviations and correlation times of the Gauss-Markov processes: the baro and GNSS bias
+    states follow them, the IMU error states are random walks with their driving noise.
     """
 
     gyro_noise: float
@@ -232,6 +308,14 @@ class ProcessNoise:
     gnss_bias_sigma_v_m: float = 0.0
     gnss_bias_tau_h_s: float = 120.0
     gnss_bias_tau_v_s: float = 120.0
+    gyro_misalignment_sigma: float = 0.0
+    """Per off-diagonal entry, rad (only layouts with misalignment states); the correlation
+    times are the scale factors'."""
+    accel_misalignment_sigma: float = 0.0
+    baro_scale_sigma: float = 0.0
+    """Random-walk driving of the baro scale factor: its sigma over ``baro_scale_tau_s``
+    (only layouts with the state)."""
+    baro_scale_tau_s: float = 3600.0
 
 
 class ErrorModel:
@@ -266,13 +350,10 @@ class ErrorModel:
 
     # --- layout-dependent index bookkeeping -------------------------------------------------
     def _gm_taus(self) -> list[tuple[int, float]]:
+        """The Gauss-Markov states and their correlation times (the IMU error states are
+        random constants plus random walks: not listed, F = 0 on their diagonal)."""
         lay, nz = self.layout, self.noise
-        out = [(lay.BA + i, nz.accel_bias_tau_s) for i in range(3)]
-        out += [(lay.BG + i, nz.gyro_bias_tau_s) for i in range(3)]
-        out += [(lay.BARO, nz.baro_bias_tau_s)]
-        if lay.has_scale_factors:
-            out += [(lay.SA + i, nz.accel_scale_tau_s) for i in range(3)]
-            out += [(lay.SG + i, nz.gyro_scale_tau_s) for i in range(3)]
+        out = [(lay.BARO, nz.baro_bias_tau_s)]
         if lay.has_gnss_bias:
             g = lay.GNSS
             out += [(g, nz.gnss_bias_tau_h_s), (g + 1, nz.gnss_bias_tau_h_s),
@@ -305,6 +386,10 @@ class ErrorModel:
         if lay.has_scale_factors:
             block(v, lay.SA, full)  # C_nb diag(f_b)
             block(a, lay.SG, full)  # C_nb diag(omega_b)
+        if lay.has_misalignment:
+            rows6 = [(i, j) for i in range(3) for j in range(6)]
+            block(v, lay.MA, rows6)  # C_nb dM_a f_b
+            block(a, lay.MG, rows6)  # C_nb dM_g omega_b
         return np.ravel_multi_index((np.array(rows), np.array(cols)), (lay.n, lay.n))
 
     # --- F -----------------------------------------------------------------------------------
@@ -336,7 +421,8 @@ class ErrorModel:
         f_n_mps2 : 3 floats
             Specific force in NED (mean over the propagation interval), m/s^2.
         f_b_mps2, omega_ib_b_rps : 3 floats
-            Mean body specific force and angular rate; used only by the scale-factor blocks.
+            Mean body specific force and angular rate; used only by the scale-factor and
+            misalignment blocks.
         k, one : float
             Scale of F and the value added on its diagonal.
         terms : LocalTerms, optional
@@ -421,6 +507,14 @@ class ErrorModel:
                 c10 * wx, c11 * wy, c12 * wz,
                 c20 * wx, c21 * wy, c22 * wz,
             ]  # fmt: skip
+        if self.layout.has_misalignment:
+            # -C_nb dM f: d(row r)/d m_ij = -C_nb[r, i] * f_j, entries in OFF_DIAGONAL order
+            for x, y, z in (f_b_mps2, omega_ib_b_rps):
+                vals += [
+                    c00 * y, c00 * z, c01 * x, c01 * z, c02 * x, c02 * y,
+                    c10 * y, c10 * z, c11 * x, c11 * z, c12 * x, c12 * y,
+                    c20 * y, c20 * z, c21 * x, c21 * z, c22 * x, c22 * y,
+                ]  # fmt: skip
         return vals
 
     def continuous_matrix(
@@ -446,7 +540,8 @@ class ErrorModel:
         f_n_mps2 : 3 floats
             Specific force in NED (mean over the propagation interval), m/s^2.
         f_b_mps2, omega_ib_b_rps : 3 floats
-            Mean body specific force and angular rate; used only by the scale-factor blocks.
+            Mean body specific force and angular rate; used only by the scale-factor and
+            misalignment blocks.
 
         Returns
         -------
@@ -503,7 +598,9 @@ class ErrorModel:
         White sensor noise enters velocity and attitude as ``C_nb w``; with the same density on
         the three axes ``C_nb (q I) C_nb^T = q I``, so ``Q_d`` does not depend on the attitude:
         ``q_vel = accel_noise^2 T``, ``q_att = gyro_noise^2 T``; Gauss-Markov states get their
-        exact discrete variance ``sigma^2 (1 - exp(-2 T / tau))``. Cached per ``dt`` (treat the
+        exact discrete variance ``sigma^2 (1 - exp(-2 T / tau))``, and the IMU's random-walk
+        states the same increment (the driving noise of the datasheet's Gauss-Markov
+        process). Cached per ``dt`` (treat the
         returned array as read-only).
         """
         cached = self._q_cache.get(dt_s)
@@ -523,6 +620,11 @@ class ErrorModel:
         if lay.has_scale_factors:
             q[lay.sa] = gm(nz.accel_scale_sigma, nz.accel_scale_tau_s)
             q[lay.sg] = gm(nz.gyro_scale_sigma, nz.gyro_scale_tau_s)
+        if lay.has_misalignment:
+            q[lay.ma] = gm(nz.accel_misalignment_sigma, nz.accel_scale_tau_s)
+            q[lay.mg] = gm(nz.gyro_misalignment_sigma, nz.gyro_scale_tau_s)
+        if lay.has_baro_scale:
+            q[lay.bs] = gm(nz.baro_scale_sigma, nz.baro_scale_tau_s)
         if lay.has_gnss_bias:
             g = lay.GNSS
             q[g] = q[g + 1] = gm(nz.gnss_bias_sigma_h_m, nz.gnss_bias_tau_h_s)

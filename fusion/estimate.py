@@ -365,6 +365,10 @@ class NavEstimate:
         untrained / training / trained / stale, validation errors, per-component fallback).
     aiding : AidingStatus or None
         Per aiding source, the last update and when it last fused.
+    P_nav : ndarray, shape (9, 9), or None
+        Covariance of the position, velocity and attitude errors (the first nine states of
+        every layout, same units and time as ``P_diag``), correlations included: what a
+        consistency check (NEES) needs.
     """
 
     time_us: int
@@ -386,6 +390,7 @@ class NavEstimate:
     altitude: AltitudeStatus | None = None
     bridge: BridgeStatus | None = None
     aiding: AidingStatus | None = None
+    P_nav: FloatArray | None = None
 
 
 _ESTIMATE_SETTERS = tuple(getattr(NavEstimate, f.name).__set__ for f in fields(NavEstimate))
@@ -396,6 +401,6 @@ def new_estimate(*values: Any) -> NavEstimate:
     generated frozen ``__init__`` goes through ``object.__setattr__`` per field and costs about
     twice as much at the output rate. No validation, as with ``__init__``."""
     est = object.__new__(NavEstimate)
-    for setter, value in zip(_ESTIMATE_SETTERS, values):  # noqa: B905  # 19 values, one caller
+    for setter, value in zip(_ESTIMATE_SETTERS, values):  # noqa: B905  # 20 values, one caller
         setter(est, value)
     return est

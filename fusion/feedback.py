@@ -41,6 +41,11 @@ class Feedback(NamedTuple):
     nav_dx: list[float]
     """The 9 position (m NED), velocity (m/s NED) and attitude (rad) corrections just
     subtracted from the INS (:meth:`fusion.history.InsHistory.add_correction`)."""
+    accel_misalignment_b: tuple[float, ...]
+    gyro_misalignment_b: tuple[float, ...]
+    """Misalignment estimates, six off-diagonal entries each
+    (:data:`fusion.error_model.OFF_DIAGONAL`)."""
+    baro_scale: float
 
 
 def feedback(
@@ -53,6 +58,9 @@ def feedback(
     gnss_bias_ned_m: Sequence[float] | None,
     accel_scale_b: Vec3,
     gyro_scale_b: Vec3,
+    accel_misalignment_b: tuple[float, ...] = (0.0,) * 6,
+    gyro_misalignment_b: tuple[float, ...] = (0.0,) * 6,
+    baro_scale: float = 0.0,
 ) -> Feedback:
     """Move the error estimate ``dx`` into the nominal state (subtract: errors are estimated
     minus true).
@@ -72,6 +80,11 @@ def feedback(
         ``None`` otherwise).
     accel_scale_b, gyro_scale_b : 3 floats
         Scale-factor estimates (used by layouts with scale factors; passed through otherwise).
+    accel_misalignment_b, gyro_misalignment_b : 6 floats
+        Misalignment estimates (used by layouts with misalignment states; passed through
+        otherwise).
+    baro_scale : float
+        Baro scale-factor estimate (layouts with the state; passed through otherwise).
 
     Returns
     -------
@@ -106,10 +119,17 @@ def feedback(
         sa = (sa[0] - d[b], sa[1] - d[b + 1], sa[2] - d[b + 2])
         b = layout.SG
         sg = (sg[0] - d[b], sg[1] - d[b + 1], sg[2] - d[b + 2])
+    ma, mg = accel_misalignment_b, gyro_misalignment_b
+    if layout.has_misalignment:
+        b = layout.MA
+        ma = tuple(m - e for m, e in zip(ma, d[b : b + 6], strict=True))
+        b = layout.MG
+        mg = tuple(m - e for m, e in zip(mg, d[b : b + 6], strict=True))
+    bs = baro_scale - d[layout.BS] if layout.has_baro_scale else baro_scale
     # this runs at every accepted update: the tuple directly, not Feedback(...)
     return _tuple_new(Feedback, (
         new, new_ba, new_bg, baro_bias_m - d[layout.BARO], new_gb, sa, sg,
-        d[p : p + 3] + d[v : v + 3] + d[a : a + 3],
+        d[p : p + 3] + d[v : v + 3] + d[a : a + 3], ma, mg, bs,
     ))  # fmt: skip
 
 

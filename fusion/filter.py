@@ -93,6 +93,9 @@ _ZERO3 = (0.0, 0.0, 0.0)
 _ins_update = strapdown.update
 _increments = strapdown.increments
 _increments_scaled = strapdown.increments_scaled
+_increments_compensated = strapdown.increments_compensated
+_ZERO6: tuple[float, ...] = (0.0,) * 6
+_IDENTITY9: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 _GNSS, _BRIDGING, _FREE = Mode.GNSS, Mode.BRIDGING, Mode.FREE_INERTIAL
 _AID_INDEX = {s: i for i, s in enumerate(AidSource)}
 
@@ -139,6 +142,10 @@ class NavFilter:
             gyro_scale_tau_s=imu.gyro_scale_tau_s,
             accel_scale_sigma=imu.accel_scale_sigma,
             accel_scale_tau_s=imu.accel_scale_tau_s,
+            gyro_misalignment_sigma=imu.gyro_misalignment_sigma_rad,
+            accel_misalignment_sigma=imu.accel_misalignment_sigma_rad,
+            baro_scale_sigma=cfg.baro.scale_sigma,
+            baro_scale_tau_s=cfg.baro.scale_tau_s,
             gnss_bias_sigma_h_m=cfg.gnss.bias_sigma_h_m,
             gnss_bias_sigma_v_m=cfg.gnss.bias_sigma_v_m,
             gnss_bias_tau_h_s=cfg.gnss.bias_tau_h_s,
@@ -146,6 +153,7 @@ class NavFilter:
         )
         self._model = ErrorModel(self.layout, self._noise)
         self._scale = self.layout.has_scale_factors
+        self._misalign = self.layout.has_misalignment
         self._gnss_bias_states = self.layout.has_gnss_bias
         self._x0 = np.zeros(self.layout.n)
         rc = cfg.rates
@@ -169,6 +177,10 @@ class NavFilter:
         self._prev_dv: tuple[float, float, float] = _ZERO3
         self._last_dt = 0.0
         self._ba = self._bg = self._sa = self._sg = _ZERO3
+        self._ma = self._mg = _ZERO6
+        self._bs = 0.0  # baro scale factor (layouts with the state)
+        self._h_ref = 0.0  # its reference height, m
+        self._ta_inv = self._tg_inv = _IDENTITY9
         self._bb = 0.0
         # GNSS position-bias estimate (NED, m) and the time it refers to: it is decayed with
         # its Gauss-Markov time constant only when used (_gnss_bias), not on the IMU path
@@ -345,6 +357,7 @@ class NavFilter:
             self._bg = _floats3(gyro_bias_b_rps)
         if baro_bias_m is not None:
             self._bb = float(baro_bias_m)
+            self._h_ref = float(state.alt_msl_m)  # the scale factor's reference height
             self._baro.control.on_bias_init()
         self.alignment_method = "given"
 
@@ -392,7 +405,10 @@ class NavFilter:
                 self._try_align()
             return []
         ba, bg = self._ba, self._bg
-        if self._scale:
+        if self._misalign:
+            dth, dv = _increments_compensated(fw, dt, ba, bg, self._ta_inv, self._tg_inv)
+            self._cov.accumulate_body(dth, dv)
+        elif self._scale:
             dth, dv = _increments_scaled(fw, dt, ba, bg, self._sa, self._sg)
             self._cov.accumulate_body(dth, dv)
         else:
@@ -515,9 +531,14 @@ class NavFilter:
         ins = self._ins
         assert ins is not None
         gb = self._gnss_bias() if self._gnss_bias_states else None
-        ins, self._ba, self._bg, self._bb, new_gb, self._sa, self._sg, nav_dx = feedback(
-            self.layout, ins, dx, self._ba, self._bg, self._bb, gb, self._sa, self._sg
+        (ins, self._ba, self._bg, self._bb, new_gb, self._sa, self._sg, nav_dx, self._ma,
+         self._mg, self._bs) = feedback(
+            self.layout, ins, dx, self._ba, self._bg, self._bb, gb, self._sa, self._sg,
+            self._ma, self._mg, self._bs,
         )
+        if self._misalign:
+            self._ta_inv = strapdown.sensor_inverse(self._sa, self._ma)
+            self._tg_inv = strapdown.sensor_inverse(self._sg, self._mg)
         self._ins = ins
         if new_gb is not None:
             self._gb = list(new_gb)
@@ -547,10 +568,12 @@ class NavFilter:
         self._feedback(dx)
         self._cov.P = P
 
-    def _init_baro_bias(self, bias_m: float) -> None:
-        """``b^ = h_baro - h^`` (:func:`fusion.feedback.reset_baro_bias`)."""
+    def _init_baro_bias(self, bias_m: float, reference_alt_m: float) -> None:
+        """``b^ = h_baro - h^`` at the INS height ``reference_alt_m``, from then on the baro
+        scale factor's reference (:func:`fusion.feedback.reset_baro_bias`)."""
         self._flush()
         self._bb = bias_m
+        self._h_ref = reference_alt_m
         self._cov.P = reset_baro_bias(self._cov.P, self.layout, self.config.baro.noise_m)
 
     def _gnss_bias(self) -> list[float]:
@@ -682,7 +705,7 @@ class NavFilter:
         past = self._past_state(batch[0])
         if past is None:
             past = ins
-        baro.fuse(batch, past.alt_msl_m, self._bb, t)
+        baro.fuse(batch, past.alt_msl_m, self._bb, t, self._bs, self._h_ref)
         return []
 
     def _on_mag(self, s: MagSample) -> list[NavEstimate]:
@@ -732,8 +755,11 @@ class NavFilter:
         # one read-only array, the vector fields are views of it
         buf = np.array((*v, *q, *euler_from_quat(q), *self._ba, *self._bg))
         buf.setflags(write=False)
-        p_diag = self._cov.P.diagonal().copy()
+        P = self._cov.P
+        p_diag = P.diagonal().copy()
         p_diag.setflags(write=False)
+        p_nav = P[:9, :9].copy()
+        p_nav.setflags(write=False)
         if self._aid_changed:
             aid = self._aid  # GNSS_POS, GNSS_VEL, BARO_HGT, MAG_HDG, BRIDGE_POS, BRIDGE_VEL
             self._est_ratios = TestRatios(
@@ -751,7 +777,7 @@ class NavFilter:
             buf[10:13], buf[13:16], self._bb,  # accel_bias_b_mps2, gyro_bias_b_rps, baro_bias_m
             self._c.snapshot(), self._est_ratios,
             gctl.time_since_fused_s(t), self.layout.name,
-            self._alt.status(), self.bridge.status, self._est_aiding,
+            self._alt.status(), self.bridge.status, self._est_aiding, p_nav,
         )  # fmt: skip
 
 

@@ -9,13 +9,13 @@ has passed (or every sample). Over an IMU gap (a time jump the INS coasts over a
 velocity) the covariance is propagated in sub-steps of at most 0.1 s and grown by an assumed
 unknown manoeuvre.
 
-The IMU bias and scale-factor *estimates* are held, not decayed with the Gauss-Markov time
-constant: a real sensor's bias is a turn-on constant plus a zero-mean in-run process, and
-decaying the estimate of the constant part towards zero (tau ~ 100 s for MEMS datasheets)
-makes the filter forget what it learned and fight every GNSS fix. The covariance keeps the
-Gauss-Markov dynamics. The baro bias and the GNSS position bias are zero-mean processes: their
-estimates decay (:meth:`CovariancePropagator.propagate` returns the baro factor,
-:func:`decay_gnss_bias`).
+The IMU bias, scale-factor and misalignment *estimates* are held, not decayed: a real sensor's
+bias is a turn-on constant plus a zero-mean in-run process, and decaying the estimate of the
+constant part towards zero (tau ~ 100 s for MEMS datasheets) makes the filter forget what it
+learned and fight every GNSS fix. Their covariance is that of a random constant plus a random
+walk for the same reason (:mod:`fusion.error_model`). The baro bias and the GNSS position bias
+are zero-mean processes: their estimates decay (:meth:`CovariancePropagator.propagate` returns
+the baro factor, :func:`decay_gnss_bias`).
 """
 
 from __future__ import annotations

@@ -299,6 +299,45 @@ def increments_scaled(
     )
 
 
+def increments_compensated(
+    fw: Sequence[float], dt_s: float, accel_bias_b_mps2: Sequence[float],
+    gyro_bias_b_rps: Sequence[float], accel_inverse: Sequence[float],
+    gyro_inverse: Sequence[float],
+) -> tuple[Vec3, Vec3]:  # fmt: skip
+    """:func:`increments` through the full first-order sensor model
+    ``f~ = (I + diag(s_a) + M_a) f + b_a`` (likewise the gyro): ``accel_inverse`` /
+    ``gyro_inverse`` are ``(I + diag(s) + M)^-1`` row-major (9 floats each, see
+    :func:`sensor_inverse`)."""
+    fx, fy, fz, wx, wy, wz = fw
+    ba, bg, a, g, dt = accel_bias_b_mps2, gyro_bias_b_rps, accel_inverse, gyro_inverse, dt_s
+    wx, wy, wz = (wx - bg[0]) * dt, (wy - bg[1]) * dt, (wz - bg[2]) * dt
+    fx, fy, fz = (fx - ba[0]) * dt, (fy - ba[1]) * dt, (fz - ba[2]) * dt
+    return (
+        (
+            g[0] * wx + g[1] * wy + g[2] * wz,
+            g[3] * wx + g[4] * wy + g[5] * wz,
+            g[6] * wx + g[7] * wy + g[8] * wz,
+        ),
+        (
+            a[0] * fx + a[1] * fy + a[2] * fz,
+            a[3] * fx + a[4] * fy + a[5] * fz,
+            a[6] * fx + a[7] * fy + a[8] * fz,
+        ),
+    )
+
+
+def sensor_inverse(scale: Sequence[float], misalignment: Sequence[float]) -> tuple[float, ...]:
+    """``(I + diag(scale) + M)^-1`` row-major, ``M`` from its six off-diagonal entries in the
+    order ``(0,1), (0,2), (1,0), (1,2), (2,0), (2,1)`` (:data:`fusion.error_model.OFF_DIAGONAL`)."""
+    m01, m02, m10, m12, m20, m21 = misalignment
+    t = np.array([
+        [1.0 + scale[0], m01, m02],
+        [m10, 1.0 + scale[1], m12],
+        [m20, m21, 1.0 + scale[2]],
+    ])  # fmt: skip
+    return tuple(np.linalg.inv(t).ravel().tolist())
+
+
 def coast(state: InsState, gap_s: float) -> InsState:
     """Dead reckoning at constant velocity and attitude over ``gap_s`` without IMU data.
 

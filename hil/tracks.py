@@ -28,7 +28,10 @@ class Track:
 
     Shapes: ``time_s`` (N,), ``lat_rad``/``lon_rad``/``alt_m`` (N,), ``v_ned_mps`` (N, 3),
     ``euler_rad`` (N, 3) roll/pitch/yaw. ``sigma`` (N, 9) is optional: 1-sigma of N/E/D position
-    (m), N/E/D velocity (m/s) and roll/pitch/yaw error (rad) as reported by the filter.
+    (m), N/E/D velocity (m/s) and attitude error (rad) as reported by the filter; its attitude
+    error is the small rotation (tilt) about North / East / Down that takes the true attitude to
+    the estimate (``fusion.error_model``), not a difference of Euler angles. ``cov``
+    (N, 9, 9) is optional: the full covariance of those nine errors.
     """
 
     time_s: FloatArray
@@ -38,6 +41,7 @@ class Track:
     v_ned_mps: FloatArray
     euler_rad: FloatArray
     sigma: FloatArray | None = None
+    cov: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -161,6 +165,8 @@ class Collector:
     def estimate_track(self) -> Track:
         est = self._navigating()
         sig = np.array([np.sqrt(np.maximum(e.P_diag[:9], 0.0)) for e in est])
+        covs = [e.P_nav for e in est]
+        cov = None if any(c is None for c in covs) else np.array(covs)
         return Track(
             time_s=np.array([e.time_us for e in est], dtype=float) * 1e-6,
             lat_rad=np.array([e.lat_rad for e in est]),
@@ -169,6 +175,7 @@ class Collector:
             v_ned_mps=np.array([e.v_ned_mps for e in est]),
             euler_rad=np.array([e.euler_rad for e in est]),
             sigma=sig,
+            cov=cov,
         )
 
     def truth_track(self) -> Track:

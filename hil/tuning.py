@@ -10,6 +10,7 @@ know both ``sim`` and ``fusion``.
 from __future__ import annotations
 
 import math
+import typing
 
 from fusion.config import FilterConfig, GnssTuning, ImuTuning
 from fusion.error_model import LayoutName
@@ -25,9 +26,10 @@ def filter_imu_config(imu: ImuConfig, base: ImuTuning | None = None) -> ImuTunin
     White noise densities are the datasheet ARW / VRW (plus the quantisation noise
     ``LSB / sqrt(12 * rate)`` folded into the density at 200 Hz). The Gauss-Markov bias sigma
     is the in-run part, with the rate random walk over one correlation time added in
-    quadrature (``K^2 * tau / 2``): a first-order Gauss-Markov state cannot represent a random
-    walk, so its sigma is widened to cover what the walk reaches in ``tau``. The turn-on bias
-    only widens the initial covariance.
+    quadrature (``K^2 * tau / 2``); the filter drives its random-walk bias states with that
+    process's noise (:mod:`fusion.error_model`). The turn-on bias is the initial covariance
+    of the bias states, and it stays until a manoeuvre observes it; scale factor and
+    misalignment likewise.
     """
     p = ImuParams.from_config(imu)
     base = base or ImuTuning()
@@ -52,15 +54,32 @@ def filter_imu_config(imu: ImuConfig, base: ImuTuning | None = None) -> ImuTunin
         "gyro_turn_on_sigma_rps": float(p.turn_on_sigma[3]),
         "accel_scale_sigma": max(float(p.scale_sigma[0]), 1e-7),
         "gyro_scale_sigma": max(float(p.scale_sigma[3]), 1e-7),
+        "accel_misalignment_sigma_rad": max(float(p.misalignment_sigma_rad[0]), 1e-7),
+        "gyro_misalignment_sigma_rad": max(float(p.misalignment_sigma_rad[3]), 1e-7),
         "accel_range_mps2": float(p.range[0]),
         "gyro_range_rps": float(p.range[3]),
     })
 
 
+def datasheet_layout(layout: LayoutName) -> LayoutName:
+    """``layout`` widened to carry every sensor error a datasheet specifies: bias, scale
+    factor and misalignment (``ins35``), keeping its GNSS position-bias block if it has one.
+
+    The simulator's IMU (and a real one) has scale-factor and cross-axis errors; without their
+    states the filter is overconfident in turns (``bench/README.md``, consistency error
+    budget: NEES 72 with ``ins16+gnss``).
+    """
+    return "ins35+gnss" if layout.endswith("+gnss") else "ins35"
+
+
 def filter_config_for_imu(preset: str, base: FilterConfig | None = None) -> FilterConfig:
-    """A :class:`FilterConfig` assuming the IMU ``preset`` (ValueError names valid presets)."""
+    """A :class:`FilterConfig` assuming the IMU ``preset``, with the sensor-error states its
+    datasheet calls for (:func:`datasheet_layout`; ValueError names valid presets)."""
     base = base or FilterConfig()
-    return base.model_copy(update={"imu": filter_imu_config(imu_preset(preset), base.imu)})
+    return base.model_copy(update={
+        "imu": filter_imu_config(imu_preset(preset), base.imu),
+        "state_layout": datasheet_layout(base.state_layout),
+    })
 
 
 def filter_gnss_config(gnss: GnssConfig, base: GnssTuning | None = None) -> GnssTuning:
@@ -90,8 +109,9 @@ def gnss_state_layout(gnss: GnssConfig, layout: LayoutName = "ins16") -> LayoutN
     rms(error / sigma) from 3-11 to 0.6-0.8 (``bench/README.md``, navigation filter accuracy).
     """
     correlated = gnss.horizontal_gm_sigma_m > 0.0 or gnss.vertical_gm_sigma_m > 0.0
-    if layout in ("ins22", "ins22+gnss"):
-        return "ins22+gnss" if correlated else "ins22"
+    for base in ("ins22", "ins35"):
+        if layout in (base, f"{base}+gnss"):
+            return typing.cast(LayoutName, f"{base}+gnss" if correlated else base)
     return "ins16+gnss" if correlated else "ins16"
 
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion import earth
+from fusion import earth, rotations
 from hil.tracks import Track
 
 FloatArray = NDArray[np.float64]
@@ -25,7 +25,15 @@ ERROR_AT_S: tuple[int, ...] = (10, 30, 60, 120)
 
 @dataclass(frozen=True)
 class Errors:
-    """Estimate − truth at the estimate times (truth interpolated)."""
+    """Estimate − truth at the estimate times (truth interpolated).
+
+    Attitude is given twice: ``att_rad``, the Euler-angle differences the accuracy metrics
+    report (roll, pitch, yaw, wrapped to ±pi), and ``tilt_rad``, the error as the filter
+    defines and reports its covariance (the small rotation about North / East / Down that takes
+    the true attitude to the estimate). Consistency compares ``tilt_rad`` with ``sigma`` /
+    ``cov``; a plot of ``att_rad`` uses ``att_sigma_rad``, the filter's attitude covariance
+    mapped onto the Euler angles.
+    """
 
     time_s: FloatArray
     pos_ned_m: FloatArray  # (N, 3)
@@ -34,6 +42,32 @@ class Errors:
     lat_deg: FloatArray
     lon_deg: FloatArray
     sigma: FloatArray | None = None
+    """(N, 9) 1-sigma of position, velocity and tilt, as the filter reports them."""
+    tilt_rad: FloatArray | None = None
+    """(N, 3) attitude error about North / East / Down, rad (None: not computed)."""
+    cov: FloatArray | None = None
+    """(N, 9, 9) the filter's covariance of position, velocity and tilt errors (None: not
+    reported; consistency then uses the diagonal ``sigma``)."""
+    att_sigma_rad: FloatArray | None = None
+    """(N, 3) 1-sigma of the roll / pitch / yaw errors (``sigma`` / ``cov`` mapped)."""
+
+    def select(self, mask: NDArray[np.bool_]) -> Errors:
+        """The samples where ``mask`` holds."""
+
+        def part(a: FloatArray | None) -> FloatArray | None:
+            return None if a is None else a[mask]
+
+        return Errors(
+            self.time_s[mask], self.pos_ned_m[mask], self.vel_ned_mps[mask], self.att_rad[mask],
+            self.lat_deg[mask], self.lon_deg[mask], part(self.sigma), part(self.tilt_rad),
+            part(self.cov), part(self.att_sigma_rad),
+        )  # fmt: skip
+
+    def nav9(self) -> FloatArray:
+        """(N, 9) position, velocity and attitude errors as the filter defines them (tilt
+        when computed, the Euler differences otherwise)."""
+        att = self.tilt_rad if self.tilt_rad is not None else self.att_rad
+        return np.column_stack([self.pos_ned_m, self.vel_ned_mps, att])
 
     @property
     def horizontal_m(self) -> FloatArray:
@@ -64,6 +98,24 @@ def _interp_angle(t: FloatArray, tp: FloatArray, ang: FloatArray) -> FloatArray:
     return wrap_pi(np.interp(t, tp, np.unwrap(ang)))
 
 
+def euler_jacobian(euler_rad: FloatArray) -> FloatArray:
+    """(N, 3, 3) ``d(roll, pitch, yaw) / d(tilt)`` at the attitudes ``euler_rad`` (N, 3).
+
+    A small rotation ``phi`` about the NED axes, ``C^ = (I + [phi×]) C``, changes the Euler
+    angles by ``A^-1 phi`` where the columns of ``A`` are the rotation axes of roll (the body
+    x axis), pitch (yaw-rotated East) and yaw (Down) in NED.
+    """
+    _, th, ps = euler_rad[:, 0], euler_rad[:, 1], euler_rad[:, 2]
+    a = np.zeros((euler_rad.shape[0], 3, 3))
+    a[:, 0, 0] = np.cos(ps) * np.cos(th)
+    a[:, 1, 0] = np.sin(ps) * np.cos(th)
+    a[:, 2, 0] = -np.sin(th)
+    a[:, 0, 1] = -np.sin(ps)
+    a[:, 1, 1] = np.cos(ps)
+    a[:, 2, 2] = 1.0
+    return np.asarray(np.linalg.inv(a), dtype=np.float64)
+
+
 def errors(estimate: Track, truth: Track) -> Errors:
     """Estimate − truth, truth linearly interpolated to the estimate times.
 
@@ -88,14 +140,30 @@ def errors(estimate: Track, truth: Track) -> Errors:
             -(estimate.alt_m[keep] - alt_t),
         ]
     )
+    euler_est = estimate.euler_rad[keep]
+    c_est = rotations.euler_to_dcm(euler_est)
+    c_true = rotations.euler_to_dcm(att_t)
+    tilt = rotations.dcm_to_rotvec(c_est @ np.swapaxes(c_true, -1, -2))
+    sigma = None if estimate.sigma is None else estimate.sigma[keep]
+    cov = None if estimate.cov is None else estimate.cov[keep]
+    att_sigma = None
+    if sigma is not None:
+        jac = euler_jacobian(euler_est)
+        p_att = (cov[:, 6:9, 6:9] if cov is not None
+                 else sigma[:, 6:9, None] ** 2 * np.eye(3))  # fmt: skip
+        p_eul = jac @ p_att @ np.swapaxes(jac, -1, -2)
+        att_sigma = np.sqrt(np.maximum(np.diagonal(p_eul, axis1=-2, axis2=-1), 0.0))
     return Errors(
         time_s=t,
         pos_ned_m=pos,
         vel_ned_mps=estimate.v_ned_mps[keep] - v_t,
-        att_rad=wrap_pi(estimate.euler_rad[keep] - att_t),
+        att_rad=wrap_pi(euler_est - att_t),
         lat_deg=np.degrees(dlat),
         lon_deg=np.degrees(dlon),
-        sigma=None if estimate.sigma is None else estimate.sigma[keep],
+        sigma=sigma,
+        tilt_rad=tilt,
+        cov=cov,
+        att_sigma_rad=att_sigma,
     )
 
 
@@ -193,10 +261,7 @@ def outage_metrics(
     m = window.mask(err.time_s)
     if not np.any(m):
         return None
-    sub = Errors(
-        err.time_s[m], err.pos_ned_m[m], err.vel_ned_mps[m], err.att_rad[m],
-        err.lat_deg[m], err.lon_deg[m], None if err.sigma is None else err.sigma[m],
-    )
+    sub = err.select(m)
     h = sub.horizontal_m
     v = sub.vertical_m
     at: dict[str, float | None] = {}
@@ -267,25 +332,46 @@ def gnss_on_metrics(err: Errors, mask: NDArray[np.bool_]) -> dict[str, float]:
 
 
 def consistency(err: Errors, mask: NDArray[np.bool_] | None = None) -> dict[str, float]:
-    """Filter consistency from the reported 1-sigma (diagonal approximation of P).
+    """Filter consistency: the errors against the covariance the filter reports for them.
 
-    Returns the mean NEES of the 9 position/velocity/attitude errors (expected value 9 for a
-    consistent filter with uncorrelated errors), ``rms(error/sigma)`` per group (expected 1)
-    and the fraction of samples inside the 3-sigma bound per group.
+    Returns the mean NEES of the 9 position / velocity / attitude (tilt) errors,
+    ``e^T P^-1 e`` with the full 9x9 covariance when the filter reported it (``err.cov``; the
+    diagonal otherwise), expected value 9 for a consistent filter; ``rms(error/sigma)`` per
+    group (expected 1) and the fraction of samples inside the 3-sigma bound per group.
     """
     if err.sigma is None:
         return {}
-    e = np.column_stack([err.pos_ned_m, err.vel_ned_mps, err.att_rad])
-    s = err.sigma
-    if mask is not None:
-        e, s = e[mask], s[mask]
+    sub = err if mask is None else err.select(mask)
+    e = sub.nav9()
+    s = sub.sigma
+    assert s is not None
     if e.shape[0] == 0:
         return {}
     z = e / np.maximum(s, 1e-12)
-    out = {"nees_mean": float(np.mean(np.sum(z * z, axis=1))), "nees_dof": 9.0}
+    per_sample = nees(e, sub.cov) if sub.cov is not None else np.sum(z * z, axis=1)
+    out = {"nees_mean": float(np.mean(per_sample)), "nees_dof": 9.0}
     for name, sl in (("pos", slice(0, 3)), ("vel", slice(3, 6)), ("att", slice(6, 9))):
         out[f"rms_z_{name}"] = rms(z[:, sl])
         out[f"within_3sigma_{name}"] = float(np.mean(np.all(np.abs(z[:, sl]) <= 3.0, axis=1)))
+    return out
+
+
+def nees(e: FloatArray, cov: FloatArray) -> FloatArray:
+    """``e_k^T P_k^-1 e_k`` per sample: ``e`` (N, m), ``cov`` (N, m, m).
+
+    A singular ``P_k`` (a state the filter holds exactly) gets the pseudo-inverse's value
+    through a tiny relative ridge; a non-finite one yields NaN.
+    """
+    ok = np.all(np.isfinite(cov), axis=(1, 2)) & np.all(np.isfinite(e), axis=1)
+    out = np.full(e.shape[0], np.nan)
+    if not np.any(ok):
+        return out
+    c, x = cov[ok], e[ok]
+    # scale to unit diagonal: the solve is then as well conditioned as the correlations allow
+    d = np.sqrt(np.maximum(np.diagonal(c, axis1=1, axis2=2), 1e-300))
+    r = c / (d[:, :, None] * d[:, None, :]) + 1e-12 * np.eye(c.shape[1])
+    y = x / d
+    out[ok] = np.einsum("ni,ni->n", y, np.linalg.solve(r, y[:, :, None])[:, :, 0])
     return out
 
 

@@ -91,19 +91,22 @@ def plot_errors(err: Errors, outages: list[Window], path: Path, *,
     """Position, velocity and attitude errors per axis with the filter's ±3-sigma envelope."""
     evs = _events(events)
     fig, axes = _subplots(3, 3, figsize=(14, 9), sharex=True)
+    # (title, errors, axis names, their 1-sigma (N, >=3) or None, first column, scale)
+    pv = err.sigma
     groups = (
-        ("position error (m)", err.pos_ned_m, ("north", "east", "down"), 0, 1.0),
-        ("velocity error (m/s)", err.vel_ned_mps, ("north", "east", "down"), 3, 1.0),
-        ("attitude error (deg)", err.att_rad, ("roll", "pitch", "yaw"), 6, np.degrees(1.0)),
+        ("position error (m)", err.pos_ned_m, ("north", "east", "down"), pv, 0, 1.0),
+        ("velocity error (m/s)", err.vel_ned_mps, ("north", "east", "down"), pv, 3, 1.0),
+        ("attitude error (deg)", err.att_rad, ("roll", "pitch", "yaw"), err.att_sigma_rad, 0,
+         np.degrees(1.0)),
     )
     t = err.time_s
-    for row, (title, data, names, col0, scale) in enumerate(groups):
+    for row, (title, data, names, sig, col0, scale) in enumerate(groups):
         for k in range(3):
             ax = axes[row, k]
             ax.plot(t, data[:, k] * scale, lw=0.8, color="tab:blue", label="error")
             _shade(ax, outages, evs)
-            if err.sigma is not None:
-                s3 = 3.0 * err.sigma[:, col0 + k] * scale
+            if sig is not None:
+                s3 = 3.0 * sig[:, col0 + k] * scale
                 ax.fill_between(t, -s3, s3, color="tab:gray", alpha=0.25, label="±3σ")
             ax.set_title(f"{names[k]} {title}", fontsize=9)
             ax.grid(alpha=0.3)

@@ -69,9 +69,14 @@ def height_to_pressure(height_m: float) -> float:
 
 
 def height_model(
-    layout: StateLayout, ins_alt_m: float, baro_bias_m: float, baro_height_m: float, noise_m: float
-) -> Observation | None:
-    """Baro height observation ``z = (h^ + b^) - h_baro``.
+    layout: StateLayout, ins_alt_m: float, baro_bias_m: float, baro_height_m: float, noise_m: float,
+    baro_scale: float = 0.0, reference_alt_m: float = 0.0,
+) -> Observation | None:  # fmt: skip
+    """Baro height observation ``z = (h^ + b^ + s^ (h^ - h_ref)) - h_baro``.
+
+    The scale term is there only in layouts with the baro scale-factor state
+    (``h_baro = h + b + s (h - h_ref)``, ``h_ref`` the height at which the bias was set), with
+    ``H = [.. -(1 + s^) (pos D) .. 1 (BARO) .. h^ - h_ref (BS) ..]``.
 
     Parameters
     ----------
@@ -84,6 +89,10 @@ def height_model(
         ISA pressure height of the sample, m.
     noise_m : float
         1-sigma, m.
+    baro_scale : float
+        Current baro scale-factor estimate (layouts with the state).
+    reference_alt_m : float
+        ``h_ref``, m (layouts with the state).
 
     Returns
     -------
@@ -92,10 +101,16 @@ def height_model(
     """
     if not (math.isfinite(baro_height_m) and math.isfinite(ins_alt_m)) or not noise_m > 0.0:
         return None
-    z = np.array([ins_alt_m + baro_bias_m - baro_height_m])
     H = np.zeros((1, layout.n))
-    H[0, layout.POS + 2] = -1.0  # dh = -dr_D
     H[0, layout.BARO] = 1.0
+    if layout.has_baro_scale:
+        dh = ins_alt_m - reference_alt_m
+        z = np.array([ins_alt_m + baro_bias_m + baro_scale * dh - baro_height_m])
+        H[0, layout.POS + 2] = -(1.0 + baro_scale)  # dh = -dr_D
+        H[0, layout.BS] = dh
+    else:
+        z = np.array([ins_alt_m + baro_bias_m - baro_height_m])
+        H[0, layout.POS + 2] = -1.0  # dh = -dr_D
     return Observation(z, H, np.array([[noise_m * noise_m]]))
 
 
@@ -176,13 +191,14 @@ class BaroAiding:
         Where samples are counted (``baro_*``).
     update : Update
         The filter's shared measurement update.
-    init_bias : callable ``(bias_m) -> None``
-        Sets the filter's baro-bias estimate (and its covariance row) from a sample.
+    init_bias : callable ``(bias_m, reference_alt_m) -> None``
+        Sets the filter's baro-bias estimate (and its covariance row) from a sample taken at
+        the INS height ``reference_alt_m`` (the scale factor's reference from then on).
     """
 
     def __init__(
         self, cfg: BaroTuning, layout: StateLayout, counters: HealthCounters, update: Update,
-        init_bias: Callable[[float], None],
+        init_bias: Callable[[float, float], None],
     ) -> None:  # fmt: skip
         self.cfg = cfg
         self.layout = layout
@@ -205,8 +221,9 @@ class BaroAiding:
         return p
 
     def fuse(
-        self, batch: tuple[int, float, int], ins_alt_m: float, baro_bias_m: float, step_us: int
-    ) -> None:
+        self, batch: tuple[int, float, int], ins_alt_m: float, baro_bias_m: float, step_us: int,
+        baro_scale: float = 0.0, reference_alt_m: float = 0.0,
+    ) -> None:  # fmt: skip
         """One averaged batch (:meth:`BaroControl.add_sample`): initialise the bias from it, or
         fuse its height and re-initialise the bias after a long run of rejections.
 
@@ -220,15 +237,18 @@ class BaroAiding:
             Current baro-bias estimate, m.
         step_us : int
             Time of the stepped sample (labels the update).
+        baro_scale, reference_alt_m : float
+            Baro scale-factor estimate and its reference height (layouts with the state).
         """
         ctl, c = self.control, self._c
         t_mean, h_mean, count = batch
         if ctl.need_bias_init(t_mean):
-            self._init_bias(h_mean - ins_alt_m)
+            self._init_bias(h_mean - ins_alt_m, ins_alt_m)
             ctl.on_bias_init()
             return
         obs = height_model(
-            self.layout, ins_alt_m, baro_bias_m, h_mean, self.cfg.noise_m / math.sqrt(count)
+            self.layout, ins_alt_m, baro_bias_m, h_mean, self.cfg.noise_m / math.sqrt(count),
+            baro_scale, reference_alt_m,
         )
         if obs is None:
             c.baro_invalid += 1
@@ -240,6 +260,6 @@ class BaroAiding:
         else:
             c.baro_rejected += 1
         if ctl.on_result(t_mean, ok):
-            self._init_bias(h_mean - ins_alt_m)
+            self._init_bias(h_mean - ins_alt_m, ins_alt_m)
             ctl.on_bias_init()
             c.baro_resets += 1

@@ -15,8 +15,9 @@ sigma from the configuration; soft/hard-iron residuals are not modelled.
 *When* — :class:`MagControl`: fuse at most ``fuse_rate_hz``; reference field from the
 configuration or learned: once the filter's yaw sigma is below ``learn_yaw_sigma_rad`` (GNSS
 manoeuvres made heading observable), the mean of ``C^_nb m_b`` over ``LEARN_SAMPLES`` samples
-becomes the reference. Learning at the in-flight alignment itself would freeze the alignment's
-heading error (a crabbing aircraft's track is not its heading) into the reference. With
+(taken at ``learn_rate_hz``, faster than the heading is fused) becomes the reference.
+Learning at the in-flight alignment itself would freeze the alignment's heading error (a
+crabbing aircraft's track is not its heading) into the reference. With
 ``hard_iron_calibration`` the body-fixed offset and the Earth field are estimated together
 (:class:`HardIronCalibrator`).
 
@@ -105,8 +106,10 @@ class MagControl:
     def __init__(self, cfg: MagTuning) -> None:
         self.cfg = cfg
         self._period_us = round(1e6 / cfg.fuse_rate_hz)
+        self._learn_period_us = round(1e6 / cfg.learn_rate_hz)
         self.last_fused_us: int | None = None
         self._last_attempt_us: int | None = None
+        self._last_learn_us: int | None = None
         self.reference_n: NDArray[np.float64] | None = (
             None
             if cfg.reference_field_n_tesla is None
@@ -153,10 +156,20 @@ class MagControl:
         return self.cfg.reference_field_n_tesla is None and self.reference_n is not None
 
     def due(self, time_us: int) -> bool:
-        """Rate limit: True when a sample at ``time_us`` should be used."""
+        """Rate limit of the heading update (``fuse_rate_hz``): True when a sample at
+        ``time_us`` should be fused."""
         if self._last_attempt_us is not None and time_us - self._last_attempt_us < self._period_us:
             return False
         self._last_attempt_us = time_us
+        return True
+
+    def learning_due(self, time_us: int) -> bool:
+        """Rate limit of the reference learning and the hard-iron calibration
+        (``learn_rate_hz``): True when a sample at ``time_us`` should feed them."""
+        last = self._last_learn_us
+        if last is not None and time_us - last < self._learn_period_us:
+            return False
+        self._last_learn_us = time_us
         return True
 
     def learn(self, field_n: NDArray[np.float64], yaw_sigma_rad: float) -> None:
@@ -287,17 +300,20 @@ class MagAiding:
             calibration needs it).
         """
         ctl = self.control
-        if not ctl.due(time_us):
+        learning = (ctl.reference_n is None or ctl.calibrator is not None) and ctl.learning_due(
+            time_us)
+        fusing = ctl.reference_n is not None and ctl.due(time_us)
+        if not (learning or fusing):
             return
         m = np.array(field)
         c_nb = quat_to_dcm(ins.q_nb)
-        if ctl.reference_n is None or ctl.calibrator is not None:
+        if learning:
             sigma = yaw_sigma()
             if ctl.reference_n is None:
                 ctl.learn(c_nb @ m, sigma)
             ctl.offer_calibration(c_nb, m, euler_from_quat(ins.q_nb)[2], sigma)
-            if ctl.reference_n is None:
-                return
+        if not fusing:
+            return
         obs = heading_model(
             self.layout, c_nb, ctl.corrected(m), ctl.reference_n, ctl.heading_noise_rad(),
             self.cfg.min_horizontal_field_tesla,

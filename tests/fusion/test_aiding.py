@@ -192,6 +192,36 @@ def test_baro_h_matches_finite_differences() -> None:
     assert baro.height_model(LAY, TRUE.alt_msl_m, bias, math.nan, 0.5) is None
 
 
+def test_baro_h_with_the_scale_factor_matches_finite_differences() -> None:
+    # GIVEN the layout with the baro scale factor, 4 % of scale and 150 m above the reference
+    from fusion.error_model import INS35
+
+    lay = INS35
+    bias, scale, h_ref = 12.0, 0.04, TRUE.alt_msl_m - 150.0
+    h_baro = TRUE.alt_msl_m + bias + scale * 150.0
+
+    def z(dx: np.ndarray) -> np.ndarray:
+        est = perturb(TRUE, dx[:16])
+        obs = baro.height_model(lay, est.alt_msl_m, bias + dx[lay.BARO], h_baro, 0.5,
+                                scale + dx[lay.BS], h_ref)  # fmt: skip
+        assert obs is not None
+        return obs.z
+
+    obs = baro.height_model(lay, TRUE.alt_msl_m, bias, h_baro, 0.5, scale, h_ref)
+    assert obs is not None
+    np.testing.assert_allclose(obs.z, 0.0, atol=1e-9)
+    eps = np.r_[EPS, [1e-3] * (lay.n - EPS.size)]
+    cols = []
+    for j in range(lay.n):
+        dx = np.zeros(lay.n)
+        dx[j] = eps[j]
+        cols.append((z(dx) - z(-dx)) / (2.0 * eps[j]))
+    # THEN H is the model's derivative: -(1 + s) on pos D, 1 on the bias, h - h_ref on the scale
+    np.testing.assert_allclose(obs.H, np.array(cols).T, atol=1e-9)
+    assert obs.H[0, lay.POS + 2] == pytest.approx(-(1.0 + scale))
+    assert obs.H[0, lay.BS] == pytest.approx(150.0)
+
+
 def test_mag_heading_h_matches_finite_differences() -> None:
     field_b = quat_to_dcm(TRUE.q_nb).T @ FIELD_N_T
 

@@ -13,7 +13,10 @@ from fusion.error_model import (
     INS16_GNSS,
     INS22,
     INS22_GNSS,
+    INS35,
+    INS35_GNSS,
     LAYOUTS,
+    OFF_DIAGONAL,
     ErrorModel,
     ProcessNoise,
     StateLayout,
@@ -38,6 +41,7 @@ NOISE = ProcessNoise(
     accel_scale_sigma=1e-3, accel_scale_tau_s=800.0,
     gnss_bias_sigma_h_m=1.4, gnss_bias_sigma_v_m=2.4,
     gnss_bias_tau_h_s=120.0, gnss_bias_tau_v_s=90.0,
+    gyro_misalignment_sigma=1e-3, accel_misalignment_sigma=1e-3,
 )  # fmt: skip
 
 
@@ -70,20 +74,32 @@ def perturbed_run(
     layout: StateLayout, inc: ImuIncrements, kin0: object, dx: np.ndarray
 ) -> strapdown.InsState:
     """Run the INS from the true start plus error ``dx`` (estimated minus true); sensor-error
-    estimates wrong by ``dx`` decay like the Gauss-Markov model says."""
+    estimates wrong by ``dx`` stay wrong by that much (random constants)."""
     state = start_state(kin0, dx)
     prev = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     for k, dt in enumerate(inc.dt_s.tolist()):
-        tk = (k + 0.5) * dt
-        dv = inc.dv_b[k] - dx[layout.ba] * math.exp(-tk / NOISE.accel_bias_tau_s) * dt
-        th = inc.dtheta_b[k] - dx[layout.bg] * math.exp(-tk / NOISE.gyro_bias_tau_s) * dt
-        if layout.sa is not None and layout.sg is not None:
-            dv = dv / (1.0 + dx[layout.sa] * math.exp(-tk / NOISE.accel_scale_tau_s))
-            th = th / (1.0 + dx[layout.sg] * math.exp(-tk / NOISE.gyro_scale_tau_s))
+        dv = inc.dv_b[k] - dx[layout.ba] * dt
+        th = inc.dtheta_b[k] - dx[layout.bg] * dt
+        if layout.ma is not None and layout.mg is not None:
+            dv = np.linalg.solve(sensor_matrix(layout, dx, "a"), dv)
+            th = np.linalg.solve(sensor_matrix(layout, dx, "g"), th)
+        elif layout.sa is not None and layout.sg is not None:
+            dv = dv / (1.0 + dx[layout.sa])
+            th = th / (1.0 + dx[layout.sg])
         th_t, dv_t = tuple(th.tolist()), tuple(dv.tolist())
         state = strapdown.update(state, th_t, dv_t, *prev, dt)
         prev = (th_t, dv_t)
     return state
+
+
+def sensor_matrix(layout: StateLayout, dx: np.ndarray, triad: str) -> np.ndarray:
+    """``I + diag(ds) + dM`` of the estimate errors in ``dx``."""
+    scale, mis = (layout.sa, layout.ma) if triad == "a" else (layout.sg, layout.mg)
+    assert scale is not None and mis is not None
+    t = np.eye(3) + np.diag(dx[scale])
+    for (i, j), m in zip(OFF_DIAGONAL, dx[mis], strict=True):
+        t[i, j] += m
+    return t
 
 
 def nav_error(a: strapdown.InsState, b: strapdown.InsState) -> np.ndarray:
@@ -130,7 +146,7 @@ def analytic_transition(model: ErrorModel, inc: ImuIncrements, kin0: object) -> 
 
 # perturbation sizes: small enough to stay linear, large enough to beat rounding (the GNSS
 # bias states of the "+gnss" layouts follow the baro bias or the scale factors: 1 m)
-EPS = [10.0] * 3 + [0.1] * 3 + [1e-3] * 3 + [1e-2] * 3 + [1e-4] * 3 + [1.0] + [1e-3] * 6
+EPS = [10.0] * 3 + [0.1] * 3 + [1e-3] * 3 + [1e-2] * 3 + [1e-4] * 3 + [1.0] + [1e-3] * 19
 
 
 def eps_for(layout: StateLayout) -> list[float]:
@@ -140,7 +156,9 @@ def eps_for(layout: StateLayout) -> list[float]:
     return eps
 
 
-@pytest.mark.parametrize("layout", [INS16, INS22, INS22_GNSS], ids=lambda lay: lay.name)
+@pytest.mark.parametrize(
+    "layout", [INS16, INS22, INS22_GNSS, INS35, INS35_GNSS], ids=lambda lay: lay.name
+)
 def test_F_matches_numerical_propagation_of_a_perturbed_ins(layout: StateLayout, segment) -> None:
     inc, kin0 = segment
     model = ErrorModel(layout, NOISE)
@@ -167,9 +185,14 @@ def test_F_matches_numerical_propagation_of_a_perturbed_ins(layout: StateLayout,
             np.testing.assert_allclose(
                 nm, an, rtol=0.0, atol=tol, err_msg=f"{layout.labels[j]} -> rows {blk}"
             )
-    # Gauss-Markov sensor-error states decay with their correlation times
-    tau = {layout.BA: NOISE.accel_bias_tau_s, layout.BG: NOISE.gyro_bias_tau_s,
-           layout.BARO: NOISE.baro_bias_tau_s}  # fmt: skip
+    # the IMU error states are random constants (plus random walks): they do not decay
+    imu_states = [*range(layout.BA, layout.BG + 3)]
+    imu_states += [] if layout.sa is None else [*range(layout.SA, layout.SG + 3)]
+    imu_states += [] if layout.ma is None else [*range(layout.MA, layout.MG + 6)]
+    imu_states += [] if layout.bs is None else [layout.BS]  # the baro scale likewise
+    np.testing.assert_array_equal(np.diag(phi)[imu_states], 1.0)
+    # the baro and GNSS bias states (zero-mean processes) decay with their correlation times
+    tau = {layout.BARO: NOISE.baro_bias_tau_s}
     if layout.gnss is not None:
         g = layout.GNSS
         tau |= {g: NOISE.gnss_bias_tau_h_s, g + 1: NOISE.gnss_bias_tau_h_s,
@@ -185,7 +208,8 @@ def test_F_matches_numerical_propagation_of_a_perturbed_ins(layout: StateLayout,
 def test_layouts_are_contiguous_and_named() -> None:
     for layout in LAYOUTS.values():
         covered = []
-        for name in ("pos", "vel", "att", "ba", "bg", "baro", "sa", "sg", "gnss"):
+        for name in ("pos", "vel", "att", "ba", "bg", "baro", "sa", "sg", "ma", "mg", "bs",
+                     "gnss"):
             sl = getattr(layout, name)
             if sl is not None:
                 covered += list(range(layout.n))[sl]
@@ -203,11 +227,21 @@ def test_layouts_are_contiguous_and_named() -> None:
     assert INS22.has_scale_factors and not INS16_GNSS.has_scale_factors
     assert INS16_GNSS.has_gnss_bias and not INS22.has_gnss_bias
     assert (INS22.SA, INS22.SG) == (16, 19)
+    assert (INS35.SA, INS35.MA, INS35.MG, INS35.BS, INS35_GNSS.GNSS) == (16, 22, 28, 34, 35)
+    assert INS35.labels[34] == "baro_scale" and INS35_GNSS.has_baro_scale
+    assert not INS22_GNSS.has_baro_scale
+    assert INS35_GNSS.has_misalignment and not INS22_GNSS.has_misalignment
+    assert INS35.labels[22] == "accel_misalignment_01"
+    assert INS35.labels[33] == "gyro_misalignment_21"
+    with pytest.raises(ValueError, match="no misalignment"):
+        _ = INS22.MA
+    with pytest.raises(ValueError, match="no baro scale"):
+        _ = INS16.BS
     with pytest.raises(ValueError, match="no scale-factor"):
         _ = INS16.SA
     with pytest.raises(ValueError, match="no GNSS"):
         _ = INS16.GNSS
-    with pytest.raises(ValueError, match="ins16, ins16\\+gnss, ins22, ins22\\+gnss"):
+    with pytest.raises(ValueError, match="ins16, ins16\\+gnss, ins22, ins22\\+gnss, ins35"):
         layout_for("ins19")
 
 

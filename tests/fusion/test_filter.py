@@ -296,7 +296,9 @@ def test_magnetometer_makes_heading_observable_in_straight_flight(straight: Prep
     # THEN heading converges to well under a degree within 15 s
     late = [e for e in est if e.time_us >= 15_000_000]
     assert max(abs(math.degrees(errors_at(sc, e)[2])) for e in late) < 1.0
-    assert nav.health.mag_fused > 100 and nav.health.mag_rejected < 5
+    # fused at the configured rate once the reference is known (from the start here)
+    assert nav.health.mag_fused >= 0.9 * cfg.mag.fuse_rate_hz * 30.0
+    assert nav.health.mag_rejected < 5
     assert math.isfinite(late[-1].test_ratios.mag_hdg) and late[-1].test_ratios.mag_hdg < 1.0
 
 
@@ -310,7 +312,8 @@ def test_learned_magnetometer_reference_after_the_heading_converged(racetrack: P
     assert ref is not None
     decl = math.degrees(math.atan2(ref[1], ref[0]) - math.atan2(FIELD_N_T[1], FIELD_N_T[0]))
     assert abs(decl) < 1.0
-    assert nav.health.mag_fused > 50
+    # fused at the configured rate after the first turn (26 s) of the 45 s flight
+    assert nav.health.mag_fused >= 0.5 * CFG.mag.fuse_rate_hz * (45.0 - 26.0)
 
 
 def test_static_alignment_levelling_and_mag_heading() -> None:
@@ -700,3 +703,33 @@ def test_estimates_are_complete_immutable_and_equal_to_a_regular_construction() 
     assert [e.time_us for e in out] == [5000, *range(20_000, 1_000_001, 20_000)]
     assert math.isnan(out[-1].test_ratios.gnss_pos) and out[-1].altitude is not None
     assert out[-1].health.imu_ok == out[-1].time_us // 5000
+
+
+def test_misalignment_states_keep_a_misaligned_imu_consistent(racetrack: Prepared) -> None:
+    # GIVEN the racetrack flown by an IMU whose gyro and accelerometer axes are misaligned by
+    # 5 mrad per off-diagonal entry (drawn), noise and biases from the filter's model
+    rng = np.random.default_rng(21)
+    sigma_m = 5e-3
+    off = ([0, 0, 1, 1, 2, 2], [1, 2, 0, 2, 0, 1])
+    t_a, t_g = np.eye(3), np.eye(3)
+    t_a[off] = rng.normal(0.0, sigma_m, 6)
+    t_g[off] = rng.normal(0.0, sigma_m, 6)
+    misaligned = dataclasses.replace(racetrack, f_b=racetrack.f_b @ t_a.T,
+                                     w_b=racetrack.w_b @ t_g.T)
+    sc = make_scenario(misaligned, np.random.default_rng(22), ERRORS)
+    imu = CFG.imu.model_copy(update={"accel_misalignment_sigma_rad": sigma_m,
+                                     "gyro_misalignment_sigma_rad": sigma_m})
+    times = np.arange(15.0, 44.0, 0.5)
+    nees = {}
+    for layout in ("ins22", "ins35"):
+        nav = NavFilter(CFG.model_copy(update={"state_layout": layout, "imu": imu}))
+        errs, covs = run_nees(nav, sc, times)
+        e9, p9 = errs[:, :9], covs[:, :9, :9]
+        nees[layout] = float(np.mean([e @ np.linalg.solve(p, e) for e, p in zip(e9, p9,
+                                                                              strict=True)]))
+    # THEN without misalignment states the filter is overconfident in the turns, and with them
+    # its NEES is that of a consistent filter (9 dof; the mean of 58 time-correlated samples
+    # of one run scatters far more than chi-square(9 x 58) says: 6.6-10.3 with ins35 and
+    # 49-173 with ins22 over seeds 21-61, hence 1.5 x 9 and a factor of 2)
+    assert nees["ins35"] < 13.5
+    assert nees["ins22"] > 2.0 * nees["ins35"]

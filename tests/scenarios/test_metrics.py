@@ -81,6 +81,66 @@ def test_consistency_of_matching_sigma() -> None:
         assert c[f"within_3sigma_{g}"] > 0.98
 
 
+def test_nees_uses_the_full_covariance() -> None:
+    """Correlated Gaussian errors drawn from the reported 9x9 covariance give NEES 9 with the
+    full covariance; errors that break the reported correlation (velocity sign flipped) are
+    caught by it, while the diagonal approximation cannot tell the two apart."""
+    rng = np.random.default_rng(4)
+    n = 20000
+    t = np.arange(n) * 0.1
+    a = rng.normal(size=(9, 9)) * np.r_[2.0, 2.0, 3.0, 0.1, 0.1, 0.1, 0.01, 0.01, 0.02][:, None]
+    cov = a @ a.T
+    e = rng.multivariate_normal(np.zeros(9), cov, size=n)
+    sig = np.tile(np.sqrt(np.diag(cov)), (n, 1))
+    covs = np.broadcast_to(cov, (n, 9, 9))
+    z0 = np.zeros(n)
+
+    def errs(v: np.ndarray, full: bool) -> metrics.Errors:
+        return metrics.Errors(t, e[:, 0:3], v, e[:, 6:9], z0, z0, sig, e[:, 6:9],
+                              covs if full else None)
+
+    # chi-square(9): mean 9, standard error sqrt(18 / n)
+    tol = 5.0 * math.sqrt(18.0 / n)
+    assert metrics.consistency(errs(e[:, 3:6], True))["nees_mean"] == pytest.approx(9.0, abs=tol)
+    assert metrics.consistency(errs(-e[:, 3:6], True))["nees_mean"] > 9.0 + 20 * tol
+    diag_same = metrics.consistency(errs(e[:, 3:6], False))["nees_mean"]
+    assert metrics.consistency(errs(-e[:, 3:6], False))["nees_mean"] == pytest.approx(diag_same)
+
+
+def test_attitude_error_is_the_filter_tilt_and_euler_sigma_maps_it() -> None:
+    """A known small rotation about North applied to a truth heading 90 deg (East): the tilt
+    error is that rotation (about North), which is a pitch error for an aircraft heading East;
+    the Euler-mapped sigma follows."""
+    from fusion import rotations
+
+    t = np.arange(0.0, 10.0, 1.0)
+    n = t.size
+    zero = np.zeros(n)
+    base = _track(t, zero, zero, zero)
+    euler_true = np.tile([0.0, 0.1, math.pi / 2], (n, 1))
+    phi = np.array([2e-3, 0.0, 0.0])  # about North
+    c_est = rotations.rotvec_to_dcm(phi) @ rotations.euler_to_dcm(euler_true)
+    euler_est = rotations.dcm_to_euler(c_est)
+    sig = np.tile([1.0] * 6 + [1e-3, 4e-3, 9e-3], (n, 1))
+    truth = Track(base.time_s, base.lat_rad, base.lon_rad, base.alt_m, base.v_ned_mps, euler_true)
+    est = Track(base.time_s, base.lat_rad, base.lon_rad, base.alt_m, base.v_ned_mps, euler_est,
+                sig)
+    err = metrics.errors(est, truth)
+    assert err.tilt_rad is not None and err.att_sigma_rad is not None
+    np.testing.assert_allclose(err.tilt_rad, np.tile(phi, (n, 1)), atol=1e-9)
+    # heading East, small pitch: a rotation about North is minus a pitch change
+    assert err.att_rad[0, 1] == pytest.approx(-2e-3, rel=1e-2)
+    assert abs(err.att_rad[0, 0]) < 1e-5 and abs(err.att_rad[0, 2]) < 1e-5  # second order
+    # heading East: pitch error = -tilt North, roll error = tilt East / cos(pitch),
+    # yaw error = tilt Down + tan(pitch) tilt East (the map is taken at the estimate's
+    # attitude, 2 mrad of pitch from the truth's: 1e-3 relative)
+    assert err.att_sigma_rad[0, 1] == pytest.approx(1e-3, rel=1e-9)
+    assert err.att_sigma_rad[0, 0] == pytest.approx(4e-3 / math.cos(0.1), rel=1e-3)
+    assert err.att_sigma_rad[0, 2] == pytest.approx(math.hypot(9e-3, 4e-3 * math.tan(0.1)),
+                                                    rel=1e-3)
+    assert metrics.consistency(err)["rms_z_att"] == pytest.approx(2.0 / math.sqrt(3.0), rel=1e-6)
+
+
 def test_gnss_on_mask_excludes_settling_and_outages() -> None:
     t = np.arange(0.0, 300.0, 1.0)
     m = metrics.gnss_on_mask(t, [Window(100.0, 130.0)], settle_s=20.0)

@@ -96,7 +96,8 @@ def test_filter_models_the_scenario_gnss_receiver(scenario: Scenario, tmp_path: 
     # GIVEN the default (modern) receiver, whose position error is mostly Gauss-Markov
     assert gnss.horizontal_gm_sigma_m > 0.0
     # THEN the filter carries bias states with the receiver's sigma and correlation time
-    assert config.state_layout == "ins16+gnss"
+    # (and the scale-factor and misalignment states the IMU datasheet calls for)
+    assert config.state_layout == "ins35+gnss"
     assert (cfg.bias_sigma_h_m, cfg.bias_tau_h_s) == (gnss.horizontal_gm_sigma_m,
                                                      gnss.horizontal_gm_tau_s)
     assert (cfg.bias_sigma_v_m, cfg.bias_tau_v_s) == (gnss.vertical_gm_sigma_m,
@@ -107,7 +108,7 @@ def test_filter_models_the_scenario_gnss_receiver(scenario: Scenario, tmp_path: 
     text = SCENARIO.replace(imu_line, imu_line + white_gnss)
     (tmp_path / "white.yaml").write_text(text % "100 m")
     white = load_scenario(tmp_path / "white.yaml")
-    assert filter_config(white).state_layout == "ins16"
+    assert filter_config(white).state_layout == "ins35"
 
 
 def test_same_seed_same_numbers(run_dir: Path, scenario: Scenario, tmp_path: Path) -> None:
