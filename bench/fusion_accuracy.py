@@ -146,7 +146,7 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
     on_mask = metrics.gnss_on_mask(err.time_s, outages, settle_s=SETTLE_S)
     rms_z_axis: list[float | None] = [None] * 9
     if err.sigma is not None and on_mask.any():
-        e9 = np.column_stack([err.pos_ned_m, err.vel_ned_mps, err.att_rad])[on_mask]
+        e9 = err.nav9()[on_mask]
         z9 = e9 / np.maximum(err.sigma[on_mask], 1e-12)
         rms_z_axis = [float(v) for v in np.sqrt(np.mean(z9 * z9, axis=0))]
     row: dict[str, Any] = {
