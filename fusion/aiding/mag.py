@@ -312,10 +312,11 @@ class MagAiding:
             if ctl.reference_n is None:
                 ctl.learn(c_nb @ m, sigma)
             ctl.offer_calibration(c_nb, m, euler_from_quat(ins.q_nb)[2], sigma)
-        if not fusing:
+        reference = ctl.reference_n  # the calibration may just have replaced it
+        if not fusing or reference is None:
             return
         obs = heading_model(
-            self.layout, c_nb, ctl.corrected(m), ctl.reference_n, ctl.heading_noise_rad(),
+            self.layout, c_nb, ctl.corrected(m), reference, ctl.heading_noise_rad(),
             self.cfg.min_horizontal_field_tesla,
         )  # fmt: skip
         c = self._c
