@@ -66,7 +66,17 @@ class ImuTuning(_Frozen):
     max_dt_s: PositiveFloat = 0.05
     """Longest plausible IMU interval; larger ``dt_s`` values are treated as invalid, s."""
     time_jump_s: PositiveFloat = 1.0
-    """A forward timestamp step larger than this is a time jump: the gap is not integrated."""
+    """An IMU timestamp more than this ahead of the filter's clock (or any amount behind it) is
+    not trusted on its own: it is quarantined and counted, and the clock does not move. Only
+    ``time_base_confirm_samples`` consecutive such samples at plausible intervals (a
+    consistent new time base) are acted on: a forward gap up to ``max_coast_s`` is coasted
+    over (not integrated), anything else re-initialises the filter, s."""
+    time_base_confirm_samples: PositiveInt = 5
+    """Consecutive quarantined IMU samples, each within ``max_dt_s`` of the previous, that
+    confirm a new time base (a link drop-out or a simulator restart, not one bogus frame)."""
+    max_coast_s: PositiveFloat = 10.0
+    """Longest confirmed forward gap the INS coasts over; a longer one (or a step back)
+    re-initialises the filter (``Health.time_rebases``), s."""
     max_sensor_lead_s: PositiveFloat = 5.0
     """GNSS / baro / mag samples stamped further than this ahead of the IMU are dropped and
     counted as time jumps (one bogus future stamp must not block its stream), s."""
@@ -101,7 +111,23 @@ class GnssTuning(_Frozen):
     reacquire_fixes: PositiveInt = 3
     """Consecutive good fixes needed to leave free-inertial mode."""
     reset_after_rejected_s: PositiveFloat = 5.0
-    """Good-quality fixes rejected by the gate for this long: reset position and velocity."""
+    """Good-quality fixes rejected by the gate for this long: reset position and velocity (a
+    bounded reset, see ``reset_sigma``)."""
+    reset_sigma: PositiveFloat = 5.0
+    """A reset goes to a fix only if the INS does not contradict it: every axis of the
+    innovation within ``reset_sigma`` times the INS's own sigma plus the fix's claimed
+    accuracy. A contradicted fix needs ``reset_confirm_fixes`` consecutive rejected fixes
+    that agree with each other (positions moving as their velocities say)."""
+    reset_confirm_fixes: PositiveInt = 5
+    """Consecutive mutually consistent rejected fixes that allow a reset the INS contradicts."""
+    max_accel_mps2: PositiveFloat = 30.0
+    """Acceleration allowed between two consecutive fixes in that consistency check, m/s^2."""
+    min_alt_m: float = -1000.0
+    """Fixes below this altitude (MSL) are invalid, m."""
+    max_alt_m: float = 50_000.0
+    """Fixes above this altitude (MSL) are invalid, m."""
+    max_speed_mps: PositiveFloat = 600.0
+    """Fixes reporting a faster horizontal or vertical speed are invalid, m/s."""
     max_delay_s: PositiveFloat = 0.5
     """Fixes whose time of validity is older than this (w.r.t. the INS) are dropped, s."""
     bias_sigma_h_m: PositiveFloat = 1.4

@@ -56,7 +56,8 @@ class Health:
     time_backwards: int = 0
     """Samples (any sensor) older than the previous one of the same sensor: dropped."""
     time_jump: int = 0
-    """IMU forward time steps above ``time_jump_s``: the gap was not integrated."""
+    """Confirmed IMU forward gaps above ``time_jump_s`` (up to ``max_coast_s``): coasted over,
+    not integrated."""
     duplicates: int = 0
     """Samples (any sensor) with the same timestamp as the previous one: dropped."""
     gnss_fused: int = 0
@@ -73,6 +74,9 @@ class Health:
     """Fixes older than ``max_delay_s`` (or than the INS history) when due."""
     gnss_resets: int = 0
     """Position or velocity resets to GNSS (after an outage or a long rejection)."""
+    gnss_resets_refused: int = 0
+    """Resets the control asked for but the INS contradicted, without a run of consistent
+    fixes to confirm them (``GnssTuning.reset_sigma``, ``reset_confirm_fixes``)."""
     gnss_outages: int = 0
     """Transitions from GNSS-aided to free-inertial / bridging."""
     baro_fused: int = 0
@@ -103,6 +107,14 @@ class Health:
     baro_repeats_held: int = 0
     """Baro samples held back from the EKF because the reading had not changed for more than
     ``AltitudeConfig.ekf_repeat_hold_s`` (before the sensor is declared frozen)."""
+    time_quarantined: int = 0
+    """IMU samples stamped more than ``time_jump_s`` ahead of the filter's clock (or beyond
+    the timestamp range): dropped without moving the clock (backwards ones count in
+    ``time_backwards``); a consistent run of them is a new time base."""
+    time_rebases: int = 0
+    """Confirmed new IMU time bases the INS could not coast into (a step back, as after a
+    simulator restart, or a gap above ``max_coast_s``): the filter re-initialised (these
+    counters survive it)."""
 
 
 HEALTH_FIELDS = tuple(f.name for f in fields(Health))
@@ -125,6 +137,7 @@ class HealthCounters:
     gnss_inaccurate: int
     gnss_too_old: int
     gnss_resets: int
+    gnss_resets_refused: int
     gnss_outages: int
     baro_fused: int
     baro_rejected: int
@@ -140,6 +153,8 @@ class HealthCounters:
     altitude_calibration_updates: int
     altitude_gnss_rejected: int
     baro_repeats_held: int
+    time_quarantined: int
+    time_rebases: int
 
     def __init__(self) -> None:
         for name in HEALTH_FIELDS:

@@ -14,11 +14,15 @@ estimate back into the INS at once (:mod:`fusion.feedback`), and records the upd
 (:attr:`NavFilter.innovations`, the aiding status of the estimate).
 
 Bad input never raises and is never integrated: non-finite or out-of-range IMU samples are
-replaced by the last good one (zero-order hold over their interval); duplicated or backwards
-timestamps are dropped; a forward IMU time jump larger than ``ImuTuning.time_jump_s`` is not
-integrated (the INS coasts at constant velocity over the gap and the covariance grows by the
-process noise); GNSS fixes without a 3-D fix, with non-finite fields or a poor accuracy are
-not fused. Everything is counted in :class:`~fusion.estimate.Health`.
+replaced by the last good one (zero-order hold over their interval); duplicated timestamps are
+dropped; one IMU stamp never moves the filter's clock: a stamp more than
+``ImuTuning.time_jump_s`` ahead of it or behind it is quarantined, and only a consistent run of
+them is a new time base (:mod:`fusion.screening`): a forward gap is then not integrated (the
+INS coasts at constant velocity and the covariance grows by the process noise), a step back
+or a long gap re-initialises the filter (``Health.time_rebases``); GNSS fixes without a
+3-D fix, with non-finite or out-of-range fields or a poor accuracy are not fused, and a reset
+to GNSS is bounded by what the INS knows (:mod:`fusion.aiding.gnss`). Everything is counted
+in :class:`~fusion.estimate.Health`.
 
 Altitude (``FilterConfig.altitude.method``): ``ekf`` outputs the EKF's own vertical (baro fused
 as an EKF update); ``loop`` / ``loop-mpc`` / ``loop-kf`` run paper P4's baro-inertial channel
@@ -164,10 +168,12 @@ class NavFilter:
         self.reset()
 
     # ------------------------------------------------------------------ public API
-    def reset(self) -> None:
-        """Forget everything learned: back to ``initializing`` (configuration kept)."""
+    def reset(self, *, keep_counters: bool = False) -> None:
+        """Forget everything learned: back to ``initializing`` (configuration kept; the health
+        counters too with ``keep_counters``)."""
         cfg, lay = self.config, self.layout
-        self._c = HealthCounters()
+        if not keep_counters:
+            self._c = HealthCounters()
         self._screen = SampleScreen(cfg.imu, self._c)
         self._cov = CovariancePropagator(self._model, self._cov_period_s, cfg.imu,
                                          cfg.baro.bias_tau_s)  # fmt: skip
@@ -388,6 +394,8 @@ class NavFilter:
     def _on_imu(self, s: ImuSample) -> list[NavEstimate]:
         step = self._screen_imu(s)
         if step is None:
+            if self._screen.rebase_pending:
+                return self._rebase(s)
             return []
         t, dt, fw, good, gap = step
         ins0 = self._ins
@@ -473,6 +481,13 @@ class NavFilter:
         res = self._aligner.poll()
         if res is not None:
             self._start_from_alignment(res)
+
+    def _rebase(self, s: ImuSample) -> list[NavEstimate]:
+        """A confirmed new IMU time base the INS cannot coast into (a step back, a long gap):
+        re-initialise everything but the counters and start again from this sample."""
+        self.reset(keep_counters=True)
+        self._c.time_rebases += 1
+        return self._on_imu(s)
 
     def _start_from_alignment(self, res: AlignmentResult) -> None:
         self._start(res.time_us, res.state, aligned_covariance(self.layout, self.config, res))

@@ -1,10 +1,17 @@
 """Input screening for :class:`fusion.filter.NavFilter`: which samples may be used, and how.
 
-IMU samples (:meth:`SampleScreen.imu`): a sample with an unreadable timestamp, a duplicated or
-backwards one is dropped; one with non-finite or out-of-range fields is replaced by the last
-good sample (zero-order hold over its interval); a forward step larger than
-``ImuTuning.time_jump_s`` is a gap the INS must coast over instead of integrating it. The first
-sample is integrated over its own ``dt_s`` only if that is plausible (``<= max_dt_s``).
+IMU samples (:meth:`SampleScreen.imu`): a sample with an unreadable or out-of-range timestamp
+(negative, or beyond :data:`MAX_TIME_US`) is dropped, a duplicated one too; one with
+non-finite or out-of-range fields is replaced by the last good sample (zero-order hold over its
+interval). The filter's clock is never moved by one sample: a stamp more than
+``ImuTuning.time_jump_s`` ahead of it, or behind it, is *quarantined* (counted, dropped). Only
+``time_base_confirm_samples`` consecutive quarantined samples at plausible intervals
+(``<= max_dt_s`` apart) are a new time base: a forward gap up to ``max_coast_s`` is then a gap
+the INS coasts over instead of integrating it, anything else (a step back, as after a
+simulator restart, or a longer gap) sets :attr:`SampleScreen.rebase_pending` for the filter to
+re-initialise. A real sample in between ends the run, so one bogus frame, or a stream of them
+interleaved with the real one, never takes the clock. The first sample is integrated over its
+own ``dt_s`` only if that is plausible (``<= max_dt_s``).
 
 Aiding samples (:meth:`SampleScreen.order`): per-sensor time order, and a stamp more than
 ``max_sensor_lead_s`` ahead of the IMU is dropped (it would otherwise block its stream until
@@ -24,6 +31,10 @@ Vec6 = tuple[float, float, float, float, float, float]
 ImuStep = tuple[int, float, Vec6, bool, bool]
 """``(time_us, dt_s, (f_x, f_y, f_z, w_x, w_y, w_z), good, gap)`` of a usable IMU sample."""
 
+MAX_TIME_US = 2**62
+"""Largest timestamp taken, us (146,000 years; MAVLink's uint64 ``time_usec`` can say 2^64-1,
+which no clock means and whose differences overflow the covariance)."""
+
 
 class SampleScreen:
     """Time order and validity of the input samples (see the module docstring).
@@ -41,10 +52,18 @@ class SampleScreen:
         self._accel_range = imu.accel_range_mps2
         self._gyro_range = imu.gyro_range_rps
         self._max_dt = imu.max_dt_s
-        self._time_jump_s = imu.time_jump_s
+        self._max_dt_us = round(imu.max_dt_s * 1e6)
+        self._jump_us = round(imu.time_jump_s * 1e6)
+        self._max_coast_us = round(imu.max_coast_s * 1e6)
+        self._confirm = imu.time_base_confirm_samples
         self._max_lead_us = round(imu.max_sensor_lead_s * 1e6)
         self.last_imu_us: int | None = None
         """Time of the last IMU sample taken (integrated, held or coasted over)."""
+        self._run_n = 0  # consecutive quarantined samples at plausible intervals
+        self._run_last_us = 0
+        self.rebase_pending = False
+        """A confirmed new time base the INS cannot coast into: the filter must
+        re-initialise (with a fresh screen)."""
         self._good_fw: Vec6 | None = None
         self._last_us: dict[str, int] = {}
 
@@ -62,7 +81,7 @@ class SampleScreen:
             first interval). Else ``(time_us, dt_s, fw, good, gap)``: the interval since the
             previous sample (the first sample's own ``dt_s``), the specific force and rate to
             use (this sample's, or the last good one's when ``good`` is false), and ``gap``:
-            the step exceeds ``time_jump_s`` and must not be integrated.
+            a confirmed forward gap (see the module docstring) that must not be integrated.
         """
         c = self._c
         t = s.time_us
@@ -72,13 +91,26 @@ class SampleScreen:
             except (TypeError, ValueError, OverflowError):
                 c.imu_nan += 1
                 return None
-        last = self.last_imu_us
-        if last is not None and t <= last:
-            if t == last:
-                c.duplicates += 1
-            else:
-                c.time_backwards += 1
+        if not 0 <= t <= MAX_TIME_US:
+            c.time_quarantined += 1
+            self._run_n = 0
             return None
+        last = self.last_imu_us
+        gap = False
+        if last is not None:
+            step = t - last
+            if step == 0:
+                c.duplicates += 1
+                return None
+            if step < 0 or step > self._jump_us:
+                if not self._confirmed(t, step < 0):
+                    return None
+                if step < 0 or step > self._max_coast_us:
+                    self.rebase_pending = True
+                    return None
+                gap = True  # a confirmed forward gap: coast over it
+            elif self._run_n:
+                self._run_n = 0  # a sample on the clock ends a quarantined run
         try:
             try:  # fast path: numpy arrays
                 fx, fy, fz = s.specific_force_b_mps2.tolist()
@@ -119,10 +151,28 @@ class SampleScreen:
                 return None
             return (t, dt_s, fw, good, False)
         dt = (t - last) * 1e-6
-        if dt > self._time_jump_s:
+        if gap:
             c.time_jump += 1
             return (t, dt, fw, good, True)
         return (t, dt, fw, good, False)
+
+    def _confirmed(self, t: int, backwards: bool) -> bool:
+        """Quarantine an IMU stamp off the clock (count it); True once it completes a run of
+        ``time_base_confirm_samples`` consecutive such stamps at plausible intervals."""
+        c = self._c
+        if backwards:
+            c.time_backwards += 1
+        else:
+            c.time_quarantined += 1
+        if self._run_n and 0 < t - self._run_last_us <= self._max_dt_us:
+            self._run_n += 1
+        else:
+            self._run_n = 1
+        self._run_last_us = t
+        if self._run_n < self._confirm:
+            return False
+        self._run_n = 0
+        return True
 
     def order(self, kind: str, time_us: Any) -> int | None:
         """Per-sensor time order of an aiding sample.
@@ -137,7 +187,7 @@ class SampleScreen:
         Returns
         -------
         int or None
-            The time, or ``None`` (counted) when the timestamp is unreadable
+            The time, or ``None`` (counted) when the timestamp is unreadable or out of range
             (``<kind>_invalid``), repeats (``duplicates``), goes backwards
             (``time_backwards``) or lies more than ``max_sensor_lead_s`` ahead of the IMU
             (``time_jump``).
@@ -146,6 +196,8 @@ class SampleScreen:
         try:
             t = int(time_us)
         except (TypeError, ValueError, OverflowError):
+            t = -1
+        if not 0 <= t <= MAX_TIME_US:
             setattr(c, f"{kind}_invalid", getattr(c, f"{kind}_invalid") + 1)
             return None
         last = self._last_us.get(kind)

@@ -26,13 +26,22 @@ current time. Over the delay ``d`` (<= ``max_delay_s``) ``dr(t_fix) ≈ dr(now) 
 term is in ``H``; the other couplings over a fraction of a second (attitude into velocity,
 ~g phi d) are neglected, which keeps the update a plain one-epoch update.
 
-*When* — :func:`fix_quality` (3-D fix, finite, accuracy) and :class:`GnssControl`: outage
-detection (no fused fix for ``outage_timeout_s``), re-acquisition after ``reacquire_fixes``
-consecutive good fixes, and reset requests (re-acquisition after a real outage that the gate
-rejects, or good-quality fixes rejected for ``reset_after_rejected_s``).
+*When* — :func:`fix_quality` (3-D fix, finite, in range: latitude, longitude, altitude,
+speed; accuracy) and :class:`GnssControl`: outage detection (no fused fix for
+``outage_timeout_s``), re-acquisition after ``reacquire_fixes`` consecutive good fixes, and
+reset requests (re-acquisition after a real outage that the gate rejects, or good-quality
+fixes rejected for ``reset_after_rejected_s``).
+
+*Bounded reset* — a requested reset goes to the fix only if the INS does not contradict it
+(every innovation axis within ``reset_sigma`` times the INS's sigma plus the fix's claimed
+accuracy), or if ``reset_confirm_fixes`` consecutive rejected fixes follow from each other
+and, in a continuous stream, from the last fused fix (positions moving as their velocities
+say). A fix stream that jumped away from the fused track is therefore not reset to until the
+INS's own uncertainty covers the jump; refusals are counted (``gnss_resets_refused``).
 
 *Fusion step* — :class:`GnssAiding`: a fix through the quality checks and the control, its
-position update (then a reset when the control asks for one), its velocity update, counted.
+position update (then a bounded reset when the control asks for one), its velocity update,
+counted.
 """
 
 from __future__ import annotations
@@ -243,7 +252,12 @@ def fix_quality(fix: GnssFix, cfg: GnssTuning) -> str | None:
         return "invalid"
     # NaN accuracies mean "not reported" (HIL_GPS has no speed accuracy; 65535 = unknown):
     # the configured defaults stand in for them in fix_sigmas.
-    if abs(fix.lat_rad) > 0.5 * math.pi or fix.eph_m < 0.0 or fix.epv_m < 0.0:
+    if (
+        abs(fix.lat_rad) > 0.5 * math.pi or abs(fix.lon_rad) > math.pi
+        or not cfg.min_alt_m <= fix.alt_msl_m <= cfg.max_alt_m
+        or math.hypot(v[0], v[1]) > cfg.max_speed_mps or abs(v[2]) > cfg.max_speed_mps
+        or fix.eph_m < 0.0 or fix.epv_m < 0.0
+    ):  # fmt: skip
         return "invalid"
     if fix.eph_m > cfg.max_eph_m:
         return "inaccurate"
@@ -295,6 +309,37 @@ def fix_sigmas(fix: GnssFix, cfg: GnssTuning) -> tuple[float, float, float]:
     )
 
 
+class _FixPoint(NamedTuple):
+    time_us: int
+    lat_rad: float
+    lon_rad: float
+    alt_m: float
+    v_ned_mps: tuple[float, float, float]
+    sigma_h_m: float
+    sigma_v_m: float
+    sigma_vel_mps: float
+
+
+def _consistent(a: _FixPoint, b: _FixPoint, max_accel_mps2: float) -> bool:
+    """Fix ``b`` follows from fix ``a``: its position moved as the two velocities say
+    (trapezoid) and its velocity changed by no more than ``max_accel_mps2`` allows, within
+    three times their claimed accuracies (a NaN vertical velocity counts as zero)."""
+    dt = (b.time_us - a.time_us) * 1e-6
+    if not dt > 0.0:
+        return False
+    d = earth.ned_offset_m(b.lat_rad, b.lon_rad, b.alt_m, a.lat_rad, a.lon_rad, a.alt_m)
+    slack = 0.5 * max_accel_mps2 * dt * dt
+    for i in range(3):
+        va = a.v_ned_mps[i] if math.isfinite(a.v_ned_mps[i]) else 0.0
+        vb = b.v_ned_mps[i] if math.isfinite(b.v_ned_mps[i]) else 0.0
+        sig = a.sigma_v_m + b.sigma_v_m if i == 2 else a.sigma_h_m + b.sigma_h_m
+        if abs(d[i] - 0.5 * (va + vb) * dt) > 3.0 * sig + slack:
+            return False
+        if abs(vb - va) > 3.0 * (a.sigma_vel_mps + b.sigma_vel_mps) + max_accel_mps2 * dt:
+            return False
+    return True
+
+
 class GnssControl:
     """When to fuse GNSS: outage detection, re-acquisition and reset logic.
 
@@ -313,6 +358,11 @@ class GnssControl:
         self.reacquiring = False
         self._after_true_outage = False
         self._rejected_since_us: dict[str, int | None] = {"pos": None, "vel": None}
+        # bounded resets: the last fused fix, and the run of rejected fixes since it
+        self._anchor: _FixPoint | None = None
+        self._run_last: _FixPoint | None = None
+        self._run_n = 0
+        self._run_broken = False
 
     def is_active(self, now_us: int) -> bool:
         """GNSS is aiding: a fix was fused within ``outage_timeout_s``."""
@@ -373,6 +423,44 @@ class GnssControl:
         if self.reacquiring or time_us - since >= self._reset_us:
             return True
         return False
+
+    def on_position_result(self, fix: GnssFix, sigmas: tuple[float, float, float],
+                           accepted: bool) -> None:
+        """Track the run of rejected fixes that a reset the INS contradicts needs.
+
+        An accepted fix is the anchor. Each rejected fix must follow from the previous one
+        (:func:`_consistent`); the first of a run must follow from the anchor when the stream
+        is continuous (within ``outage_timeout_s``). A jump away from the fused track breaks
+        the run for good (until a fix is fused again or a real outage starts a new run);
+        a fix that does not follow from the previous rejected one restarts the count.
+        """
+        vd = float(fix.v_ned_mps[2])
+        p = _FixPoint(int(fix.time_us), float(fix.lat_rad), float(fix.lon_rad),
+                      float(fix.alt_msl_m),
+                      (float(fix.v_ned_mps[0]), float(fix.v_ned_mps[1]), vd), *sigmas)  # fmt: skip
+        if accepted:
+            self._anchor, self._run_last, self._run_n, self._run_broken = p, None, 0, False
+            return
+        amax = self.cfg.max_accel_mps2
+        prev = self._run_last
+        if prev is not None and p.time_us - prev.time_us > self._timeout_us:
+            prev = None  # a real gap: a new run, not anchored
+            self._run_n, self._run_broken = 0, False
+        if prev is None:
+            anchor = self._anchor
+            if anchor is not None and p.time_us - anchor.time_us <= self._timeout_us:
+                self._run_broken = self._run_broken or not _consistent(anchor, p, amax)
+            self._run_n = 1
+        elif _consistent(prev, p, amax):
+            self._run_n += 1
+        else:
+            self._run_n = 1
+        self._run_last = p
+
+    def contradicted_reset_allowed(self) -> bool:
+        """A reset to a fix the INS contradicts: only after ``reset_confirm_fixes``
+        consecutive rejected fixes that agree with each other and with the fused track."""
+        return not self._run_broken and self._run_n >= self.cfg.reset_confirm_fixes
 
     def on_reset(self, part: str, time_us: int) -> None:
         """The filter reset ``part`` to the fix."""
@@ -505,15 +593,32 @@ class GnssAiding:
             return None
         res = self._update(obs, self.gate, AidSource.GNSS_POS, step_us)
         ok = res.test_ratio <= 1.0
+        ctl.on_position_result(fix, sigmas, ok)
         # the bridge learns the INS minus the fix as received (without the bias estimate)
         z_pos = obs.z if bias_ned_m is None else obs.z - np.array(bias_ned_m)
         if not ok and ctl.on_result("pos", t, False):
-            reset(obs.z, np.diag(obs.R))
-            ctl.on_reset("pos", t)
-            self._c.gnss_resets += 1
+            if self._reset_bounded(obs, res):
+                reset(obs.z, np.diag(obs.R))
+                ctl.on_reset("pos", t)
+                self._c.gnss_resets += 1
         elif ok:
             ctl.on_result("pos", t, True)
         return FixUpdate(ok, z_pos.tolist())
+
+    def _reset_bounded(self, obs: Observation, res: kalman.Correction) -> bool:
+        """A reset to this fix is allowed: the INS does not contradict it (every axis of the
+        innovation within ``reset_sigma`` times the INS's sigma plus the fix's), or a run of
+        consistent fixes confirms it (:meth:`GnssControl.contradicted_reset_allowed`);
+        refused resets are counted in ``gnss_resets_refused``."""
+        r = np.diag(obs.R)
+        hph = np.maximum(np.diag(res.S) - r, 0.0)
+        bound = self.cfg.reset_sigma * np.sqrt(hph) + np.sqrt(r)
+        z = np.asarray(res.innovation)
+        finite = np.isfinite(z)
+        if np.all(np.abs(z[finite]) <= bound[finite]) or self.control.contradicted_reset_allowed():
+            return True
+        self._c.gnss_resets_refused += 1
+        return False
 
     def fuse_velocity(
         self,
@@ -559,9 +664,10 @@ class GnssAiding:
         res = self._update(obs, self.gate, AidSource.GNSS_VEL, step_us)
         ok = res.test_ratio <= 1.0
         if not ok and ctl.on_result("vel", t, False):
-            reset(obs.z, np.diag(obs.R))
-            ctl.on_reset("vel", t)
-            c.gnss_resets += 1
+            if self._reset_bounded(obs, res):
+                reset(obs.z, np.diag(obs.R))
+                ctl.on_reset("vel", t)
+                c.gnss_resets += 1
         elif ok:
             ctl.on_result("vel", t, True)
         if position.accepted and ok:

@@ -527,7 +527,11 @@ def test_bad_input_is_counted_never_integrated(racetrack: Prepared) -> None:
     assert h.duplicates == 1 and h.time_backwards == 1 and h.time_jump == 2
     assert h.gnss_no_fix == 1 and h.gnss_invalid == 1
     assert h.baro_invalid == 2 and h.mag_invalid == 1
-    assert h.imu_ok == len([s for s in samples if isinstance(s, ImuSample)]) - 6
+    # the first samples after the hole are quarantined until they confirm the new time: the
+    # confirming one is integrated (coasting the gap), the ones before it are lost
+    confirm = CFG.imu.time_base_confirm_samples
+    assert h.time_quarantined == confirm and h.time_rebases == 0
+    assert h.imu_ok == len([s for s in samples if isinstance(s, ImuSample)]) - 6 - (confirm - 1)
     for e in est:
         assert np.all(np.isfinite(e.v_ned_mps)) and np.all(np.isfinite(e.P_diag))
     # the held samples and the coasted gap did not spoil the solution
@@ -733,3 +737,91 @@ def test_misalignment_states_keep_a_misaligned_imu_consistent(racetrack: Prepare
     # 49-173 with ins22 over seeds 21-61, hence 1.5 x 9 and a factor of 2)
     assert nees["ins35"] < 13.5
     assert nees["ins22"] > 2.0 * nees["ins35"]
+
+
+def test_one_far_future_or_overflowing_imu_stamp_does_not_stop_the_filter(
+    racetrack: Prepared,
+) -> None:
+    # GIVEN the racetrack with one IMU sample stamped an hour ahead and one at 2^64 - 1
+    sc = make_scenario(racetrack, np.random.default_rng(31), ERRORS)
+    hostile: list[object] = []
+    for s in sc.samples:
+        hostile.append(s)
+        if isinstance(s, ImuSample) and s.time_us in (15_000_000, 30_000_000):
+            later = s.time_us + 3_600_000_000 if s.time_us == 15_000_000 else 2**64 - 1
+            hostile.append(dataclasses.replace(s, time_us=later))
+    clean_nav, nav = NavFilter(CFG), NavFilter(CFG)
+    clean, est = run(clean_nav, sc.samples), run(nav, hostile)
+    # THEN both were quarantined, the clock never moved, and the run is the clean run's
+    h = nav.health
+    assert h.time_quarantined == 2 and h.time_rebases == 0 and h.time_jump == 0
+    assert len(est) == len(clean) and est[-1].time_us == clean[-1].time_us
+    for e, c in zip(est, clean, strict=True):
+        assert e.time_us == c.time_us and np.all(np.isfinite(e.P_diag))
+        np.testing.assert_array_equal(e.v_ned_mps, c.v_ned_mps)
+
+
+def test_a_simulator_restart_re_initialises_the_filter_cleanly(racetrack: Prepared) -> None:
+    # GIVEN a flight, then the simulator restarted: the same kind of flight from time 0 again
+    first = make_scenario(racetrack, np.random.default_rng(32), ERRORS)
+    second = make_scenario(racetrack, np.random.default_rng(33), ERRORS)
+    nav = NavFilter(CFG)
+    run(nav, first.samples)
+    # WHEN the second flight's samples follow the first's (time steps back 45 s)
+    est = run(nav, second.samples)
+    # THEN the filter re-initialised once, realigned and navigates the second flight
+    h = nav.health
+    assert h.time_rebases == 1
+    assert h.time_backwards >= CFG.imu.time_base_confirm_samples  # the run that confirmed it
+    late = [e for e in est if e.time_us > 20_000_000]
+    assert late and all(e.mode == "gnss" for e in late)
+    assert max(np.linalg.norm(errors_at(second, e)[0]) for e in late) < 5.0
+
+
+def _fixes_from(sc: Scenario, start_us: int, change: typing.Callable[[GnssFix], GnssFix]
+                ) -> list[object]:
+    return [change(s) if isinstance(s, GnssFix) and s.time_us >= start_us else s
+            for s in sc.samples]
+
+
+def test_implausible_fixes_are_invalid_never_fused_or_reset_to(racetrack: Prepared) -> None:
+    # GIVEN fixes with a longitude beyond +-180 deg, an altitude of 2,147 km, or 700 m/s,
+    # from 20 s on (each in its own run)
+    sc = make_scenario(racetrack, np.random.default_rng(41), ERRORS)
+    changes = {
+        "longitude": lambda f: dataclasses.replace(f, lon_rad=math.radians(-214.7)),
+        "altitude": lambda f: dataclasses.replace(f, alt_msl_m=2_147_000.0),
+        "speed": lambda f: dataclasses.replace(f, v_ned_mps=np.array([700.0, 0.0, 0.0])),
+    }
+    for name, change in changes.items():
+        nav = NavFilter(CFG)
+        est = run(nav, _fixes_from(sc, 20_000_000, change))
+        # THEN every one of them is invalid: no update, no reset, the INS coasts
+        h = nav.health
+        assert h.gnss_invalid >= 5 * 24 and h.gnss_resets == 0, name
+        assert est[-1].mode != "gnss", name
+        assert np.linalg.norm(errors_at(sc, est[-1])[0]) < 30.0, name
+
+
+def test_resets_are_bounded_by_what_the_ins_knows(racetrack: Prepared) -> None:
+    sc = make_scenario(racetrack, np.random.default_rng(42), ERRORS)
+    # GIVEN fixes jumping 1 km north with eph 1 m from 20 s on (consistent among themselves)
+    def jump(f: GnssFix) -> GnssFix:
+        rho = earth.local_terms(f.lat_rad, f.alt_msl_m).rho_n_m
+        return dataclasses.replace(f, lat_rad=f.lat_rad + 1000.0 / rho, eph_m=1.0)
+
+    nav = NavFilter(CFG)
+    est = run(nav, _fixes_from(sc, 20_000_000, jump))
+    # THEN the filter never resets to them while its own sigma contradicts the jump
+    h = nav.health
+    assert h.gnss_resets == 0 and h.gnss_resets_refused > 0
+    assert np.linalg.norm(errors_at(sc, est[-1])[0]) < 30.0
+    # GIVEN instead fixes reporting 327 m/s while their positions move with the aircraft
+    def fast(f: GnssFix) -> GnssFix:
+        return dataclasses.replace(f, v_ned_mps=np.array([327.0, 0.0, 0.0]))
+
+    nav = NavFilter(CFG)
+    est = run(nav, _fixes_from(sc, 20_000_000, fast))
+    # THEN no velocity reset: the fixes contradict themselves (position vs velocity)
+    assert nav.health.gnss_resets == 0 and nav.health.gnss_resets_refused > 0
+    assert np.linalg.norm(errors_at(sc, est[-1])[1]) < 2.0

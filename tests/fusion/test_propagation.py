@@ -101,12 +101,53 @@ def test_imu_screen_holds_the_last_good_sample_and_flags_time_jumps() -> None:
     # duplicates, backwards and out-of-range samples
     assert screen.imu(_imu(20_000)) is None and screen.imu(_imu(15_000)) is None
     assert screen.imu(_imu(30_000, (1e4, 0.0, 0.0)))[3] is False  # type: ignore[index]
-    # a forward step beyond time_jump_s is a gap, not integrated
-    step = screen.imu(_imu(2_030_000))
-    assert step is not None and step[4] and step[1] == pytest.approx(2.0)
+    # a forward step beyond time_jump_s is quarantined until confirmed by consecutive samples
+    # at plausible intervals; then it is a gap, not integrated
+    confirm = ImuTuning().time_base_confirm_samples
+    for k in range(confirm - 1):
+        assert screen.imu(_imu(2_030_000 + 10_000 * k)) is None
+    step = screen.imu(_imu(2_030_000 + 10_000 * (confirm - 1)))
+    assert step is not None and step[4] and step[1] == pytest.approx(2.0 + 0.01 * (confirm - 1))
     h = c.snapshot()
     assert (h.imu_ok, h.imu_nan, h.imu_out_of_range, h.duplicates, h.time_backwards,
-            h.time_jump) == (2, 1, 1, 1, 1, 1)  # fmt: skip
+            h.time_jump, h.time_quarantined) == (2, 1, 1, 1, 1, 1, confirm)  # fmt: skip
+
+
+def test_one_bogus_stamp_never_moves_the_clock() -> None:
+    # GIVEN a screen running at 100 Hz
+    c = HealthCounters()
+    screen = SampleScreen(ImuTuning(), c)
+    t = 40_000_000
+    assert screen.imu(_imu(t)) is not None
+    for bogus in (t + 3_600_000_000, 2**64 - 1, -5, t - 30_000_000):
+        # WHEN one sample an hour ahead, at 2^64-1, negative or 30 s back arrives
+        assert screen.imu(_imu(bogus)) is None
+        t += 10_000
+        # THEN the next real sample is on the clock as if nothing had happened
+        step = screen.imu(_imu(t))
+        assert step is not None and step[0] == t and not step[4]
+        assert step[1] == pytest.approx(0.01)
+    # AND a stream of bogus stamps interleaved with the real one never confirms
+    for k in range(20):
+        assert screen.imu(_imu(t + 3_600_000_000 + 10_000 * k)) is None
+        t += 10_000
+        assert screen.imu(_imu(t)) is not None
+    h = c.snapshot()
+    assert h.time_quarantined == 3 + 20 and h.time_backwards == 1
+    assert h.time_jump == 0 and not screen.rebase_pending
+
+
+def test_a_consistent_step_back_or_a_long_gap_asks_for_a_rebase() -> None:
+    confirm = ImuTuning().time_base_confirm_samples
+    clock = 40_000_000
+    for start in (clock - 30_000_000, clock + 20_000_000):  # 30 s back; a 20 s gap (> 10 s)
+        screen = SampleScreen(ImuTuning(), HealthCounters())
+        assert screen.imu(_imu(clock)) is not None
+        for k in range(confirm - 1):
+            assert screen.imu(_imu(start + 10_000 * k)) is None
+            assert not screen.rebase_pending
+        assert screen.imu(_imu(start + 10_000 * (confirm - 1))) is None
+        assert screen.rebase_pending
 
 
 def test_imu_screen_drops_until_a_good_sample_and_an_implausible_first_interval() -> None:
@@ -128,5 +169,7 @@ def test_aiding_order_screen_drops_repeats_backwards_and_far_future_stamps() -> 
     assert screen.order("baro", 800_000) == 800_000  # per sensor
     assert screen.order("mag", 7_000_000) is None  # 6 s ahead of the IMU
     assert screen.order("gnss", "soon") is None
+    assert screen.order("baro", 2**64 - 1) is None and screen.order("baro", -1) is None
     h = c.snapshot()
-    assert (h.duplicates, h.time_backwards, h.time_jump, h.gnss_invalid) == (1, 1, 1, 1)
+    assert (h.duplicates, h.time_backwards, h.time_jump, h.gnss_invalid,
+            h.baro_invalid) == (1, 1, 1, 1, 2)  # fmt: skip
