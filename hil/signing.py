@@ -60,7 +60,7 @@ from enum import Enum
 from pathlib import Path
 from typing import Final
 
-from hil.codec import mavlink2
+from hil.codec.wire import mavlink2
 
 __all__ = [
     "CRC_LEN",

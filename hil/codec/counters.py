@@ -18,8 +18,9 @@ class DecoderCounters:
     bad_signature : signed frames rejected by a configured signing key (dropped).
     bad_frames : other framing errors: bad length, unknown incompat flags (dropped).
     garbage_bytes : bytes skipped between frames (no start-of-frame marker).
-    unknown_msg_id : frames whose id the dialect does not know; pymavlink cannot check their
-        CRC (no CRC_EXTRA), so they are dropped.
+    unknown_msg_id : frames whose id the dialect does not know; their CRC cannot be checked
+        (no CRC_EXTRA), so they are dropped.
+    truncated : a frame cut by the end of the input (``parse(..., final=True)``).
     ignored_msgs : valid messages that carry no sensor or truth data hilnav decodes.
     samples : SI samples produced.
     incomplete_fields : HIL_SENSOR / HIGHRES_IMU with only part of the accel+gyro or mag bits.
@@ -35,6 +36,7 @@ class DecoderCounters:
     bad_frames: int = 0
     garbage_bytes: int = 0
     unknown_msg_id: int = 0
+    truncated: int = 0
     ignored_msgs: int = 0
     samples: int = 0
     incomplete_fields: int = 0

@@ -5,8 +5,11 @@ Messages of our simulator go to :mod:`hil.codec.hil_messages`, those of a real f
 controller to :mod:`hil.codec.fc_messages`; IMU intervals and temperatures are remembered per
 source (:mod:`hil.codec.sources`). Everything dropped is counted in :class:`DecoderCounters`.
 
-CRCs are checked by pymavlink, except when the ``MAV_IGNORE_CRC`` environment variable is set
-(pymavlink reads it at import; never set it for hilnav).
+Framing is :class:`hil.codec.framing.FrameParser`, the live links' resynchronising parser:
+after a damaged or cut frame the next good one is found at its start-of-frame marker, so the
+damage costs only that frame (pymavlink's own byte parser could lose many good frames after
+it). Each CRC-valid frame (MAVLink 2, or MAVLink 1 from a mixed link) is then decoded by
+pymavlink, which also checks a configured signing key.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from hil.codec.counters import DecoderCounters
+from hil.codec.framing import FrameParser
 from hil.codec.fc_messages import (
     SCALED_IMU_IDS,
     SCALED_PRESSURE_IDS,
@@ -66,7 +70,7 @@ class Decoder:
     ----------
     counters : DecoderCounters
     mav : pymavlink MAVLink
-        The parser (robust parsing on). Configure signing on ``mav.signing`` to reject
+        Decodes the framed messages. Configure signing on ``mav.signing`` to reject
         unsigned or badly signed frames.
     """
 
@@ -78,13 +82,12 @@ class Decoder:
         first_dt_s = DEFAULT_FIRST_IMU_DT_S if imu_dt_s is None else float(imu_dt_s)
         self._raw_imu_scale = raw_imu_scale
         self.mav = mavlink2.MAVLink(None, srcSystem=0, srcComponent=0)
-        # Robust parsing returns MAVLink_bad_data objects (counted) instead of raising.
-        self.mav.robust_parsing = True
         self.counters = DecoderCounters()
+        self._framer = FrameParser(self.counters)
         self._sources = SourceState(first_dt_s)
 
     # -- bytes -> messages --
-    def parse(self, data: bytes) -> list[Any]:
+    def parse(self, data: bytes, *, final: bool = False) -> list[Any]:
         """Parse bytes into valid pymavlink messages of known ids; count and drop the rest.
 
         Parameters
@@ -92,15 +95,27 @@ class Decoder:
         data : bytes
             Any slice of a MAVLink byte stream; an incomplete trailing frame is kept for the
             next call.
+        final : bool
+            No more bytes follow: an incomplete trailing frame is counted as truncated.
 
         Returns
         -------
         list of pymavlink MAVLink_message
         """
-        msgs = self.mav.parse_buffer(data)
-        if not msgs:
-            return []
-        return [m for m in msgs if self._accept(m)]
+        out = []
+        c = self.counters
+        for frame in self._framer.feed(data, final=final):
+            try:
+                msg = self.mav.decode(bytearray(frame))
+            except mavlink2.MAVError as err:  # signature (or a length pymavlink refuses)
+                if "signature" in str(err):
+                    c.bad_signature += 1
+                else:
+                    c.bad_frames += 1
+                continue
+            if self._accept(msg):
+                out.append(msg)
+        return out
 
     def _accept(self, msg: Any) -> bool:
         msg_id = msg.get_msgId()

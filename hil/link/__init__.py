@@ -72,14 +72,14 @@ A link is not thread-safe: one thread owns it.
 
 Modules
     ``roles`` (:class:`LinkRole`, message id sets, the lockstep constants), ``counters``
-    (:class:`LinkCounters`), ``framing`` (:class:`FrameParser`, no I/O), ``transport``
+    (:class:`LinkCounters`), ``hil.codec.framing`` (:class:`FrameParser`, no I/O, shared with the decoder), ``transport``
     (:class:`LinkUrl`, UDP / TCP / serial byte transports), ``endpoint`` (:class:`MavlinkLink`).
     Signing lives in :mod:`hil.signing`.
 """
 
 from hil.link.counters import LinkCounters
 from hil.link.endpoint import MavlinkLink
-from hil.link.framing import FrameParser
+from hil.codec.framing import FrameParser
 from hil.link.roles import (
     FC_SENSOR_MSG_IDS,
     HIL_MSG_IDS,

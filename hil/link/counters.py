@@ -89,6 +89,11 @@ class LinkCounters:
         "undecodable",
     )
 
+    def count_mavlink1(self) -> None:
+        """A CRC-valid MAVLink 1 frame was received and dropped (the links speak MAVLink 2)."""
+        self.received += 1
+        self.mavlink1 += 1
+
     @property
     def dropped(self) -> int:
         """Frames dropped for any reason in :attr:`DROP_REASONS`."""

@@ -10,7 +10,7 @@ from typing import Any, Final
 
 from hil.codec import mavlink2
 from hil.link.counters import LinkCounters
-from hil.link.framing import FrameParser
+from hil.codec.framing import FrameParser
 from hil.link.roles import HEARTBEAT_ID, LinkRole
 from hil.link.transport import Handler, LinkUrl, Transport, open_transport
 from hil.signing import Signer, Verdict, check_frame, crc_extra, frame_msg_id, reframe
@@ -83,8 +83,8 @@ class MavlinkLink:
         # Packs our own messages (heartbeats) and decodes accepted frames. Its signing state
         # stays empty: signatures are checked by our Signer before decode() sees a frame.
         self._mav = mavlink2.MAVLink(None, srcSystem=role.system_id, srcComponent=role.component_id)
-        self._stream_parser = FrameParser(self._counters)
-        self._datagram_parser = FrameParser(self._counters)
+        self._stream_parser = FrameParser(self._counters, self._counters.count_mavlink1)
+        self._datagram_parser = FrameParser(self._counters, self._counters.count_mavlink1)
         self._tx_seq: dict[tuple[int, int], int] = {}
         self._rx_seq: dict[tuple[int, int], int] = {}
         self._last_heartbeat: dict[tuple[int, int], float] = {}

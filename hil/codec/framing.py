@@ -1,13 +1,17 @@
-"""MAVLink byte-stream framing with CRC checks and resynchronisation (no I/O)."""
+"""MAVLink byte-stream framing with CRC checks and resynchronisation (no I/O).
+
+One parser for every path: the live links (:mod:`hil.link`) and the decoder behind replay
+(:class:`hil.codec.Decoder`), so damage anywhere costs only the damaged frame.
+"""
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from enum import Enum
-from typing import Final
+from typing import Final, Protocol
 
-from hil.codec import mavlink2
-from hil.link.counters import LinkCounters
+from hil.codec.wire import mavlink2
 from hil.signing import (
     CRC_LEN,
     HEADER_LEN,
@@ -19,7 +23,7 @@ from hil.signing import (
     frame_msg_id,
 )
 
-__all__ = ["MAGIC_V1", "FrameParser"]
+__all__ = ["MAGIC_V1", "FrameParser", "FramingCounters"]
 
 MAGIC_V1: Final = 0xFE
 _HEADER_LEN_V1: Final = 6
@@ -27,27 +31,44 @@ _MAGIC_RE: Final = re.compile(b"[\xfd\xfe]")
 
 
 class _Scan(Enum):
-    FRAME = 1  # a CRC-valid MAVLink 2 frame of a known id
+    FRAME = 1  # a CRC-valid frame of a known id
     SKIP = 2  # a frame to step over whole (MAVLink 1, unknown id); already counted
     NOT_A_FRAME = 3  # the marker byte is garbage: resume one byte later
     WAIT = 4  # need more bytes to decide
 
 
+class FramingCounters(Protocol):
+    """What :class:`FrameParser` counts (``hil.link.LinkCounters``,
+    ``hil.codec.DecoderCounters``)."""
+
+    garbage_bytes: int
+    bad_crc: int
+    unknown_msg_id: int
+    truncated: int
+
+
 class FrameParser:
-    """Split a MAVLink byte stream into CRC-checked MAVLink 2 frames of known message ids.
+    """Split a MAVLink byte stream into CRC-checked frames of known message ids.
 
     Stateful for streams (keeps an incomplete trailing frame, at most one frame long, for the
-    next :meth:`feed`). Counts into a shared :class:`LinkCounters`: ``garbage_bytes``,
-    ``bad_crc``, ``unknown_msg_id``, ``truncated``, and ``received`` + ``mavlink1`` for the
-    MAVLink 1 frames it drops.
+    next :meth:`feed`); a corrupted or cut frame costs only its own bytes: the parser resumes
+    at the next start-of-frame marker. Counts ``garbage_bytes``, ``bad_crc``,
+    ``unknown_msg_id`` and ``truncated``.
 
     Parameters
     ----------
-    counters : LinkCounters
+    counters : FramingCounters
+    on_mavlink1 : callable, optional
+        Called for each CRC-valid MAVLink 1 frame, which is then dropped (the live links
+        speak MAVLink 2 only). Without it MAVLink 1 frames are returned like MAVLink 2 ones
+        (a log from a mixed link).
     """
 
-    def __init__(self, counters: LinkCounters) -> None:
+    def __init__(
+        self, counters: FramingCounters, on_mavlink1: Callable[[], None] | None = None
+    ) -> None:
         self._c = counters
+        self._on_mavlink1 = on_mavlink1
         self._buf = bytearray()
 
     def feed(self, data: bytes, *, final: bool = False) -> list[bytes]:
@@ -137,7 +158,6 @@ class FrameParser:
         return _Scan.FRAME, size
 
     def _v1(self, buf: bytearray, i: int, n: int, final: bool) -> tuple[_Scan, int]:
-        # MAVLink 1 is only recognised so that its frames are skipped cleanly and counted.
         # Bytes 0xFE are common in payloads, so a failing candidate is plain garbage.
         avail = n - i
         if avail < _HEADER_LEN_V1:
@@ -156,6 +176,7 @@ class FrameParser:
         crc.accumulate(bytes((msg_type.crc_extra,)))
         if buf[crc_at] | (buf[crc_at + 1] << 8) != crc.crc:
             return _Scan.NOT_A_FRAME, 0
-        self._c.received += 1
-        self._c.mavlink1 += 1
+        if self._on_mavlink1 is None:
+            return _Scan.FRAME, size
+        self._on_mavlink1()
         return _Scan.SKIP, size
