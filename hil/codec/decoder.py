@@ -19,7 +19,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from hil.codec.counters import DecoderCounters
-from hil.codec.framing import FrameParser
 from hil.codec.fc_messages import (
     SCALED_IMU_IDS,
     SCALED_PRESSURE_IDS,
@@ -29,6 +28,7 @@ from hil.codec.fc_messages import (
     decode_scaled_imu,
     decode_scaled_pressure,
 )
+from hil.codec.framing import FrameParser
 from hil.codec.hil_messages import (
     decode_hil_gps,
     decode_hil_sensor,

@@ -72,14 +72,15 @@ A link is not thread-safe: one thread owns it.
 
 Modules
     ``roles`` (:class:`LinkRole`, message id sets, the lockstep constants), ``counters``
-    (:class:`LinkCounters`), ``hil.codec.framing`` (:class:`FrameParser`, no I/O, shared with the decoder), ``transport``
-    (:class:`LinkUrl`, UDP / TCP / serial byte transports), ``endpoint`` (:class:`MavlinkLink`).
+    (:class:`LinkCounters`), ``transport`` (:class:`LinkUrl`, UDP / TCP / serial byte
+    transports), ``endpoint`` (:class:`MavlinkLink`). The framing (:class:`FrameParser`, no
+    I/O) is :mod:`hil.codec.framing`, shared with the decoder.
     Signing lives in :mod:`hil.signing`.
 """
 
+from hil.codec.framing import FrameParser
 from hil.link.counters import LinkCounters
 from hil.link.endpoint import MavlinkLink
-from hil.codec.framing import FrameParser
 from hil.link.roles import (
     FC_SENSOR_MSG_IDS,
     HIL_MSG_IDS,
