@@ -82,9 +82,10 @@ class ImuTuning(_Frozen):
     counted as time jumps (one bogus future stamp must not block its stream), s."""
     gap_accel_sigma_mps2: PositiveFloat = 2.0
     """Unknown acceleration assumed over a time-jump gap (the INS coasts at constant velocity;
-    the covariance grows by this much manoeuvring), m/s^2."""
+    the covariance grows by this much manoeuvring) and over the interval of a sample replaced
+    by the last good one (NaN, out of range), m/s^2."""
     gap_rate_sigma_rps: PositiveFloat = math.radians(3.0)
-    """Unknown rotation rate assumed over a time-jump gap, rad/s."""
+    """Unknown rotation rate assumed over a time-jump gap or a held sample's interval, rad/s."""
 
 
 class GnssTuning(_Frozen):

@@ -435,6 +435,9 @@ class NavFilter:
         cov.acc_dt = acc_dt
         if acc_dt >= self._cov_period_s - 1e-9:
             self._bb *= cov.propagate(ins)  # as _propagate, one call less on the hot path
+        if not good:
+            # integrated from the last good sample: the sensors did not see this interval
+            cov.add_unknown_motion(dt)
         self._history_push(t, ins)
         if self._loop_alt:
             self._alt.on_imu(t, dt, ins0.v_ned_mps[2], ins)

@@ -186,17 +186,23 @@ class CovariancePropagator:
             self.v0 = v0
             self.acc_dt = gap_s / n_sub
             decays.append(self.propagate(ins))
+        self.add_unknown_motion(gap_s)
+        return decays
+
+    def add_unknown_motion(self, span_s: float) -> None:
+        """Grow ``P`` by ``span_s`` of motion the sensors did not see: position and velocity by
+        ``gap_accel_sigma_mps2`` of unknown acceleration, attitude by ``gap_rate_sigma_rps``
+        of unknown rotation (an IMU gap, or an interval integrated from a held sample)."""
         lay = self.layout
         sa, sw = self._gap_accel_sigma, self._gap_rate_sigma
         P = self.P.copy()
         idx = np.arange(3)
-        P[lay.POS + idx, lay.POS + idx] += (0.5 * sa * gap_s * gap_s) ** 2
-        P[lay.VEL + idx, lay.VEL + idx] += (sa * gap_s) ** 2
-        P[lay.POS + idx, lay.VEL + idx] += 0.5 * sa * sa * gap_s**3
-        P[lay.VEL + idx, lay.POS + idx] += 0.5 * sa * sa * gap_s**3
-        P[lay.ATT + idx, lay.ATT + idx] += (sw * gap_s) ** 2
+        P[lay.POS + idx, lay.POS + idx] += (0.5 * sa * span_s * span_s) ** 2
+        P[lay.VEL + idx, lay.VEL + idx] += (sa * span_s) ** 2
+        P[lay.POS + idx, lay.VEL + idx] += 0.5 * sa * sa * span_s**3
+        P[lay.VEL + idx, lay.POS + idx] += 0.5 * sa * sa * span_s**3
+        P[lay.ATT + idx, lay.ATT + idx] += (sw * span_s) ** 2
         self.P = P
-        return decays
 
 
 def decay_gnss_bias(

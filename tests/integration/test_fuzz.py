@@ -19,51 +19,12 @@ from fusion import earth
 from fusion.config import FilterConfig
 from fusion.estimate import NavEstimate
 from fusion.filter import NavFilter
-from hil.codec import SENSOR_COMPONENT_ID, Decoder, Encoder, mavlink2
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample
+from hil.codec import Decoder
+from tests.helpers.hostile import encode, hostile_frame, mutate, sender
 from tests.helpers.nav_synth import Flight, SensorErrors, make_scenario
 
 CFG = FilterConfig()
 ATTACK_S = (30.0, 40.0)
-NAN, INF = math.nan, math.inf
-
-
-def _frames(samples: list[object]) -> list[tuple[int, bytes]]:
-    enc = Encoder()
-    out = []
-    for s in samples:
-        if isinstance(s, ImuSample):
-            out.append((s.time_us, enc.sensors(s, time_us=s.time_us)))
-        elif isinstance(s, BaroSample):
-            out.append((s.time_us, enc.sensors(None, s, time_us=s.time_us)))
-        elif isinstance(s, MagSample):
-            out.append((s.time_us, enc.sensors(None, mag=s, time_us=s.time_us)))
-        elif isinstance(s, GnssFix):
-            out.append((s.time_us, enc.gnss(s)))
-    return out
-
-
-def _hostile(rng: np.random.Generator, t_us: int, mav: mavlink2.MAVLink) -> bytes:
-    """One CRC-valid frame with hostile values."""
-    def pick(options: list[int] | list[float]) -> int | float:
-        return options[int(rng.integers(len(options)))]  # plain Python numbers, no numpy
-
-    bad = [NAN, INF, -INF, 1e30, -1e30]
-    times = [t_us + 3_600_000_000, max(0, t_us - 3_600_000_000), 2**64 - 1, 0, t_us]
-    if rng.random() < 0.6:
-        v = [pick(bad) if rng.random() < 0.5 else 0.0 for _ in range(13)]
-        return mavlink2.MAVLink_hil_sensor_message(pick(times), *v, 0x1FFF, 0).pack(mav)
-    i32 = [2**31 - 1, -(2**31) + 1, 0]
-    return mavlink2.MAVLink_hil_gps_message(
-        pick(times), 3, pick(i32), pick(i32), pick(i32), pick([1, 65535, 0]), 1,
-        pick([65535, 32767]), pick([32767, -32767, 0]), 0, 0, 0, 12, 0, 0).pack(mav)
-
-
-def _mutate(rng: np.random.Generator, frame: bytes) -> bytes:
-    b = bytearray(frame)
-    for _ in range(int(rng.integers(1, 4))):
-        b[int(rng.integers(len(b)))] = int(rng.integers(256))
-    return bytes(b)
 
 
 def _run(stream: list[bytes]) -> tuple[NavFilter, list[NavEstimate]]:
@@ -87,18 +48,18 @@ def test_hostile_frames_never_raise_and_the_filter_recovers() -> None:
                     climbs=[(20.0, 35.0, 3.0)])  # fmt: skip
     sc = make_scenario(flight, np.random.default_rng(51), SensorErrors.from_config(CFG),
                        mag_rate_hz=10.0)  # fmt: skip
-    frames = _frames(sc.samples)
+    frames = encode(sc.samples)
     rng = np.random.default_rng(52)
-    mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=SENSOR_COMPONENT_ID)
+    mav = sender()
     attacked: list[bytes] = []
     n_hostile = n_mutated = 0
     for t_us, frame in frames:
         if ATTACK_S[0] * 1e6 <= t_us < ATTACK_S[1] * 1e6:
             if rng.random() < 0.3:
-                frame = _mutate(rng, frame)
+                frame = mutate(rng, frame)
                 n_mutated += 1
             if rng.random() < 0.3:
-                attacked.append(_hostile(rng, t_us, mav))
+                attacked.append(hostile_frame(rng, t_us, mav))
                 n_hostile += 1
         attacked.append(frame)
     assert n_hostile > 300 and n_mutated > 300  # of ~1,400 frames in the window
