@@ -507,6 +507,7 @@ class FusionService:
         link = self._links.get("mavlink")
         return {
             "source_system": None if link is None else link.locked_system,
+            "signed": link is not None and link.signed,
             "links": counters,
             "lost_frames": counters["mavlink"].get("lost_seq", 0),
             "fixes": 0 if col is None else len(col.fix_times_us),

@@ -339,6 +339,11 @@ class MavlinkLink:
         return msg
 
     @property
+    def signed(self) -> bool:
+        """MAVLink 2 signing is on: outgoing frames signed, unsigned incoming ones dropped."""
+        return self._signer is not None
+
+    @property
     def locked_system(self) -> int | None:
         """The system id a ``lock_to_first_source`` link bound to (None: not yet, or no lock)."""
         return self._locked_system

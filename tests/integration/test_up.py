@@ -40,6 +40,24 @@ def test_up_with_duration_finishes_by_itself_and_prints_a_scorecard(tmp_path: Pa
     assert "sim finished (exit 0)" in proc.stdout
 
 
+def test_up_signs_every_link_with_the_key_from_the_environment(tmp_path: Path) -> None:
+    # GIVEN a signing key in HILNAV_MAVLINK_KEY (as the README's first example shows)
+    out = tmp_path / "up"
+    env = {**_env(), "HILNAV_MAVLINK_KEY": "5a" * 32}
+    proc = subprocess.run(
+        [sys.executable, "-m", "scenarios.cli", "up", "--duration", "20", "--speed", "20",
+         "--out", str(out)],
+        capture_output=True, text=True, timeout=150, env=env, check=False,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    # THEN the fusion's link ran signed (it accepts only correctly signed frames: an unsigned
+    # one would be dropped and counted), accepted the simulator's stream and lost nothing
+    live = json.loads((out / "summary.json").read_text())["live"]
+    mav = live["links"]["mavlink"]
+    assert live["signed"] is True and live["lost_frames"] == 0
+    assert mav["accepted"] > 1000 and mav["unsigned"] == 0 and mav["bad_signature"] == 0
+
+
 def test_up_stops_every_child_on_sigint(tmp_path: Path) -> None:
     proc = subprocess.Popen(
         [sys.executable, "-m", "scenarios.cli", "up", "--speed", "1",
