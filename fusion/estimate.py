@@ -43,7 +43,7 @@ class AidSource(StrEnum):
     """A bridging strategy's pseudo-GNSS velocity."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Health:
     """Counters since construction (or :meth:`fusion.filter.NavFilter.reset`)."""
 
@@ -119,6 +119,7 @@ class Health:
 
 HEALTH_FIELDS = tuple(f.name for f in fields(Health))
 """The counter names of :class:`Health`, in order."""
+_HEALTH_SETTERS = tuple((name, getattr(Health, name).__set__) for name in HEALTH_FIELDS)
 
 
 class HealthCounters:
@@ -162,10 +163,12 @@ class HealthCounters:
 
     def snapshot(self) -> Health:
         """The counters as an immutable :class:`Health`."""
-        # Health is frozen: fill its __dict__ directly (4x faster than __init__ with 22
-        # arguments; this runs at the output rate)
+        # Health is frozen and slotted (a collected estimate holds one: ~300 bytes instead of
+        # a 1.6 kB __dict__): fill its slots through their descriptors, no __init__ frame
         health = object.__new__(Health)
-        health.__dict__.update(self.__dict__)
+        values = self.__dict__
+        for name, setter in _HEALTH_SETTERS:
+            setter(health, values[name])
         return health
 
 
