@@ -11,8 +11,8 @@ filter is run both in its default layout and with scale-factor states:
 - Filter layouts: the commands' default for the receiver (``ins16+gnss``) and ``ins22+gnss``
   (accelerometer and gyro scale-factor states).
 
-Every run goes through the pipeline (:func:`hil.pipeline.fly` into a
-:class:`hil.pipeline.FusionRun`, the filter from :func:`hil.pipeline.filter_config`) and is
+Every run goes through the pipeline (frames recorded by :func:`hil.pipeline.fly`, fused by
+:func:`hil.pipeline.fuse_frames`, the filter from :func:`hil.pipeline.filter_config`) and is
 scored by :func:`scenarios.summary.score_run` (its ``nees`` section) plus the per-axis
 ``rms(error / sigma)`` over the GNSS-on mask. No GNSS outage is flown: this is the aided
 filter's consistency. Seeds default to 100-102 (held out: the filter's tuning never saw them).
@@ -68,7 +68,7 @@ def run_one(job: tuple[str, int, float, str, tuple[str, ...], tuple[str, ...]]
     (variant, layout)."""
     import numpy as np
 
-    from hil.pipeline import FusionRun, SimSetup, filter_config, fly
+    from hil.pipeline import SimSetup, filter_config, fly, fuse_frames
     from scenarios import metrics
     from scenarios.summary import RunInfo, score_run
     from sim.presets import gnss_preset
@@ -96,9 +96,7 @@ def run_one(job: tuple[str, int, float, str, tuple[str, ...], tuple[str, ...]]
             cfg = filter_config(imu, gnss_preset("modern"))
             if layout != "default":
                 cfg = cfg.model_copy(update={"state_layout": layout})
-            run = FusionRun(cfg)
-            for _t, frame in frames:
-                run.feed_frame(frame)
+            run = fuse_frames(frames, cfg)
             info = RunInfo(scenario=plan, seed=seed, sim_duration_s=flown.sim_duration_s,
                            wall_s=0.0, bridge="none", altitude="ekf")
             scored = score_run(run, info, settle_s=SETTLE_S)

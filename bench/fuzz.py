@@ -43,11 +43,10 @@ def run_one(job: tuple[int, float, float, float, float]) -> dict[str, Any]:
     """One seed: the attacked and the clean run of one flight."""
     import numpy as np
 
-    from fusion import earth
     from fusion.config import FilterConfig
     from fusion.filter import NavFilter
     from hil.codec import Decoder
-    from tests.helpers.hostile import encode, hostile_frame, mutate, sender
+    from tests.helpers.hostile import encode, horizontal_error_m, hostile_frame, mutate, sender
     from tests.helpers.nav_synth import Flight, SensorErrors, make_scenario
 
     seed, duration_s, period_s, window_s, recover_s = job
@@ -79,9 +78,7 @@ def run_one(job: tuple[int, float, float, float, float]) -> dict[str, Any]:
             stream.append(frame)
 
     def horizontal(e: Any) -> float:
-        kin = sc.traj(np.array([e.time_us * 1e-6]))
-        d = earth.ned_offset_m(e.lat_rad, e.lon_rad, e.alt_msl_m, *kin.lla[0])
-        return float(math.hypot(d[0], d[1]))
+        return horizontal_error_m(sc, e)
 
     def fly(data: list[bytes]) -> tuple[list[Any], str | None, float, Any]:
         nav, dec = NavFilter(cfg), Decoder()
@@ -104,6 +101,13 @@ def run_one(job: tuple[int, float, float, float, float]) -> dict[str, Any]:
     )  # fmt: skip
     t_clean = np.array([e.time_us for e in clean], dtype=np.int64)
     err_clean = np.array([horizontal(c) for c in clean])
+
+    def clean_error_near(time_us: int) -> float:
+        """The clean run's error at its estimate nearest in time (the earlier one on a tie)."""
+        k = int(np.searchsorted(t_clean, time_us))
+        if k == len(t_clean) or (k > 0 and time_us - t_clean[k - 1] <= t_clean[k] - time_us):
+            k -= 1
+        return float(err_clean[k])
     recovery_s: list[float | None] = []
     worst_m: list[float] = []
     ends = [w[0] for w in windows[1:]] + [duration_s]
@@ -118,7 +122,7 @@ def run_one(job: tuple[int, float, float, float, float]) -> dict[str, Any]:
             t = e.time_us * 1e-6
             if not b <= t < nxt:
                 continue
-            excess = horizontal(e) - err_clean[int(np.argmin(np.abs(t_clean - e.time_us)))]
+            excess = horizontal(e) - clean_error_near(e.time_us)
             worst = max(worst, excess)
             if e.mode != "gnss" or excess > 2.0:
                 settled = None

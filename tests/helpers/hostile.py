@@ -7,8 +7,13 @@ import math
 
 import numpy as np
 
-from hil.codec import SENSOR_COMPONENT_ID, Encoder, mavlink2
+from fusion import earth
+from fusion.config import FilterConfig
+from fusion.estimate import NavEstimate
+from fusion.filter import NavFilter
+from hil.codec import SENSOR_COMPONENT_ID, Decoder, Encoder, mavlink2
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample
+from tests.helpers.nav_synth import Scenario
 
 NAN, INF = math.nan, math.inf
 
@@ -60,3 +65,22 @@ def mutate(rng: np.random.Generator, frame: bytes) -> bytes:
     for _ in range(int(rng.integers(1, 4))):
         b[int(rng.integers(len(b)))] = int(rng.integers(256))
     return bytes(b)
+
+
+def decode_and_fuse(
+    stream: list[bytes], config: FilterConfig
+) -> tuple[NavFilter, list[NavEstimate]]:
+    """Every frame through a fresh :class:`~hil.codec.Decoder` into a fresh filter."""
+    nav, dec = NavFilter(config), Decoder()
+    est: list[NavEstimate] = []
+    for frame in stream:
+        for d in dec.feed(frame):
+            est.extend(nav.step(d.sample))
+    return nav, est
+
+
+def horizontal_error_m(sc: Scenario, est: NavEstimate) -> float:
+    """Horizontal distance of an estimate from the scenario's truth at its time, m."""
+    kin = sc.traj(np.array([est.time_us * 1e-6]))
+    d = earth.ned_offset_m(est.lat_rad, est.lon_rad, est.alt_msl_m, *kin.lla[0])
+    return float(math.hypot(d[0], d[1]))

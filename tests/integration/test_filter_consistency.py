@@ -13,20 +13,18 @@ from __future__ import annotations
 
 import pytest
 
-from hil.pipeline import FusionRun, SimSetup, filter_config, fly
+from hil.pipeline import Frame, SimSetup, filter_config, fly, fuse_frames
 from scenarios.summary import RunInfo, score_run
 from sim.presets import gnss_preset
 
 DURATION_S = 300.0
 
 
-def _nees(frames: list[bytes], layout: str | None) -> dict[str, float]:
+def _nees(frames: list[Frame], layout: str | None) -> dict[str, float]:
     cfg = filter_config("industrial-mems", gnss_preset("modern"))
     if layout is not None:
         cfg = cfg.model_copy(update={"state_layout": layout})
-    run = FusionRun(cfg)
-    for f in frames:
-        run.feed_frame(f)
+    run = fuse_frames(frames, cfg)
     info = RunInfo(scenario="manoeuvre", seed=5, sim_duration_s=DURATION_S, wall_s=0.0,
                    bridge="none", altitude="ekf")  # fmt: skip
     return score_run(run, info, settle_s=60.0).summary["nees"]
@@ -37,8 +35,8 @@ def test_default_filter_is_consistent_where_the_16_state_one_was_not() -> None:
     # GIVEN a manoeuvring JSBSim flight with the preset's full IMU errors
     setup = SimSetup.build(plan="manoeuvre", imu="industrial-mems", duration_s=DURATION_S,
                            seed=5)  # fmt: skip
-    frames: list[bytes] = []
-    fly(setup, lambda _t, f: frames.append(f))
+    frames: list[Frame] = []
+    fly(setup, lambda t, f: frames.append((t, f)))
     # WHEN the commands' filter and the one without scale-factor / misalignment states fuse it
     default, small = _nees(frames, None), _nees(frames, "ins16+gnss")
     # THEN the default is consistent: NEES near 9 (the mean of one run's time-correlated

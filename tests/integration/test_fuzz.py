@@ -15,31 +15,19 @@ import math
 import numpy as np
 import pytest
 
-from fusion import earth
 from fusion.config import FilterConfig
-from fusion.estimate import NavEstimate
-from fusion.filter import NavFilter
-from hil.codec import Decoder
-from tests.helpers.hostile import encode, hostile_frame, mutate, sender
+from tests.helpers.hostile import (
+    decode_and_fuse,
+    encode,
+    horizontal_error_m,
+    hostile_frame,
+    mutate,
+    sender,
+)
 from tests.helpers.nav_synth import Flight, SensorErrors, make_scenario
 
 CFG = FilterConfig()
 ATTACK_S = (30.0, 40.0)
-
-
-def _run(stream: list[bytes]) -> tuple[NavFilter, list[NavEstimate]]:
-    nav, dec = NavFilter(CFG), Decoder()
-    est: list[NavEstimate] = []
-    for frame in stream:
-        for d in dec.feed(frame):
-            est.extend(nav.step(d.sample))
-    return nav, est
-
-
-def _horizontal_error(sc: object, e: NavEstimate) -> float:
-    kin = sc.traj(np.array([e.time_us * 1e-6]))  # type: ignore[attr-defined]
-    d = earth.ned_offset_m(e.lat_rad, e.lon_rad, e.alt_msl_m, *kin.lla[0])
-    return float(math.hypot(d[0], d[1]))
 
 
 @pytest.mark.slow
@@ -63,8 +51,8 @@ def test_hostile_frames_never_raise_and_the_filter_recovers() -> None:
                 n_hostile += 1
         attacked.append(frame)
     assert n_hostile > 300 and n_mutated > 300  # of ~1,400 frames in the window
-    _, clean = _run([f for _, f in frames])
-    nav, est = _run(attacked)  # THEN nothing raises
+    _, clean = decode_and_fuse([f for _, f in frames], CFG)
+    nav, est = decode_and_fuse(attacked, CFG)  # THEN nothing raises
     # AND every estimate is finite
     for e in est:
         assert np.all(np.isfinite(e.v_ned_mps)) and np.all(np.isfinite(e.P_diag))
@@ -75,7 +63,7 @@ def test_hostile_frames_never_raise_and_the_filter_recovers() -> None:
     late = [e for e in est if e.time_us >= 70_000_000]
     late_clean = [e for e in clean if e.time_us >= 70_000_000]
     assert late and all(e.mode == "gnss" for e in late)
-    err = max(_horizontal_error(sc, e) for e in late)
-    err_clean = max(_horizontal_error(sc, e) for e in late_clean)
+    err = max(horizontal_error_m(sc, e) for e in late)
+    err_clean = max(horizontal_error_m(sc, e) for e in late_clean)
     # (attack seeds 52-57: 0.76-0.82 m late error against 0.77 m without the attack)
     assert err <= err_clean + 1.0

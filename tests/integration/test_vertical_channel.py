@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from hil.pipeline import FusionRun, SimSetup, filter_config, fly
+from hil.pipeline import Frame, SimSetup, filter_config, fly, fuse_frames
 from scenarios import metrics
 from scenarios.summary import RunInfo, Scored, score_run
 from sim.presets import gnss_preset
@@ -26,27 +26,25 @@ DURATION_S = 300.0
 
 
 @pytest.fixture(scope="module")
-def frames() -> list[bytes]:
+def frames() -> list[Frame]:
     setup = SimSetup.build(plan="climb-descent", imu="industrial-mems", duration_s=DURATION_S,
                            seed=3)  # fmt: skip
     baro = setup.sensors.baro.model_copy(update={"sea_level_temperature_offset_k": 20.0})
     setup = dataclasses.replace(setup, sensors=setup.sensors.model_copy(update={"baro": baro}))
-    out: list[bytes] = []
-    fly(setup, lambda _t, f: out.append(f))
+    out: list[Frame] = []
+    fly(setup, lambda t, f: out.append((t, f)))
     return out
 
 
-def _fused(frames: list[bytes], altitude: str) -> Scored:
-    run = FusionRun(filter_config("industrial-mems", gnss_preset("modern"), altitude))
-    for f in frames:
-        run.feed_frame(f)
+def _fused(frames: list[Frame], altitude: str) -> Scored:
+    run = fuse_frames(frames, filter_config("industrial-mems", gnss_preset("modern"), altitude))
     info = RunInfo(scenario="climb-descent", seed=3, sim_duration_s=DURATION_S, wall_s=0.0,
                    bridge="none", altitude=altitude)  # fmt: skip
     return score_run(run, info, settle_s=SETTLE_S)
 
 
 @pytest.mark.slow
-def test_down_velocity_stays_inside_its_3_sigma_band_in_climbs(frames: list[bytes]) -> None:
+def test_down_velocity_stays_inside_its_3_sigma_band_in_climbs(frames: list[Frame]) -> None:
     # GIVEN the flight fused with the default altitude mode and with the loop
     res = {alt: _fused(frames, alt) for alt in ("ekf", "loop")}
     vd_rmse = {}
