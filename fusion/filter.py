@@ -88,7 +88,16 @@ from fusion.history import InsHistory, span_capacity
 from fusion.outage import OutageBridging
 from fusion.propagation import CovariancePropagator, decay_gnss_bias
 from fusion.rotations import euler_from_quat
-from fusion.samples import BaroSample, GnssFix, ImuSample, MagSample
+from fusion.samples import (
+    ActuatorSample,
+    AirspeedSample,
+    BaroSample,
+    GnssFix,
+    ImuSample,
+    MagSample,
+    RpmSample,
+    Sample,
+)
 from fusion.screening import SampleScreen
 from fusion.strapdown import InsState
 
@@ -220,12 +229,12 @@ class NavFilter:
         self._est_ratios = TestRatios()
         self._est_aiding = AidingStatus()
 
-    def step(self, sample: ImuSample | GnssFix | BaroSample | MagSample) -> list[NavEstimate]:
+    def step(self, sample: Sample) -> list[NavEstimate]:
         """Process one sample of any kind (in time order per sensor).
 
         Parameters
         ----------
-        sample : ImuSample | GnssFix | BaroSample | MagSample
+        sample : fusion.samples.Sample
             Anything with the attributes of one of the :mod:`fusion.samples` protocols.
 
         Returns
@@ -236,7 +245,7 @@ class NavFilter:
         Raises
         ------
         TypeError
-            If ``sample`` matches none of the four sample kinds.
+            If ``sample`` matches none of the sample kinds.
         """
         if self._innovations:
             self._innovations = []
@@ -383,6 +392,10 @@ class NavFilter:
             handler = self._on_baro
         elif hasattr(sample, "field_b_tesla"):
             handler = self._on_mag
+        elif hasattr(sample, "diff_pressure_pa"):
+            handler = self._on_airspeed
+        elif hasattr(sample, "controls") or hasattr(sample, "rpm"):
+            handler = self._on_vehicle_state
         else:
             raise TypeError(
                 f"{type(sample).__name__} is not an IMU, GNSS, baro or magnetometer sample"
@@ -724,6 +737,14 @@ class NavFilter:
         if past is None:
             past = ins
         baro.fuse(batch, past.alt_msl_m, self._bb, t, self._bs, self._h_ref)
+        return []
+
+    def _on_airspeed(self, s: AirspeedSample) -> list[NavEstimate]:
+        # not fused yet (air-data fusion: issue #18)
+        return []
+
+    def _on_vehicle_state(self, s: ActuatorSample | RpmSample) -> list[NavEstimate]:
+        # actuator controls and propeller rpm are inputs for learned vehicle models (#18)
         return []
 
     def _on_mag(self, s: MagSample) -> list[NavEstimate]:

@@ -72,7 +72,39 @@ class MagSample(Protocol):
     def field_b_tesla(self) -> Vec3: ...
 
 
-Sample = ImuSample | GnssFix | BaroSample | MagSample
+class AirspeedSample(Protocol):
+    """Pitot-static differential pressure (Pa, total minus static) and sensor temperature (K)."""
+
+    @property
+    def time_us(self) -> int: ...
+    @property
+    def diff_pressure_pa(self) -> float: ...
+    @property
+    def temperature_k(self) -> float: ...
+
+
+class ActuatorSample(Protocol):
+    """Normalised actuator controls, PX4 HIL_ACTUATOR_CONTROLS order (roll, pitch, yaw in
+    [-1, 1], throttle in [0, 1], ...)."""
+
+    @property
+    def time_us(self) -> int: ...
+    @property
+    def controls(self) -> tuple[float, ...]: ...
+
+
+class RpmSample(Protocol):
+    """Propeller speed, rev/min."""
+
+    @property
+    def time_us(self) -> int: ...
+    @property
+    def rpm(self) -> float: ...
+
+
+Sample = (
+    ImuSample | GnssFix | BaroSample | MagSample | AirspeedSample | ActuatorSample | RpmSample
+)
 
 
 def as_vec3(a: Any) -> tuple[float, float, float]:

@@ -133,7 +133,7 @@ class SimStep:
     """One simulator step: the truth, the sensor samples and the frames they became."""
 
     truth: Truth
-    samples: list[Sample]
+    samples: Sequence[Sample]
     frames: list[Frame]
 
 

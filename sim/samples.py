@@ -102,4 +102,38 @@ class MagSample:
     sensor_id: int = 0
 
 
-Sample = ImuSample | GnssFix | BaroSample | MagSample
+@dataclass(frozen=True, slots=True)
+class AirspeedSample:
+    """Pitot-static differential pressure (total minus static pressure), Pa, and the sensor's
+    temperature, K (HIL_SENSOR ``diff_pressure``, bit 10, carries it in hPa)."""
+
+    time_us: int
+    diff_pressure_pa: float
+    temperature_k: float
+    sensor_id: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class ActuatorSample:
+    """Normalised actuator controls in PX4's HIL_ACTUATOR_CONTROLS order (16 values: roll,
+    pitch, yaw in [-1, 1], throttle in [0, 1], then flaps, spoilers, ..., unused = 0)."""
+
+    time_us: int
+    controls: tuple[float, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class RpmSample:
+    """Propeller (engine) speed, revolutions per minute (MAVLink RAW_RPM ``frequency``).
+
+    RAW_RPM has no timestamp: a decoder stamps it with the latest sensor time of its source.
+    """
+
+    time_us: int
+    rpm: float
+    index: int = 0
+
+
+Sample = (
+    ImuSample | GnssFix | BaroSample | MagSample | AirspeedSample | ActuatorSample | RpmSample
+)
