@@ -42,7 +42,8 @@ def impact_pressure_pa(
 ) -> float:
     """Impact pressure ``q_c`` (Pa) of subsonic flow at true airspeed ``true_airspeed_mps``."""
     mach = true_airspeed_mps / speed_of_sound_mps(temperature_k)
-    return static_pressure_pa * ((1.0 + mach * mach / _M2) ** (1.0 / _K) - 1.0)
+    # (1 + x)^a - 1 as expm1(a log1p(x)): no cancellation at low airspeed
+    return static_pressure_pa * math.expm1(math.log1p(mach * mach / _M2) / _K)
 
 
 def true_airspeed_mps(
@@ -54,5 +55,5 @@ def true_airspeed_mps(
     """
     if impact_pressure_pa <= 0.0:
         return 0.0
-    ratio = (impact_pressure_pa / static_pressure_pa + 1.0) ** _K - 1.0
+    ratio = math.expm1(_K * math.log1p(impact_pressure_pa / static_pressure_pa))
     return math.sqrt(_M2 * ratio) * speed_of_sound_mps(temperature_k)
