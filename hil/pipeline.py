@@ -4,8 +4,9 @@ Every command and bench goes through these two halves, so lockstep runs, replays
 campaigns, the live service and the benchmarks share every component:
 
 * **simulate**: :class:`SimSetup` (aircraft, plan, sensor models, fault timeline, GNSS-off
-  windows) -> :class:`SimChain` (JSBSim flight + sensor suite + fault injector + sensor
-  streamer) -> ``(time_us, frame)`` MAVLink 2 frames. :func:`fly` runs the chain in lockstep
+  windows, vehicle-state reports) -> :class:`SimChain` (JSBSim flight + sensor suite +
+  vehicle-state reporter + fault injector + sensor streamer) -> ``(time_us, frame)`` MAVLink 2
+  frames. :func:`fly` runs the chain in lockstep
   (simulated time only) into a frame sink; the live simulator paces the same chain against
   the wall clock.
 * **fuse**: :class:`FusionRun` decodes frames (or already decoded samples) and steps one
@@ -38,6 +39,7 @@ from sim.gnss import GnssConfig
 from sim.plans import FlightPlan, load_plan
 from sim.samples import Sample, Truth
 from sim.sensors import SensorSuite, SensorSuiteConfig
+from sim.vehicle_state import VehicleStateConfig, VehicleStateReporter
 
 Frame = tuple[int, bytes]
 FrameSink = Callable[[int, bytes], None]
@@ -51,7 +53,8 @@ class SimSetup:
 
     ``faults`` is the scenario's fault timeline; ``None`` flies without a fault injector (a
     plain recording), an empty tuple with one that has nothing to do (a scenario without
-    events). ``gnss_off`` windows suppress HIL_GPS by time of validity.
+    events). ``gnss_off`` windows suppress HIL_GPS by time of validity. ``vehicle_state``: rate
+    and content of the HIL_ACTUATOR_CONTROLS / RAW_RPM reports (:mod:`sim.vehicle_state`).
     """
 
     flight: FlightConfig
@@ -62,6 +65,7 @@ class SimSetup:
     faults: tuple[FaultEvent, ...] | None = None
     gnss_off: tuple[GnssWindow, ...] = ()
     truth_rate_hz: float = 50.0
+    vehicle_state: VehicleStateConfig = VehicleStateConfig()
 
     def __post_init__(self) -> None:
         if not self.duration_s > 0:
@@ -91,6 +95,7 @@ class SimSetup:
         turbulence: float = 0.0,
         gnss_off: Sequence[str] = (),
         truth_rate_hz: float = 50.0,
+        vehicle_state_rate_hz: float = 50.0,
     ) -> SimSetup:
         """A setup from human-facing options (preset names, ``N,E,D`` wind, ``START:DUR``
         outages); ValueError / ValidationError name the bad one."""
@@ -117,6 +122,7 @@ class SimSetup:
             seed=seed,
             gnss_off=tuple(GnssWindow.parse(w) for w in gnss_off),
             truth_rate_hz=truth_rate_hz,
+            vehicle_state=VehicleStateConfig(rate_hz=vehicle_state_rate_hz),
         )
 
 
@@ -138,7 +144,8 @@ class SimStep:
 
 
 class SimChain:
-    """JSBSim flight + sensor suite + fault injector + sensor streamer, opened as a context.
+    """JSBSim flight + sensor suite + vehicle-state reporter + fault injector + sensor streamer,
+    opened as a context.
 
     :meth:`steps` advances the flight one step at a time until ``duration_s`` of simulated time
     have passed or the flight ends (stall, ground contact: kept in :attr:`ended`, never
@@ -148,6 +155,7 @@ class SimChain:
     def __init__(self, setup: SimSetup) -> None:
         self.setup = setup
         self.suite = SensorSuite(setup.sensors, setup.seed, setup.flight.rate_hz)
+        self.vehicle = VehicleStateReporter(setup.vehicle_state)
         self.flight: Flight | None = None
         self.faults: FaultInjector | None = None
         self.streamer: SensorStreamer | None = None
@@ -196,7 +204,7 @@ class SimChain:
             raise RuntimeError("SimChain.steps() outside its `with` block")
         end_us = self.start_us + round(self.setup.duration_s * 1e6)
         truth = flight.truth()
-        suite = self.suite
+        suite, vehicle = self.suite, self.vehicle
         while truth.time_us < end_us:
             try:
                 truth = flight.step()
@@ -205,6 +213,9 @@ class SimChain:
                 return
             self.time_us = truth.time_us
             samples = suite.step(truth)
+            reports = vehicle.step(truth.time_us, flight.vehicle_state)
+            if reports:
+                samples = [*samples, *reports]
             yield SimStep(truth, samples, streamer.frames(truth, samples))
 
 

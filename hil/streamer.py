@@ -4,7 +4,10 @@ The streamer is the only place where simulator output meets the wire. Per IMU sa
 HIL_SENSOR carrying the IMU fields plus any baro / magnetometer sample of the same step (their
 ``fields_updated`` bits set only then), HIL_GPS for each GNSS fix (emitted when the receiver
 outputs it, stamped with its time of validity), and the truth as HIL_STATE_QUATERNION from the
-simulator's truth component at ``truth_rate_hz``. An optional :class:`sim.faults.FaultInjector`
+simulator's truth component at ``truth_rate_hz``. The vehicle state a flight controller would
+report (:mod:`sim.vehicle_state`) follows, from the autopilot component: HIL_ACTUATOR_CONTROLS
+for each ActuatorSample, then RAW_RPM for each RpmSample of the step (RAW_RPM has no timestamp,
+so it comes last, after frames of its own time). An optional :class:`sim.faults.FaultInjector`
 applies the scenario's fault timeline to each step's samples before they are encoded.
 :mod:`hil.pipeline` drives it, in lockstep or paced live.
 """
@@ -16,7 +19,16 @@ from dataclasses import dataclass
 
 from hil.codec import Encoder
 from sim.faults import FaultInjector, FaultLogEntry
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Sample, Truth
+from sim.samples import (
+    ActuatorSample,
+    BaroSample,
+    GnssFix,
+    ImuSample,
+    MagSample,
+    RpmSample,
+    Sample,
+    Truth,
+)
 
 
 @dataclass(frozen=True)
@@ -94,6 +106,7 @@ class SensorStreamer:
         imu: ImuSample | None = None
         baro: BaroSample | None = None
         mag: MagSample | None = None
+        vehicle: list[tuple[int, bytes]] = []
         for s in samples:
             if isinstance(s, ImuSample):
                 if imu is not None:
@@ -108,6 +121,10 @@ class SensorStreamer:
                     self.gnss_suppressed += 1
                 else:
                     out.append((truth.time_us, self.encoder.gnss(s)))
+            elif isinstance(s, ActuatorSample):
+                vehicle.append((s.time_us, self.encoder.actuators(s)))
+            elif isinstance(s, RpmSample):
+                vehicle.append((s.time_us, self.encoder.rpm(s)))
         if imu is not None or baro is not None or mag is not None:
             t = imu.time_us if imu is not None else truth.time_us
             out.append((t, self.encoder.sensors(imu, baro, mag, time_us=t)))
@@ -115,4 +132,5 @@ class SensorStreamer:
             out.append((truth.time_us, self.encoder.truth(truth)))
             base = truth.time_us if self._next_truth_us is None else self._next_truth_us
             self._next_truth_us = base + self._truth_period_us
+        out.extend(vehicle)
         return out

@@ -57,6 +57,22 @@ Turbulence: ``FlightConfig.turbulence`` in [0, 1] drives JSBSim's MIL-F-8785C (D
 knots for the low-altitude model below 1000 ft; JSBSim blends the two in between. JSBSim's
 random generator is seeded with ``FlightConfig.seed`` (``simulation/randomseed``), so the
 same configuration gives bit-identical truth.
+
+Vehicle state (:meth:`Flight.vehicle_state`, what a flight controller would report in
+HIL_ACTUATOR_CONTROLS and RAW_RPM): JSBSim's pilot commands plus their trims, converted to
+PX4's order and signs. Measured (jsbsim 1.3.3, c172x, c310 and J3Cub trimmed at their
+suggested start, +0.2 on one command for 0.5 s): ``fcs/aileron-cmd-norm`` > 0 rolls right
+(p > 0, PX4's sign), ``fcs/elevator-cmd-norm`` > 0 pitches the nose down (q < 0; trailing
+edge down) and ``fcs/rudder-cmd-norm`` > 0 yaws the nose left (r < 0), so PX4 roll =
+aileron, pitch = -elevator, yaw = -rudder. JSBSim's trim (``do_trim``) sets the pitch through
+``fcs/pitch-trim-cmd-norm`` and leaves ``fcs/elevator-cmd-norm`` at 0 on most aircraft, and the
+aircraft's FCS adds the two (and clips the sum to [-1, 1]), so each reported surface is the
+clipped sum of command and trim (``fcs/{roll,pitch,yaw}-trim-cmd-norm``). Throttle is
+``fcs/throttle-cmd-norm[0]`` (the guidance law drives every engine with the same value),
+flaps ``fcs/flap-cmd-norm`` (0 = retracted, never moved by the guidance law). Propeller speed is
+``propulsion/engine[i]/propeller-rpm`` of each engine that has a propeller (piston aircraft
+and the DHC6, Boeing314, Short_S23 of the verified list); jets and the turboprops that the
+wheel models with direct thrust (OV10, t6texan2) have none and report no rpm.
 """
 
 from __future__ import annotations
@@ -80,6 +96,7 @@ from physconst import WGS84_A_M
 from sim.guidance import Controls, Guidance, GuidanceGains, GuidanceInput, TrimPoint
 from sim.plans import FlightPlan, Leg
 from sim.samples import Truth
+from sim.vehicle_state import N_CONTROLS, VehicleState
 
 # --- unit conversions (exact definitions) ---------------------------------------------------
 FT_M = 0.3048
@@ -287,6 +304,11 @@ def _load_without_io(fdm: Any, aircraft: str) -> None:
     fdm.disable_output()
 
 
+def _clip1(x: float) -> float:
+    """``x`` clipped to [-1, 1] (what an FCS summer with ``clipto -1 1`` does)."""
+    return -1.0 if x < -1.0 else 1.0 if x > 1.0 else x
+
+
 def _euler_to_quat(phi: float, theta: float, psi: float) -> np.ndarray:
     """3-2-1 Euler angles (rad) -> Hamilton scalar-first quaternion body -> NED, w >= 0."""
     cr, sr = math.cos(0.5 * phi), math.sin(0.5 * phi)
@@ -422,6 +444,15 @@ class Flight:
             count += 1
         self._n_thr = [n(f"fcs/throttle-cmd-norm[{i}]") for i in range(count)]
         self._n_mix = [n(f"fcs/mixture-cmd-norm[{i}]") for i in range(count)]
+        # vehicle state (see the module docstring): trims, flaps, propeller speeds
+        trims = ("fcs/roll-trim-cmd-norm", "fcs/pitch-trim-cmd-norm", "fcs/yaw-trim-cmd-norm")
+        self._n_trim = [n(name) for name in trims]
+        self._n_flap = n("fcs/flap-cmd-norm") if pm.hasNode("fcs/flap-cmd-norm") else None
+        self._n_rpm = [
+            n(f"propulsion/engine[{i}]/propeller-rpm")
+            for i in range(count)
+            if pm.hasNode(f"propulsion/engine[{i}]/propeller-rpm")
+        ]
 
     def _sample(self) -> list[float]:
         """Read every property the adapter uses, once (indices: the _I* constants)."""
@@ -570,6 +601,21 @@ class Flight:
     def truth(self) -> Truth:
         """Truth of the current state."""
         return self._truth
+
+    def vehicle_state(self) -> VehicleState:
+        """The controls JSBSim flies with now, in PX4 HIL_ACTUATOR_CONTROLS order and signs,
+        and the propeller speeds (see the module docstring for the properties and signs)."""
+        roll_trim, pitch_trim, yaw_trim = (node.get_double_value() for node in self._n_trim)
+        controls = [0.0] * N_CONTROLS
+        controls[0] = _clip1(self._n_ail.get_double_value() + roll_trim)
+        controls[1] = -_clip1(self._n_ele.get_double_value() + pitch_trim)
+        controls[2] = -_clip1(self._n_rud.get_double_value() + yaw_trim)
+        controls[3] = self._n_thr[0].get_double_value() if self._n_thr else 0.0
+        controls[4] = self._n_flap.get_double_value() if self._n_flap is not None else 0.0
+        return VehicleState(
+            controls=tuple(controls),
+            propeller_rpm=tuple(node.get_double_value() for node in self._n_rpm),
+        )
 
     def step(self) -> Truth:
         """Advance one step of ``1 / rate_hz`` and return the new truth.

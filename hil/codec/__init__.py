@@ -5,13 +5,16 @@ cdegC). Everything it returns is SI.
 
 =============================  ===================================================================
 :mod:`hil.codec.wire`          dialect (:data:`mavlink2`), wire units, integer ranges, component ids
-:mod:`hil.codec.encoder`       :class:`Encoder`: HIL_SENSOR, HIL_GPS, HIL_STATE_QUATERNION frames
+:mod:`hil.codec.encoder`       :class:`Encoder`: HIL_SENSOR, HIL_GPS, HIL_STATE_QUATERNION,
+                               HIL_ACTUATOR_CONTROLS, RAW_RPM frames
 :mod:`hil.codec.decoder`       :class:`Decoder`: stream parsing and dispatch, :class:`Decoded`
 :mod:`hil.codec.hil_messages`  decoding of HIL_SENSOR (and HIGHRES_IMU), HIL_GPS,
                                HIL_STATE_QUATERNION
 :mod:`hil.codec.fc_messages`   decoding of SCALED_IMU*, RAW_IMU (:class:`RawImuScale`), GPS_RAW_INT,
                                SCALED_PRESSURE*
-:mod:`hil.codec.sources`       per-source memory: IMU intervals, temperatures
+:mod:`hil.codec.vehicle_messages`  decoding of HIL_ACTUATOR_CONTROLS, SERVO_OUTPUT_RAW
+                               (:class:`ServoChannelMap`), RAW_RPM
+:mod:`hil.codec.sources`       per-source memory: IMU intervals, temperatures, system times
 :mod:`hil.codec.counters`      :class:`DecoderCounters`
 =============================  ===================================================================
 """
@@ -23,7 +26,9 @@ from hil.codec.decoder import Decoded, Decoder
 from hil.codec.encoder import Encoder
 from hil.codec.fc_messages import RawImuScale
 from hil.codec.sources import DEFAULT_FIRST_IMU_DT_S
+from hil.codec.vehicle_messages import ServoChannel, ServoChannelMap
 from hil.codec.wire import (
+    AUTOPILOT_COMPONENT_ID,
     DEGE7_PER_RAD,
     FLOAT32_MAX,
     INT16_MAX,
@@ -43,6 +48,7 @@ from hil.codec.wire import (
 )
 
 __all__ = [
+    "AUTOPILOT_COMPONENT_ID",
     "DEFAULT_FIRST_IMU_DT_S",
     "DEGE7_PER_RAD",
     "FLOAT32_MAX",
@@ -64,5 +70,7 @@ __all__ = [
     "Encoder",
     "HilSensorField",
     "RawImuScale",
+    "ServoChannel",
+    "ServoChannelMap",
     "mavlink2",
 ]

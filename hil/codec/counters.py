@@ -28,6 +28,12 @@ class DecoderCounters:
     imu_duplicates : IMU messages with the same timestamp as the previous one (dropped).
     imu_time_resets : IMU timestamps that went backwards (source restarted).
     sim_resets : HIL_SENSOR frames with bit 31 ("simulation reset") set.
+    controls_clipped : HIL_ACTUATOR_CONTROLS / SERVO_OUTPUT_RAW with a control clipped to its
+        range (or an unset slot 4-15 set to 0); the sample is kept.
+    controls_invalid : HIL_ACTUATOR_CONTROLS with a non-finite roll/pitch/yaw/throttle, or
+        SERVO_OUTPUT_RAW with a mapped output not driven (0 or 65535) (dropped).
+    rpm_invalid : RAW_RPM with a negative or non-finite rpm (dropped).
+    rpm_untimed : RAW_RPM before any timed message of its system (no time to stamp; dropped).
     """
 
     frames_ok: int = 0
@@ -44,6 +50,10 @@ class DecoderCounters:
     imu_duplicates: int = 0
     imu_time_resets: int = 0
     sim_resets: int = 0
+    controls_clipped: int = 0
+    controls_invalid: int = 0
+    rpm_invalid: int = 0
+    rpm_untimed: int = 0
 
     def as_dict(self) -> dict[str, int]:
         """Counters as a plain dict (for JSON status output)."""

@@ -2,8 +2,10 @@
 or truth message to its decoder.
 
 Messages of our simulator go to :mod:`hil.codec.hil_messages`, those of a real flight
-controller to :mod:`hil.codec.fc_messages`; IMU intervals and temperatures are remembered per
-source (:mod:`hil.codec.sources`). Everything dropped is counted in :class:`DecoderCounters`.
+controller to :mod:`hil.codec.fc_messages`, and the vehicle's outputs (HIL_ACTUATOR_CONTROLS,
+SERVO_OUTPUT_RAW, RAW_RPM) to :mod:`hil.codec.vehicle_messages`; IMU intervals, temperatures
+and each system's latest time (which stamps RAW_RPM) are remembered per source
+(:mod:`hil.codec.sources`). Everything dropped is counted in :class:`DecoderCounters`.
 
 Framing is :class:`hil.codec.framing.FrameParser`, the live links' resynchronising parser:
 after a damaged or cut frame the next good one is found at its start-of-frame marker, so the
@@ -35,8 +37,14 @@ from hil.codec.hil_messages import (
     decode_hil_state_quaternion,
 )
 from hil.codec.sources import DEFAULT_FIRST_IMU_DT_S, SourceState
+from hil.codec.vehicle_messages import (
+    ServoChannelMap,
+    decode_hil_actuator_controls,
+    decode_raw_rpm,
+    decode_servo_output_raw,
+)
 from hil.codec.wire import mavlink2
-from sim.samples import Sample, Truth
+from sim.samples import GnssFix, RpmSample, Sample, Truth
 
 __all__ = ["Decoded", "Decoder"]
 
@@ -65,6 +73,10 @@ class Decoder:
         :data:`DEFAULT_FIRST_IMU_DT_S` (0.0: unknown interval).
     raw_imu_scale : RawImuScale, optional
         Enables RAW_IMU decoding; without it RAW_IMU is counted and dropped.
+    servo_map : ServoChannelMap, optional
+        Outputs of SERVO_OUTPUT_RAW and the controls they carry; default
+        ``ServoChannelMap()`` (a typical fixed wing: 1 aileron, 2 elevator, 3 throttle,
+        4 rudder, 1000/1500/2000 us).
 
     Attributes
     ----------
@@ -75,12 +87,17 @@ class Decoder:
     """
 
     def __init__(
-        self, *, imu_dt_s: float | None = None, raw_imu_scale: RawImuScale | None = None
+        self,
+        *,
+        imu_dt_s: float | None = None,
+        raw_imu_scale: RawImuScale | None = None,
+        servo_map: ServoChannelMap | None = None,
     ) -> None:
         if imu_dt_s is not None and not (math.isfinite(imu_dt_s) and imu_dt_s > 0.0):
             raise ValueError(f"imu_dt_s must be a finite number > 0, got {imu_dt_s!r}")
         first_dt_s = DEFAULT_FIRST_IMU_DT_S if imu_dt_s is None else float(imu_dt_s)
         self._raw_imu_scale = raw_imu_scale
+        self.servo_map = servo_map if servo_map is not None else ServoChannelMap()
         self.mav = mavlink2.MAVLink(None, srcSystem=0, srcComponent=0)
         self.counters = DecoderCounters()
         self._framer = FrameParser(self.counters)
@@ -196,8 +213,19 @@ class Decoder:
             samples = [decode_gps_raw_int(msg)]
         elif msg_id in SCALED_PRESSURE_IDS:
             samples = [decode_scaled_pressure(msg, SCALED_PRESSURE_IDS[msg_id])]
+        elif msg_id == mavlink2.MAVLINK_MSG_ID_HIL_ACTUATOR_CONTROLS:
+            samples = [*decode_hil_actuator_controls(msg, self.counters)]
+        elif msg_id == mavlink2.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
+            samples = [*decode_servo_output_raw(
+                msg, (sys_id, comp_id), self.servo_map, self._sources, self.counters
+            )]
+        elif msg_id == mavlink2.MAVLINK_MSG_ID_RAW_RPM:
+            samples = [*decode_raw_rpm(msg, sys_id, self._sources, self.counters)]
         else:
             self.counters.ignored_msgs += 1
             return []
+        for s in samples:  # the system's clock, for RAW_RPM (fixes lag: time of validity)
+            if not isinstance(s, GnssFix | RpmSample):
+                self._sources.last_time_us[sys_id] = s.time_us
         self.counters.samples += len(samples)
         return [Decoded(s, sys_id, comp_id, msg_id) for s in samples]

@@ -1,11 +1,22 @@
-"""HIL encoder: SI samples and truth -> HIL_SENSOR, HIL_GPS and HIL_STATE_QUATERNION frames.
+"""HIL encoder: SI samples and truth -> HIL_SENSOR, HIL_GPS, HIL_STATE_QUATERNION,
+HIL_ACTUATOR_CONTROLS and RAW_RPM frames.
 
 Messages written (:class:`Encoder`)
     ================================  ======================================================
     HIL_SENSOR (107)                  IMU, magnetometer, barometer (one frame, one time)
     HIL_GPS (113)                     GNSS fix; ``time_usec`` is the fix's time of validity
     HIL_STATE_QUATERNION (115)        truth, sent from its own component id
+    HIL_ACTUATOR_CONTROLS (93)        normalised controls, from the autopilot component
+    RAW_RPM (339)                     propeller speed, from the autopilot component
     ================================  ======================================================
+
+    HIL_ACTUATOR_CONTROLS ``controls[16]`` are :attr:`sim.samples.ActuatorSample.controls` as
+    float32 (PX4 order: roll, pitch, yaw, throttle, flaps, ...; shorter tuples are padded with
+    0), ``mode`` = ``MAV_MODE_FLAG_SAFETY_ARMED | MAV_MODE_FLAG_HIL_ENABLED`` (an armed vehicle
+    in HIL), ``flags`` = 0 (the lockstep bit is not claimed). RAW_RPM ``frequency`` is
+    :attr:`sim.samples.RpmSample.rpm` (rev/min, float32), ``index`` its ``index``; the message
+    has no timestamp (the decoder stamps it), so the streamer sends it right after a frame of
+    the same time.
 
     HIL_SENSOR ``fields_updated`` carries only the bits of what was given (bits 0-2 accel,
     3-5 gyro, 6-8 mag, 9 abs_pressure, 10 diff_pressure, 11 pressure_alt, 12 temperature).
@@ -61,6 +72,7 @@ from hil.codec.wire import (
     INT32_MIN,
     KELVIN_AT_0_CELSIUS,
     PA_PER_HPA,
+    AUTOPILOT_COMPONENT_ID,
     SENSOR_COMPONENT_ID,
     TESLA_PER_GAUSS,
     TRUTH_COMPONENT_ID,
@@ -71,7 +83,15 @@ from hil.codec.wire import (
     mavlink2,
 )
 from physconst import G0_MPS2, ISA_L0_KPM, ISA_P0_PA, ISA_T0_K  # G0: MAVLink's mG is 1e-3 G0
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Truth
+from sim.samples import (
+    ActuatorSample,
+    BaroSample,
+    GnssFix,
+    ImuSample,
+    MagSample,
+    RpmSample,
+    Truth,
+)
 
 __all__ = ["Encoder"]
 
@@ -80,6 +100,11 @@ _ISA_P0_PA: Final = ISA_P0_PA
 _ISA_T0_K: Final = ISA_T0_K
 _ISA_LAPSE_KPM: Final = -ISA_L0_KPM
 _ISA_EXPONENT: Final = 0.190263  # R * L / (g0 * M) for dry air
+
+_N_CONTROLS: Final = 16  # HIL_ACTUATOR_CONTROLS.controls
+_HIL_ARMED_MODE: Final = int(
+    mavlink2.MAV_MODE_FLAG_SAFETY_ARMED | mavlink2.MAV_MODE_FLAG_HIL_ENABLED
+)
 
 
 def _finite(value: float, name: str) -> float:
@@ -141,7 +166,8 @@ def _isa_pressure_altitude_m(pressure_pa: float) -> float:
 
 
 class Encoder:
-    """Encode SI samples into MAVLink 2 frames (HIL_SENSOR, HIL_GPS, HIL_STATE_QUATERNION).
+    """Encode SI samples into MAVLink 2 frames (HIL_SENSOR, HIL_GPS, HIL_STATE_QUATERNION,
+    HIL_ACTUATOR_CONTROLS, RAW_RPM).
 
     Parameters
     ----------
@@ -152,6 +178,9 @@ class Encoder:
     truth_component_id : int
         Component that sends HIL_STATE_QUATERNION (default 25, ``MAV_COMP_ID_USER1``); must
         differ from ``sensor_component_id`` so a receiver can tell truth from sensors.
+    autopilot_component_id : int
+        Component that sends HIL_ACTUATOR_CONTROLS and RAW_RPM (default 1,
+        ``MAV_COMP_ID_AUTOPILOT1``, where a real autopilot sends them); must differ from both.
 
     Attributes
     ----------
@@ -165,20 +194,31 @@ class Encoder:
         system_id: int = 1,
         sensor_component_id: int = SENSOR_COMPONENT_ID,
         truth_component_id: int = TRUTH_COMPONENT_ID,
+        autopilot_component_id: int = AUTOPILOT_COMPONENT_ID,
     ) -> None:
         sys_id = _component_id(system_id, "system_id")
         sensor_comp = _component_id(sensor_component_id, "sensor_component_id")
         truth_comp = _component_id(truth_component_id, "truth_component_id")
+        autopilot_comp = _component_id(autopilot_component_id, "autopilot_component_id")
         if sensor_comp == truth_comp:
             raise ValueError(
                 "truth_component_id must differ from sensor_component_id "
                 f"(both are {sensor_comp}): receivers tell truth from sensors by component"
             )
+        if autopilot_comp in (sensor_comp, truth_comp):
+            raise ValueError(
+                f"autopilot_component_id ({autopilot_comp}) must differ from the sensor and "
+                "truth components: each component has its own sequence"
+            )
         self.system_id = sys_id
         self.sensor_component_id = sensor_comp
         self.truth_component_id = truth_comp
+        self.autopilot_component_id = autopilot_comp
         self._sensor_mav = mavlink2.MAVLink(None, srcSystem=sys_id, srcComponent=sensor_comp)
         self._truth_mav = mavlink2.MAVLink(None, srcSystem=sys_id, srcComponent=truth_comp)
+        self._autopilot_mav = mavlink2.MAVLink(
+            None, srcSystem=sys_id, srcComponent=autopilot_comp
+        )
         self.saturations: Counter[str] = Counter()
 
     # -- helpers that clip to the wire range and count it --
@@ -424,6 +464,55 @@ class Encoder:
             zacc,
         )
         return self._pack(msg, self._truth_mav)
+
+    def actuators(self, sample: ActuatorSample) -> bytes:
+        """One HIL_ACTUATOR_CONTROLS frame from the autopilot component.
+
+        Parameters
+        ----------
+        sample : ActuatorSample
+            Up to 16 finite normalised controls (PX4 order), padded with 0 to 16; values are
+            sent as given (range checks are the receiver's).
+
+        Returns
+        -------
+        bytes
+            One MAVLink 2 frame.
+
+        Raises
+        ------
+        ValueError
+            More than 16 controls, a non-finite control, a bad time.
+        """
+        t = _time_us(sample.time_us, "actuators.time_us")
+        given = list(sample.controls)
+        if len(given) > _N_CONTROLS:
+            raise ValueError(f"actuators.controls has {len(given)} values; at most 16")
+        xs = _vec(given + [0.0] * (_N_CONTROLS - len(given)), "actuators.controls", _N_CONTROLS)
+        controls = self._f32_vec(xs, ("controls",) * _N_CONTROLS, "HIL_ACTUATOR_CONTROLS")
+        msg = mavlink2.MAVLink_hil_actuator_controls_message(t, controls, _HIL_ARMED_MODE, 0)
+        return self._pack(msg, self._autopilot_mav)
+
+    def rpm(self, sample: RpmSample) -> bytes:
+        """One RAW_RPM frame from the autopilot component (no timestamp on the wire).
+
+        Parameters
+        ----------
+        sample : RpmSample
+            Finite rpm >= 0, rev/min; ``index`` 0..255.
+
+        Returns
+        -------
+        bytes
+            One MAVLink 2 frame.
+        """
+        rpm = _finite(sample.rpm, "rpm.rpm")
+        if rpm < 0.0:
+            raise ValueError(f"rpm.rpm must be >= 0, got {rpm!r}")
+        msg = mavlink2.MAVLink_raw_rpm_message(
+            _uint8(sample.index, "rpm.index"), self._f32(rpm, "RAW_RPM.frequency")
+        )
+        return self._pack(msg, self._autopilot_mav)
 
     @staticmethod
     def _lat_lon_e7(lat_rad: float, lon_rad: float, owner: str) -> tuple[int, int]:

@@ -16,8 +16,13 @@ Component ids
     Sensors (HIL_SENSOR, HIL_GPS) come from :data:`SENSOR_COMPONENT_ID` = 200
     (``MAV_COMP_ID_IMU``), truth from :data:`TRUTH_COMPONENT_ID` = 25 (``MAV_COMP_ID_USER1``,
     the private-use range: no autopilot or ground station gives it a meaning, and a consumer
-    separates truth from sensors by component). Each component has its own sequence counter,
-    as MAVLink requires.
+    separates truth from sensors by component). The vehicle state a flight controller reports
+    (HIL_ACTUATOR_CONTROLS, RAW_RPM) comes from :data:`AUTOPILOT_COMPONENT_ID` = 1
+    (``MAV_COMP_ID_AUTOPILOT1``): in a real HIL setup it is the autopilot (PX4's
+    ``simulator_mavlink``) that sends HIL_ACTUATOR_CONTROLS to the simulator, and ArduPilot and
+    PX4 send RAW_RPM and SERVO_OUTPUT_RAW from their autopilot component, so a consumer sees the
+    simulated vehicle's outputs where a real one would put them. Each component has its own
+    sequence counter, as MAVLink requires.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 __all__ = [
+    "AUTOPILOT_COMPONENT_ID",
     "DEGE7_PER_RAD",
     "FLOAT32_MAX",
     "INT16_MAX",
@@ -62,6 +68,7 @@ FLOAT32_MAX: Final = float(np.finfo(np.float32).max)
 
 SENSOR_COMPONENT_ID: Final = int(mavlink2.MAV_COMP_ID_IMU)  # 200
 TRUTH_COMPONENT_ID: Final = int(mavlink2.MAV_COMP_ID_USER1)  # 25
+AUTOPILOT_COMPONENT_ID: Final = int(mavlink2.MAV_COMP_ID_AUTOPILOT1)  # 1
 
 
 class HilSensorField:

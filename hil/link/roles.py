@@ -6,7 +6,7 @@ from typing import Final
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from hil.codec import SENSOR_COMPONENT_ID, TRUTH_COMPONENT_ID, mavlink2
+from hil.codec import AUTOPILOT_COMPONENT_ID, SENSOR_COMPONENT_ID, TRUTH_COMPONENT_ID, mavlink2
 
 __all__ = [
     "FC_SENSOR_MSG_IDS", "HEARTBEAT_ID", "HIL_MSG_IDS", "LOCKSTEP_CUSTOM_MODE", "TIMESYNC_ID",
@@ -26,6 +26,8 @@ HIL_MSG_IDS: Final = frozenset(
         int(mavlink2.MAVLINK_MSG_ID_HIL_SENSOR),
         int(mavlink2.MAVLINK_MSG_ID_HIL_GPS),
         int(mavlink2.MAVLINK_MSG_ID_HIL_STATE_QUATERNION),
+        int(mavlink2.MAVLINK_MSG_ID_HIL_ACTUATOR_CONTROLS),
+        int(mavlink2.MAVLINK_MSG_ID_RAW_RPM),
     }
 )
 """What the simulator sends (:class:`hil.codec.Encoder`)."""
@@ -40,9 +42,12 @@ FC_SENSOR_MSG_IDS: Final = frozenset(
         int(mavlink2.MAVLINK_MSG_ID_SCALED_PRESSURE),
         int(mavlink2.MAVLINK_MSG_ID_SCALED_PRESSURE2),
         int(mavlink2.MAVLINK_MSG_ID_SCALED_PRESSURE3),
+        int(mavlink2.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW),
+        int(mavlink2.MAVLINK_MSG_ID_RAW_RPM),
     }
 )
-"""Sensor messages of a real flight controller that :class:`hil.codec.Decoder` decodes."""
+"""Sensor and output messages of a real flight controller that :class:`hil.codec.Decoder`
+decodes (SERVO_OUTPUT_RAW, RAW_RPM: the vehicle state of :mod:`hil.codec.vehicle_messages`)."""
 
 
 class LinkRole(BaseModel):
@@ -143,11 +148,14 @@ class LinkRole(BaseModel):
         system_id: int = 1,
         component_id: int = int(mavlink2.MAV_COMP_ID_ONBOARD_COMPUTER),
         sim_system_id: int = 1,
-        sim_components: tuple[int, ...] = (SENSOR_COMPONENT_ID, TRUTH_COMPONENT_ID),
+        sim_components: tuple[int, ...] = (
+            SENSOR_COMPONENT_ID, TRUTH_COMPONENT_ID, AUTOPILOT_COMPONENT_ID,
+        ),
     ) -> LinkRole:
         """The fusion service's input from the simulator: an onboard computer (191,
         ``MAV_TYPE_ONBOARD_CONTROLLER``) accepting HIL_SENSOR / HIL_GPS /
-        HIL_STATE_QUATERNION from the simulator's sensor and truth components."""
+        HIL_STATE_QUATERNION / HIL_ACTUATOR_CONTROLS / RAW_RPM from the simulator's sensor,
+        truth and autopilot components."""
         return cls(
             system_id=system_id,
             component_id=component_id,
