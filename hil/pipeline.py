@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
 
@@ -65,7 +65,7 @@ class SimSetup:
     faults: tuple[FaultEvent, ...] | None = None
     gnss_off: tuple[GnssWindow, ...] = ()
     truth_rate_hz: float = 50.0
-    vehicle_state: VehicleStateConfig = VehicleStateConfig()
+    vehicle_state: VehicleStateConfig = field(default_factory=VehicleStateConfig)
 
     def __post_init__(self) -> None:
         if not self.duration_s > 0:
@@ -212,7 +212,7 @@ class SimChain:
                 self.ended = exc
                 return
             self.time_us = truth.time_us
-            samples = suite.step(truth)
+            samples: Sequence[Sample] = suite.step(truth)
             reports = vehicle.step(truth.time_us, flight.vehicle_state)
             if reports:
                 samples = [*samples, *reports]

@@ -64,6 +64,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hil.codec.wire import (
+    AUTOPILOT_COMPONENT_ID,
     DEGE7_PER_RAD,
     FLOAT32_MAX,
     INT16_MAX,
@@ -72,7 +73,6 @@ from hil.codec.wire import (
     INT32_MIN,
     KELVIN_AT_0_CELSIUS,
     PA_PER_HPA,
-    AUTOPILOT_COMPONENT_ID,
     SENSOR_COMPONENT_ID,
     TESLA_PER_GAUSS,
     TRUTH_COMPONENT_ID,
