@@ -23,7 +23,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hil.codec import SENSOR_COMPONENT_ID, TRUTH_COMPONENT_ID, Decoder, Encoder, mavlink2
+from hil.codec import (
+    AUTOPILOT_COMPONENT_ID,
+    SENSOR_COMPONENT_ID,
+    TRUTH_COMPONENT_ID,
+    Decoder,
+    Encoder,
+    mavlink2,
+)
 from hil.link import (
     FC_SENSOR_MSG_IDS,
     HIL_MSG_IDS,
@@ -164,7 +171,8 @@ def test_role_presets_and_validation() -> None:
     assert fusion.mav_type == mavlink2.MAV_TYPE_ONBOARD_CONTROLLER
     assert fusion.accepts_source(1, SENSOR_COMPONENT_ID)
     assert fusion.accepts_source(1, TRUTH_COMPONENT_ID)
-    assert not fusion.accepts_source(1, 1)
+    assert fusion.accepts_source(1, AUTOPILOT_COMPONENT_ID)  # HIL_ACTUATOR_CONTROLS, RAW_RPM
+    assert not fusion.accepts_source(1, 2)
     assert not fusion.accepts_source(1, fusion.component_id)  # own echo
     assert fusion.accept_msg_ids == HIL_MSG_IDS
     assert fusion.accepts_msg_id(HB) and not fusion.accepts_msg_id(30)
