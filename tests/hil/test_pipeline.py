@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from hil.codec import AUTOPILOT_COMPONENT_ID, Decoder
 from hil.pipeline import (
     FusionRun,
     SimChain,
@@ -18,8 +20,10 @@ from hil.pipeline import (
     record_flight,
     tee,
 )
-from hil.tlog import read_tlog
+from hil.tlog import iter_decoded, read_tlog
 from sim.presets import gnss_preset
+from sim.samples import ActuatorSample, RpmSample
+from sim.vehicle_state import VehicleStateConfig
 
 
 @pytest.mark.parametrize(
@@ -93,3 +97,37 @@ def test_sim_chain_steps_only_inside_its_context() -> None:
     assert len(steps) == 200 and chain.ended is None
     assert chain.sim_duration_s == pytest.approx(1.0)
     assert all(step.frames for step in steps)
+
+
+def test_the_stream_carries_the_vehicle_state_without_changing_the_fusion(flown) -> None:
+    """GIVEN the recorded flight WHEN decoded THEN it carries HIL_ACTUATOR_CONTROLS and RAW_RPM
+    from the autopilot component at 50 Hz with nothing dropped; AND the same flight flown
+    without them gives the same sensor bytes and bit-identical estimates (the filter does not
+    use them yet; each component has its own sequence)."""
+    frames, live, log = flown
+    dec = Decoder()
+    vehicle = [d for _, d in iter_decoded(log, dec)
+               if isinstance(d.sample, ActuatorSample | RpmSample)]
+    assert {d.component_id for d in vehicle} == {AUTOPILOT_COMPONENT_ID}
+    act = [d.sample.time_us for d in vehicle if isinstance(d.sample, ActuatorSample)]
+    rpm = [d.sample.time_us for d in vehicle if isinstance(d.sample, RpmSample)]
+    assert act == rpm and len(act) == 2000 and set(np.diff(act)) == {20_000}
+    c = dec.counters
+    assert (c.controls_clipped, c.controls_invalid, c.rpm_invalid, c.rpm_untimed,
+            c.ignored_msgs) == (0, 0, 0, 0, 0)
+    setup = SimSetup.build(duration_s=40.0, seed=5, gnss_off=["25:5"])
+    quiet = dataclasses.replace(setup, vehicle_state=VehicleStateConfig(actuators=False,
+                                                                        rpm=False))
+    without: list[tuple[int, bytes]] = []
+    fly(quiet, lambda t, f: without.append((t, f)))
+    # MAVLink 2 header: byte 6 is the component id
+    autopilot = [f for _, f in frames if f[6] == AUTOPILOT_COMPONENT_ID]
+    assert len(autopilot) == 4000
+    assert [f for _, f in frames if f[6] != AUTOPILOT_COMPONENT_ID] == [f for _, f in without]
+    other = fuse_frames(without, live.config, "none")
+    assert live.collector is not None and other.collector is not None
+    a, b = live.collector.estimates, other.collector.estimates
+    assert len(a) == len(b) > 1000
+    for x, y in zip(a, b, strict=True):
+        assert (x.time_us, x.lat_rad, x.lon_rad, x.alt_msl_m) == (
+            y.time_us, y.lat_rad, y.lon_rad, y.alt_msl_m)
