@@ -2,8 +2,10 @@
 
 Input (``--mavlink URL``)
     Sensor messages from hilnav's simulator (HIL_SENSOR, HIL_GPS; truth as
-    HIL_STATE_QUATERNION from :data:`hil.codec.TRUTH_COMPONENT_ID`) or from a real flight
-    controller (HIGHRES_IMU, SCALED_IMU*, RAW_IMU, GPS_RAW_INT, SCALED_PRESSURE*), decoded by
+    HIL_STATE_QUATERNION from :data:`hil.codec.TRUTH_COMPONENT_ID`; the vehicle state as
+    HIL_ACTUATOR_CONTROLS and RAW_RPM from :data:`hil.codec.AUTOPILOT_COMPONENT_ID`) or from a
+    real flight controller (HIGHRES_IMU, SCALED_IMU*, RAW_IMU, GPS_RAW_INT, SCALED_PRESSURE*,
+    SERVO_OUTPUT_RAW, RAW_RPM), decoded by
     :class:`hil.codec.Decoder` and run through :class:`fusion.filter.NavFilter` in arrival
     order (the same order a ``hilnav replay`` of the same frames sees: same seed, same numbers).
 
