@@ -44,9 +44,17 @@ from hil.codec.vehicle_messages import (
     decode_servo_output_raw,
 )
 from hil.codec.wire import mavlink2
-from sim.samples import GnssFix, RpmSample, Sample, Truth
+from sim.samples import Sample, Truth
 
 __all__ = ["Decoded", "Decoder"]
+
+# Messages whose time does not tell the system's current time: GNSS fixes carry their (earlier)
+# time of validity, RAW_RPM carries none.
+_NOT_CLOCK_IDS = frozenset({
+    mavlink2.MAVLINK_MSG_ID_HIL_GPS,
+    mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT,
+    mavlink2.MAVLINK_MSG_ID_RAW_RPM,
+})
 
 
 @dataclass(frozen=True, slots=True)
@@ -224,8 +232,7 @@ class Decoder:
         else:
             self.counters.ignored_msgs += 1
             return []
-        for s in samples:  # the system's clock, for RAW_RPM (fixes lag: time of validity)
-            if not isinstance(s, GnssFix | RpmSample):
-                self._sources.last_time_us[sys_id] = s.time_us
+        if samples and msg_id not in _NOT_CLOCK_IDS:  # the system's clock, for RAW_RPM
+            self._sources.last_time_us[sys_id] = samples[-1].time_us
         self.counters.samples += len(samples)
         return [Decoded(s, sys_id, comp_id, msg_id) for s in samples]
