@@ -485,10 +485,12 @@ class Encoder:
             More than 16 controls, a non-finite control, a bad time.
         """
         t = _time_us(sample.time_us, "actuators.time_us")
-        given = list(sample.controls)
-        if len(given) > _N_CONTROLS:
-            raise ValueError(f"actuators.controls has {len(given)} values; at most 16")
-        xs = _vec(given + [0.0] * (_N_CONTROLS - len(given)), "actuators.controls", _N_CONTROLS)
+        xs = [float(x) for x in sample.controls]  # plain floats: cheaper than numpy for 16
+        if len(xs) > _N_CONTROLS:
+            raise ValueError(f"actuators.controls has {len(xs)} values; at most 16")
+        if not all(map(math.isfinite, xs)):
+            raise ValueError(f"actuators.controls must be finite, got {xs}")
+        xs.extend([0.0] * (_N_CONTROLS - len(xs)))
         controls = self._f32_vec(xs, ("controls",) * _N_CONTROLS, "HIL_ACTUATOR_CONTROLS")
         msg = mavlink2.MAVLink_hil_actuator_controls_message(t, controls, _HIL_ARMED_MODE, 0)
         return self._pack(msg, self._autopilot_mav)
