@@ -28,6 +28,10 @@ class DecoderCounters:
     imu_duplicates : IMU messages with the same timestamp as the previous one (dropped).
     imu_time_resets : IMU timestamps that went backwards (source restarted).
     sim_resets : HIL_SENSOR frames with bit 31 ("simulation reset") set.
+    bad_diff_pressure : HIL_SENSOR differential pressures (bit 10) that are not finite
+        (no AirspeedSample emitted). Finite values pass, negative ones included: a slightly
+        negative reading is sensor noise at zero flow, and judging the physics (an absurd
+        value, a blocked pitot) is the filter's job, not the codec's.
     """
 
     frames_ok: int = 0
@@ -44,6 +48,7 @@ class DecoderCounters:
     imu_duplicates: int = 0
     imu_time_resets: int = 0
     sim_resets: int = 0
+    bad_diff_pressure: int = 0
 
     def as_dict(self) -> dict[str, int]:
         """Counters as a plain dict (for JSON status output)."""

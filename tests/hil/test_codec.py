@@ -25,7 +25,7 @@ from hil.codec import (
     RawImuScale,
     mavlink2,
 )
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Truth
+from sim.samples import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample, Truth
 
 G0 = 9.80665
 DEGE7_PER_RAD = 1e7 * 180.0 / math.pi
@@ -188,9 +188,11 @@ def test_hil_sensor_round_trip_within_float32_quantisation(
 
     got = one(Decoder(imu_dt_s=0.01), frame)
     kinds = [type(s) for s in got]
-    assert kinds == [k for k, s in ((ImuSample, imu), (MagSample, mag), (BaroSample, baro)) if s]
+    given = ((ImuSample, imu), (MagSample, mag), (BaroSample, baro))
+    want = [k for k, s in given if s] + ([AirspeedSample] if diff is not None else [])
+    assert kinds == want
     for s in got:
-        assert s.time_us == t and s.sensor_id == sensor_id
+        assert s.time_us == t and s.sensor_id == raw.id
         if isinstance(s, ImuSample):
             assert imu is not None
             assert_f32_close(s.specific_force_b_mps2, imu.specific_force_b_mps2, 1.0)
@@ -203,6 +205,9 @@ def test_hil_sensor_round_trip_within_float32_quantisation(
         elif isinstance(s, MagSample):
             assert mag is not None
             assert_f32_close(s.field_b_tesla, mag.field_b_tesla, 1e-4)
+        elif isinstance(s, AirspeedSample):
+            assert diff is not None
+            assert_f32_close(s.diff_pressure_pa, diff, 100.0)
         else:
             assert baro is not None
             assert_f32_close(s.pressure_pa, baro.pressure_pa, 100.0)
@@ -700,7 +705,10 @@ def test_flight_controller_messages_decode_to_si() -> None:
     frames = _fc_frames()
     dec = Decoder(raw_imu_scale=RawImuScale.milli_units())
 
-    imu, mag, baro = one(dec, frames["HIGHRES_IMU"])
+    imu, mag, baro, airspeed = one(dec, frames["HIGHRES_IMU"])
+    assert isinstance(airspeed, AirspeedSample)
+    assert airspeed.diff_pressure_pa == 0.0  # bit 10 set with 0 hPa: a finite reading passes
+    assert airspeed.temperature_k == pytest.approx(304.65)
     assert imu.specific_force_b_mps2.tolist() == [0.5, -0.25, -9.75]
     assert imu.angular_rate_b_rps.tolist() == [0.125, -0.0625, 0.03125]
     assert imu.temperature_k == pytest.approx(304.65)
@@ -741,7 +749,7 @@ def test_flight_controller_messages_decode_to_si() -> None:
 
     assert one(dec, frames["ATTITUDE"]) == []
     assert dec.counters.ignored_msgs == 1
-    assert dec.counters.samples == 12
+    assert dec.counters.samples == 13  # HIGHRES_IMU: IMU, mag, baro, airspeed
 
 
 def test_raw_imu_needs_an_explicit_scale() -> None:

@@ -24,6 +24,7 @@ from sim._sensor_common import ecef_from_geodetic_m, meridian_prime_radii_m
 from sim.faults import (
     EVENT_TYPES,
     PX4_FAILURE,
+    AirspeedFailure,
     BaroDrift,
     BaroFreeze,
     BaroGlitch,
@@ -41,6 +42,8 @@ from sim.faults import (
     ImuSaturation,
     ImuStuck,
     MagAnomaly,
+    PitotBlockage,
+    PitotDrift,
     WeatherFront,
     check_events,
     px4_failure,
@@ -138,9 +141,9 @@ def in_window(time_us: int, start_s: float, end_s: float) -> bool:
 
 
 def test_px4_failure_covers_every_event_type_with_valid_vocabulary() -> None:
-    assert len(EVENT_TYPES) == 15
+    assert len(EVENT_TYPES) == 18
     assert set(PX4_FAILURE) == set(EVENT_TYPES)
-    units = {"gps", "baro", "accel", "gyro", "mag"}
+    units = {"gps", "baro", "accel", "gyro", "mag", "airspeed"}
     kinds = {"off", "stuck", "garbage", "wrong", "slow", "delayed", "intermittent"}
     for name, (unit, kind) in PX4_FAILURE.items():
         assert unit in units and kind in kinds, name
@@ -151,6 +154,9 @@ def test_px4_failure_covers_every_event_type_with_valid_vocabulary() -> None:
         "accel",
         "wrong",
     )
+    assert px4_failure(AirspeedFailure(1.0)) == ("airspeed", "off")
+    assert px4_failure(PitotBlockage(1.0, mode="stuck")) == ("airspeed", "stuck")
+    assert px4_failure(PitotBlockage(1.0, mode="zero")) == ("airspeed", "wrong")
 
 
 @pytest.mark.parametrize(
@@ -600,6 +606,9 @@ TIMELINE: list[FaultEvent] = [
     ImuSaturation(1.0, 5.0, "gyro", 1e-3),
     ImuBiasStep(5.0, None, "gyro", 0, 1e-3),
     MagAnomaly(6.0, 3.0),
+    PitotDrift(3.0, 2.0, rate_pa_per_s=5.0),
+    AirspeedFailure(6.0, 1.0),
+    PitotBlockage(9.0, 2.0, mode="stuck"),
 ]
 
 
