@@ -831,3 +831,48 @@ def test_decoder_keeps_mavlink1_frames_of_a_mixed_link() -> None:
     got = dec.feed(stream)
     # THEN all three are decoded
     assert len(got) == 3 and all(isinstance(d.sample, BaroSample) for d in got)
+
+
+# ------------------------------------------------------------------------- air data (pitot)
+def test_airspeed_sample_round_trips_in_hil_sensor_with_the_baro_temperature() -> None:
+    t = 5_000_000
+    imu = ImuSample(t, 0.005, np.array([0.1, 0.0, -9.8]), np.array([0.0, 0.01, 0.0]))
+    baro = BaroSample(t, 89_875.0, 283.15)
+    airspeed = AirspeedSample(t, 1_391.37, 290.0)  # its own temperature is not on the wire
+    frame = Encoder().sensors(imu, baro, airspeed=airspeed)
+    raw = parse_raw(frame)
+    assert raw.fields_updated == HilSensorField.IMU | HilSensorField.BARO | (
+        HilSensorField.DIFF_PRESSURE
+    )
+    assert_f32_close(raw.diff_pressure, 13.9137, 1.0)  # hPa, as PX4 reads it
+    got = one(Decoder(), frame)
+    (a,) = [s for s in got if isinstance(s, AirspeedSample)]
+    assert a.time_us == t and a.sensor_id == 0
+    assert_f32_close(a.diff_pressure_pa, airspeed.diff_pressure_pa, 100.0)
+    assert a.temperature_k == pytest.approx(baro.temperature_k, abs=1e-4)
+    with pytest.raises(ValueError, match="not both"):
+        Encoder().sensors(imu, airspeed=airspeed, diff_pressure_pa=1.0)
+    with pytest.raises(ValueError, match="time_us"):
+        Encoder().sensors(imu, airspeed=AirspeedSample(t + 1, 1.0, 290.0))
+
+
+def _hil_sensor_with_diff_hpa(diff_hpa: float, t: int = 1_000_000) -> bytes:
+    mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=200)
+    msg = mavlink2.MAVLink_hil_sensor_message(
+        t, 0, 0, -9.8, 0, 0, 0, 0, 0, 0, 900.0, diff_hpa, 0, 15.0,
+        HilSensorField.IMU | HilSensorField.BARO | HilSensorField.DIFF_PRESSURE, 0,
+    )  # fmt: skip
+    return bytes(msg.pack(mav))
+
+
+def test_non_finite_diff_pressure_is_counted_and_finite_negative_passes() -> None:
+    dec = Decoder()
+    for i, bad in enumerate((math.nan, math.inf, -math.inf)):
+        got = one(dec, _hil_sensor_with_diff_hpa(bad, t=1_000_000 + 10_000 * i))
+        assert [type(s) for s in got] == [ImuSample, BaroSample]  # the rest of it is kept
+    assert dec.counters.bad_diff_pressure == 3
+    # slightly negative: sensor noise at zero flow, passed through (the filter judges physics)
+    got = one(dec, _hil_sensor_with_diff_hpa(-0.02, t=2_000_000))
+    (a,) = [s for s in got if isinstance(s, AirspeedSample)]
+    assert a.diff_pressure_pa == pytest.approx(-2.0, rel=1e-6)
+    assert dec.counters.bad_diff_pressure == 3
