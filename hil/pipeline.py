@@ -86,6 +86,7 @@ class SimSetup:
         gnss: str = "modern",
         baro: str = "ms5611",
         mag: str = "consumer",
+        pitot: str = presets.DEFAULT_PITOT_PRESET,
         lat_deg: float = 47.0,
         lon_deg: float = 8.0,
         alt_msl_m: float = 1000.0,
@@ -98,7 +99,8 @@ class SimSetup:
         vehicle_state_rate_hz: float = 50.0,
     ) -> SimSetup:
         """A setup from human-facing options (preset names, ``N,E,D`` wind, ``START:DUR``
-        outages); ValueError / ValidationError name the bad one."""
+        outages); ValueError / ValidationError name the bad one. ``pitot="none"``: an
+        aircraft without an airspeed sensor (no ``diff_pressure`` in the stream)."""
         if not duration_s > 0:
             raise ValueError(f"duration must be > 0 s (got {duration_s})")
         if seed < 0:
@@ -117,7 +119,7 @@ class SimSetup:
         return cls(
             flight=flight,
             plan=load_plan(plan),
-            sensors=presets.suite_config(imu=imu, gnss=gnss, baro=baro, mag=mag),
+            sensors=presets.suite_config(imu=imu, gnss=gnss, baro=baro, mag=mag, pitot=pitot),
             duration_s=duration_s,
             seed=seed,
             gnss_off=tuple(GnssWindow.parse(w) for w in gnss_off),

@@ -1,13 +1,14 @@
 """Sensor streamer: one simulator step's truth and samples -> MAVLink 2 frames.
 
 The streamer is the only place where simulator output meets the wire. Per IMU sample it sends one
-HIL_SENSOR carrying the IMU fields plus any baro / magnetometer sample of the same step (their
-``fields_updated`` bits set only then), HIL_GPS for each GNSS fix (emitted when the receiver
-outputs it, stamped with its time of validity), and the truth as HIL_STATE_QUATERNION from the
-simulator's truth component at ``truth_rate_hz``. The vehicle state a flight controller would
-report (:mod:`sim.vehicle_state`) follows, from the autopilot component: HIL_ACTUATOR_CONTROLS
-for each ActuatorSample, then RAW_RPM for each RpmSample of the step (RAW_RPM has no timestamp,
-so it comes last, after frames of its own time). An optional :class:`sim.faults.FaultInjector`
+HIL_SENSOR carrying the IMU fields plus any baro / magnetometer / airspeed sample of the same
+step (their ``fields_updated`` bits set only then; the airspeed as ``diff_pressure``, bit 10),
+HIL_GPS for each GNSS fix (emitted when the receiver outputs it, stamped with its time of
+validity), and the truth as HIL_STATE_QUATERNION from the simulator's truth component at
+``truth_rate_hz``. The vehicle state a flight controller would report
+(:mod:`sim.vehicle_state`) follows, from the autopilot component: HIL_ACTUATOR_CONTROLS for each
+ActuatorSample, then RAW_RPM for each RpmSample of the step (RAW_RPM has no timestamp, so it
+comes last, after frames of its own time). An optional :class:`sim.faults.FaultInjector`
 applies the scenario's fault timeline to each step's samples before they are encoded.
 :mod:`hil.pipeline` drives it, in lockstep or paced live.
 """
@@ -21,6 +22,7 @@ from hil.codec import Encoder
 from sim.faults import FaultInjector, FaultLogEntry
 from sim.samples import (
     ActuatorSample,
+    AirspeedSample,
     BaroSample,
     GnssFix,
     ImuSample,
@@ -107,6 +109,7 @@ class SensorStreamer:
         baro: BaroSample | None = None
         mag: MagSample | None = None
         vehicle: list[tuple[int, bytes]] = []
+        airspeed: AirspeedSample | None = None
         for s in samples:
             if isinstance(s, ImuSample):
                 if imu is not None:
@@ -116,6 +119,8 @@ class SensorStreamer:
                 baro = s
             elif isinstance(s, MagSample):
                 mag = s
+            elif isinstance(s, AirspeedSample):
+                airspeed = s
             elif isinstance(s, GnssFix):
                 if any(w.covers(s.time_us) for w in self._gnss_off):
                     self.gnss_suppressed += 1
@@ -125,9 +130,11 @@ class SensorStreamer:
                 vehicle.append((s.time_us, self.encoder.actuators(s)))
             elif isinstance(s, RpmSample):
                 vehicle.append((s.time_us, self.encoder.rpm(s)))
-        if imu is not None or baro is not None or mag is not None:
+        if imu is not None or baro is not None or mag is not None or airspeed is not None:
             t = imu.time_us if imu is not None else truth.time_us
-            out.append((t, self.encoder.sensors(imu, baro, mag, time_us=t)))
+            out.append(
+                (t, self.encoder.sensors(imu, baro, mag, time_us=t, airspeed=airspeed))
+            )
         if self._next_truth_us is None or truth.time_us >= self._next_truth_us:
             out.append((truth.time_us, self.encoder.truth(truth)))
             base = truth.time_us if self._next_truth_us is None else self._next_truth_us

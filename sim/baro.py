@@ -17,6 +17,23 @@ Pressure chain, per sample at time ``t``::
 
 Temperature: the non-standard atmosphere's air temperature plus an offset (self-heating of
 the sensor), white noise and rounding.
+
+Static-port position error (optional, off by default): the static source of a moving
+aircraft does not sense the ambient pressure exactly; the error is proportional to the
+dynamic pressure and depends on the direction of the air-relative velocity. The model is
+ArduPilot's barometer wind-coefficient compensation (``AP_Baro_Wind.cpp``, parameters
+``BAROn_WCF_FWD/BCK/RGT/LFT``) run forwards::
+
+    Δp = ½ ρ · (c_x·u² + c_y·v² + c_z·w²)
+
+with ``(u, v, w)`` the air-relative velocity in body FRD (from the truth's true airspeed,
+angle of attack and sideslip), ``c_x`` = ``position_error_fwd`` when ``u > 0`` else
+``position_error_bck``, ``c_y`` = ``position_error_rgt`` / ``position_error_lft`` by the sign
+of ``v``, and ``c_z`` = ``position_error_dn`` (``w > 0``: positive angle of attack) /
+``position_error_up`` -- the z pair is hilnav's addition, for a port whose error varies with
+angle of attack. ``ρ`` is the density of the model's own air (p, T). A negative coefficient
+lowers the sensed pressure (the baro altitude rises with speed, ArduPilot's sign). The error
+enters before the lag (it is a pneumatic pressure at the port).
 """
 
 from __future__ import annotations
@@ -27,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from physconst import ISA_R0_GEOPOTENTIAL_M
+from physconst.airdata import air_density_kgpm3
 from sim._sensor_common import (
     BLOCK_STEPS,
     Finite,
@@ -37,6 +55,8 @@ from sim._sensor_common import (
 )
 from sim.atmosphere import TroposphereBaro
 from sim.samples import BaroSample
+
+Vec3Like = tuple[float, float, float]
 
 
 class BaroConfig(SensorConfigModel):
@@ -55,6 +75,11 @@ class BaroConfig(SensorConfigModel):
     temperature_offset_k : sensor temperature minus air temperature, K.
     temperature_noise_k : white temperature noise, 1σ, K.
     temperature_resolution_k : temperature LSB, K (0 = none).
+    position_error_fwd, position_error_bck : static-port pressure error over dynamic
+        pressure for air-relative velocity along +x (forward) / -x, fraction (ArduPilot
+        ``WCF_FWD`` / ``WCF_BCK``).
+    position_error_rgt, position_error_lft : the same along +y / -y (``WCF_RGT`` / ``WCF_LFT``).
+    position_error_dn, position_error_up : the same along +z (positive angle of attack) / -z.
     """
 
     noise_pa: NonNegative
@@ -69,6 +94,23 @@ class BaroConfig(SensorConfigModel):
     temperature_offset_k: Finite = 0.0
     temperature_noise_k: NonNegative = 0.0
     temperature_resolution_k: NonNegative = 0.0
+    position_error_fwd: Finite = 0.0
+    position_error_bck: Finite = 0.0
+    position_error_rgt: Finite = 0.0
+    position_error_lft: Finite = 0.0
+    position_error_dn: Finite = 0.0
+    position_error_up: Finite = 0.0
+
+    @property
+    def has_position_error(self) -> bool:
+        """True when any static-port position-error coefficient is non-zero."""
+        return any(
+            v != 0.0
+            for v in (
+                self.position_error_fwd, self.position_error_bck, self.position_error_rgt,
+                self.position_error_lft, self.position_error_dn, self.position_error_up,
+            )
+        )
 
 
 @dataclass(frozen=True)
@@ -87,6 +129,8 @@ class BaroParams:
     temperature_offset_k: float
     temperature_noise_k: float
     temperature_resolution_k: float
+    position_error: tuple[float, float, float, float, float, float]
+    """(fwd, bck, rgt, lft, dn, up) coefficients."""
 
     @classmethod
     def from_config(cls, c: BaroConfig) -> BaroParams:
@@ -104,6 +148,10 @@ class BaroParams:
             temperature_offset_k=c.temperature_offset_k,
             temperature_noise_k=c.temperature_noise_k,
             temperature_resolution_k=c.temperature_resolution_k,
+            position_error=(
+                c.position_error_fwd, c.position_error_bck, c.position_error_rgt,
+                c.position_error_lft, c.position_error_dn, c.position_error_up,
+            ),
         )
 
 
@@ -133,14 +181,36 @@ class BaroModel:
         self._t_first_us: int | None = None
         self._t_last_us = 0
         self._p_lag = 0.0
+        self._position_error = config.has_position_error
 
     def sea_level_pressure_offset_pa(self, time_us: int) -> float:
         """The weather's sea-level pressure offset ``dP(t)``, Pa (drift from the first sample)."""
         t0 = self._t_first_us if self._t_first_us is not None else time_us
         return self.params.sea_level_dp_pa + self.params.drift_pa_per_s * (time_us - t0) * 1e-6
 
-    def measure(self, time_us: int, alt_msl_m: float) -> BaroSample:
+    def position_error_pa(
+        self, pressure_pa: float, temperature_k: float, air_velocity_b_mps: Vec3Like
+    ) -> float:
+        """Static-port position error ``Δp`` (Pa) for the air-relative body velocity (m/s)
+        ``(u, v, w)`` in air of ``pressure_pa`` and ``temperature_k`` (module docstring)."""
+        fwd, bck, rgt, lft, dn, up = self.params.position_error
+        u, v, w = air_velocity_b_mps
+        s = (fwd if u > 0.0 else bck) * u * u
+        s += (rgt if v > 0.0 else lft) * v * v
+        s += (dn if w > 0.0 else up) * w * w
+        return 0.5 * air_density_kgpm3(pressure_pa, temperature_k) * s
+
+    def measure(
+        self,
+        time_us: int,
+        alt_msl_m: float,
+        air_velocity_b_mps: Vec3Like | None = None,
+    ) -> BaroSample:
         """One barometer sample at ``time_us`` for the true geometric MSL altitude (m).
+
+        ``air_velocity_b_mps``: the air-relative velocity in body FRD, m/s, for the
+        static-port position error (ignored when the configuration has none; None: no
+        position error).
 
         Raises
         ------
@@ -159,6 +229,8 @@ class BaroModel:
         d_p = self.sea_level_pressure_offset_pa(time_us)
         h_gp = ISA_R0_GEOPOTENTIAL_M * alt_msl_m / (ISA_R0_GEOPOTENTIAL_M + alt_msl_m)
         p_air, t_air = self._atm.pressure_temperature(h_gp, d_p)
+        if air_velocity_b_mps is not None and self._position_error:
+            p_air += self.position_error_pa(p_air, t_air, air_velocity_b_mps)
         dt = (time_us - self._t_last_us) * 1e-6
         if first or p.lag_time_constant_s <= 0.0:
             self._p_lag = p_air

@@ -28,7 +28,9 @@ kinematic-consistency test in ``tests/sim/test_flight.py``):
   ``accelerations/a-pilot-*`` is at the pilot's eye point. Neither is used.
 * Atmosphere: ``atmosphere/P-psf`` and ``atmosphere/T-R`` (static, at the aircraft);
   airspeeds ``velocities/vtrue-fps`` (true) and ``velocities/vc-fps`` (calibrated, reported
-  as ``indicated_airspeed_mps``).
+  as ``indicated_airspeed_mps``); ``aero/alpha-rad`` and ``aero/beta-rad`` (angle of attack
+  and sideslip of the air-relative velocity, winds and turbulence included) as ``alpha_rad``
+  and ``beta_rad``.
 
 All of a truth sample is instantaneous at ``time_us``. JSBSim integrates the velocity with
 Adams-Bashforth 2 and the attitude with a rectangular (Euler) step using the body rate at the
@@ -724,6 +726,8 @@ class Flight:
             temperature_k=raw[_ITR] * RANKINE_K,
             airspeed_mps=raw[_IVT] * FT_M,
             indicated_airspeed_mps=raw[_IVC] * FT_M,
+            alpha_rad=raw[_IALPHA],
+            beta_rad=raw[_IBETA],
         )
 
     def _check(self) -> None:

@@ -22,6 +22,7 @@ from sim.baro import BaroConfig
 from sim.gnss import GnssConfig
 from sim.imu import AccelConfig, GyroConfig, ImuConfig
 from sim.mag import MagConfig
+from sim.pitot import PitotConfig
 from sim.sensors import SensorSuiteConfig
 
 T = TypeVar("T")
@@ -189,6 +190,67 @@ _MAG_PRESETS: dict[str, MagConfig] = {
 }
 
 
+# Pitot-static airspeed sensors. Both presets share the probe figures: probe misalignment
+# k = 0.3 /rad² in angle of attack and sideslip (class value: a simple open-ended total-
+# pressure tube stays within ~1 % of q_c up to ~±10° of flow inclination, Gracey, NASA
+# RP-1046, 1980), 0.02 s pneumatic lag (class value: some 30 cm of 1.5 mm tubing) and the
+# temperature the sensor reports (in the fuselage: class value +2 K over the air).
+_PROBE = dict(
+    k_alpha_per_rad2=0.3,
+    k_beta_per_rad2=0.3,
+    lag_time_constant_s=0.02,
+    temperature_offset_k=2.0,
+)
+_PITOT_PRESETS: dict[str, PitotConfig | None] = {
+    # TE Connectivity MS4525DO-DS5AI001DP ("001PD": ±1 psi differential, output type A):
+    # 14-bit bridge output spanning 10 %..90 % of 2^14 counts over -1..+1 psi, i.e.
+    # 13107 counts over 13790 Pa = 1.052 Pa/LSB; 11-bit temperature over -50..150 °C
+    # (0.098 K/LSB). Total error band ±1 % of span over -10..85 °C (datasheet, as recalled:
+    # check the current revision) = ±138 Pa, mostly the zero: autopilots zero it at power-on
+    # (PX4 SENS_DPRES_OFF, ArduPilot's airspeed calibration), so what remains is the zero's
+    # thermal drift: 1 % span / 95 K ≈ 1.5 Pa/K, a 2 K change in the fuselage ≈ 3 Pa
+    # (Gauss-Markov 3 Pa, 10 min: class value) plus a turn-on residual of 1.5 Pa (class
+    # value). Noise 2 Pa: ArduPilot's SITL airspeed noise SIM_ARSPD_RND default (class
+    # value; a few LSB at 50 Hz). Scale error 2 % 1σ: class value (installation pressure
+    # coefficient, ArduPilot's ARSPD_RATIO calibration absorbs it).
+    "ms4525do": PitotConfig(
+        noise_pa=2.0,
+        resolution_pa=13790.0 / 13107.0,
+        full_scale_pa=6894.76,
+        offset_sigma_pa=1.5,
+        offset_gm_sigma_pa=3.0,
+        offset_gm_tau_s=600.0,
+        scale_error_sigma=0.02,
+        temperature_noise_k=0.05,
+        temperature_resolution_k=200.0 / 2047.0,
+        **_PROBE,
+    ),
+    # Sensirion SDP33 (SDP3x family, ±1500 Pa): scale factor 20 counts/Pa (0.05 Pa/LSB);
+    # zero point accuracy 0.2 Pa and no zero drift (thermal CMOSens sensor, "no drift, no
+    # offset"); span accuracy 3 % of reading, used as 1σ; temperature 200 counts/°C.
+    # (Figures as recalled from the SDP3x datasheet table; check the current revision.)
+    # Noise 0.2 Pa at 50 Hz: class value. Its ±1500 Pa range saturates near 50 m/s true
+    # airspeed at sea level (q_c 1530 Pa): a small-UAV sensor, as on the real part.
+    "sdp33": PitotConfig(
+        noise_pa=0.2,
+        resolution_pa=0.05,
+        full_scale_pa=1500.0,
+        offset_sigma_pa=0.2,
+        scale_error_sigma=0.03,
+        temperature_noise_k=0.05,
+        temperature_resolution_k=1.0 / 200.0,
+        **_PROBE,
+    ),
+    # Noise-free: exactly the impact pressure (no probe or sensor error); for tests.
+    "ideal": PitotConfig(noise_pa=0.0),
+    # An aircraft without a pitot: no airspeed samples at all.
+    "none": None,
+}
+
+DEFAULT_PITOT_PRESET = "ms4525do"
+"""The default aircraft (c172x) carries a pitot-static probe; this is the sensor fitted."""
+
+
 def _lookup(kind: str, table: dict[str, T], name: str) -> T:
     try:
         return table[name]
@@ -215,6 +277,22 @@ def available_baro_presets() -> list[str]:
 def available_mag_presets() -> list[str]:
     """Names accepted by :func:`mag_preset`, sorted."""
     return sorted(_MAG_PRESETS)
+
+
+def available_pitot_presets() -> list[str]:
+    """Names accepted by :func:`pitot_preset`, sorted (``none``: no pitot fitted)."""
+    return sorted(_PITOT_PRESETS)
+
+
+def pitot_preset(name: str) -> PitotConfig | None:
+    """Pitot configuration by name (see :func:`available_pitot_presets`); None for ``none``.
+
+    Raises
+    ------
+    ValueError
+        Unknown name; the message lists the valid choices.
+    """
+    return _lookup("pitot", _PITOT_PRESETS, name)
 
 
 def imu_preset(name: str) -> ImuConfig:
@@ -266,10 +344,12 @@ def suite_config(
     gnss: str = "modern",
     baro: str = "ms5611",
     mag: str = "consumer",
+    pitot: str = DEFAULT_PITOT_PRESET,
     *,
     imu_rate_hz: float | None = None,
     baro_rate_hz: float = 50.0,
     mag_rate_hz: float = 50.0,
+    pitot_rate_hz: float = 50.0,
 ) -> SensorSuiteConfig:
     """A :class:`~sim.sensors.SensorSuiteConfig` assembled from preset names.
 
@@ -285,7 +365,9 @@ def suite_config(
         gnss=gnss_preset(gnss),
         baro=baro_preset(baro),
         mag=mag_preset(mag),
+        pitot=pitot_preset(pitot),
         imu_rate_hz=imu_rate_hz,
         baro_rate_hz=baro_rate_hz,
         mag_rate_hz=mag_rate_hz,
+        pitot_rate_hz=pitot_rate_hz,
     )

@@ -30,6 +30,10 @@ class Truth:
         in level flight).
     static_pressure_pa, temperature_k : ambient static pressure and temperature.
     airspeed_mps : true airspeed; ``indicated_airspeed_mps`` calibrated/indicated airspeed.
+    alpha_rad, beta_rad : angle of attack and sideslip of the air-relative velocity in body
+        axes (JSBSim ``aero/alpha-rad``, ``aero/beta-rad``): ``u = V cosα cosβ``,
+        ``v = V sinβ``, ``w = V sinα cosβ``. Default 0 (level, coordinated); NaN when unknown
+        (truth decoded from HIL_STATE_QUATERNION, which carries neither).
     """
 
     time_us: int
@@ -44,6 +48,8 @@ class Truth:
     temperature_k: float
     airspeed_mps: float
     indicated_airspeed_mps: float
+    alpha_rad: float = 0.0
+    beta_rad: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)

@@ -1,8 +1,9 @@
-"""The sensor suite: turns the simulator's truth into IMU, GNSS, barometer and magnetometer
-samples, each sensor with its own seeded random generator.
+"""The sensor suite: turns the simulator's truth into IMU, GNSS, barometer, magnetometer and
+(when a pitot is fitted) airspeed samples, each sensor with its own seeded random generator.
 
-The error models live in ``sim.imu``, ``sim.gnss``, ``sim.baro`` and ``sim.mag`` (re-exported
-here); the atmosphere in ``sim.atmosphere``; named presets in ``sim.presets``.
+The error models live in ``sim.imu``, ``sim.gnss``, ``sim.baro``, ``sim.mag`` and
+``sim.pitot`` (re-exported here); the atmosphere in ``sim.atmosphere``; named presets in
+``sim.presets``.
 
 Timing (all from simulated time, ``Truth.time_us``):
 
@@ -10,16 +11,20 @@ Timing (all from simulated time, ``Truth.time_us``):
   first step. A sample is the trapezoidal average of the truth over its interval
   (``0.5·x0 + x1 + … + 0.5·xN``)/N, ``time_us`` the end of the interval, ``dt_s`` its length
   (the very first sample has no past and uses the first truth as it is).
-- GNSS, barometer, magnetometer: at their own rates on a drift-free schedule
+- GNSS, barometer, magnetometer, pitot: at their own rates on a drift-free schedule
   (``sim._sensor_common.RateSchedule``), sampled at the step whose time reaches the due time.
   A GNSS fix is valid at that step's time but is *emitted* ``latency_s`` later; it keeps its
   time of validity in ``GnssFix.time_us``.
 - :meth:`SensorSuite.step` returns the samples due at a step in time order: delayed GNSS
-  fixes first (their time is earlier or equal), then IMU, barometer, magnetometer.
+  fixes first (their time is earlier or equal), then IMU, barometer, magnetometer, airspeed.
+- The barometer's optional static-port position error takes the truth's air-relative body
+  velocity (``sim.pitot.air_velocity_b_mps``).
 
-Determinism: ``numpy.random.SeedSequence(seed).spawn(4)`` gives the IMU, GNSS, barometer and
-magnetometer generators (in that order), so one sensor's configuration never changes another
-sensor's noise, and the same scenario and seed give bit-identical streams.
+Determinism: ``numpy.random.SeedSequence(seed).spawn(5)`` gives the IMU, GNSS, barometer,
+magnetometer and pitot generators (in that order; the first four are the children
+``spawn(4)`` gave before the pitot existed), so one sensor's configuration never changes
+another sensor's noise -- fitting a pitot or not leaves the other streams bit-identical --
+and the same scenario and seed give bit-identical streams.
 
 Cost: about 17-19 µs per :meth:`SensorSuite.step` at 200 Hz with 200 Hz IMU, 50 Hz baro and
 magnetometer, 5 Hz GNSS (2-core CI-class machine; 2.5 µs of it is building the frozen
@@ -39,7 +44,8 @@ from sim.baro import BaroConfig, BaroModel
 from sim.gnss import GnssConfig, GnssModel
 from sim.imu import AccelConfig, GyroConfig, ImuConfig, ImuModel
 from sim.mag import MagConfig, MagModel
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Truth
+from sim.pitot import PitotConfig, PitotModel, air_velocity_b_mps
+from sim.samples import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample, Truth
 
 __all__ = [
     "AccelConfig",
@@ -52,11 +58,13 @@ __all__ = [
     "ImuModel",
     "MagConfig",
     "MagModel",
+    "PitotConfig",
+    "PitotModel",
     "SensorSuite",
     "SensorSuiteConfig",
 ]
 
-SensorSample = ImuSample | GnssFix | BaroSample | MagSample
+SensorSample = ImuSample | GnssFix | BaroSample | MagSample | AirspeedSample
 
 
 class SensorSuiteConfig(SensorConfigModel):
@@ -65,8 +73,10 @@ class SensorSuiteConfig(SensorConfigModel):
     Attributes
     ----------
     imu, gnss, baro, mag : the sensor configurations (GNSS rate is ``gnss.rate_hz``).
+    pitot : the pitot-static airspeed sensor; None = the aircraft has none.
     imu_rate_hz : IMU output rate, Hz; None = the simulation rate. Must divide it.
-    baro_rate_hz, mag_rate_hz : Hz, at most the simulation rate.
+    baro_rate_hz, mag_rate_hz, pitot_rate_hz : Hz, at most the simulation rate (the pitot's
+        default 50 Hz is what PX4's simulator sends in HIL_SENSOR).
     """
 
     imu: ImuConfig
@@ -76,6 +86,8 @@ class SensorSuiteConfig(SensorConfigModel):
     imu_rate_hz: Positive | None = None
     baro_rate_hz: Positive = 50.0
     mag_rate_hz: Positive = 50.0
+    pitot: PitotConfig | None = None
+    pitot_rate_hz: Positive = 50.0
 
 
 class SensorSuite:
@@ -96,6 +108,8 @@ class SensorSuite:
     baro : BaroModel
     mag : MagModel or None
         Built at the first step, for the first truth's location.
+    pitot : PitotModel or None
+        None when no pitot is configured.
     imu_decimation : int
         Simulation steps per IMU sample.
 
@@ -122,6 +136,7 @@ class SensorSuite:
             ("gnss.rate_hz", config.gnss.rate_hz),
             ("baro_rate_hz", config.baro_rate_hz),
             ("mag_rate_hz", config.mag_rate_hz),
+            ("pitot_rate_hz", config.pitot_rate_hz if config.pitot is not None else 0.0),
         ):
             if rate > sim_rate_hz * (1.0 + 1e-12):
                 raise ValueError(
@@ -131,8 +146,8 @@ class SensorSuite:
         self.config = config
         self.sim_rate_hz = float(sim_rate_hz)
         self.imu_decimation = decimation
-        rng_imu, rng_gnss, rng_baro, rng_mag = (
-            np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(4)
+        rng_imu, rng_gnss, rng_baro, rng_mag, rng_pitot = (
+            np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(5)
         )
         self.imu = ImuModel(config.imu, rng_imu, imu_rate)
         self.gnss = GnssModel(config.gnss, rng_gnss)
@@ -143,6 +158,9 @@ class SensorSuite:
         self._gnss_schedule = RateSchedule(config.gnss.rate_hz)
         self._baro_schedule = RateSchedule(config.baro_rate_hz)
         self._mag_schedule = RateSchedule(config.mag_rate_hz)
+        self.pitot = PitotModel(config.pitot, rng_pitot) if config.pitot is not None else None
+        self._pitot_schedule = RateSchedule(config.pitot_rate_hz)
+        self._baro_air = config.baro.has_position_error
         self._gnss_latency_us = self.gnss.params.latency_us
         self._gnss_queue: deque[tuple[int, GnssFix]] = deque()
         self._prev: list[float] | None = None
@@ -163,7 +181,7 @@ class SensorSuite:
 
         Returns
         -------
-        list of ImuSample | GnssFix | BaroSample | MagSample
+        list of ImuSample | GnssFix | BaroSample | MagSample | AirspeedSample
         """
         t = truth.time_us
         out: list[SensorSample] = []
@@ -205,7 +223,8 @@ class SensorSuite:
 
         bs = self._baro_schedule
         if t >= bs.next_us and bs.due(t):
-            out.append(self.baro.measure(t, truth.alt_msl_m))
+            air = air_velocity_b_mps(truth) if self._baro_air else None
+            out.append(self.baro.measure(t, truth.alt_msl_m, air))
 
         if self.mag is None:
             self.mag = MagModel(
@@ -214,4 +233,9 @@ class SensorSuite:
         ms = self._mag_schedule
         if t >= ms.next_us and ms.due(t):
             out.append(self.mag.measure(t, truth.q_nb))
+        pitot = self.pitot
+        if pitot is not None:
+            ps = self._pitot_schedule
+            if t >= ps.next_us and ps.due(t):
+                out.append(pitot.measure(truth))
         return out

@@ -17,6 +17,7 @@ _DEFAULT_RATES: Final[dict[Topic, float | None]] = {
     Topic.GNSS: None,
     Topic.BARO: 25.0,
     Topic.MAG: 25.0,
+    Topic.AIRSPEED: 25.0,
     Topic.ESTIMATE: 25.0,
     Topic.STATUS: 2.0,
     Topic.INNOVATIONS: None,
@@ -34,7 +35,7 @@ class BusConfig(pydantic.BaseModel):
         Decimation per topic, on simulated time (``time_us`` of the payload) so a recording of
         a faster-than-real-time run is evenly sampled; payloads without ``time_us`` are
         decimated on the wall clock. Topics not listed keep their default
-        (truth, IMU, baro, mag, estimate, error 25 Hz; status 2 Hz; GNSS, innovations,
+        (truth, IMU, baro, mag, airspeed, estimate, error 25 Hz; status 2 Hz; GNSS, innovations,
         events unlimited).
     queue_size : int
         Messages waiting for the publisher thread; beyond it the oldest is dropped.

@@ -3,7 +3,7 @@
 One subtree per vehicle::
 
     hilnav/<vehicle>/sim/truth              true state (when the simulator knows it)
-    hilnav/<vehicle>/sensors/{imu,gnss,baro,mag}
+    hilnav/<vehicle>/sensors/{imu,gnss,baro,mag,airspeed}
     hilnav/<vehicle>/fusion/estimate        navigation solution
     hilnav/<vehicle>/fusion/status          mode, outage timer, health, innovation ratios, links
     hilnav/<vehicle>/fusion/innovations     one message per aiding update
@@ -40,6 +40,7 @@ class Topic(StrEnum):
     GNSS = "sensors/gnss"
     BARO = "sensors/baro"
     MAG = "sensors/mag"
+    AIRSPEED = "sensors/airspeed"
     ESTIMATE = "fusion/estimate"
     STATUS = "fusion/status"
     INNOVATIONS = "fusion/innovations"

@@ -181,8 +181,10 @@ def _sensor_id(s: Any) -> int:
     return int(getattr(s, "sensor_id", 0))
 
 
-_SAMPLE_MARKERS: Final = ("angular_rate_b_rps", "eph_m", "pressure_pa", "field_b_tesla")
-_SAMPLE_TOPICS: Final = (Topic.IMU, Topic.GNSS, Topic.BARO, Topic.MAG)
+_SAMPLE_MARKERS: Final = (
+    "angular_rate_b_rps", "eph_m", "pressure_pa", "field_b_tesla", "diff_pressure_pa"
+)
+_SAMPLE_TOPICS: Final = (Topic.IMU, Topic.GNSS, Topic.BARO, Topic.MAG, Topic.AIRSPEED)
 
 
 def sample_topic(sample: Any) -> Topic:
@@ -200,7 +202,7 @@ def sample_payload(sample: Any) -> tuple[Topic, dict[str, Any]]:
     """Topic and payload of a sensor sample (:mod:`sim.samples` or anything shaped like one).
 
     The kind is recognised by its fields: ``angular_rate_b_rps`` (IMU), ``eph_m`` (GNSS),
-    ``pressure_pa`` (baro), ``field_b_tesla`` (mag).
+    ``pressure_pa`` (baro), ``field_b_tesla`` (mag), ``diff_pressure_pa`` (airspeed).
     """
     if not any(hasattr(sample, f) for f in _SAMPLE_MARKERS):
         raise ValueError(f"not a sensor sample: {type(sample).__name__}")
@@ -239,6 +241,12 @@ def sample_payload(sample: Any) -> tuple[Topic, dict[str, Any]]:
     if hasattr(sample, "field_b_tesla"):
         return Topic.MAG, base | {
             "field_b_tesla": _vec(sample.field_b_tesla, 3, "mag.field_b_tesla", finite=False),
+            "sensor_id": _sensor_id(sample),
+        }
+    if hasattr(sample, "diff_pressure_pa"):
+        return Topic.AIRSPEED, base | {
+            "diff_pressure_pa": _fin(sample.diff_pressure_pa, "airspeed.diff_pressure_pa"),
+            "temperature_k": _opt_num(sample, "temperature_k"),
             "sensor_id": _sensor_id(sample),
         }
     raise ValueError(f"not a sensor sample: {type(sample).__name__}")

@@ -148,6 +148,17 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
             "sensor_id": _d(_I, "sensor instance"),
         },
     ),
+    Topic.AIRSPEED: _schema(
+        Topic.AIRSPEED,
+        "Airspeed (pitot-static differential pressure) sample.",
+        {
+            "time_us": _TIME,
+            "diff_pressure_pa": _d(_N, "impact pressure (total minus static), Pa"),
+            "temperature_k": _d(_N0, "sensor temperature, K"),
+            "sensor_id": _d(_I, "sensor instance"),
+        },
+        optional=("temperature_k",),
+    ),
     Topic.ESTIMATE: _schema(
         Topic.ESTIMATE,
         "Navigation solution of the fusion filter.",

@@ -34,6 +34,10 @@ class DecoderCounters:
         SERVO_OUTPUT_RAW with a mapped output not driven (0 or 65535) (dropped).
     rpm_invalid : RAW_RPM with a negative or non-finite rpm (dropped).
     rpm_untimed : RAW_RPM before any timed message of its system (no time to stamp; dropped).
+    bad_diff_pressure : HIL_SENSOR differential pressures (bit 10) that are not finite
+        (no AirspeedSample emitted). Finite values pass, negative ones included: a slightly
+        negative reading is sensor noise at zero flow, and judging the physics (an absurd
+        value, a blocked pitot) is the filter's job, not the codec's.
     """
 
     frames_ok: int = 0
@@ -54,6 +58,7 @@ class DecoderCounters:
     controls_invalid: int = 0
     rpm_invalid: int = 0
     rpm_untimed: int = 0
+    bad_diff_pressure: int = 0
 
     def as_dict(self) -> dict[str, int]:
         """Counters as a plain dict (for JSON status output)."""

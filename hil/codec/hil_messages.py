@@ -2,8 +2,11 @@
 
 HIL_SENSOR (and HIGHRES_IMU, which has the same fields and ``fields_updated`` bits)
     -> ImuSample (needs all six accel+gyro bits), MagSample (bits 6-8), BaroSample (bit 9; the
-    temperature is the last one received with bit 12 from that source, NaN before the first).
-    ImuSample's temperature is that same last temperature.
+    temperature is the last one received with bit 12 from that source, NaN before the first),
+    AirspeedSample (bit 10, ``diff_pressure`` hPa -> Pa; a non-finite value is counted in
+    ``bad_diff_pressure`` and gives no sample, any finite value passes, see
+    :class:`~hil.codec.counters.DecoderCounters`). ImuSample's and AirspeedSample's
+    temperature is that same last temperature.
 HIL_GPS -> GnssFix; HIL_STATE_QUATERNION -> Truth (from any component: filtering truth from
     sensors is the consumer's decision, made on ``Decoded.component_id``).
 """
@@ -26,7 +29,15 @@ from hil.codec.wire import (
     HilSensorField,
 )
 from physconst import G0_MPS2  # MAVLink's mG is 1e-3 G0
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Sample, Truth
+from sim.samples import (
+    AirspeedSample,
+    BaroSample,
+    GnssFix,
+    ImuSample,
+    MagSample,
+    Sample,
+    Truth,
+)
 
 __all__ = ["decode_hil_gps", "decode_hil_sensor", "decode_hil_state_quaternion"]
 
@@ -34,7 +45,8 @@ __all__ = ["decode_hil_gps", "decode_hil_sensor", "decode_hil_state_quaternion"]
 def decode_hil_sensor(
     msg: Any, key: SourceKey, sources: SourceState, counters: DecoderCounters
 ) -> list[Sample | Truth]:
-    """HIL_SENSOR or HIGHRES_IMU -> ImuSample, MagSample, BaroSample, as its bits say.
+    """HIL_SENSOR or HIGHRES_IMU -> ImuSample, MagSample, BaroSample, AirspeedSample, as its
+    bits say.
 
     Parameters
     ----------
@@ -44,11 +56,12 @@ def decode_hil_sensor(
     sources : SourceState
         IMU timestamps and temperatures of the decoder, updated here.
     counters : DecoderCounters
-        Incomplete field sets and simulation resets are counted here.
+        Incomplete field sets, simulation resets and non-finite differential pressures are
+        counted here.
 
     Returns
     -------
-    list of ImuSample, MagSample, BaroSample
+    list of ImuSample, MagSample, BaroSample, AirspeedSample
     """
     bits = int(msg.fields_updated)
     t = int(msg.time_usec)
@@ -90,6 +103,12 @@ def decode_hil_sensor(
         out.append(
             BaroSample(t, float(msg.abs_pressure) * PA_PER_HPA, temperature_k, sensor_id)
         )
+    if bits & HilSensorField.DIFF_PRESSURE:
+        dp_pa = float(msg.diff_pressure) * PA_PER_HPA
+        if math.isfinite(dp_pa):
+            out.append(AirspeedSample(t, dp_pa, temperature_k, sensor_id))
+        else:
+            counters.bad_diff_pressure += 1
     return out
 
 
@@ -115,7 +134,8 @@ def decode_hil_gps(msg: Any) -> GnssFix:
 
 
 def decode_hil_state_quaternion(msg: Any) -> Truth:
-    """HIL_STATE_QUATERNION -> Truth (no pressure or temperature on the wire: NaN)."""
+    """HIL_STATE_QUATERNION -> Truth (no pressure, temperature, angle of attack or sideslip on
+    the wire: NaN)."""
     mg = G0_MPS2 * 1e-3
     return Truth(
         time_us=int(msg.time_usec),
@@ -130,4 +150,6 @@ def decode_hil_state_quaternion(msg: Any) -> Truth:
         temperature_k=math.nan,  # not in HIL_STATE_QUATERNION
         airspeed_mps=msg.true_airspeed * 1e-2,
         indicated_airspeed_mps=msg.ind_airspeed * 1e-2,
+        alpha_rad=math.nan,  # not in HIL_STATE_QUATERNION
+        beta_rad=math.nan,  # not in HIL_STATE_QUATERNION
     )

@@ -26,6 +26,7 @@ VARY_KEYS: dict[str, tuple[tuple[str, ...], str]] = {
     "gnss": (("sensors", "gnss", "preset"), "GNSS receiver preset (sim.presets)"),
     "baro": (("sensors", "baro", "preset"), "barometer preset (sim.presets)"),
     "mag": (("sensors", "mag", "preset"), "magnetometer preset (sim.presets)"),
+    "pitot": (("sensors", "pitot", "preset"), "pitot (airspeed) preset, none = no pitot"),
     "bridge": (("fusion", "bridge"), "GNSS-outage bridging method"),
     "altitude": (("fusion", "altitude"), "vertical channel method"),
     "aircraft": (("aircraft",), "JSBSim aircraft (hilnav list)"),

@@ -143,6 +143,9 @@ def sim(
     gnss: Annotated[str, typer.Option(help="GNSS preset.")] = "modern",
     baro: Annotated[str, typer.Option(help="Barometer preset.")] = "ms5611",
     mag: Annotated[str, typer.Option(help="Magnetometer preset.")] = "consumer",
+    pitot: Annotated[
+        str, typer.Option(help="Pitot (airspeed) preset; none = an aircraft without one.")
+    ] = "ms4525do",
     lat: Annotated[float, typer.Option(help="Start latitude, deg.")] = 47.0,
     lon: Annotated[float, typer.Option(help="Start longitude, deg.")] = 8.0,
     alt: Annotated[float, typer.Option(help="Start altitude MSL, m.")] = 1000.0,
@@ -189,8 +192,8 @@ def sim(
 
     request = SimSetup.build(
         plan=plan, aircraft=aircraft, duration_s=duration, seed=seed, rate_hz=rate,
-        imu=imu, gnss=gnss, baro=baro, mag=mag, lat_deg=lat, lon_deg=lon, alt_msl_m=alt,
-        heading_deg=heading, airspeed_mps=airspeed, wind=wind, turbulence=turbulence,
+        imu=imu, gnss=gnss, baro=baro, mag=mag, pitot=pitot, lat_deg=lat, lon_deg=lon,
+        alt_msl_m=alt, heading_deg=heading, airspeed_mps=airspeed, wind=wind, turbulence=turbulence,
         gnss_off=gnss_off or [], truth_rate_hz=truth_rate,
     )
     if lockstep and live is None:
@@ -563,6 +566,7 @@ def list_choices(
         "gnss": presets.available_gnss_presets(),
         "baro": presets.available_baro_presets(),
         "mag": presets.available_mag_presets(),
+        "pitot": presets.available_pitot_presets(),
         "bridge": list(BRIDGE_METHODS),
         "altitude": list(ALTITUDE_METHODS),
     }
@@ -667,7 +671,7 @@ def campaign(
     seeds: Annotated[int, typer.Option(min=1, help="Seeds per scenario and grid point.")] = 10,
     seed_base: Annotated[int, typer.Option(help="First seed.")] = 100,
     vary: Annotated[list[str] | None, typer.Option(
-        help="Grid axis KEY=V1,V2 (imu, gnss, baro, mag, bridge, altitude, aircraft, plan);"
+        help="Grid axis KEY=V1,V2 (imu, gnss, baro, mag, pitot, bridge, altitude, aircraft, plan);"
              " repeatable.")
     ] = None,
     scheduler: Annotated[str | None, typer.Option(

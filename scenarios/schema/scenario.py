@@ -190,6 +190,7 @@ class Scenario(Strict):
             ("gnss", self.sensors.gnss.config().rate_hz),
             ("baro", self.sensors.baro.rate_hz),
             ("mag", self.sensors.mag.rate_hz),
+            ("pitot", self.sensors.pitot.rate_hz),
         ):
             if rate > sim * (1.0 + 1e-12):
                 raise key_error(
@@ -264,9 +265,11 @@ class Scenario(Strict):
             gnss=s.gnss.config(),
             baro=s.baro.config(),
             mag=s.mag.config(),
+            pitot=s.pitot.config(),
             imu_rate_hz=s.imu.rate_hz,
             baro_rate_hz=s.baro.rate_hz,
             mag_rate_hz=s.mag.rate_hz,
+            pitot_rate_hz=s.pitot.rate_hz,
         )
 
     def imu_config(self) -> ImuConfig:

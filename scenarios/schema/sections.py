@@ -1,5 +1,6 @@
 """Sections of a scenario file: the start state, the sensors (a preset plus field overrides in
-datasheet units) and the fusion methods."""
+datasheet units; ``pitot: {preset: none}`` for an aircraft without an airspeed sensor) and the
+fusion methods."""
 
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ from sim.flight import StartState
 from sim.gnss import GnssConfig
 from sim.imu import AccelConfig, GyroConfig
 from sim.mag import MagConfig
+from sim.pitot import PitotConfig
 
 __all__ = [
     "AccelOverrides",
@@ -36,6 +38,7 @@ __all__ = [
     "GyroOverrides",
     "ImuSection",
     "MagSection",
+    "PitotSection",
     "Sensors",
     "StartSection",
 ]
@@ -161,6 +164,21 @@ class ImuSection(_PresetSection):
     accel: AccelOverrides | None = None
 
 
+class _OptionalSensorSection(_PresetSection):
+    """A sensor an aircraft may lack: the preset ``none`` gives no sensor (and no overrides)."""
+
+    def config(self) -> Any:
+        """The preset with this section's overrides applied; None for preset ``none``."""
+        if self.preset != "none":
+            return super().config()
+        extra = [k for k in self.model_dump(exclude_unset=True) if k not in self._not_config]
+        if extra:
+            raise ValueError(
+                f"{self._kind} preset 'none' fits no sensor: remove {', '.join(extra)}"
+            )
+        return None
+
+
 def _flat_section(
     config: type[BaseModel],
     name: str,
@@ -171,6 +189,7 @@ def _flat_section(
     *,
     with_rate: bool,
     doc: str,
+    section_base: type[_PresetSection] = _PresetSection,
 ) -> type[_PresetSection]:
     """A sensor section whose overrides sit next to ``preset`` (the sensor's config fields)."""
     names = available()
@@ -180,7 +199,7 @@ def _flat_section(
             float, Field(default=50.0, gt=0.0, description=f"{kind} output rate, Hz."),
         )
     base: Any = create_model(
-        f"_{name}Base", __base__=_PresetSection, __module__=__name__, **fields
+        f"_{name}Base", __base__=section_base, __module__=__name__, **fields
     )
     base._kind = kind
     base._names = tuple(names)
@@ -204,6 +223,11 @@ if TYPE_CHECKING:
         """Magnetometer section (typing stand-in)."""
 
         rate_hz: float = 50.0
+
+    class PitotSection(_PresetSection):
+        """Pitot section (typing stand-in)."""
+
+        rate_hz: float = 50.0
 else:
     GnssSection = _flat_section(
         GnssConfig, "GnssSection", "GNSS", presets.available_gnss_presets, presets.gnss_preset,
@@ -221,6 +245,13 @@ else:
         presets.mag_preset, "consumer", with_rate=True,
         doc="Magnetometer: preset, output rate, then overrides (µT).",
     )
+    PitotSection = _flat_section(
+        PitotConfig, "PitotSection", "pitot", presets.available_pitot_presets,
+        presets.pitot_preset, presets.DEFAULT_PITOT_PRESET, with_rate=True,
+        doc="Pitot-static airspeed sensor: preset (none = the aircraft has no pitot), output "
+        "rate, then overrides (Pa, rad², deg...).",
+        section_base=_OptionalSensorSection,
+    )
 
 
 class Sensors(Strict):
@@ -230,6 +261,7 @@ class Sensors(Strict):
     gnss: GnssSection = GnssSection()
     baro: BaroSection = BaroSection()
     mag: MagSection = MagSection()
+    pitot: PitotSection = PitotSection()
 
 
 # -------------------------------------------------------------------------------- fusion

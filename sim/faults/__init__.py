@@ -1,4 +1,4 @@
-"""Fault injection: a scenario's timeline of GNSS, barometer, IMU and magnetometer faults
+"""Fault injection: a scenario's timeline of GNSS, barometer, IMU, magnetometer and pitot faults
 applied to the sensor stream between :class:`sim.sensors.SensorSuite` and the encoder.
 
 Modules: :mod:`sim.faults.events` (the event types), :mod:`sim.faults.timeline` (the check
@@ -8,6 +8,7 @@ samples), :mod:`sim.faults.px4` (PX4's failure-injection words for each event).
 
 from sim.faults.events import (
     EVENT_TYPES,
+    AirspeedFailure,
     BaroDrift,
     BaroFreeze,
     BaroGlitch,
@@ -23,6 +24,8 @@ from sim.faults.events import (
     ImuSaturation,
     ImuStuck,
     MagAnomaly,
+    PitotBlockage,
+    PitotDrift,
     WeatherFront,
 )
 from sim.faults.injector import GNSS_TAIL_S, PREARM_S, FaultInjector, FaultLogEntry
@@ -34,6 +37,7 @@ __all__ = [
     "GNSS_TAIL_S",
     "PREARM_S",
     "PX4_FAILURE",
+    "AirspeedFailure",
     "BaroDrift",
     "BaroFreeze",
     "BaroGlitch",
@@ -51,6 +55,8 @@ __all__ = [
     "ImuSaturation",
     "ImuStuck",
     "MagAnomaly",
+    "PitotBlockage",
+    "PitotDrift",
     "WeatherFront",
     "check_events",
     "px4_failure",

@@ -45,6 +45,15 @@ Events
                                                                                    wrong
     mag_anomaly         extra field ``offset_ned_t`` (T, NED) rotated into body    mag wrong
                         with the true attitude and added
+    pitot_blockage      ``mode="stuck"``: the differential pressure of the last    airspeed
+                        sample before the start repeated (total port iced, drain   stuck
+                        hole blocked: trapped pressure); ``mode="zero"``: it       (zero:
+                        reads exactly 0 Pa (total port blocked, the drain hole     airspeed
+                        vents it to static)                                        wrong)
+    pitot_drift         differential-pressure offset ``rate_pa_per_s·(t −          airspeed
+                        start)`` while active (gone when the fault clears)        wrong
+    airspeed_failure    no airspeed sample at all                                  airspeed
+                                                                                   off
     ==================  =========================================================  ===========
 
 Units
@@ -75,6 +84,8 @@ __all__ = [
     "GNSS_EVENTS",
     "GNSS_POSITION_EVENTS",
     "IMU_EVENTS",
+    "PITOT_EVENTS",
+    "AirspeedFailure",
     "Axis",
     "BaroDrift",
     "BaroFreeze",
@@ -94,6 +105,8 @@ __all__ = [
     "ImuStuck",
     "MagAnomaly",
     "Number",
+    "PitotBlockage",
+    "PitotDrift",
     "WeatherFront",
     "event_type_name",
     "field_unit",
@@ -339,6 +352,35 @@ class MagAnomaly(FaultEventBase):
     offset_ned_t: Vec3 = _field((2e-6, 0.0, 0.0), "T", "Extra field north, east, down.")
 
 
+# --------------------------------------------------------------------------- pitot (airspeed)
+
+
+class PitotBlockage(FaultEventBase):
+    """Blocked pitot: ``mode="stuck"`` repeats the last differential pressure before the start
+    (iced total port with a blocked drain hole traps the pressure); ``mode="zero"`` reads
+    0 Pa (blocked total port, the drain hole vents it to the static pressure). The sensor's
+    temperature keeps reading."""
+
+    type: Literal["pitot_blockage"] = "pitot_blockage"
+    mode: Literal["stuck", "zero"] = Field(
+        default="stuck", description="stuck: last value held; zero: reads 0 Pa."
+    )
+
+
+class PitotDrift(FaultEventBase):
+    """Differential-pressure offset growing at ``rate_pa_per_s`` while active (gone after):
+    a drifting sensor zero, water in the line."""
+
+    type: Literal["pitot_drift"] = "pitot_drift"
+    rate_pa_per_s: Number = _field(1.0, "Pa/s", "Drift of the differential pressure.")
+
+
+class AirspeedFailure(FaultEventBase):
+    """The airspeed sensor gives no output at all (PX4 ``failure airspeed off``)."""
+
+    type: Literal["airspeed_failure"] = "airspeed_failure"
+
+
 FaultEvent = (
     GnssOutage
     | GnssJamming
@@ -355,6 +397,9 @@ FaultEvent = (
     | ImuStuck
     | ImuSaturation
     | MagAnomaly
+    | PitotBlockage
+    | PitotDrift
+    | AirspeedFailure
 )
 """Any fault event."""
 
@@ -376,6 +421,9 @@ EVENT_TYPES: dict[str, type[FaultEvent]] = {
         ImuStuck,
         ImuSaturation,
         MagAnomaly,
+        PitotBlockage,
+        PitotDrift,
+        AirspeedFailure,
     )
 }
 """Type name (snake_case, the ``type`` of a scenario's event) -> event class."""
@@ -391,6 +439,8 @@ BARO_EVENTS = (*BARO_SENSOR_EVENTS, WeatherFront)
 """Every event acting on barometer samples."""
 IMU_EVENTS = (ImuBiasStep, ImuStuck, ImuSaturation)
 """Every event acting on IMU samples."""
+PITOT_EVENTS = (PitotBlockage, PitotDrift, AirspeedFailure)
+"""Every event acting on airspeed (pitot) samples; each decides the output."""
 
 
 def event_type_name(event: object) -> str:

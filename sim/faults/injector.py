@@ -11,8 +11,9 @@ Times
 Composition
     Several events on one sensor compose in a fixed order: GNSS rate → outage / jamming /
     degradation / spoofing → delay; IMU bias step → saturation → stuck axis; barometer
-    offsets add, a freeze overrides them. :func:`sim.faults.timeline.check_events` rejects the
-    combinations that contradict each other.
+    offsets add, a freeze overrides them; one pitot event at a time.
+    :func:`sim.faults.timeline.check_events` rejects the combinations that contradict each
+    other.
 
 Determinism
     Only jamming draws random numbers. ``numpy.random.SeedSequence(seed).spawn(n_events)`` gives
@@ -22,9 +23,10 @@ Determinism
 Cost
     The events' boundaries are precomputed as one sorted list; a step in which no event is
     armed costs one integer comparison, an attribute test and a list copy. Freeze and stuck
-    events are armed :data:`PREARM_S` early (to remember the last good value); GNSS events stay
-    armed :data:`GNSS_TAIL_S` after their end so that fixes valid inside the window but emitted
-    later (receiver latency, delay queue) are still handled.
+    events (and a stuck pitot blockage) are armed :data:`PREARM_S` early (to remember the
+    last good value); GNSS events stay armed :data:`GNSS_TAIL_S` after their end so that
+    fixes valid inside the window but emitted later (receiver latency, delay queue) are still
+    handled.
 """
 
 from __future__ import annotations
@@ -42,6 +44,8 @@ from sim.faults.events import (
     BARO_EVENTS,
     GNSS_EVENTS,
     IMU_EVENTS,
+    PITOT_EVENTS,
+    AirspeedFailure,
     BaroDrift,
     BaroFreeze,
     BaroGlitch,
@@ -57,10 +61,20 @@ from sim.faults.events import (
     ImuSaturation,
     ImuStuck,
     MagAnomaly,
+    PitotBlockage,
+    PitotDrift,
     WeatherFront,
     event_type_name,
 )
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Sample, Truth
+from sim.samples import (
+    AirspeedSample,
+    BaroSample,
+    GnssFix,
+    ImuSample,
+    MagSample,
+    Sample,
+    Truth,
+)
 
 GNSS_TAIL_S = 10.0
 """GNSS events keep handling fixes valid inside their window for this long after their end, s
@@ -122,6 +136,8 @@ _COUNTERS = (
     "baro_modified",
     "imu_modified",
     "mag_modified",
+    "airspeed_modified",
+    "airspeed_dropped",
 )
 
 
@@ -169,7 +185,9 @@ class _Runtime:
 
     def arm_disarm_us(self) -> tuple[int, int]:
         ev = self.event
-        prearm = isinstance(ev, BaroFreeze | ImuStuck)
+        prearm = isinstance(ev, BaroFreeze | ImuStuck) or (
+            isinstance(ev, PitotBlockage) and ev.mode == "stuck"
+        )
         arm = self.start_us - (round(PREARM_S * 1e6) if prearm else 0)
         if isinstance(ev, WeatherFront) or self.end_us >= _INF_US:
             return arm, _INF_US
@@ -231,7 +249,8 @@ class FaultInjector:
     counters : dict of str to int
         ``gnss_dropped`` (outage, jamming, decimation), ``gnss_delayed``, ``gnss_spoofed``,
         ``gnss_degraded``, ``gnss_garbage`` (jamming fixes let through), ``baro_modified``,
-        ``imu_modified``, ``mag_modified``.
+        ``imu_modified``, ``mag_modified``, ``airspeed_modified`` (blockage, drift),
+        ``airspeed_dropped`` (airspeed failure).
 
     Raises
     ------
@@ -272,6 +291,9 @@ class FaultInjector:
         self._baro_rt: tuple[_Runtime, ...] = ()
         self._imu_rt: tuple[_Runtime, ...] = ()
         self._mag_rt: tuple[_Runtime, ...] = ()
+        self._pitot_rt: tuple[_Runtime, ...] = ()
+        self._track_pitot = False
+        self._last_pitot: dict[int, AirspeedSample] = {}
         self._hist_on = False
         self._track_baro = False
         self._track_imu = False
@@ -336,6 +358,10 @@ class FaultInjector:
             self._baro_rt = tuple(r for r in armed if isinstance(r.event, BARO_EVENTS))
             self._imu_rt = tuple(r for r in armed if isinstance(r.event, IMU_EVENTS))
             self._mag_rt = tuple(r for r in armed if isinstance(r.event, MagAnomaly))
+            self._pitot_rt = tuple(r for r in armed if isinstance(r.event, PITOT_EVENTS))
+            self._track_pitot = any(
+                isinstance(r.event, PitotBlockage) and r.event.mode == "stuck" for r in armed
+            )
             self._hist_on = any(isinstance(r.event, GnssDegradation) for r in armed)
             self._track_baro = any(isinstance(r.event, BaroFreeze) for r in armed)
             self._track_imu = any(isinstance(r.event, ImuStuck) for r in armed)
@@ -373,6 +399,13 @@ class FaultInjector:
                 rest.append(self._baro(s) if self._baro_rt else s)
             elif isinstance(s, MagSample):
                 rest.append(self._mag(s, truth) if self._mag_rt else s)
+            elif isinstance(s, AirspeedSample):
+                if self._pitot_rt:
+                    a = self._pitot(s)
+                    if a is not None:
+                        rest.append(a)
+                else:
+                    rest.append(s)
             else:
                 rest.append(s)
         self._idle = not self._armed and not queue
@@ -547,6 +580,36 @@ class FaultInjector:
             self.counters["baro_modified"] += 1
         if self._track_baro:
             self._last_baro[sid] = out
+        return out
+
+    # -- pitot --
+    def _pitot(self, s: AirspeedSample) -> AirspeedSample | None:
+        ts, sid = s.time_us, s.sensor_id
+        out: AirspeedSample | None = s
+        for rt in self._pitot_rt:
+            if not rt.covers(ts):
+                continue
+            ev = rt.event
+            if isinstance(ev, AirspeedFailure):
+                self.counters["airspeed_dropped"] += 1
+                return None
+            if isinstance(ev, PitotDrift):
+                dp = s.diff_pressure_pa + ev.rate_pa_per_s * (ts - rt.start_us) * 1e-6
+            else:
+                assert isinstance(ev, PitotBlockage)
+                if ev.mode == "zero":
+                    dp = 0.0
+                else:
+                    held = rt.held.get(sid)
+                    if held is None:
+                        last = self._last_pitot.get(sid, s)
+                        held = rt.held[sid] = last.diff_pressure_pa
+                    dp = held
+            out = AirspeedSample(ts, dp, s.temperature_k, sid)
+            self.counters["airspeed_modified"] += 1
+            break  # one pitot event at a time (sim.faults.timeline)
+        if self._track_pitot and out is not None:
+            self._last_pitot[sid] = out
         return out
 
     # -- IMU --

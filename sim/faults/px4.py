@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from sim.faults.events import IMU_EVENTS, FaultEvent, event_type_name
+from sim.faults.events import IMU_EVENTS, FaultEvent, PitotBlockage, event_type_name
 
 __all__ = ["PX4_FAILURE", "px4_failure"]
 
@@ -25,9 +25,13 @@ PX4_FAILURE: dict[str, tuple[str, str]] = {
     "imu_stuck": ("accel", "stuck"),
     "imu_saturation": ("accel", "wrong"),
     "mag_anomaly": ("mag", "wrong"),
+    # pitot_blockage in mode "zero" resolves to ("airspeed", "wrong") in px4_failure().
+    "pitot_blockage": ("airspeed", "stuck"),
+    "pitot_drift": ("airspeed", "wrong"),
+    "airspeed_failure": ("airspeed", "off"),
 }
 """Type name -> PX4 failure injection ``(unit, type)`` (``failure <unit> <type>`` in the PX4
-shell; units gps/baro/accel/gyro/mag, types off/stuck/garbage/wrong/slow/delayed/
+shell; units gps/baro/accel/gyro/mag/airspeed, types off/stuck/garbage/wrong/slow/delayed/
 intermittent)."""
 
 
@@ -46,4 +50,6 @@ def px4_failure(event: FaultEvent) -> tuple[str, str]:
     unit, kind = PX4_FAILURE[event_type_name(event)]
     if isinstance(event, IMU_EVENTS):
         unit = event.sensor
+    if isinstance(event, PitotBlockage) and event.mode == "zero":
+        kind = "wrong"
     return unit, kind

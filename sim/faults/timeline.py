@@ -15,6 +15,8 @@ of the flight; windows that only touch do not overlap):
 5. An IMU axis (sensor and axis) that is stuck may not at the same time be stuck by another
    event or bias-stepped; two saturations of the same sensor may not overlap on a common axis
    (``axis=None`` covers all). Bias steps add up, magnetic anomalies add up.
+6. At most one pitot event (blockage, drift, airspeed failure) at a time: each decides the
+   airspeed sensor's output.
 
 :func:`timeline_problems` returns the broken rules as records (for callers that word them
 their own way); :func:`check_events` raises them as one ``ValueError``.
@@ -30,6 +32,7 @@ from typing import Literal
 from sim.faults.events import (
     BARO_SENSOR_EVENTS,
     GNSS_POSITION_EVENTS,
+    PITOT_EVENTS,
     FaultEvent,
     GnssDelay,
     GnssRate,
@@ -122,6 +125,11 @@ def _conflict(a: FaultEvent, b: FaultEvent) -> str | None:
         return (
             "at most one barometer sensor fault (drift, glitch, freeze) may be active at a "
             "time (a weather front may overlap any of them)"
+        )
+    if isinstance(a, PITOT_EVENTS) and isinstance(b, PITOT_EVENTS):
+        return (
+            "at most one pitot fault (blockage, drift, airspeed failure) may be active at a "
+            "time"
         )
     if isinstance(a, ImuBiasStep | ImuStuck) and isinstance(b, ImuBiasStep | ImuStuck):
         if (

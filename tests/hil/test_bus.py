@@ -43,7 +43,7 @@ from hil.bus import (
 )
 from hil.link.counters import LinkCounters
 from hil.router import ZenohRouter, free_tcp_port, router_main, zenoh_router
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Truth
+from sim.samples import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample, Truth
 
 LAT0, LON0, ALT0 = math.radians(47.0), math.radians(8.0), 1000.0
 UNLIMITED = BusConfig(rates_hz=dict.fromkeys(PUBLISHED_TOPICS))
@@ -118,6 +118,7 @@ SENSORS = [
     GnssFix(1_000_000, LAT0, LON0, ALT0, np.array([40.0, 5.0, -1.0]), 1.5, 3.0, 0.2),
     BaroSample(1_000_000, 89_875.0, 281.65),
     MagSample(1_000_000, np.array([2e-5, 1e-6, 4e-5])),
+    AirspeedSample(1_000_000, 1_390.0, 283.65),
 ]
 
 
@@ -144,8 +145,9 @@ def every_payload() -> dict[Topic, dict[str, Any]]:
 # ------------------------------------------------------------------------------- key space
 def test_keys_follow_the_architecture_key_space() -> None:
     assert key("sim1", Topic.TRUTH) == "hilnav/sim1/sim/truth"
-    assert [key("v", t) for t in (Topic.IMU, Topic.GNSS, Topic.BARO, Topic.MAG)] == [
-        f"hilnav/v/sensors/{s}" for s in ("imu", "gnss", "baro", "mag")
+    sensor_topics = (Topic.IMU, Topic.GNSS, Topic.BARO, Topic.MAG, Topic.AIRSPEED)
+    assert [key("v", t) for t in sensor_topics] == [
+        f"hilnav/v/sensors/{s}" for s in ("imu", "gnss", "baro", "mag", "airspeed")
     ]
     assert key("v", Topic.ESTIMATE) == "hilnav/v/fusion/estimate"
     assert key("v", Topic.STATUS) == "hilnav/v/fusion/status"
@@ -343,10 +345,10 @@ def test_typed_publish_helpers_and_vehicle_isolation(router: str) -> None:
         assert a.publish_event(2_000_000, "gnss_on")
         for s in SENSORS:
             assert a.publish_sample(s)
-        assert wait_for(lambda: len(every) == 11)
+        assert wait_for(lambda: len(every) == 12)
         assert wait_for(lambda: len(mine) == 1)
     assert mine[0].payload == estimate_payload(est)
-    assert sorted(m.vehicle for m in every) == ["a"] * 10 + ["b"]
+    assert sorted(m.vehicle for m in every) == ["a"] * 11 + ["b"]
     status = next(m.payload for m in every if m.topic is Topic.STATUS)
     assert status is not None and status["bus"]["enqueued"] >= 2  # the publisher's counters
 

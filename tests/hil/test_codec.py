@@ -25,7 +25,7 @@ from hil.codec import (
     RawImuScale,
     mavlink2,
 )
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Truth
+from sim.samples import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample, Truth
 
 G0 = 9.80665
 DEGE7_PER_RAD = 1e7 * 180.0 / math.pi
@@ -188,9 +188,11 @@ def test_hil_sensor_round_trip_within_float32_quantisation(
 
     got = one(Decoder(imu_dt_s=0.01), frame)
     kinds = [type(s) for s in got]
-    assert kinds == [k for k, s in ((ImuSample, imu), (MagSample, mag), (BaroSample, baro)) if s]
+    given = ((ImuSample, imu), (MagSample, mag), (BaroSample, baro))
+    want = [k for k, s in given if s] + ([AirspeedSample] if diff is not None else [])
+    assert kinds == want
     for s in got:
-        assert s.time_us == t and s.sensor_id == sensor_id
+        assert s.time_us == t and s.sensor_id == raw.id
         if isinstance(s, ImuSample):
             assert imu is not None
             assert_f32_close(s.specific_force_b_mps2, imu.specific_force_b_mps2, 1.0)
@@ -203,6 +205,9 @@ def test_hil_sensor_round_trip_within_float32_quantisation(
         elif isinstance(s, MagSample):
             assert mag is not None
             assert_f32_close(s.field_b_tesla, mag.field_b_tesla, 1e-4)
+        elif isinstance(s, AirspeedSample):
+            assert diff is not None
+            assert_f32_close(s.diff_pressure_pa, diff, 100.0)
         else:
             assert baro is not None
             assert_f32_close(s.pressure_pa, baro.pressure_pa, 100.0)
@@ -700,7 +705,10 @@ def test_flight_controller_messages_decode_to_si() -> None:
     frames = _fc_frames()
     dec = Decoder(raw_imu_scale=RawImuScale.milli_units())
 
-    imu, mag, baro = one(dec, frames["HIGHRES_IMU"])
+    imu, mag, baro, airspeed = one(dec, frames["HIGHRES_IMU"])
+    assert isinstance(airspeed, AirspeedSample)
+    assert airspeed.diff_pressure_pa == 0.0  # bit 10 set with 0 hPa: a finite reading passes
+    assert airspeed.temperature_k == pytest.approx(304.65)
     assert imu.specific_force_b_mps2.tolist() == [0.5, -0.25, -9.75]
     assert imu.angular_rate_b_rps.tolist() == [0.125, -0.0625, 0.03125]
     assert imu.temperature_k == pytest.approx(304.65)
@@ -741,7 +749,7 @@ def test_flight_controller_messages_decode_to_si() -> None:
 
     assert one(dec, frames["ATTITUDE"]) == []
     assert dec.counters.ignored_msgs == 1
-    assert dec.counters.samples == 12
+    assert dec.counters.samples == 13  # HIGHRES_IMU: IMU, mag, baro, airspeed
 
 
 def test_raw_imu_needs_an_explicit_scale() -> None:
@@ -823,3 +831,48 @@ def test_decoder_keeps_mavlink1_frames_of_a_mixed_link() -> None:
     got = dec.feed(stream)
     # THEN all three are decoded
     assert len(got) == 3 and all(isinstance(d.sample, BaroSample) for d in got)
+
+
+# ------------------------------------------------------------------------- air data (pitot)
+def test_airspeed_sample_round_trips_in_hil_sensor_with_the_baro_temperature() -> None:
+    t = 5_000_000
+    imu = ImuSample(t, 0.005, np.array([0.1, 0.0, -9.8]), np.array([0.0, 0.01, 0.0]))
+    baro = BaroSample(t, 89_875.0, 283.15)
+    airspeed = AirspeedSample(t, 1_391.37, 290.0)  # its own temperature is not on the wire
+    frame = Encoder().sensors(imu, baro, airspeed=airspeed)
+    raw = parse_raw(frame)
+    assert raw.fields_updated == HilSensorField.IMU | HilSensorField.BARO | (
+        HilSensorField.DIFF_PRESSURE
+    )
+    assert_f32_close(raw.diff_pressure, 13.9137, 1.0)  # hPa, as PX4 reads it
+    got = one(Decoder(), frame)
+    (a,) = [s for s in got if isinstance(s, AirspeedSample)]
+    assert a.time_us == t and a.sensor_id == 0
+    assert_f32_close(a.diff_pressure_pa, airspeed.diff_pressure_pa, 100.0)
+    assert a.temperature_k == pytest.approx(baro.temperature_k, abs=1e-4)
+    with pytest.raises(ValueError, match="not both"):
+        Encoder().sensors(imu, airspeed=airspeed, diff_pressure_pa=1.0)
+    with pytest.raises(ValueError, match="time_us"):
+        Encoder().sensors(imu, airspeed=AirspeedSample(t + 1, 1.0, 290.0))
+
+
+def _hil_sensor_with_diff_hpa(diff_hpa: float, t: int = 1_000_000) -> bytes:
+    mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=200)
+    msg = mavlink2.MAVLink_hil_sensor_message(
+        t, 0, 0, -9.8, 0, 0, 0, 0, 0, 0, 900.0, diff_hpa, 0, 15.0,
+        HilSensorField.IMU | HilSensorField.BARO | HilSensorField.DIFF_PRESSURE, 0,
+    )  # fmt: skip
+    return bytes(msg.pack(mav))
+
+
+def test_non_finite_diff_pressure_is_counted_and_finite_negative_passes() -> None:
+    dec = Decoder()
+    for i, bad in enumerate((math.nan, math.inf, -math.inf)):
+        got = one(dec, _hil_sensor_with_diff_hpa(bad, t=1_000_000 + 10_000 * i))
+        assert [type(s) for s in got] == [ImuSample, BaroSample]  # the rest of it is kept
+    assert dec.counters.bad_diff_pressure == 3
+    # slightly negative: sensor noise at zero flow, passed through (the filter judges physics)
+    got = one(dec, _hil_sensor_with_diff_hpa(-0.02, t=2_000_000))
+    (a,) = [s for s in got if isinstance(s, AirspeedSample)]
+    assert a.diff_pressure_pa == pytest.approx(-2.0, rel=1e-6)
+    assert dec.counters.bad_diff_pressure == 3

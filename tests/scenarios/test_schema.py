@@ -227,6 +227,44 @@ def test_unknown_preset(tmp_path: Path) -> None:
     assert "unknown GNSS preset 'moden'" in str(err) and "did you mean 'modern'" in str(err)
 
 
+def test_pitot_section_presets_overrides_and_events(tmp_path: Path) -> None:
+    scn = load_scenario(write(tmp_path, """
+        duration_s: 120
+        sensors:
+          pitot: {preset: sdp33, rate_hz: 25, noise_pa: 0.5}
+          baro: {preset: ms5611, position_error_fwd: -0.02}
+        events:
+          - {type: pitot_blockage, at: 10 s, duration: 20, mode: zero}
+          - {type: pitot_drift, at: 40, duration: 10, rate_pa_per_s: 2.5}
+          - {type: airspeed_failure, at: 60}
+        """))
+    config = scn.sensor_config()
+    assert config.pitot is not None and config.pitot.noise_pa == 0.5
+    assert config.pitot.full_scale_pa == 1500.0 and config.pitot_rate_hz == 25.0
+    assert config.baro.position_error_fwd == -0.02 and config.baro.has_position_error
+    assert [type(e) for e in scn.fault_events()] == [
+        faults.PitotBlockage, faults.PitotDrift, faults.AirspeedFailure
+    ]
+    # the default aircraft carries the default pitot; none means no airspeed sensor
+    default = Scenario.model_validate({"duration_s": 60})
+    assert default.sensor_config().pitot == default_pitot()
+    bare = load_scenario(write(tmp_path, "duration_s: 60\nsensors: {pitot: {preset: none}}\n",
+                               "bare.yaml"))
+    assert bare.sensor_config().pitot is None
+    err = error_of(write(tmp_path, """
+        duration_s: 60
+        sensors:
+          pitot: {preset: none, noise_pa: 1.0}
+        """, "bad.yaml"))
+    assert "fits no sensor" in str(err) and "noise_pa" in str(err)
+
+
+def default_pitot() -> Any:
+    from sim.presets import DEFAULT_PITOT_PRESET, pitot_preset
+
+    return pitot_preset(DEFAULT_PITOT_PRESET)
+
+
 def test_unknown_event_type(tmp_path: Path) -> None:
     err = error_of(write(tmp_path, """
         duration_s: 600

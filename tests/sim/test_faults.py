@@ -24,6 +24,7 @@ from sim._sensor_common import ecef_from_geodetic_m, meridian_prime_radii_m
 from sim.faults import (
     EVENT_TYPES,
     PX4_FAILURE,
+    AirspeedFailure,
     BaroDrift,
     BaroFreeze,
     BaroGlitch,
@@ -41,6 +42,8 @@ from sim.faults import (
     ImuSaturation,
     ImuStuck,
     MagAnomaly,
+    PitotBlockage,
+    PitotDrift,
     WeatherFront,
     check_events,
     px4_failure,
@@ -48,7 +51,7 @@ from sim.faults import (
 from sim.faults.events import field_unit
 from sim.faults.timeline import Conflict, OutsideFlight, timeline_problems
 from sim.presets import suite_config
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Sample, Truth
+from sim.samples import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample, Sample, Truth
 from sim.sensors import SensorSuite
 
 G = 9.80665
@@ -138,9 +141,9 @@ def in_window(time_us: int, start_s: float, end_s: float) -> bool:
 
 
 def test_px4_failure_covers_every_event_type_with_valid_vocabulary() -> None:
-    assert len(EVENT_TYPES) == 15
+    assert len(EVENT_TYPES) == 18
     assert set(PX4_FAILURE) == set(EVENT_TYPES)
-    units = {"gps", "baro", "accel", "gyro", "mag"}
+    units = {"gps", "baro", "accel", "gyro", "mag", "airspeed"}
     kinds = {"off", "stuck", "garbage", "wrong", "slow", "delayed", "intermittent"}
     for name, (unit, kind) in PX4_FAILURE.items():
         assert unit in units and kind in kinds, name
@@ -151,6 +154,9 @@ def test_px4_failure_covers_every_event_type_with_valid_vocabulary() -> None:
         "accel",
         "wrong",
     )
+    assert px4_failure(AirspeedFailure(1.0)) == ("airspeed", "off")
+    assert px4_failure(PitotBlockage(1.0, mode="stuck")) == ("airspeed", "stuck")
+    assert px4_failure(PitotBlockage(1.0, mode="zero")) == ("airspeed", "wrong")
 
 
 @pytest.mark.parametrize(
@@ -514,6 +520,52 @@ def test_baro_freeze_repeats_last_sample_with_new_times() -> None:
     assert all(out[t] is base[t] for t in out if not in_window(t, 3.0, 6.0))
 
 
+# --------------------------------------------------------------------------- pitot
+
+
+def test_pitot_blockage_stuck_holds_the_last_differential_pressure() -> None:
+    steps, inj = run([PitotBlockage(3.0, 3.0, mode="stuck")])
+    base, out = by_time(baseline(), AirspeedSample), by_time(steps, AirspeedSample)
+    assert set(base) == set(out)  # still reporting, with new times
+    last = base[max(t for t in base if t < 3_000_000)]
+    held = [s for t, s in out.items() if in_window(t, 3.0, 6.0)]
+    assert len(held) == 150 == inj.counters["airspeed_modified"]
+    assert {s.diff_pressure_pa for s in held} == {last.diff_pressure_pa}
+    assert len({base[s.time_us].diff_pressure_pa for s in held}) > 1  # the real one moved
+    assert all(s.temperature_k == base[s.time_us].temperature_k for s in held)
+    assert all(out[t] is base[t] for t in out if not in_window(t, 3.0, 6.0))
+
+
+def test_pitot_blockage_zero_reads_zero_and_drift_ramps() -> None:
+    steps, _ = run([PitotBlockage(2.0, 2.0, mode="zero"), PitotDrift(6.0, 4.0, rate_pa_per_s=3.0)])
+    base, out = by_time(baseline(), AirspeedSample), by_time(steps, AirspeedSample)
+    for t, s in out.items():
+        if in_window(t, 2.0, 4.0):
+            assert s.diff_pressure_pa == 0.0
+        elif in_window(t, 6.0, 10.0):
+            want = base[t].diff_pressure_pa + 3.0 * (t - 6_000_000) * 1e-6
+            assert s.diff_pressure_pa == pytest.approx(want, rel=1e-14)
+        else:
+            assert s is base[t]
+
+
+def test_airspeed_failure_removes_every_sample_in_its_window() -> None:
+    steps, inj = run([AirspeedFailure(5.0, 2.0)])
+    base, out = by_time(baseline(), AirspeedSample), by_time(steps, AirspeedSample)
+    gone = {t for t in base if in_window(t, 5.0, 7.0)}
+    assert len(gone) == 100 == inj.counters["airspeed_dropped"]
+    assert set(out) == set(base) - gone
+    # the other sensors are untouched
+    assert by_time(steps, BaroSample) == by_time(baseline(), BaroSample)
+
+
+def test_two_pitot_faults_at_once_contradict_each_other() -> None:
+    problems = timeline_problems([PitotDrift(1.0, 5.0), AirspeedFailure(3.0, 1.0)], 10.0)
+    assert len(problems) == 1 and isinstance(problems[0], Conflict)
+    assert "one pitot fault" in problems[0].reason
+    assert timeline_problems([PitotDrift(1.0, 2.0), AirspeedFailure(3.0, 1.0)], 10.0) == []
+
+
 # --------------------------------------------------------------------------- IMU, magnetometer
 
 
@@ -600,6 +652,9 @@ TIMELINE: list[FaultEvent] = [
     ImuSaturation(1.0, 5.0, "gyro", 1e-3),
     ImuBiasStep(5.0, None, "gyro", 0, 1e-3),
     MagAnomaly(6.0, 3.0),
+    PitotDrift(3.0, 2.0, rate_pa_per_s=5.0),
+    AirspeedFailure(6.0, 1.0),
+    PitotBlockage(9.0, 2.0, mode="stuck"),
 ]
 
 

@@ -37,7 +37,7 @@ from sim.presets import (
     mag_preset,
     suite_config,
 )
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Truth
+from sim.samples import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample, Truth
 from sim.sensors import SensorSuite
 
 G = 9.80665
@@ -497,7 +497,7 @@ def run_suite(
 
 
 def stream_arrays(
-    samples: list[ImuSample | GnssFix | BaroSample | MagSample],
+    samples: list[ImuSample | GnssFix | BaroSample | MagSample | AirspeedSample],
 ) -> list[NDArray[np.float64]]:
     arrays = []
     for s in samples:
@@ -511,6 +511,8 @@ def stream_arrays(
             )
         elif isinstance(s, BaroSample):
             arrays.append(np.array([s.time_us, s.pressure_pa, s.temperature_k]))
+        elif isinstance(s, AirspeedSample):
+            arrays.append(np.array([s.time_us, s.diff_pressure_pa, s.temperature_k]))
         else:
             arrays.append(np.concatenate(([s.time_us], s.field_b_tesla)))
     return arrays
@@ -534,7 +536,7 @@ def test_one_sensors_config_does_not_change_another_sensors_noise() -> None:
 
 def test_suite_rates_and_time_order() -> None:
     suite = SensorSuite(suite_config(gnss="paper-p2"), seed=1, sim_rate_hz=200.0)
-    counts = {ImuSample: 0, GnssFix: 0, BaroSample: 0, MagSample: 0}
+    counts = {ImuSample: 0, GnssFix: 0, BaroSample: 0, MagSample: 0, AirspeedSample: 0}
     for k in range(2000):  # 10 s
         t = stationary_truth(k)
         out = suite.step(t)
@@ -542,7 +544,9 @@ def test_suite_rates_and_time_order() -> None:
         assert times == sorted(times) and all(x <= t.time_us for x in times)
         for s in out:
             counts[type(s)] += 1
-    assert counts == {ImuSample: 2000, GnssFix: 50, BaroSample: 500, MagSample: 500}
+    assert counts == {
+        ImuSample: 2000, GnssFix: 50, BaroSample: 500, MagSample: 500, AirspeedSample: 500
+    }
 
 
 def test_imu_decimation_averages_truth_over_interval() -> None:
