@@ -89,6 +89,8 @@ class SimSetup:
         airspeed_mps: float = 50.0,
         wind: str = "0,0,0",
         turbulence: float = 0.0,
+        wind_shear_exponent: float = 0.0,
+        wind_ref_agl_m: float | None = None,
         gnss_off: Sequence[str] = (),
         truth_rate_hz: float = 50.0,
     ) -> SimSetup:
@@ -106,6 +108,8 @@ class SimSetup:
                 heading_deg=heading_deg, airspeed_mps=airspeed_mps,
             ),
             wind_ned_mps=_parse_wind(wind),
+            wind_shear_exponent=wind_shear_exponent,
+            wind_ref_agl_m=wind_ref_agl_m,
             turbulence=turbulence,
             seed=seed,
         )

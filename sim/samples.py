@@ -7,7 +7,7 @@ and decodes, and what ``fusion.NavFilter`` consumes (structurally, through the p
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,6 +30,9 @@ class Truth:
         in level flight).
     static_pressure_pa, temperature_k : ambient static pressure and temperature.
     airspeed_mps : true airspeed; ``indicated_airspeed_mps`` calibrated/indicated airspeed.
+    wind_ned_mps : (3,) velocity of the air mass at the vehicle (steady wind, shear and
+        turbulence), NED, m/s; NaN where the source does not carry it (decoded
+        HIL_STATE_QUATERNION, constructors that leave it out).
     """
 
     time_us: int
@@ -44,6 +47,7 @@ class Truth:
     temperature_k: float
     airspeed_mps: float
     indicated_airspeed_mps: float
+    wind_ned_mps: Vec3 = field(default_factory=lambda: np.full(3, np.nan))
 
 
 @dataclass(frozen=True, slots=True)

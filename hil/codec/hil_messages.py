@@ -115,7 +115,7 @@ def decode_hil_gps(msg: Any) -> GnssFix:
 
 
 def decode_hil_state_quaternion(msg: Any) -> Truth:
-    """HIL_STATE_QUATERNION -> Truth (no pressure or temperature on the wire: NaN)."""
+    """HIL_STATE_QUATERNION -> Truth (no pressure, temperature or wind on the wire: NaN)."""
     mg = G0_MPS2 * 1e-3
     return Truth(
         time_us=int(msg.time_usec),
@@ -130,4 +130,5 @@ def decode_hil_state_quaternion(msg: Any) -> Truth:
         temperature_k=math.nan,  # not in HIL_STATE_QUATERNION
         airspeed_mps=msg.true_airspeed * 1e-2,
         indicated_airspeed_mps=msg.ind_airspeed * 1e-2,
+        wind_ned_mps=np.full(3, math.nan),  # not in HIL_STATE_QUATERNION
     )
