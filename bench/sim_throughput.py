@@ -6,6 +6,11 @@ Target (issue 2): full chain >= 100x real time at 200 Hz, within 3x of JSBSim al
 JSBSim with frozen controls is reported too. Times are CPU seconds of this process.
 
     python bench/sim_throughput.py --duration 300 --out bench/results/sim_throughput.json
+    python bench/sim_throughput.py --duration 300 --wind 8,-4,0 --wind-shear 0.142857 \
+        --out bench/results/sim_throughput_wind_shear.json
+
+``--wind`` / ``--wind-shear`` fly in a steady wind / a power-law wind profile (the profile is
+written to JSBSim at every step: its cost shows as the difference to a run without it).
 """
 
 from __future__ import annotations
@@ -63,9 +68,13 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=300.0, help="simulated seconds per run")
     ap.add_argument("--rate", type=float, default=200.0)
     ap.add_argument("--plan", default="racetrack")
+    ap.add_argument("--wind", default="0,0,0", help="steady wind N,E,D, m/s")
+    ap.add_argument("--wind-shear", type=float, default=0.0, help="power-law shear exponent")
     ap.add_argument("--out", type=Path, default=Path("bench/results/sim_throughput.json"))
     args = ap.parse_args()
-    cfg = FlightConfig(rate_hz=args.rate)
+    wn, we, wd = (float(v) for v in args.wind.split(","))
+    cfg = FlightConfig(rate_hz=args.rate, wind_ned_mps=(wn, we, wd),
+                       wind_shear_exponent=args.wind_shear)
     wall_bare = time_jsbsim_bare(cfg, args.plan, args.duration)
     wall_jsb = time_jsbsim(cfg, args.plan, args.duration)
     wall_chain, frames = time_chain(cfg, args.plan, args.duration)
@@ -76,6 +85,8 @@ def main() -> None:
         "machine": platform.machine(),
         "rate_hz": args.rate,
         "plan": args.plan,
+        "wind_ned_mps": [wn, we, wd],
+        "wind_shear_exponent": args.wind_shear,
         "sim_duration_s": args.duration,
         "timer": "process_time (CPU seconds of this process)",
         "load_average_1m": os.getloadavg()[0],

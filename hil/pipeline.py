@@ -94,6 +94,8 @@ class SimSetup:
         airspeed_mps: float = 50.0,
         wind: str = "0,0,0",
         turbulence: float = 0.0,
+        wind_shear_exponent: float = 0.0,
+        wind_ref_agl_m: float | None = None,
         gnss_off: Sequence[str] = (),
         truth_rate_hz: float = 50.0,
         vehicle_state_rate_hz: float = 50.0,
@@ -113,6 +115,8 @@ class SimSetup:
                 heading_deg=heading_deg, airspeed_mps=airspeed_mps,
             ),
             wind_ned_mps=_parse_wind(wind),
+            wind_shear_exponent=wind_shear_exponent,
+            wind_ref_agl_m=wind_ref_agl_m,
             turbulence=turbulence,
             seed=seed,
         )

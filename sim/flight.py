@@ -75,11 +75,26 @@ flaps ``fcs/flap-cmd-norm`` (0 = retracted, never moved by the guidance law). Pr
 ``propulsion/engine[i]/propeller-rpm`` of each engine that has a propeller (piston aircraft
 and the DHC6, Boeing314, Short_S23 of the verified list); jets and the turboprops that the
 wheel models with direct thrust (OV10, t6texan2) have none and report no rpm.
+Wind: the velocity the air moves towards, NED. ``FlightConfig.wind_ned_mps`` alone is a
+steady wind, written to ``atmosphere/wind-{north,east,down}-fps`` once. A profile with
+altitude is written there at every step from the altitude just reached (one step of lag:
+< 3 cm of height at 2.5 m/s and 100 Hz): either a power-law shear of the horizontal wind,
+``w(h) = w_ref (h_agl / h_ref)^p`` (``wind_shear_exponent`` p; p = 1/7 is the classical
+neutral-stability boundary-layer value, see Peterson & Hennessey, "On the use of power laws
+for estimates of wind power potential", J. Appl. Meteorol. 17 (1978) 390-394), or a table of
+``(alt_msl_m, north, east)`` interpolated linearly (``wind_table``; e.g. MIL-F-8785C's
+logarithmic low-altitude profile ``W20 ln(h / z0) / ln(20 ft / z0)``, §3.7.3, or a measured
+sounding). Writing three properties costs ~1 us a step against ~60 us for JSBSim
+(bench/sim_throughput.py). The true wind at the aircraft, turbulence included, is
+``atmosphere/total-wind-*-fps`` and goes into ``Truth.wind_ned_mps``. The aircraft starts in
+the wind without sideslip (see ``Flight._start``); the very first truth, read before JSBSim
+has stepped, still reports the windless trim's air data and a zero wind.
 """
 
 from __future__ import annotations
 
 import contextlib
+import itertools
 import math
 import re
 import shutil
@@ -88,11 +103,11 @@ from collections.abc import Iterator
 from functools import lru_cache
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import Any, Self
 
 import jsbsim
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from physconst import WGS84_A_M
 from sim.guidance import Controls, Guidance, GuidanceGains, GuidanceInput, TrimPoint
@@ -191,11 +206,14 @@ _READ = (
     "aero/beta-rad",
     "aero/qbar-psf",
     "gear/wow",
+    "atmosphere/total-wind-north-fps",
+    "atmosphere/total-wind-east-fps",
+    "atmosphere/total-wind-down-fps",
 )
 (
     _ILAT, _ILON, _IH, _IHAGL, _IVN, _IVE, _IVD, _IPHI, _ITHETA, _IPSI,
     _IPI, _IQI, _IRI, _IP, _IQ, _IR, _IFX, _IFY, _IFZ, _IMASS,
-    _IPS, _ITR, _IVT, _IVC, _IALPHA, _IBETA, _IQBAR, _IWOW,
+    _IPS, _ITR, _IVT, _IVC, _IALPHA, _IBETA, _IQBAR, _IWOW, _IWN, _IWE, _IWD,
 ) = range(len(_READ))  # fmt: skip
 
 
@@ -214,6 +232,14 @@ class StartState(BaseModel):
 class FlightConfig(BaseModel):
     """Aircraft, rate, start state and atmosphere of a flight.
 
+    Wind (the velocity the air moves *towards*, NED, m/s; see "Wind" in the module docstring):
+    ``wind_ned_mps`` is the steady wind, at ``wind_ref_agl_m`` above ground when
+    ``wind_shear_exponent`` p > 0 (power-law shear of the horizontal wind,
+    ``w(h) = w_ref (h / h_ref)^p``; ``wind_ref_agl_m`` None = the start altitude above
+    ground). ``wind_table`` instead gives the horizontal wind as rows
+    ``(alt_msl_m, north_mps, east_mps)``, strictly increasing in altitude, interpolated
+    linearly and held constant beyond its ends; with a table the horizontal part of
+    ``wind_ned_mps`` and the exponent must be zero (its down component still applies).
     ``turbulence`` is a severity in [0, 1] (see the module docstring for the mapping to
     JSBSim's MIL-F-8785C model); ``seed`` seeds JSBSim's random generator.
     ``stall_alpha_deg``: an angle of attack above it for 0.5 s ends the flight as a stall
@@ -228,10 +254,65 @@ class FlightConfig(BaseModel):
     rate_hz: float = Field(default=200.0, ge=50.0, le=400.0)
     start: StartState = StartState()
     wind_ned_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    wind_shear_exponent: float = Field(default=0.0, ge=0.0, le=1.0)
+    wind_ref_agl_m: float | None = Field(default=None, gt=0.0, le=20000.0)
+    wind_table: tuple[tuple[float, float, float], ...] = ()
     turbulence: float = Field(default=0.0, ge=0.0, le=1.0)
     seed: int = Field(default=0, ge=0, le=2**31 - 1)
     stall_alpha_deg: float = Field(default=15.0, gt=5.0, le=60.0)
     guidance: GuidanceGains = GuidanceGains()
+
+    @model_validator(mode="after")
+    def _one_wind_profile(self) -> Self:
+        table = self.wind_table
+        if table:
+            if any(not all(math.isfinite(x) for x in row) for row in table):
+                raise ValueError("every value of the wind table must be finite")
+            alts = [row[0] for row in table]
+            if any(b <= a for a, b in itertools.pairwise(alts)):
+                raise ValueError("the altitudes of the wind table must increase strictly")
+            if self.wind_ned_mps[:2] != (0.0, 0.0) or self.wind_shear_exponent != 0.0:
+                raise ValueError(
+                    "a wind table replaces the horizontal wind: leave wind_ned_mps' north/east "
+                    "at 0 and wind_shear_exponent at 0"
+                )
+        return self
+
+    @property
+    def wind_varies_with_altitude(self) -> bool:
+        """True when the wind is a profile (shear or table): set anew at every step."""
+        return bool(self.wind_table) or (
+            self.wind_shear_exponent > 0.0 and self.wind_ned_mps[:2] != (0.0, 0.0)
+        )
+
+    def wind_at(self, alt_msl_m: float, alt_agl_m: float) -> tuple[float, float, float]:
+        """The steady (non-turbulent) wind at this height, NED m/s (see the class docstring).
+
+        ``alt_agl_m`` is floored at 1 m for the power law (the flight ends below it anyway).
+        """
+        wn, we, wd = self.wind_ned_mps
+        if self.wind_table:
+            n, e = _interpolate_table(self.wind_table, alt_msl_m)
+            return (n, e, wd)
+        p = self.wind_shear_exponent
+        if p == 0.0:
+            return (wn, we, wd)
+        h_ref = self.wind_ref_agl_m if self.wind_ref_agl_m is not None else self.start.alt_msl_m
+        scale = (max(alt_agl_m, 1.0) / h_ref) ** p
+        return (wn * scale, we * scale, wd)
+
+
+def _interpolate_table(
+    table: tuple[tuple[float, float, float], ...], alt_m: float
+) -> tuple[float, float]:
+    """Linear interpolation of ``(alt, north, east)`` rows at ``alt_m``, constant outside."""
+    if alt_m <= table[0][0]:
+        return (table[0][1], table[0][2])
+    for (a0, n0, e0), (a1, n1, e1) in itertools.pairwise(table):
+        if alt_m <= a1:
+            f = (alt_m - a0) / (a1 - a0)
+            return (n0 + f * (n1 - n0), e0 + f * (e1 - e0))
+    return (table[-1][1], table[-1][2])
 
 
 class FlightEnded(RuntimeError):
@@ -396,6 +477,7 @@ class Flight:
             )
         self.config = config
         self.plan = plan
+        self._wind_profile = config.wind_varies_with_altitude
         self._dt = 1.0 / config.rate_hz
         self._step = 0
         self._ended: FlightEnded | None = None
@@ -455,28 +537,35 @@ class Flight:
             for i in range(count)
             if pm.hasNode(f"propulsion/engine[{i}]/propeller-rpm")
         ]
+        self._n_wind = [n(f"atmosphere/wind-{axis}-fps") for axis in ("north", "east", "down")]
 
     def _sample(self) -> list[float]:
         """Read every property the adapter uses, once (indices: the _I* constants)."""
         return [get() for get in self._getters]
 
-    def _set_wind_ic(self) -> None:
+    def _start_wind(self) -> tuple[float, float, float]:
+        """The steady wind at the start altitude (JSBSim's terrain is at sea level: AGL = MSL
+        at the start)."""
+        alt = self.config.start.alt_msl_m
+        return self.config.wind_at(alt, alt)
+
+    def _set_wind_ic(self, wind_ne_mps: tuple[float, float]) -> None:
         # run_ic() and the trim re-initialise the atmosphere's wind from the initial condition
         # (a wind set on atmosphere/ before them silently vanished), so the horizontal wind
         # goes into the IC: JSBSim's ic/vw-dir-deg is the direction the wind comes FROM. The
         # trim then finds the equilibrium in the moving air mass.
-        wn, we, _ = self.config.wind_ned_mps
+        wn, we = wind_ne_mps
         fdm = self._fdm
         fdm["ic/vw-mag-fps"] = math.hypot(wn, we) / FT_M
         fdm["ic/vw-dir-deg"] = math.degrees(math.atan2(-we, -wn)) % 360.0
 
     def _set_wind(self) -> None:
         # the whole vector once the trim is done (the IC has no settable vertical wind)
-        fdm = self._fdm
-        wn, we, wd = self.config.wind_ned_mps
-        fdm["atmosphere/wind-north-fps"] = wn / FT_M
-        fdm["atmosphere/wind-east-fps"] = we / FT_M
-        fdm["atmosphere/wind-down-fps"] = wd / FT_M
+        self._write_wind(self._start_wind())
+
+    def _write_wind(self, wind_ned_mps: tuple[float, float, float]) -> None:
+        for node, w in zip(self._n_wind, wind_ned_mps, strict=True):
+            node.set_double_value(w / FT_M)
 
     def _set_turbulence(self) -> None:
         fdm = self._fdm
@@ -490,7 +579,9 @@ class Flight:
         else:
             fdm["atmosphere/turb-type"] = 0
 
-    def _apply_ic(self, alpha_rad: float | None = None) -> None:
+    def _apply_ic(
+        self, alpha_rad: float | None = None, wind_ne_mps: tuple[float, float] = (0.0, 0.0)
+    ) -> None:
         fdm = self._fdm
         s = self.config.start
         fdm["ic/lat-geod-deg"] = s.lat_deg
@@ -503,19 +594,66 @@ class Flight:
         if alpha_rad is not None:
             fdm["ic/alpha-rad"] = alpha_rad
         fdm["gear/gear-cmd-norm"] = 0.0  # airborne start: gear up where it retracts
-        self._set_wind_ic()
+        self._set_wind_ic(wind_ne_mps)
         with _jsbsim_log_discarded():
             fdm.run_ic()
 
     def _start(self) -> TrimPoint:
-        self._apply_ic()
+        """Trim at the start; return the trim point the guidance law flies from.
+
+        The guidance law's trim point is the equilibrium in the air mass without sideslip.
+        A steady wind moves the air mass uniformly and does not change that equilibrium, but
+        JSBSim's full trim in a crosswind is a different one: its ``hmgt`` axis makes the
+        heading equal the ground track, so the aircraft is trimmed in a wing-low sideslip
+        (c172x at 1000 m, 50 m/s, wind 5,-3,0: 2.8 deg of sideslip, 2.0 deg of bank). The
+        law's sideslip loop removes that sideslip within seconds (the aircraft crabs), so
+        that bank is not "wings level" in flight; taken as such, it biased every bank command
+        by 1.8 deg, which the proportional course loop balanced with a standing course error
+        of 1.4 deg, and a 180-degree turn never came within its 1-degree completion tolerance.
+        So in a horizontal wind the aircraft is first trimmed without wind (the trim point
+        returned), then, for the start state, in the wind. Without wind: one trim, as always.
+        """
+        wn, we, _ = self._start_wind()
+        if (wn, we) == (0.0, 0.0):
+            return self._trim_in((0.0, 0.0))
+        air_mass_trim = self._trim_in((0.0, 0.0))
+        self._carry_into_wind(wn, we)
+        return air_mass_trim
+
+    def _carry_into_wind(self, wn_mps: float, we_mps: float) -> None:
+        """Re-initialise the trimmed (windless) state moving with a horizontal wind: same
+        attitude and air-relative velocity, ground velocity plus the wind.
+
+        The wind itself is written to JSBSim's atmosphere afterwards (``_set_wind``, before
+        the first step): the IC carries none, because JSBSim 1.3.3's ``FGFDMExec::Initialize``
+        sets the atmosphere's wind to ``GetWindNEDFpsIC()``, which is ``v_air - v_ground``,
+        the negative of the wind the IC's kinematics encode (measured: an IC wind "from" 270
+        deg gave an atmosphere wind towards the west before the first step).
+        """
+        raw = self._raw
+        fdm = self._fdm
+        fdm["ic/vw-mag-fps"] = 0.0
+        fdm["ic/phi-rad"] = raw[_IPHI]
+        fdm["ic/theta-rad"] = raw[_ITHETA]
+        fdm["ic/psi-true-rad"] = raw[_IPSI]
+        fdm["ic/vn-fps"] = raw[_IVN] + wn_mps / FT_M
+        fdm["ic/ve-fps"] = raw[_IVE] + we_mps / FT_M
+        fdm["ic/vd-fps"] = raw[_IVD]
+        with _jsbsim_log_discarded():
+            fdm.run_ic()
+        self._start_engines()
+        self._raw = self._sample()
+
+    def _trim_in(self, wind_ne_mps: tuple[float, float]) -> TrimPoint:
+        """Set the start state in this horizontal wind, start the engines and trim."""
+        self._apply_ic(wind_ne_mps=wind_ne_mps)
         self._start_engines()
         if not self._try_trim():
             # JSBSim issue #1440: settle the engines and controls in flight, then retrim.
             # A failed trim re-initialises JSBSim with the engines off: start them again.
             self._start_engines()
             alpha = self._settle()
-            self._apply_ic(alpha_rad=alpha)
+            self._apply_ic(alpha_rad=alpha, wind_ne_mps=wind_ne_mps)
             if not self._try_trim():
                 s = self.config.start
                 raise ValueError(
@@ -651,8 +789,10 @@ class Flight:
         self._write_controls(self._guidance.update(self._guidance_input(self.time_s)))
         self._fdm.run()
         self._step += 1
-        self._raw = self._sample()
+        raw = self._raw = self._sample()
         self._check()
+        if self._wind_profile:
+            self._write_wind(self.config.wind_at(raw[_IH], raw[_IHAGL] * FT_M))
 
     def close(self) -> None:
         """Release the JSBSim instance."""
@@ -728,6 +868,7 @@ class Flight:
             indicated_airspeed_mps=raw[_IVC] * FT_M,
             alpha_rad=raw[_IALPHA],
             beta_rad=raw[_IBETA],
+            wind_ned_mps=np.array((raw[_IWN] * FT_M, raw[_IWE] * FT_M, raw[_IWD] * FT_M)),
         )
 
     def _check(self) -> None:

@@ -7,7 +7,7 @@ and decodes, and what ``fusion.NavFilter`` consumes (structurally, through the p
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,6 +34,9 @@ class Truth:
         axes (JSBSim ``aero/alpha-rad``, ``aero/beta-rad``): ``u = V cosα cosβ``,
         ``v = V sinβ``, ``w = V sinα cosβ``. Default 0 (level, coordinated); NaN when unknown
         (truth decoded from HIL_STATE_QUATERNION, which carries neither).
+    wind_ned_mps : (3,) velocity of the air mass at the vehicle (steady wind, shear and
+        turbulence), NED, m/s; NaN where the source does not carry it (decoded
+        HIL_STATE_QUATERNION, constructors that leave it out).
     """
 
     time_us: int
@@ -50,6 +53,7 @@ class Truth:
     indicated_airspeed_mps: float
     alpha_rad: float = 0.0
     beta_rad: float = 0.0
+    wind_ned_mps: Vec3 = field(default_factory=lambda: np.full(3, np.nan))
 
 
 @dataclass(frozen=True, slots=True)

@@ -134,8 +134,8 @@ def decode_hil_gps(msg: Any) -> GnssFix:
 
 
 def decode_hil_state_quaternion(msg: Any) -> Truth:
-    """HIL_STATE_QUATERNION -> Truth (no pressure, temperature, angle of attack or sideslip on
-    the wire: NaN)."""
+    """HIL_STATE_QUATERNION -> Truth (no pressure, temperature, angle of attack, sideslip or
+    wind on the wire: NaN)."""
     mg = G0_MPS2 * 1e-3
     return Truth(
         time_us=int(msg.time_usec),
@@ -152,4 +152,5 @@ def decode_hil_state_quaternion(msg: Any) -> Truth:
         indicated_airspeed_mps=msg.ind_airspeed * 1e-2,
         alpha_rad=math.nan,  # not in HIL_STATE_QUATERNION
         beta_rad=math.nan,  # not in HIL_STATE_QUATERNION
+        wind_ned_mps=np.full(3, math.nan),  # not in HIL_STATE_QUATERNION
     )

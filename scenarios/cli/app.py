@@ -152,6 +152,16 @@ def sim(
     heading: Annotated[float, typer.Option(help="Start heading, deg true.")] = 0.0,
     airspeed: Annotated[float, typer.Option(help="Start true airspeed, m/s.")] = 50.0,
     wind: Annotated[str, typer.Option(help="Wind N,E,D in m/s (direction it blows to).")] = "0,0,0",
+    wind_shear: Annotated[
+        float,
+        typer.Option(help="Power-law shear exponent of the horizontal wind (1/7 = neutral "
+                     "boundary layer; 0 = the same wind at every height)."),
+    ] = 0.0,
+    wind_ref_agl: Annotated[
+        float | None,
+        typer.Option(help="Height above ground at which --wind holds, m (default: start "
+                     "altitude)."),
+    ] = None,
     turbulence: Annotated[float, typer.Option(help="Turbulence severity 0..1.")] = 0.0,
     gnss_off: Annotated[
         list[str] | None,
@@ -194,6 +204,7 @@ def sim(
         plan=plan, aircraft=aircraft, duration_s=duration, seed=seed, rate_hz=rate,
         imu=imu, gnss=gnss, baro=baro, mag=mag, pitot=pitot, lat_deg=lat, lon_deg=lon,
         alt_msl_m=alt, heading_deg=heading, airspeed_mps=airspeed, wind=wind, turbulence=turbulence,
+        wind_shear_exponent=wind_shear, wind_ref_agl_m=wind_ref_agl,
         gnss_off=gnss_off or [], truth_rate_hz=truth_rate,
     )
     if lockstep and live is None:

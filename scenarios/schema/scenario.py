@@ -109,6 +109,20 @@ class Scenario(Strict):
     wind_ned_mps: tuple[float, float, float] = Field(
         default=(0.0, 0.0, 0.0), description="Steady wind the air moves *towards*, NED m/s."
     )
+    wind_shear_exponent: float = Field(
+        default=0.0, ge=0.0, le=1.0,
+        description="Power-law shear of the horizontal wind: w(h) = wind_ned_mps "
+        "(h_agl / wind_ref_agl_m)^p; 1/7 = neutral boundary layer; 0 = no shear.",
+    )
+    wind_ref_agl_m: float | None = Field(
+        default=None, gt=0.0, le=20000.0,
+        description="Height above ground where wind_ned_mps holds, m; default: start altitude.",
+    )
+    wind_table: tuple[tuple[float, float, float], ...] = Field(
+        default=(),
+        description="Horizontal wind profile [alt_msl_m, north_mps, east_mps] rows, altitude "
+        "increasing, linear in between, constant beyond; replaces wind_ned_mps' north/east.",
+    )
     turbulence: Turbulence = Field(
         default=0.0, ge=0.0, le=1.0,
         description="Severity 0..1 or none / light / moderate / severe (MIL-F-8785C).",
@@ -151,6 +165,11 @@ class Scenario(Strict):
             self.start_state()
         except (ValueError, ValidationError) as error:
             raise key_error(_message(error), ("start",)) from None
+        try:
+            self.flight_config()
+        except (ValueError, ValidationError) as error:
+            where = "wind_table" if self.wind_table else "wind_ned_mps"
+            raise key_error(_message(error), (where,)) from None
         self._check_rates()
         problem = _timeline_problem(self)
         if problem is not None:
@@ -248,6 +267,9 @@ class Scenario(Strict):
             rate_hz=self.sim_rate_hz,
             start=self.start_state(),
             wind_ned_mps=self.wind_ned_mps,
+            wind_shear_exponent=self.wind_shear_exponent,
+            wind_ref_agl_m=self.wind_ref_agl_m,
+            wind_table=self.wind_table,
             turbulence=self.turbulence,
             seed=self.seed if seed is None else seed,
         )

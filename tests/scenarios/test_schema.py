@@ -323,6 +323,10 @@ def test_missing_duration(tmp_path: Path) -> None:
          "events[0].offset_hpa", "not both"),
         ("events: [{type: gnss_rate, at: 10, rate_hz: 10}]\n", "events[0].rate_hz",
          "above the receiver's 5 Hz"),
+        ("wind_table: [[900, 1, 0], [800, 2, 0]]\n", "wind_table", "must increase strictly"),
+        ("wind_ned_mps: [3, 0, 0]\nwind_table: [[900, 1, 0]]\n", "wind_table",
+         "replaces the horizontal wind"),
+        ("wind_shear_exponent: -0.1\n", "wind_shear_exponent", "greater than or equal to 0"),
     ],
 )
 def test_bad_values_name_the_key(tmp_path: Path, text: str, key: str, fragment: str) -> None:
@@ -764,3 +768,22 @@ def test_known_metrics_are_exactly_what_the_scorer_produces() -> None:
     assert NOT_CRITERIA <= produced
     assert sorted(produced - NOT_CRITERIA - set(KNOWN_METRICS)) == []
     assert sorted(set(KNOWN_METRICS) - produced) == []
+
+
+def test_wind_keys_reach_the_flight(tmp_path: Path) -> None:
+    cfg = load_scenario(write(tmp_path, """
+        duration_s: 60
+        wind_ned_mps: [8, -4, 0.5]
+        wind_shear_exponent: 0.143
+        wind_ref_agl_m: 800
+        turbulence: light
+    """)).flight_config()
+    assert (cfg.wind_ned_mps, cfg.wind_shear_exponent, cfg.wind_ref_agl_m) == (
+        (8.0, -4.0, 0.5), 0.143, 800.0)
+    assert cfg.turbulence == 0.43 and cfg.wind_varies_with_altitude
+    table = load_scenario(write(tmp_path, """
+        duration_s: 60
+        wind_table: [[500, 0, 2], [1500, 10, 2]]
+    """)).flight_config()
+    assert table.wind_table == ((500.0, 0.0, 2.0), (1500.0, 10.0, 2.0))
+    assert table.wind_at(1000.0, 1000.0) == (5.0, 2.0, 0.0)
