@@ -83,11 +83,15 @@ class GmdhLayer:
         ``c0..c5`` of ``c0 + c1·a + c2·b + c3·a² + c4·b² + c5·a·b`` (standardised units).
     criterion : (k,) float
         Regularity criterion of each neuron: validation MSE in standardised target units.
+    bounds : (k, 2) float or None
+        ``[lo, hi]`` each neuron's output is clipped to at prediction (its range on the
+        fitting data, widened by ``clip_margin``); None: no clipping (P0).
     """
 
     pairs: IntArray
     coefs: FloatArray
     criterion: FloatArray
+    bounds: FloatArray | None = None
 
 
 # Exponents (of a, of b) of the six monomials 1, a, b, a², b², ab.
@@ -417,6 +421,12 @@ class GmdhRegressor(RegressorBase):
         smaller gain is selection luck (on a linear target the criterion kept "improving"
         0.5 % a layer for 7 layers). Building stops when the external criterion stops
         improving. 0 disables the test (P0).
+    clip_margin : float ≥ 0 or None, default 0.1
+        At prediction each neuron's output is clipped to its range on the fitting data,
+        widened by this share of the range on either side. A network of 8 quadratic layers
+        is a polynomial of degree up to 2⁸: outside the data it was fitted on (a flight
+        leaving the trained envelope) an unclipped one can reach 1e250. None: no clipping
+        (P0).
     ridge : float ≥ 0, default 1e-8
         Relative ridge ``λ = ridge·trace(G)/6`` on each neuron's normal equations.
     random_state : int, numpy Generator or None, default 0
@@ -455,6 +465,7 @@ class GmdhRegressor(RegressorBase):
         split: str = "blocked",
         tol: float = 1e-3,
         significance: float = 2.0,
+        clip_margin: float | None = 0.1,
         ridge: float = 1e-8,
         random_state: int | None = 0,
     ) -> None:
@@ -468,6 +479,7 @@ class GmdhRegressor(RegressorBase):
         self.split = split
         self.tol = tol
         self.significance = significance
+        self.clip_margin = clip_margin
         self.ridge = ridge
         self.random_state = random_state
 
@@ -488,7 +500,7 @@ class GmdhRegressor(RegressorBase):
         params: dict[str, Any] = {
             "max_layers": 5, "max_neurons": 10, "alpha": 0.6, "min_survivors": 1,
             "max_correlation": 1.0, "inputs": "first-layer", "split": "interleaved",
-            "significance": 0.0,
+            "significance": 0.0, "clip_margin": None,
         }  # fmt: skip
         params.update(overrides)
         return cls(**params)
@@ -520,6 +532,10 @@ class GmdhRegressor(RegressorBase):
             raise bad("tol", "a number in [0, 1)")
         if not _is_real(self.significance) or self.significance < 0.0:
             raise bad("significance", "a number >= 0")
+        if self.clip_margin is not None and (
+            not _is_real(self.clip_margin) or self.clip_margin < 0.0
+        ):
+            raise bad("clip_margin", "None or a number >= 0")
         if not _is_real(self.ridge) or not 0.0 <= self.ridge < 1.0:
             raise bad("ridge", "a number in [0, 1)")
 
@@ -596,12 +612,18 @@ class GmdhRegressor(RegressorBase):
                 if not float(np.mean(d)) > float(self.significance) * se:
                     break
             r_prev = r_best
-            layer = GmdhLayer(pairs[keep], coefs[keep], exact)
+            Zt_next = _eval_neurons(Zt, pairs[keep], coefs[keep])
+            bounds = None
+            if self.clip_margin is not None:
+                lo = np.minimum(Zt_next.min(axis=0), Zv_next.min(axis=0))
+                hi = np.maximum(Zt_next.max(axis=0), Zv_next.max(axis=0))
+                pad = float(self.clip_margin) * (hi - lo)
+                bounds = np.column_stack([lo - pad, hi + pad])
+            layer = GmdhLayer(pairs[keep], coefs[keep], exact, bounds)
             layers.append(layer)
             best.append(e_best)
             if e_best <= _EXACT_FIT:
                 break  # nothing left for another layer to improve but rounding
-            Zt_next = _eval_neurons(Zt, layer.pairs, layer.coefs)
             if reuse:
                 Zt, Zv = np.hstack([Zt_next, Pt]), np.hstack([Zv_next, Pv])
             else:
@@ -646,6 +668,8 @@ class GmdhRegressor(RegressorBase):
             if li and self._reuse:
                 Z = np.hstack([Z, P])
             Z = _eval_neurons(Z, layer.pairs, layer.coefs)
+            if layer.bounds is not None:
+                np.clip(Z, layer.bounds[:, 0], layer.bounds[:, 1], out=Z)
         out: FloatArray = self.y_mean_ + self.y_scale_ * Z[:, 0]
         return out
 
@@ -762,8 +786,11 @@ def _prune(layers: list[GmdhLayer], n_pool: int) -> list[GmdhLayer]:
             pairs = np.where(
                 from_prev, np.searchsorted(prev_index, pairs), pairs - n_prev + len(prev_index)
             )
+        bounds = None if layer.bounds is None else layer.bounds[idx].copy()
         pruned.append(
-            GmdhLayer(pairs.astype(np.intp), layer.coefs[idx].copy(), layer.criterion[idx].copy())
+            GmdhLayer(
+                pairs.astype(np.intp), layer.coefs[idx].copy(), layer.criterion[idx].copy(), bounds
+            )
         )
         prev_index = idx
         n_prev = layer.pairs.shape[0]
@@ -795,7 +822,10 @@ class _ScalarNetwork:
     one per neuron in network order.
     """
 
-    __slots__ = ("_inputs", "_message", "_n", "_neurons", "_products", "_y_mean", "_y_scale")
+    __slots__ = (
+        "_bounds", "_clip", "_inputs", "_message", "_n", "_neurons", "_products", "_y_mean",
+        "_y_scale",
+    )  # fmt: skip
 
     def __init__(
         self,
@@ -832,6 +862,7 @@ class _ScalarNetwork:
                 products.append((i, j))
         self._products = products
         neurons: list[tuple[int, int, float, float, float, float, float, float]] = []
+        clipped: list[tuple[float, float]] = []
         base = n + len(products)
         prev_base = 0
         for li, layer in enumerate(network):
@@ -841,12 +872,19 @@ class _ScalarNetwork:
                 kind, idx = cols[c]
                 return pb + idx if kind == "z" else register[idx]
 
-            for (i, j), c in zip(layer.pairs.tolist(), layer.coefs.tolist(), strict=True):
+            k = layer.pairs.shape[0]
+            lims = [(-math.inf, math.inf)] * k if layer.bounds is None else layer.bounds.tolist()
+            for (i, j), c, (lo, hi) in zip(
+                layer.pairs.tolist(), layer.coefs.tolist(), lims, strict=True
+            ):
                 c0, c1, c2, c3, c4, c5 = (float(v) for v in c)
                 neurons.append((reg(i), reg(j), c0, c1, c2, c3, c4, c5))
+                clipped.append((float(lo), float(hi)))
             prev_base = base
-            base += layer.pairs.shape[0]
+            base += k
         self._neurons = neurons
+        self._clip = any(layer.bounds is not None for layer in network)
+        self._bounds = clipped
         self._y_mean = float(y_mean)
         self._y_scale = float(y_scale)
 
@@ -864,6 +902,15 @@ class _ScalarNetwork:
         append = r.append
         for i, j in self._products:
             append(r[i] * r[j])
+        if self._clip:
+            # min(max(v, lo), hi) is numpy.clip's value for finite v
+            for (i, j, c0, c1, c2, c3, c4, c5), (lo, hi) in zip(
+                self._neurons, self._bounds, strict=True
+            ):
+                a = r[i]
+                b = r[j]
+                append(min(max(c0 + a * (c1 + c3 * a + c5 * b) + b * (c2 + c4 * b), lo), hi))
+            return self._y_mean + self._y_scale * r[-1]
         for i, j, c0, c1, c2, c3, c4, c5 in self._neurons:
             a = r[i]
             b = r[j]
