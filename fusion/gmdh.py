@@ -1,4 +1,5 @@
-"""Multilayer GMDH polynomial network (paper P0), a regressor with scikit-learn's contract.
+"""Multilayer GMDH polynomial network, a regressor with scikit-learn's contract; paper P0's
+network as a preset.
 
 GMDH (Group Method of Data Handling, Ivakhnenko) builds a polynomial network layer by layer:
 
@@ -7,14 +8,29 @@ GMDH (Group Method of Data Handling, Ivakhnenko) builds a polynomial network lay
    its coefficients fitted by least squares on the *training* part of the data;
 2. each neuron is scored by an *external* criterion, the regularity criterion: its mean
    squared error on the *validation* part, data it was not fitted on;
-3. the neurons whose criterion exceeds ``e_c = α·e_min + (1 − α)·e_max`` are removed
-   (``α`` is the selection pressure: ``α = 1`` keeps only the best, ``α = 0`` keeps all),
-   and at most ``max_neurons`` of the best survivors feed the next layer;
-4. layers are added while the best criterion of a layer improves on the previous layer's
-   (relative improvement ``> tol``), up to ``max_layers``; the model is the best neuron of the
-   last accepted layer, and only the neurons it depends on are kept for prediction.
+3. survivors: P0 removes the neurons whose criterion exceeds
+   ``e_c = α·e_min + (1 − α)·e_max`` (``α = 1`` keeps only the best, ``α = 0`` all) and keeps
+   at most ``max_neurons`` of the best; the defaults keep at least ``min_survivors`` too,
+   half by criterion and half by how much of the best neuron's validation error they explain
+   (the next layer pairs them with it), and skip near-duplicates (validation errors
+   correlated above ``max_correlation``);
+4. layer inputs: P0 feeds layer k + 1 with the survivors of layer k only; the defaults also
+   offer every layer the standardised features and their products ``u_i·u_j`` (the *input
+   terms*), so a neuron can pair a learned neuron with a raw input;
+5. layers are added while the best criterion of a layer improves on the previous layer's
+   (relative improvement ``> tol`` and, by default, more than ``significance`` standard
+   errors of the paired per-sample gain), up to ``max_layers``; the model is the best neuron
+   of the last accepted layer, and only the neurons it depends on are kept for prediction;
+   by default each neuron's output is clipped at prediction to its fitted range, widened
+   by ``clip_margin``.
 
-P0's settings are the defaults: 5 layers, 10 neurons, ``α = 0.6``.
+Why the defaults differ from P0 (issue 18): on ``y = 1 + 2 x0 − x1 + 0.5 x0 x2 − 0.8 x3²``
+(6 inputs, noise 0.02) P0's rule left 5, 4, 3, 2, 1 survivors and 0.27 RMSE against 0.020
+for polynomial ridge; on ``(x0 x1 + 0.5 x2)² − x3 x4`` no neuron fitted to the target carries
+``x0 x1`` (the target has no quadratic component along it) until the product is offered as
+an input term. ``GmdhRegressor.paper()`` is P0 (5 layers, 10 neurons, ``α = 0.6``, features
+in layer 1 only, interleaved split), bit for bit the earlier behaviour; the bridging methods
+use it. ``bench/gmdh_quality.py`` compares both with ridge and an MLP.
 
 Implementation notes
 --------------------
@@ -30,6 +46,10 @@ Implementation notes
 - A layer with a single input (one feature, or one survivor) has one neuron on the pair
   ``(u, u)``: a quadratic ``c0 + c1·u + c3·u²`` in that input (the duplicated monomials are
   dropped from its normal equations, so the printed polynomial shows no redundant terms).
+- With product input terms, the first-layer pair ``(u_k, u_k·u_k)`` has ``a² = b``: its
+  ``a²`` monomial is dropped (a quartic in ``u_k``), likewise without leaving it to the ridge.
+- Input terms already paired with each other in layer 1 are not paired again in later
+  layers (the same neurons); a later layer's neurons have at least one learned input.
 - :meth:`GmdhRegressor.predict_one` evaluates the pruned network on one sample with plain
   Python floats (no numpy dispatch): the neurons' inputs and coefficients are laid out as
   float tuples at fit time and evaluated in a loop, with the same operations in the same
@@ -699,10 +719,11 @@ class GmdhRegressor(RegressorBase):
     def polynomial(self, digits: int = 6) -> str:
         """The selected model as readable, executable Python assignments.
 
-        One line per standardised input used, one per neuron (``z<layer>_<k>``), and the
-        output ``y``. ``exec`` the text with ``x`` bound to the feature columns
-        (``x[k]`` = column ``k``) to re-evaluate it; ``digits`` sets the significant digits
-        (17 reproduces :meth:`predict` to rounding).
+        One line per standardised input used, one per product input term used
+        (``u<i>_<j>``), one per neuron (``z<layer>_<k>``), and the output ``y``. ``exec``
+        the text with ``x`` bound to the feature columns (``x[k]`` = column ``k``) to
+        re-evaluate it; ``digits`` sets the significant digits (17 reproduces
+        :meth:`predict` to rounding, up to the clipping, which the text does not show).
 
         Returns
         -------
