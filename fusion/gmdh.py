@@ -182,8 +182,14 @@ def _solve_batched(G: FloatArray, r: FloatArray, ridge: float) -> FloatArray:
     return c
 
 
-def _moments(Z: FloatArray, y: FloatArray) -> FloatArray:
-    """Moment matrix ``BᵀB`` of ``B = [1, Z, Z², Z³, y·Z, y]`` (see :func:`_gram_index`)."""
+def _moments(Z: FloatArray, y: FloatArray, lead: int = 0) -> FloatArray:
+    """Moment matrix ``BᵀB`` of ``B = [1, Z, Z², Z³, y·Z, y]`` (see :func:`_gram_index`).
+
+    ``lead > 0``: only what pairs whose first input is one of the first ``lead`` columns
+    need (a later layer: a learned neuron with any input): the rows of the ones column, of
+    the ``y`` column and of every block of the lead columns, and each other column's own
+    ``Σz³``, ``Σz⁴``, ``Σy·z²``; the cross moments of two input terms stay 0, unused.
+    """
     n, m = Z.shape
     B = np.empty((n, 4 * m + 2))
     B[:, 0] = 1.0
@@ -196,8 +202,28 @@ def _moments(Z: FloatArray, y: FloatArray) -> FloatArray:
     # (its threshold is m·n·k ≈ 2.6e5): the product is tiny, and handing it to a second
     # thread on a busy 2-core machine cost 100+ ms per call instead of < 1 ms.
     c = B.shape[1]
+    if lead > 0:
+        ks = np.arange(lead)
+        R = np.concatenate([[0], 1 + ks, 1 + m + ks, 1 + 2 * m + ks, 1 + 3 * m + ks, [c - 1]])
+        BR = B[:, R]
+        rows = max(32, _GEMM_SINGLE_THREAD // (c * len(R)))
+        part = np.zeros((len(R), c))
+        for start in range(0, n, rows):
+            part += BR[start : start + rows].T @ B[start : start + rows]
+        S: FloatArray = np.zeros((c, c))
+        S[R, :] = part
+        S[:, R] = part.T
+        j = np.arange(lead, m)
+        Z1, Z2 = B[:, 1 + j], B[:, 1 + m + j]
+        z3 = np.einsum("ij,ij->j", Z2, Z1)
+        z4 = np.einsum("ij,ij->j", Z2, Z2)
+        yz2 = np.einsum("ij,ij->j", B[:, 1 + 3 * m + j], Z1)
+        S[1 + m + j, 1 + j] = S[1 + j, 1 + m + j] = z3
+        S[1 + m + j, 1 + m + j] = z4
+        S[1 + 3 * m + j, 1 + j] = S[1 + j, 1 + 3 * m + j] = yz2
+        return S
     rows = max(32, _GEMM_SINGLE_THREAD // (c * c))
-    S: FloatArray = np.zeros((c, c))
+    S = np.zeros((c, c))
     for start in range(0, n, rows):
         block = B[start : start + rows]
         S += block.T @ block
@@ -212,6 +238,7 @@ def _fit_pairs(
     pairs: IntArray,
     ridge: float,
     square: NDArray[np.bool_] | None = None,
+    lead: int = 0,
 ) -> tuple[FloatArray, FloatArray]:
     """Fit all pair-neurons on the training part and estimate their regularity criterion.
 
@@ -226,8 +253,8 @@ def _fit_pairs(
     """
     m = Zt.shape[1]
     row, column, r_row, r_col = _gram_index(m, pairs)
-    St = _moments(Zt, yt)
-    Sv = _moments(Zv, yv)
+    St = _moments(Zt, yt, lead)
+    Sv = _moments(Zv, yv, lead)
     G = St[row, column]
     r = St[r_row, r_col]
     single = pairs[:, 0] == pairs[:, 1]
@@ -592,7 +619,9 @@ class GmdhRegressor(RegressorBase):
             n_prev = layers[-1].pairs.shape[0] if layers else 0
             pairs = _pairs_for(n_prev, pool.shape[0] if (reuse or not layers) else 0)
             square = None if layers else _square_pairs(pool, pairs)
-            coefs, crit = _fit_pairs(Zt, yt, Zv, yv, pairs, float(self.ridge), square)
+            # a later layer with input terms: every pair starts with a learned neuron
+            lead = n_prev if (reuse and layers) else 0
+            coefs, crit = _fit_pairs(Zt, yt, Zv, yv, pairs, float(self.ridge), square, lead)
             n_finite = int(np.count_nonzero(np.isfinite(crit)))
             n_keep = min(max(_threshold_count(crit, float(self.alpha)), n_keep_min), n_keep_max)
             n_keep = min(n_keep, n_finite)
