@@ -106,7 +106,8 @@ def make_bridge(name: str, config: BridgeConfig | None = None) -> Bridge:
     if name in ("gmdh", "gmdh-pseudo"):
 
         def factory() -> ComponentModel:
-            return StatelessModel(lambda: GmdhRegressor(
+            # P0's network (the papers' comparison), not the regressor defaults
+            return StatelessModel(lambda: GmdhRegressor.paper(
                 max_layers=cfg.gmdh_max_layers, max_neurons=cfg.gmdh_max_neurons,
                 alpha=cfg.gmdh_alpha, split="tail", ridge=1e-6))  # fmt: skip
 
