@@ -305,6 +305,25 @@ class AirspeedTuning(_Frozen):
     few m/s: the cruise-speed spread of a small fixed-wing), m/s."""
 
 
+AIRSPEED_MODES: tuple[str, ...] = ("on", "off", "synthetic")
+"""Air-data choices of the commands (``--airspeed``): ``on`` fuses the pitot when the stream
+carries one; ``off`` fuses no air data (samples counted, not fused); ``synthetic`` is ``on``
+plus synthetic airspeed on a fixed-wing without a pitot (:class:`AirspeedTuning`)."""
+
+
+def airspeed_tuning(mode: str, base: AirspeedTuning | None = None) -> AirspeedTuning:
+    """``base`` (default :class:`AirspeedTuning`) set for the command-line choice ``mode``
+    (:data:`AIRSPEED_MODES`; ValueError names the valid ones)."""
+    if mode not in AIRSPEED_MODES:
+        raise ValueError(
+            f"unknown airspeed mode {mode!r}; valid choices: {', '.join(AIRSPEED_MODES)}"
+        )
+    base = base or AirspeedTuning()
+    return base.model_copy(update={
+        "enabled": mode != "off", "synthetic_when_no_pitot": mode == "synthetic",
+    })  # fmt: skip
+
+
 class InitConfig(_Frozen):
     """Alignment and initial uncertainties."""
 
