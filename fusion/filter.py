@@ -32,6 +32,14 @@ the barometer (pressure out of the atmosphere model, frozen sensor; loop methods
 jumps) and counts what it rejects; :class:`~fusion.estimate.AltitudeStatus` reports the
 calibration and compensator state.
 
+Air data (:mod:`fusion.aiding.airspeed`, layouts ``+air``): pitot samples are screened and
+batched as they arrive; every ``1 / AirspeedTuning.fuse_rate_hz`` of IMU time one air-data
+epoch starts the dormant wind and airspeed-scale states (first airspeed above
+``min_airspeed_mps``), fuses the true airspeed through the pitot monitor
+(:mod:`fusion.aiding.pitot_monitor`: a blocked pitot is only tested), the synthetic sideslip
+of a fixed-wing, and, with GNSS lost and no usable pitot, the synthetic airspeed. With GNSS
+lost and an airspeed fused within ``timeout_s`` the mode is ``dead-reckoning``.
+
 This module only sequences calls and keeps counters.
 """
 
