@@ -237,6 +237,9 @@ class AirspeedTuning(_Frozen):
     min_airspeed_mps: PositiveFloat = 8.0
     """Airspeed fusion (and sideslip) start above this measured airspeed (EKF2_ARSP_THR, a
     fixed-wing's 'airborne'); below it samples are counted in ``airspeed_low``, m/s."""
+    negative_tolerance_pa: NonNegativeFloat = 5.0
+    """A reading down to this far below zero is a live sensor's noise around zero (at rest, or
+    a blocked line): taken as 0 Pa. Anything more negative is invalid (counted), Pa."""
     max_diff_pressure_pa: PositiveFloat = 20_000.0
     """Readings above this are absurd (Mach 0.5 at sea level is ~19 kPa), Pa."""
     timeout_s: PositiveFloat = 1.0

@@ -128,9 +128,9 @@ class Health:
     airspeed_rejected: int = 0
     """Airspeed batches rejected by the gate."""
     airspeed_invalid: int = 0
-    """Airspeed samples with a NaN, negative or absurd (above ``max_diff_pressure_pa``)
-    differential pressure: not used (a temperature outside 150-350 K is replaced by the
-    barometer's, not counted)."""
+    """Airspeed samples with a NaN, negative (below ``-negative_tolerance_pa``) or absurd
+    (above ``max_diff_pressure_pa``) differential pressure: not used (a temperature outside
+    150-350 K is replaced by the barometer's, not counted)."""
     airspeed_ignored: int = 0
     """Airspeed samples not used because air data is off (``--airspeed off``) or the layout
     has no air-data states."""

@@ -25,9 +25,9 @@ speed. The sideslip Jacobian follows from ``C^_bn = C_bn (I - [phi×])``:
 (``d q_c / dV ≈ rho V`` at low Mach; the floor is not averaged away: turbulence and position
 error are correlated over the batch).
 
-*When* (:class:`AirspeedAiding`): samples are screened (NaN, negative, absurd -> counted
-invalid) and averaged over ``1 / fuse_rate_hz``; at each tick (driven by the IMU clock, so it
-also runs without a pitot):
+*When* (:class:`AirspeedAiding`): samples are screened (NaN, more negative than the noise
+around zero, absurd -> counted invalid) and averaged over ``1 / fuse_rate_hz``; at each tick
+(driven by the IMU clock, so it also runs without a pitot):
 
 1. a measured batch below ``min_airspeed_mps`` is not fused (on the ground); the first batch
    above it starts the wind states (EKF2's reset: ``w = v_ne - TAS_h (cos psi, sin psi)``
@@ -249,9 +249,10 @@ class AirspeedAiding:
             qc = float(s.diff_pressure_pa)
         except (TypeError, ValueError):
             qc = math.nan
-        if not 0.0 <= qc <= self.cfg.max_diff_pressure_pa:  # also NaN
+        if not -self.cfg.negative_tolerance_pa <= qc <= self.cfg.max_diff_pressure_pa:  # NaN too
             self._c.airspeed_invalid += 1
             return
+        qc = max(qc, 0.0)  # noise around zero
         self.pitot_seen = True
         self.monitor.add_reading(time_us, qc)
         try:
