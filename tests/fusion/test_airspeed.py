@@ -361,3 +361,33 @@ def test_synthetic_airspeed_without_a_pitot_beats_free_inertial(long_flight: Pre
     # averaging out over its period) and the wind error of sideslip learning (~0.5-1 m/s),
     # where the free INS's velocity error grows without bound (measured 0.15-0.86, mean 0.4)
     assert max(ratios) < 1.0 and np.mean(ratios) <= 0.6, ratios
+
+
+def test_a_pitot_the_gate_keeps_rejecting_is_dropped(long_flight: Prepared) -> None:
+    # GIVEN GNSS good and the pitot reading 60 % high from 40 s on (a partly blocked line
+    # or a wrong calibration: the TAS is 26 % high, ~8 m/s, far outside its 1 m/s sigma)
+    def high(t: float, qc: float) -> float:
+        return qc * 1.6 if t >= 40.0 else qc
+
+    nav, est, _ = _fault_run(long_flight, high)
+    rej = nav.config.airspeed.reject_time_s
+    # THEN every batch is rejected and after reject_time_s the pitot is declared blocked
+    t_block = _first_blocked_s(est, 40.0)
+    assert rej <= t_block - 40.0 <= rej + 1.0
+    assert at(est, 60.0).air_data.fault == "rejected"  # type: ignore[union-attr]
+    assert nav.health.airspeed_rejected >= rej * nav.config.airspeed.fuse_rate_hz
+    assert nav.health.airspeed_recoveries == 0  # it never becomes consistent again
+
+
+def test_wind_process_noise_grows_with_the_climb_rate() -> None:
+    from fusion.error_model import ErrorModel, ProcessNoise
+
+    nz = ProcessNoise(gyro_noise=1e-4, accel_noise=1e-3, gyro_bias_sigma=1e-5,
+                      gyro_bias_tau_s=600.0, accel_bias_sigma=1e-3, accel_bias_tau_s=600.0,
+                      baro_bias_sigma=5.0, baro_bias_tau_s=1000.0)  # fmt: skip
+    model = ErrorModel(layout_for("ins16+air"), nz)
+    level = model.air_process_noise(0.01, 0.0)
+    climb = model.air_process_noise(0.01, -4.0)  # 4 m/s up (NED: negative)
+    # (0.05 (1 + 0.5 * 4))^2 * 0.01 = 9x the level-flight value; the scale's does not change
+    assert level[0] == pytest.approx(0.05**2 * 0.01)
+    assert climb[0] == pytest.approx(9.0 * level[0]) and climb[1] == level[1] == 1e-8 * 0.01
