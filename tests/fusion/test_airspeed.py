@@ -195,13 +195,13 @@ def test_air_data_holds_a_300_s_outage_far_better_than_free_inertial(
     # AND the position / velocity / attitude NEES over the outage stays in the chi-square 95 %
     # band of the 9 navigation states averaged over the seeds (the truth is the filter's model
     # family: IMU errors from its model, TAS noise at its floor, a constant wind it models as a
-    # random walk, which makes it conservative, not overconfident)
+    # random walk, which can only make it conservative; measured ANEES 9.5 in [4.9, 14.4])
     err = np.array(nav_e)
     cov = np.array(nav_p)
     nees = np.einsum("sei,seij,sej->se", err, np.linalg.inv(cov), err).mean(axis=0)
     n_seeds = err.shape[0]
     lo, hi = chi2.ppf([0.025, 0.975], 9 * n_seeds) / n_seeds
-    assert lo / 3.0 < nees.mean() < hi, (nees.mean(), lo, hi)
+    assert lo < nees.mean() < hi, (nees.mean(), lo, hi)
 
 
 # --------------------------------------------------------------------------- bad input
