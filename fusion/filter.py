@@ -231,11 +231,12 @@ class NavFilter:
         self._pseudo = PseudoGnssAiding(cfg.gnss, lay, self._correct)
         self._air: AirspeedAiding | None = (
             AirspeedAiding(cfg.airspeed, lay, self._c, self._correct, self._current_covariance,
-                           self._activate_air)
+                           self._activate_air, self._velocity_corrections)
             if self._air_on else None
         )  # fmt: skip
         self._air_next_us = _NEVER_US
         self._air_status = _AIR_OFF
+        self._vel_corr = [0.0, 0.0, 0.0]  # sum of the feedback's velocity corrections, m/s
         self._static_pa = math.nan  # last accepted baro pressure and temperature
         self._static_temp_k = math.nan
         self._alt = AltitudeLink(cfg.altitude, cfg.gnss.lever_arm_b_m, self._c)
@@ -636,6 +637,10 @@ class NavFilter:
         if new_gb is not None:
             self._gb = list(new_gb)
         self._history.add_correction(nav_dx)
+        vc = self._vel_corr
+        vc[0] -= nav_dx[3]
+        vc[1] -= nav_dx[4]
+        vc[2] -= nav_dx[5]
         self._cov.v0 = ins.v_ned_mps
 
     def _reset_velocity(self, z: FloatArray, variances: FloatArray) -> None:
@@ -665,6 +670,11 @@ class NavFilter:
         """The covariance propagated to the current time (read-only use)."""
         self._flush()
         return self._cov.P
+
+    def _velocity_corrections(self) -> tuple[float, float, float]:
+        """Sum of every velocity correction the feedback made (new minus old), m/s NED."""
+        vc = self._vel_corr
+        return (vc[0], vc[1], vc[2])
 
     def _activate_air(
         self, wind_ne_mps: tuple[float, float], wind_variance: float, scale_variance: float

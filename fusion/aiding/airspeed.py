@@ -61,7 +61,7 @@ from fusion.estimate import AidSource, AirDataStatus, HealthCounters
 from fusion.rotations import dcm_from_quat, euler_from_quat
 from fusion.samples import AirspeedSample
 from fusion.strapdown import InsState
-from physconst.airdata import air_density_kgpm3, impact_pressure_pa, true_airspeed_mps
+from physconst.airdata import air_density_kgpm3, true_airspeed_mps
 
 FloatArray = NDArray[np.float64]
 Vec3 = tuple[float, float, float]
@@ -204,12 +204,16 @@ class AirspeedAiding:
     activate : callable ``(wind_ne_mps, wind_variance, scale_variance) -> None``
         Starts the air-data block: estimates and their (uncorrelated) variances, process
         noise from then on.
+    corrections : callable ``() -> (3 floats)``, optional
+        Sum of the velocity corrections the filter's feedback made so far, m/s NED (the
+        pitot monitor's stuck check; default: none).
     """
 
     def __init__(
         self, cfg: AirspeedTuning, layout: StateLayout, counters: HealthCounters,
         update: Update, covariance: Callable[[], FloatArray],
         activate: Callable[[tuple[float, float], float, float], None],
+        corrections: Callable[[], Vec3] | None = None,
     ) -> None:  # fmt: skip
         self.cfg = cfg
         self.layout = layout
@@ -221,6 +225,7 @@ class AirspeedAiding:
         self._update = update
         self._covariance = covariance
         self._activate = activate
+        self._corrections = corrections if corrections is not None else _no_corrections
         self._timeout_us = round(cfg.timeout_s * 1e6)
         self._sum_t = 0
         self._sum_q = 0.0
@@ -416,9 +421,8 @@ class AirspeedAiding:
             c.wind_resets += 1
             return ins
         va = _air_speed(at.v_ned_mps, st.wind_ne_mps)
-        pred_tas = (1.0 + st.scale) * va
-        pred_qc = impact_pressure_pa(pred_tas, static_pa, temp_k)
-        fault = mon.assess(t_mean, tas, pred_tas, pred_qc)
+        fault = mon.assess(t_mean, tas, at.v_ned_mps, self._corrections(), st.wind_ne_mps,
+                           st.scale, static_pa, temp_k)  # fmt: skip
         if tas < cfg.min_airspeed_mps:
             c.airspeed_low += n
             if mon.blocked:
@@ -479,3 +483,7 @@ class AirspeedAiding:
 def _air_speed(v_ned_mps: Vec3, wind_ne_mps: tuple[float, float]) -> float:
     an, ae = v_ned_mps[0] - wind_ne_mps[0], v_ned_mps[1] - wind_ne_mps[1]
     return math.sqrt(an * an + ae * ae + v_ned_mps[2] ** 2)
+
+
+def _no_corrections() -> Vec3:
+    return (0.0, 0.0, 0.0)

@@ -6,7 +6,9 @@ latched sensor), each checked on the averaged batches the filter fuses
 (:class:`fusion.aiding.airspeed.AirspeedAiding`):
 
 - **stuck** — over ``stuck_window_s`` the readings vary less than ``stuck_ratio`` times what
-  the sensor noise plus the predicted change of impact pressure would make, while the INS
+  the sensor noise plus the predicted change of impact pressure would make (predicted from
+  the INS velocity with the filter's corrections within the window undone: a fused stuck
+  reading pulls the corrected velocity towards itself), while the INS
   and the wind estimate say the airspeed changed by at least ``stuck_min_change_mps``
   over the window (a pitot that keeps its last value through a climb or a throttle
   change); or the readings are bit-identical over the window (a latched sensor) while flying.
@@ -30,6 +32,9 @@ import math
 from collections import deque
 
 from fusion.config import AirspeedTuning
+from physconst.airdata import impact_pressure_pa
+
+Vec3 = tuple[float, float, float]
 
 
 class PitotMonitor:
@@ -56,7 +61,8 @@ class PitotMonitor:
         self._reject_us = round(cfg.reject_time_s * 1e6)
         self._recover_us = round(cfg.recover_time_s * 1e6)
         self._readings: deque[tuple[int, float]] = deque()
-        self._predicted: deque[tuple[int, float, float]] = deque()  # t, TAS, q_c
+        # t, INS velocity at the batch, cumulative feedback velocity correction at the batch
+        self._predicted: deque[tuple[int, Vec3, Vec3]] = deque()
         self._zero_since_us: int | None = None
         self._rejected_since_us: int | None = None
         self._pass_since_us: int | None = None
@@ -70,8 +76,9 @@ class PitotMonitor:
             r.popleft()
 
     def assess(
-        self, time_us: int, tas_mps: float, predicted_tas_mps: float, predicted_qc_pa: float
-    ) -> str:
+        self, time_us: int, tas_mps: float, v_ned_mps: Vec3, correction_ned_mps: Vec3,
+        wind_ne_mps: tuple[float, float], scale: float, static_pa: float, temp_k: float,
+    ) -> str:  # fmt: skip
         """The fault the current batch shows, ``""`` if none.
 
         Parameters
@@ -80,18 +87,25 @@ class PitotMonitor:
             Batch time.
         tas_mps : float
             Measured TAS of the batch, m/s.
-        predicted_tas_mps, predicted_qc_pa : float
-            TAS and impact pressure the INS velocity and the wind estimate predict (NaN while
-            the wind states are dormant: then only the zero check's timer is cleared).
+        v_ned_mps : 3 floats
+            INS velocity at the batch time, m/s.
+        correction_ned_mps : 3 floats
+            Sum of every velocity correction the filter's feedback made so far, m/s: the
+            stuck check undoes the corrections made within its window, so that its predicted
+            airspeed is the inertial one (a fused stuck reading pulls the corrected velocity
+            towards itself and would hide the change it failed to follow).
+        wind_ne_mps, scale : the current wind and airspeed-scale estimates.
+        static_pa, temp_k : static pressure and temperature (the predicted impact pressure).
         """
         cfg = self.cfg
-        if not math.isfinite(predicted_tas_mps):
-            self._zero_since_us = None
-            return ""
         p = self._predicted
-        p.append((time_us, predicted_tas_mps, predicted_qc_pa))
+        p.append((time_us, v_ned_mps, correction_ned_mps))
         while p and p[0][0] < time_us - self._window_us:
             p.popleft()
+        g = 1.0 + scale
+        wn, we = wind_ne_mps
+        predicted_tas_mps = g * math.sqrt((v_ned_mps[0] - wn) ** 2 + (v_ned_mps[1] - we) ** 2
+                                          + v_ned_mps[2] ** 2)  # fmt: skip
         flying = predicted_tas_mps > cfg.flying_speed_mps
         # zero while flying
         if tas_mps < cfg.zero_airspeed_mps and flying:
@@ -101,20 +115,32 @@ class PitotMonitor:
                 return "zero"
         else:
             self._zero_since_us = None
-        return self._stuck(time_us, flying)
+        return self._stuck(time_us, flying, wind_ne_mps, g, correction_ned_mps, static_pa,
+                           temp_k)  # fmt: skip
 
-    def _stuck(self, time_us: int, flying: bool) -> str:
+    def _stuck(
+        self, time_us: int, flying: bool, wind_ne_mps: tuple[float, float], gain: float,
+        corr_now: Vec3, static_pa: float, temp_k: float,
+    ) -> str:  # fmt: skip
         r, p = self._readings, self._predicted
         if not r or time_us - r[0][0] < 0.9 * self._window_us or len(r) < 5 or len(p) < 3:
             return ""
         values = [q for _, q in r]
         if flying and max(values) == min(values):
             return "stuck"
-        tas_pred = [v for _, v, _ in p]
+        wn, we = wind_ne_mps
+        tas_pred = []
+        for _, v, c in p:
+            # the velocity as the INS alone would have carried it to now: corrections made
+            # since this batch undone
+            vn = v[0] + corr_now[0] - c[0] - wn
+            ve = v[1] + corr_now[1] - c[1] - we
+            vd = v[2] + corr_now[2] - c[2]
+            tas_pred.append(gain * math.sqrt(vn * vn + ve * ve + vd * vd))
         if max(tas_pred) - min(tas_pred) < self.cfg.stuck_min_change_mps:
             return ""  # no predicted change: nothing to follow
         std_meas = _std(values)
-        std_pred = _std([q for _, _, q in p])
+        std_pred = _std([impact_pressure_pa(v, static_pa, temp_k) for v in tas_pred])
         expected = math.hypot(self.cfg.diff_pressure_noise_pa, std_pred)
         if std_meas < self.cfg.stuck_ratio * expected:
             return "stuck"

@@ -182,6 +182,7 @@ def test_air_data_holds_a_300_s_outage_far_better_than_free_inertial(
         assert est_on is not None
         assert est_on.mode == "dead-reckoning" and est_off[-1].mode == "free-inertial"
         assert off.health.airspeed_ignored == len(air)
+        assert nav.health.airspeed_blockages == 0  # a healthy pitot is never dropped
         ratios.append(horizontal_error_m(sc, est_on) / horizontal_error_m(sc, est_off[-1]))
     # THEN the horizontal error after 300 s is at most half of free-inertial's (mean over the
     # seeds; none above 0.6). Free-inertial error grows as t^2..t^3 (tilt and accelerometer
@@ -391,3 +392,34 @@ def test_wind_process_noise_grows_with_the_climb_rate() -> None:
     # (0.05 (1 + 0.5 * 4))^2 * 0.01 = 9x the level-flight value; the scale's does not change
     assert level[0] == pytest.approx(0.05**2 * 0.01)
     assert climb[0] == pytest.approx(9.0 * level[0]) and climb[1] == level[1] == 1e-8 * 0.01
+
+
+@pytest.mark.slow
+def test_a_stuck_noisy_pitot_that_misses_an_airspeed_change_is_dropped_within_10_s() -> None:
+    # GIVEN a flight whose airspeed swings +-5 m/s (40 s period) and a pitot that keeps its
+    # value at 200 s (inside the outage) but still shows its 1 Pa noise: only the failure to
+    # follow the airspeed change the INS sees gives it away
+    turns = [(20.0, 35.0, 0.2), (60.0, 75.0, -0.2)]
+    prep = prepare(Flight(duration_s=260.0, speed_mps=30.0, wind_ne_mps=WIND, turns=turns,
+                          speed_wave_mps=5.0))  # fmt: skip
+    held: list[float] = []
+    noise = np.random.default_rng(5)
+
+    def stuck(t: float, qc: float) -> float:
+        if t < 200.0:
+            return qc
+        if not held:
+            held.append(qc)
+        return held[0] + float(noise.normal(0.0, 1.0))
+
+    rng = np.random.default_rng(21)
+    sc = make_scenario(prep, rng, ERRORS, gnss_outages=[(100.0, 260.0)])
+    air = airspeed_samples(sc, WIND, rng, tas_noise_mps=TAS_NOISE_MPS, fault=stuck)
+    nav = NavFilter(CFG)
+    est = run(nav, merge(sc.samples, air))
+    # THEN it is declared stuck within 10 s: the check undoes the corrections the fused
+    # stuck readings made to the velocity (4.2 s on the 400 s test flight with this fault,
+    # 14.8 s there without undoing them)
+    t_block = _first_blocked_s(est, 200.0)
+    assert t_block - 200.0 <= 10.0
+    assert est[-1].air_data is not None and est[-1].air_data.fault == "stuck"
