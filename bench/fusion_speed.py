@@ -26,7 +26,12 @@ A pyinstrument profile of the filter alone (100 Hz covariance) gives the top fun
 time. The 1-, 5- and 15-minute load averages are recorded: other jobs may share the machine.
 
     python bench/fusion_speed.py --out bench/results/fusion_speed.json \
-        [--duration 120] [--repeats 3] [--seed 1]
+        [--duration 120] [--repeats 3] [--seed 1] [--gnss-bias on|off] [--airspeed on|off]
+
+With ``--airspeed on`` (default) the ``filter`` stream also carries pitot samples at 20 Hz
+(impact pressure of the truth's airspeed, 1 Pa noise): the air-data states are fused. The
+``decode+filter`` frames carry no air data (HIL_SENSOR ``diff_pressure`` comes with the
+simulator's pitot).
 """
 
 from __future__ import annotations
@@ -55,22 +60,37 @@ def generate(duration_s: float, seed: int) -> tuple[list[Any], list[bytes], int]
     seed : int
         Scenario seed.
     """
+    import numpy as np
+
     from hil.pipeline import SimChain, SimSetup
-    from sim.samples import ImuSample
+    from physconst.airdata import impact_pressure_pa
+    from sim.samples import AirspeedSample, ImuSample
 
     setup = SimSetup.build(plan="racetrack", imu=IMU, gnss="modern", baro="ms5611",
                            mag="consumer", rate_hz=RATE_HZ, duration_s=duration_s, seed=seed)
     samples: list[Any] = []  # as emitted by the sensor suite
     frames: list[bytes] = []
+    rng = np.random.default_rng(seed)
     with SimChain(setup) as chain:
-        for step in chain.steps():
+        for k, step in enumerate(chain.steps()):
             samples.extend(step.samples)
             frames.extend(frame for _t, frame in step.frames)
+            if AIRSPEED["on"] and k % PITOT_EVERY == 0:
+                tr = step.truth
+                qc = impact_pressure_pa(tr.airspeed_mps, tr.static_pressure_pa, tr.temperature_k)
+                samples.append(AirspeedSample(tr.time_us, qc + float(rng.normal(0.0, 1.0)),
+                                              tr.temperature_k))
     if chain.ended is not None:
         raise RuntimeError(f"flight ended early: {chain.ended}")
     n_imu = sum(isinstance(s, ImuSample) for s in samples)
     return samples, frames, n_imu
 
+
+AIRSPEED = {"on": True}
+"""Whether the ``filter`` stream carries pitot samples (``--airspeed``): impact pressure of the
+truth's airspeed + 1 Pa noise at 20 Hz (the simulator's own pitot is not on this branch yet;
+the ``decode+filter`` frames carry no air data either way)."""
+PITOT_EVERY = 10  # one pitot sample per 10 IMU steps: 20 Hz
 
 GNSS_BIAS = {"on": False}
 """Whether the filter carries the GNSS position-bias states (``--gnss-bias``)."""
@@ -155,10 +175,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-profile", action="store_true", help="skip the pyinstrument profile")
     ap.add_argument("--out", type=Path, default=Path("bench/results/fusion_speed.json"))
     ap.add_argument("--gnss-bias", choices=("on", "off"), default="off",
-                    help="off: ins16 (as before); on: the filter as the commands tune it for the "
-                         "modern receiver (ins16+gnss, 19 states)")
+                    help="off: the IMU datasheet layout (ins35+air); on: the filter as the "
+                         "commands tune it for the modern receiver (ins35+gnss+air, 41 states)")
+    ap.add_argument("--airspeed", choices=("on", "off"), default="on",
+                    help="on: the filter stream carries 20 Hz pitot samples (air data fused); "
+                         "off: no air data (the air-data states stay dormant)")
     args = ap.parse_args(argv)
     GNSS_BIAS["on"] = args.gnss_bias == "on"
+    AIRSPEED["on"] = args.airspeed == "on"
     if args.duration <= 5 or args.repeats < 1:
         ap.error("--duration must be > 5 s and --repeats >= 1")
 
@@ -204,6 +228,7 @@ def main(argv: list[str] | None = None) -> int:
         "imu": IMU,
         "state_layout": layout.name,
         "error_states": layout.n,
+        "airspeed_samples_in_filter_stream": AIRSPEED["on"],
         "stream": {
             "plan": "racetrack", "seed": args.seed, "duration_s": args.duration,
             "imu_rate_hz": RATE_HZ, "gnss_rate_hz": 5.0, "baro_rate_hz": 50.0,

@@ -38,7 +38,8 @@ Foundations: :mod:`~fusion.earth`, :mod:`~fusion.rotations`, :mod:`~fusion.strap
 engine: :mod:`~fusion.filter` (``NavFilter``, the orchestrator) sequencing
 :mod:`~fusion.screening` (input samples), :mod:`~fusion.propagation` (covariance time update),
 :mod:`~fusion.feedback` (feedback and resets), :mod:`~fusion.history` (delayed measurements),
-:mod:`~fusion.alignment`, one module per aiding source under :mod:`fusion.aiding`,
+:mod:`~fusion.alignment`, one module per aiding source under :mod:`fusion.aiding` (gnss,
+baro, mag, pseudo_gnss, airspeed with its pitot monitor),
 :mod:`~fusion.altitude_link` and :mod:`~fusion.outage`; its outputs are in
 :mod:`~fusion.estimate` and its configuration in :mod:`~fusion.config`. Methods: the altitude
 channel (:mod:`fusion.altitude`), GNSS-outage bridging (:mod:`fusion.bridging`) and its

@@ -206,6 +206,127 @@ class MagTuning(_Frozen):
     excite, e.g. body z in level flight), T."""
 
 
+class AirspeedTuning(_Frozen):
+    """Air data (:mod:`fusion.aiding.airspeed`): true-airspeed fusion with two wind states
+    and an airspeed scale state, synthetic sideslip for a fixed-wing aircraft, pitot fault
+    detection and, without a usable pitot, synthetic airspeed from the last wind estimate.
+
+    Needs a layout with the air-data block (``+air``, :attr:`FilterConfig.state_layout`);
+    the commands' default has it. Defaults follow PX4 EKF2 where it has a parameter (named).
+    """
+
+    enabled: bool = True
+    """Fuse air data when the stream carries it (``--airspeed off``: ``False``; the samples
+    are then counted in ``Health.airspeed_ignored`` and nothing air-related is fused)."""
+    fixed_wing: bool = True
+    """The vehicle flies on a wing: its air-relative velocity lies along the body x axis
+    (synthetic sideslip ``beta = 0``), and synthetic airspeed is meaningful."""
+    fuse_rate_hz: PositiveFloat = 5.0
+    """Airspeed samples are averaged over ``1 / fuse_rate_hz`` and fused as one (the sensor
+    noise part of the variance divided by the count); sideslip is fused at the same rate."""
+    diff_pressure_noise_pa: PositiveFloat = 1.0
+    """White noise of one differential-pressure reading, Pa (about the MS4525DO / SDP3x
+    class); sets the sensor part of the TAS sigma, ``sigma_qc / (rho V)``, and what the
+    stuck-sensor check expects to see."""
+    tas_noise_floor_mps: PositiveFloat = 1.0
+    """Floor of the TAS sigma of one fused batch, m/s: covers turbulence, pitot position
+    error and the sideslip the model neglects. PX4's EKF2_EAS_NOISE is 1.4 m/s fused at
+    about 10 Hz; 1.0 m/s at 5 Hz is the same information rate."""
+    gate_probability: Probability = Field(default=0.999, gt=0.5, lt=1.0)
+    """Chi-square gate of the TAS update (0.999: 3.3 sigma; EKF2_TAS_GATE is 3 sigma)."""
+    min_airspeed_mps: PositiveFloat = 8.0
+    """Airspeed fusion (and sideslip) start above this measured airspeed (EKF2_ARSP_THR, a
+    fixed-wing's 'airborne'); below it samples are counted in ``airspeed_low``, m/s."""
+    negative_tolerance_pa: NonNegativeFloat = 5.0
+    """A reading down to this far below zero is a live sensor's noise around zero (at rest, or
+    a blocked line): taken as 0 Pa. Anything more negative is invalid (counted), Pa."""
+    max_diff_pressure_pa: PositiveFloat = 20_000.0
+    """Readings above this are absurd (Mach 0.5 at sea level is ~19 kPa), Pa."""
+    timeout_s: PositiveFloat = 1.0
+    """No fused airspeed for this long: air data reported inactive (mode, status), s."""
+    wind_init_sigma_mps: PositiveFloat = 3.0
+    """Wind sigma per axis when the wind states start from ``v - TAS * heading`` (added in
+    quadrature to ``TAS * yaw sigma`` and the TAS sigma), m/s."""
+    wind_init_sigma_no_pitot_mps: PositiveFloat = 10.0
+    """Wind sigma per axis when a fixed-wing without a pitot starts its wind states (at zero)
+    to learn them from sideslip and GNSS for synthetic airspeed, m/s."""
+    scale_sigma: PositiveFloat = 0.05
+    """Prior sigma of the airspeed scale factor (pitot calibration ratio, position error)."""
+    wind_noise_mps2_rthz: PositiveFloat = 0.05
+    """Wind random walk, m/s^2/sqrt(Hz) (EKF2_WIND_NSD)."""
+    wind_climb_scaler_spm: NonNegativeFloat = 0.5
+    """Wind noise times ``1 + scaler |climb rate|``, s/m (EKF2's ``wind_vel_nsd_scaler``)."""
+    scale_noise_rthz: PositiveFloat = 1e-4
+    """Airspeed scale random walk, 1/sqrt(s) (PX4 WEST_SC_P_NOISE)."""
+    sideslip_noise_rad: PositiveFloat = 0.3
+    """Synthetic sideslip sigma, rad (EKF2_BETA_NOISE default 0.3)."""
+    sideslip_gate_probability: Probability = Field(default=0.999, gt=0.5, lt=1.0)
+    stuck_window_s: PositiveFloat = 4.0
+    """Window of the stuck-sensor check, s."""
+    stuck_ratio: float = Field(default=0.25, gt=0.0, lt=1.0)
+    """Stuck when the readings' standard deviation over the window is below this fraction of
+    what the sensor noise plus the predicted change of impact pressure would give."""
+    stuck_min_change_mps: PositiveFloat = 2.0
+    """... judged only over windows where the predicted airspeed changed by at least this
+    much (a stuck reading in steady flight is undetectable, and still right), m/s."""
+    zero_airspeed_mps: PositiveFloat = 3.0
+    """A reading below this airspeed reads 'zero' (a blocked or disconnected line), m/s."""
+    flying_speed_mps: PositiveFloat = 15.0
+    """... a zero reading is a fault when the predicted airspeed (or, with the wind
+    states dormant, the ground speed) is above this, m/s."""
+    zero_time_s: PositiveFloat = 1.0
+    """Zero while flying for this long: blocked, s."""
+    reject_time_s: PositiveFloat = 5.0
+    """Every fused batch rejected by the gate for this long: blocked, s."""
+    recover_time_s: PositiveFloat = 10.0
+    """A blocked pitot is fused again only after its batches passed the innovation test
+    (against the current wind and velocity, not fused) and the stuck and zero checks for
+    this long, s."""
+    synthetic_when_blocked: bool = True
+    """Fixed-wing only: when GNSS is lost and the pitot the stream carries is not usable
+    (blocked, or nothing fused within ``timeout_s``), fuse a synthetic TAS: the airspeed
+    estimate ``|v - w|`` averaged over the last ``synthetic_average_s`` of trusted aiding,
+    as ArduPilot EKF3 does with its default airspeed (without it the INS leaves dead
+    reckoning at once)."""
+    synthetic_when_no_pitot: bool = False
+    """Fixed-wing only, a stream without any airspeed sample: start the wind states once
+    flying on GNSS, learn the wind from the synthetic sideslip and the GNSS velocity, and
+    fuse the synthetic TAS when GNSS is lost (``--airspeed synthetic``). Off by default so
+    that a stream without air data navigates exactly as without the air-data states (and a
+    free-inertial baseline stays free-inertial); the ``synthetic`` baseline of the benches
+    turns it on."""
+    synthetic_average_s: PositiveFloat = 60.0
+    """The synthetic TAS is the mean of ``|v_k - w|`` over the ground velocities of this span
+    before trusted aiding stopped, against the wind estimate of that moment: the cruise
+    airspeed, not the phase of a phugoid or of a throttle change when GNSS was lost, s."""
+    synthetic_rate_hz: PositiveFloat = 1.0
+    """Rate of the synthetic TAS updates, Hz: its error (the real airspeed's excursions from
+    cruise) is correlated over tens of seconds, so fusing it at the batch rate would count
+    one error many times (the reason the magnetometer is fused at 0.5 Hz)."""
+    synthetic_noise_mps: PositiveFloat = 3.0
+    """Sigma of the synthetic TAS (throttle and pitch changes move the real airspeed by a
+    few m/s: the cruise-speed spread of a small fixed-wing), m/s."""
+
+
+AIRSPEED_MODES: tuple[str, ...] = ("on", "off", "synthetic")
+"""Air-data choices of the commands (``--airspeed``): ``on`` fuses the pitot when the stream
+carries one; ``off`` fuses no air data (samples counted, not fused); ``synthetic`` is ``on``
+plus synthetic airspeed on a fixed-wing without a pitot (:class:`AirspeedTuning`)."""
+
+
+def airspeed_tuning(mode: str, base: AirspeedTuning | None = None) -> AirspeedTuning:
+    """``base`` (default :class:`AirspeedTuning`) set for the command-line choice ``mode``
+    (:data:`AIRSPEED_MODES`; ValueError names the valid ones)."""
+    if mode not in AIRSPEED_MODES:
+        raise ValueError(
+            f"unknown airspeed mode {mode!r}; valid choices: {', '.join(AIRSPEED_MODES)}"
+        )
+    base = base or AirspeedTuning()
+    return base.model_copy(update={
+        "enabled": mode != "off", "synthetic_when_no_pitot": mode == "synthetic",
+    })  # fmt: skip
+
+
 class InitConfig(_Frozen):
     """Alignment and initial uncertainties."""
 
@@ -416,7 +537,9 @@ class FilterConfig(_Frozen):
     them a receiver whose error is really white at ``eph`` is fused with too small an ``R``
     and gated out. The split of ``eph`` into correlated and white parts is a property of the
     receiver: :func:`hil.tuning.gnss_state_layout` chooses the layout from a receiver
-    description."""
+    description. ``+air`` (e.g. ``ins35+gnss+air``, the commands' default): plus the wind
+    North / East and the airspeed scale factor, dormant until an airspeed sample (or, for a
+    fixed-wing without a pitot, flight) starts them (:class:`AirspeedTuning`)."""
     imu: ImuTuning = ImuTuning()
     gnss: GnssTuning = GnssTuning()
     baro: BaroTuning = BaroTuning()
@@ -425,3 +548,4 @@ class FilterConfig(_Frozen):
     rates: RatesConfig = RatesConfig()
     bridge: BridgeConfig = BridgeConfig()
     altitude: AltitudeConfig = AltitudeConfig()
+    airspeed: AirspeedTuning = AirspeedTuning()

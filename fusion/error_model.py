@@ -19,7 +19,17 @@ Error definitions (every error is *estimated minus true*):
   (:mod:`fusion.aiding.baro`); it does not enter the INS dynamics;
 - optional ``db_gnss`` (GNSS): error of the estimated time-correlated GNSS position error
   (receiver "bias": atmosphere, orbit, multipath), North / East / Down, m; it does not enter the
-  INS dynamics, only the GNSS position measurement (see :mod:`fusion.aiding.gnss`).
+  INS dynamics, only the GNSS position measurement (see :mod:`fusion.aiding.gnss`);
+- optional ``dw`` (WIND) and ``dk`` (ASPD_SCALE), the ``+air`` block: horizontal wind error
+  North / East, m/s, and the airspeed scale-factor error (dimensionless, ``TAS_measured =
+  (1 + k) |v - w|``, :mod:`fusion.aiding.airspeed`); they do not enter the INS dynamics.
+  The wind is a random walk whose driving noise grows with the climb rate (PX4 EKF2:
+  ``EKF2_WIND_NSD`` = 0.05 m/s^2/sqrt(Hz) times ``1 + 0.5 |dh/dt|``: wind changes with
+  height), the scale a random constant plus a small random walk (PX4's wind estimator,
+  ``WEST_SC_P_NOISE`` = 1e-4). The block is *dormant* until air data starts it: zero
+  covariance rows and columns and no process noise (:meth:`ErrorModel.air_process_noise` is
+  added by :class:`fusion.propagation.CovariancePropagator` only once the filter activated
+  it), so a stream without air data navigates as the same layout without the block.
 
 Sensor model: ``f~ = (I + diag(s_a) + M_a) f + b_a + w_a``,
 ``omega~ = (I + diag(s_g) + M_g) omega + b_g + w_g`` (``M`` zero on the diagonal; layouts
@@ -61,6 +71,7 @@ After each measurement update the error estimate is moved into the INS and reset
 from __future__ import annotations
 
 import math
+import typing
 from dataclasses import dataclass
 from typing import Literal
 
@@ -71,7 +82,10 @@ from fusion import earth
 
 FloatArray = NDArray[np.float64]
 
-LayoutName = Literal["ins16", "ins16+gnss", "ins22", "ins22+gnss", "ins35", "ins35+gnss"]
+LayoutName = Literal[
+    "ins16", "ins16+gnss", "ins22", "ins22+gnss", "ins35", "ins35+gnss",
+    "ins16+air", "ins16+gnss+air", "ins22+air", "ins22+gnss+air", "ins35+air", "ins35+gnss+air",
+]  # fmt: skip
 """Names of the error-state layouts (:func:`layout_for`)."""
 
 OFF_DIAGONAL: tuple[tuple[int, int], ...] = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
@@ -106,6 +120,8 @@ class StateLayout:
     ma: slice | None = None
     mg: slice | None = None
     bs: slice | None = None
+    air: slice | None = None
+    """Wind North, wind East, airspeed scale (``+air`` layouts)."""
 
     def _optional_offset(self, block: slice | None, what: str) -> int:
         if block is None:
@@ -171,6 +187,21 @@ class StateLayout:
     def BS(self) -> int:
         """Offset of the baro scale-factor state (ValueError if the layout has none)."""
         return self._optional_offset(self.bs, "baro scale-factor state")
+
+    @property
+    def WIND(self) -> int:
+        """Offset of the wind block (North, East; ValueError if the layout has none)."""
+        return self._optional_offset(self.air, "air-data states")
+
+    @property
+    def ASPD_SCALE(self) -> int:
+        """Offset of the airspeed scale-factor state (ValueError if the layout has none)."""
+        return self._optional_offset(self.air, "air-data states") + 2
+
+    @property
+    def has_air(self) -> bool:
+        """The layout carries the wind and airspeed-scale states (``+air``)."""
+        return self.air is not None
 
     @property
     def has_baro_scale(self) -> bool:
@@ -262,9 +293,26 @@ INS22_GNSS = _with_gnss_bias(INS22, "ins22+gnss")
 #: :data:`INS35` plus the GNSS position bias (38 states).
 INS35_GNSS = _with_gnss_bias(INS35, "ins35+gnss")
 
-LAYOUTS: dict[str, StateLayout] = {
-    lay.name: lay for lay in (INS16, INS16_GNSS, INS22, INS22_GNSS, INS35, INS35_GNSS)
-}
+_AIR_LABELS = ("wind_n_mps", "wind_e_mps", "airspeed_scale")
+
+
+def _with_air(base: StateLayout) -> StateLayout:
+    n = base.n
+    return StateLayout(
+        name=typing.cast(LayoutName, f"{base.name}+air"), n=n + 3, pos=base.pos, vel=base.vel,
+        att=base.att, ba=base.ba, bg=base.bg, baro=base.baro, sa=base.sa, sg=base.sg,
+        labels=(*base.labels, *_AIR_LABELS), gnss=base.gnss, ma=base.ma, mg=base.mg,
+        bs=base.bs, air=slice(n, n + 3),
+    )  # fmt: skip
+
+
+_BASE_LAYOUTS = (INS16, INS16_GNSS, INS22, INS22_GNSS, INS35, INS35_GNSS)
+#: Every layout plus the air-data block (wind N/E, airspeed scale): ``ins16+air`` (19),
+#: ``ins16+gnss+air`` (22), ``ins22+air`` (25), ``ins22+gnss+air`` (28), ``ins35+air`` (38),
+#: ``ins35+gnss+air`` (41 states, the commands' default).
+AIR_LAYOUTS = tuple(_with_air(lay) for lay in _BASE_LAYOUTS)
+
+LAYOUTS: dict[str, StateLayout] = {lay.name: lay for lay in (*_BASE_LAYOUTS, *AIR_LAYOUTS)}
 
 
 def layout_for(name: str) -> StateLayout:
@@ -316,6 +364,13 @@ class ProcessNoise:
     """Random-walk driving of the baro scale factor: its sigma over ``baro_scale_tau_s``
     (only layouts with the state)."""
     baro_scale_tau_s: float = 3600.0
+    wind_noise_mps2_rthz: float = 0.05
+    """Wind random-walk driving noise in level flight, m/s^2/sqrt(Hz) (PX4 EKF2_WIND_NSD)."""
+    wind_climb_scaler_spm: float = 0.5
+    """The wind noise is multiplied by ``1 + scaler |climb rate|`` (s/m; EKF2's
+    ``wind_vel_nsd_scaler``): a climbing aircraft flies through the wind profile."""
+    airspeed_scale_noise_rthz: float = 1e-4
+    """Airspeed scale random-walk driving noise, 1/sqrt(s) (PX4 WEST_SC_P_NOISE)."""
 
 
 class ErrorModel:
@@ -586,6 +641,17 @@ class ErrorModel:
             ),
         )  # fmt: skip
         return phi
+
+    def air_process_noise(self, dt_s: float, climb_rate_mps: float) -> tuple[float, float]:
+        """Discrete process noise of the air-data block over ``dt_s`` (layouts with it, once
+        active): ``(q_wind per axis, q_scale)``, m^2/s^2 and dimensionless.
+
+        ``q_wind = (nsd (1 + scaler |climb rate|))^2 T`` (PX4 EKF2's wind random walk),
+        ``q_scale = nsd_k^2 T``.
+        """
+        nz = self.noise
+        w = nz.wind_noise_mps2_rthz * (1.0 + nz.wind_climb_scaler_spm * abs(climb_rate_mps))
+        return w * w * dt_s, nz.airspeed_scale_noise_rthz**2 * dt_s
 
     def transition_matrix(self, f: FloatArray, dt_s: float) -> FloatArray:
         """Discrete transition ``Phi = I + F T + (F T)^2 / 2`` (second-order Taylor series)."""

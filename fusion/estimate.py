@@ -28,6 +28,10 @@ class Mode(StrEnum):
     """GNSS lost, the INS coasts on the remaining aiding."""
     BRIDGING = "bridging"
     """GNSS lost, the bridging strategy corrects the output or sends pseudo-fixes."""
+    DEAD_RECKONING = "dead-reckoning"
+    """GNSS lost, the INS is held by air data: true airspeed (measured, or synthetic from the
+    last wind estimate) fused within ``AirspeedTuning.timeout_s``, against the wind states
+    (a bridging strategy that is active takes precedence: ``bridging``)."""
 
 
 class AidSource(StrEnum):
@@ -41,6 +45,10 @@ class AidSource(StrEnum):
     """A bridging strategy's pseudo-GNSS position."""
     BRIDGE_VEL = "bridge_vel"
     """A bridging strategy's pseudo-GNSS velocity."""
+    AIRSPEED = "airspeed"
+    """True airspeed, from the pitot or synthetic (:mod:`fusion.aiding.airspeed`)."""
+    SIDESLIP = "sideslip"
+    """Synthetic sideslip (zero) of a fixed-wing aircraft."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,6 +123,34 @@ class Health:
     """Confirmed new IMU time bases the INS could not coast into (a step back, as after a
     simulator restart, or a gap above ``max_coast_s``): the filter re-initialised (these
     counters survive it)."""
+    airspeed_fused: int = 0
+    """Averaged airspeed batches fused (measured TAS)."""
+    airspeed_rejected: int = 0
+    """Airspeed batches rejected by the gate."""
+    airspeed_invalid: int = 0
+    """Airspeed samples with a NaN, negative (below ``-negative_tolerance_pa``) or absurd
+    (above ``max_diff_pressure_pa``) differential pressure: not used (a temperature outside
+    150-350 K is replaced by the barometer's, not counted)."""
+    airspeed_ignored: int = 0
+    """Airspeed samples not used because air data is off (``--airspeed off``) or the layout
+    has no air-data states."""
+    airspeed_low: int = 0
+    """Valid airspeed samples below ``min_airspeed_mps`` (on the ground): not fused."""
+    airspeed_blockages: int = 0
+    """Pitot faults detected (stuck, zero while flying, persistent gate rejections): the pitot
+    is dropped until it passes its consistency check."""
+    airspeed_blocked: int = 0
+    """Airspeed samples dropped because the pitot is declared blocked."""
+    airspeed_recoveries: int = 0
+    """Blocked pitots trusted again after passing the consistency check."""
+    sideslip_fused: int = 0
+    sideslip_rejected: int = 0
+    synthetic_airspeed_fused: int = 0
+    """Synthetic TAS updates fused (no usable pitot, GNSS lost, fixed-wing)."""
+    synthetic_airspeed_rejected: int = 0
+    wind_resets: int = 0
+    """Starts of the wind states (from the first airspeed batch, or at zero for sideslip-only
+    wind learning without a pitot)."""
 
 
 HEALTH_FIELDS = tuple(f.name for f in fields(Health))
@@ -156,6 +192,19 @@ class HealthCounters:
     baro_repeats_held: int
     time_quarantined: int
     time_rebases: int
+    airspeed_fused: int
+    airspeed_rejected: int
+    airspeed_invalid: int
+    airspeed_ignored: int
+    airspeed_low: int
+    airspeed_blockages: int
+    airspeed_blocked: int
+    airspeed_recoveries: int
+    sideslip_fused: int
+    sideslip_rejected: int
+    synthetic_airspeed_fused: int
+    synthetic_airspeed_rejected: int
+    wind_resets: int
 
     def __init__(self) -> None:
         for name in HEALTH_FIELDS:
@@ -230,6 +279,8 @@ class TestRatios:
     gnss_vel: float = math.nan
     baro_hgt: float = math.nan
     mag_hdg: float = math.nan
+    airspeed: float = math.nan
+    """True airspeed (ESTIMATOR_STATUS ``tas_ratio``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -336,10 +387,43 @@ class AidingStatus:
     mag_hdg: AidSourceStatus = AidSourceStatus(AidSource.MAG_HDG)
     bridge_pos: AidSourceStatus = AidSourceStatus(AidSource.BRIDGE_POS)
     bridge_vel: AidSourceStatus = AidSourceStatus(AidSource.BRIDGE_VEL)
+    airspeed: AidSourceStatus = AidSourceStatus(AidSource.AIRSPEED)
+    sideslip: AidSourceStatus = AidSourceStatus(AidSource.SIDESLIP)
 
     def __getitem__(self, source: AidSource) -> AidSourceStatus:
         status: AidSourceStatus = getattr(self, source.value)
         return status
+
+
+@dataclass(frozen=True, slots=True)
+class AirDataStatus:
+    """State of the air data at one output epoch (:mod:`fusion.aiding.airspeed`).
+
+    Attributes
+    ----------
+    state : str
+        ``off`` (disabled or no air-data states), ``waiting`` (no airspeed fused yet),
+        ``fusing`` (measured TAS fused within the timeout), ``blocked`` (pitot fault: dropped
+        until it passes its consistency check), ``synthetic`` (synthetic TAS from the last
+        wind estimate), ``stale`` (nothing fused within the timeout).
+    wind_active : bool
+        The wind states are running.
+    wind_ne_mps : (float, float)
+        Wind estimate North, East (NaN while dormant), m/s.
+    airspeed_scale : float
+        Airspeed scale-factor estimate (``TAS_measured = (1 + k) |v - w|``).
+    tas_mps : float
+        Last valid measured TAS batch (NaN before the first), m/s.
+    fault : str
+        Why the pitot is blocked: ``stuck``, ``zero``, ``rejected`` (``""`` when not).
+    """
+
+    state: str = "off"
+    wind_active: bool = False
+    wind_ne_mps: tuple[float, float] = (math.nan, math.nan)
+    airspeed_scale: float = 0.0
+    tas_mps: float = math.nan
+    fault: str = ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -362,8 +446,8 @@ class NavEstimate:
         m^2 (N, E, D), velocity (m/s)^2, attitude rad^2, biases SI^2, baro bias m^2; as of the
         last covariance propagation (at most ``1 / covariance_rate_hz`` old).
     mode : Mode
-        ``initializing``, ``gnss``, ``free-inertial`` or ``bridging`` (a string enum: it
-        compares and prints as its value).
+        ``initializing``, ``gnss``, ``free-inertial``, ``dead-reckoning`` or ``bridging`` (a
+        string enum: it compares and prints as its value).
     accel_bias_b_mps2, gyro_bias_b_rps : ndarray, shape (3,)
         Estimated sensor biases, m/s^2 and rad/s.
     baro_bias_m : float
@@ -387,6 +471,8 @@ class NavEstimate:
         Covariance of the position, velocity and attitude errors (the first nine states of
         every layout, same units and time as ``P_diag``), correlations included: what a
         consistency check (NEES) needs.
+    air_data : AirDataStatus or None
+        Air data: wind, airspeed scale, pitot state.
     """
 
     time_us: int
@@ -409,6 +495,7 @@ class NavEstimate:
     bridge: BridgeStatus | None = None
     aiding: AidingStatus | None = None
     P_nav: FloatArray | None = None
+    air_data: AirDataStatus | None = None
 
 
 _ESTIMATE_SETTERS = tuple(getattr(NavEstimate, f.name).__set__ for f in fields(NavEstimate))
@@ -419,6 +506,6 @@ def new_estimate(*values: Any) -> NavEstimate:
     generated frozen ``__init__`` goes through ``object.__setattr__`` per field and costs about
     twice as much at the output rate. No validation, as with ``__init__``."""
     est = object.__new__(NavEstimate)
-    for setter, value in zip(_ESTIMATE_SETTERS, values):  # noqa: B905  # 20 values, one caller
+    for setter, value in zip(_ESTIMATE_SETTERS, values):  # noqa: B905  # 21 values, one caller
         setter(est, value)
     return est

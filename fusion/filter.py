@@ -32,6 +32,14 @@ the barometer (pressure out of the atmosphere model, frozen sensor; loop methods
 jumps) and counts what it rejects; :class:`~fusion.estimate.AltitudeStatus` reports the
 calibration and compensator state.
 
+Air data (:mod:`fusion.aiding.airspeed`, layouts ``+air``): pitot samples are screened and
+batched as they arrive; every ``1 / AirspeedTuning.fuse_rate_hz`` of IMU time one air-data
+epoch starts the dormant wind and airspeed-scale states (first airspeed above
+``min_airspeed_mps``), fuses the true airspeed through the pitot monitor
+(:mod:`fusion.aiding.pitot_monitor`: a blocked pitot is only tested), the synthetic sideslip
+of a fixed-wing, and, with GNSS lost and no usable pitot, the synthetic airspeed. With GNSS
+lost and an airspeed fused within ``timeout_s`` the mode is ``dead-reckoning``.
+
 This module only sequences calls and keeps counters.
 """
 
@@ -47,7 +55,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from fusion import earth, kalman, strapdown
 from fusion.aiding import Observation
-from fusion.aiding.baro import BaroAiding, pressure_to_height
+from fusion.aiding.airspeed import AirspeedAiding
+from fusion.aiding.baro import BaroAiding, height_to_pressure, pressure_to_height
 from fusion.aiding.gnss import GnssAiding, fix_sigmas
 from fusion.aiding.mag import MagAiding
 from fusion.aiding.pseudo_gnss import PseudoGnssAiding
@@ -74,6 +83,7 @@ from fusion.estimate import (
     AidingStatus,
     AidSource,
     AidSourceStatus,
+    AirDataStatus,
     Health,
     HealthCounters,
     Innovation,
@@ -110,6 +120,9 @@ _increments_compensated = strapdown.increments_compensated
 _ZERO6: tuple[float, ...] = (0.0,) * 6
 _IDENTITY9: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 _GNSS, _BRIDGING, _FREE = Mode.GNSS, Mode.BRIDGING, Mode.FREE_INERTIAL
+_DEAD_RECKONING = Mode.DEAD_RECKONING
+_NEVER_US = 1 << 62  # the air-data tick of a filter without air data
+_AIR_OFF = AirDataStatus()
 _AID_INDEX = {s: i for i, s in enumerate(AidSource)}
 
 
@@ -163,6 +176,9 @@ class NavFilter:
             gnss_bias_sigma_v_m=cfg.gnss.bias_sigma_v_m,
             gnss_bias_tau_h_s=cfg.gnss.bias_tau_h_s,
             gnss_bias_tau_v_s=cfg.gnss.bias_tau_v_s,
+            wind_noise_mps2_rthz=cfg.airspeed.wind_noise_mps2_rthz,
+            wind_climb_scaler_spm=cfg.airspeed.wind_climb_scaler_spm,
+            airspeed_scale_noise_rthz=cfg.airspeed.scale_noise_rthz,
         )
         self._model = ErrorModel(self.layout, self._noise)
         self._scale = self.layout.has_scale_factors
@@ -173,6 +189,9 @@ class NavFilter:
         self._cov_period_s = 0.0 if rc.covariance_rate_hz is None else 1.0 / rc.covariance_rate_hz
         self._out_period_us = round(1e6 / rc.output_rate_hz)
         self._loop_alt = method != "ekf"
+        # air data: fused only with the layout's air-data block and air data enabled
+        self._air_on = self.layout.has_air and cfg.airspeed.enabled
+        self._air_period_us = round(1e6 / cfg.airspeed.fuse_rate_hz)
         self._handlers: dict[type, Callable[[Any], list[NavEstimate]]] = {}
         self.reset()
 
@@ -210,6 +229,16 @@ class NavFilter:
         self._baro = BaroAiding(cfg.baro, lay, self._c, self._correct, self._init_baro_bias)
         self._mag = MagAiding(cfg.mag, lay, self._c, self._correct)
         self._pseudo = PseudoGnssAiding(cfg.gnss, lay, self._correct)
+        self._air: AirspeedAiding | None = (
+            AirspeedAiding(cfg.airspeed, lay, self._c, self._correct, self._current_covariance,
+                           self._activate_air, self._velocity_corrections)
+            if self._air_on else None
+        )  # fmt: skip
+        self._air_next_us = _NEVER_US
+        self._air_status = _AIR_OFF
+        self._vel_corr = [0.0, 0.0, 0.0]  # sum of the feedback's velocity corrections, m/s
+        self._static_pa = math.nan  # last accepted baro pressure and temperature
+        self._static_temp_k = math.nan
         self._alt = AltitudeLink(cfg.altitude, cfg.gnss.lever_arm_b_m, self._c)
         self._outage = OutageBridging(self.bridge, cfg.bridge.rate_hz, self._epoch)
         self._shadows = self._outage.shadows  # the IMU path's view of it
@@ -272,12 +301,34 @@ class NavFilter:
 
     @property
     def mode(self) -> Mode:
-        """``initializing`` | ``gnss`` | ``free-inertial`` | ``bridging``."""
+        """``initializing`` | ``gnss`` | ``free-inertial`` | ``dead-reckoning`` |
+        ``bridging``."""
         if self._ins is None:
             return Mode.INITIALIZING
-        if self._gnss.control.is_active(self._t_us):
+        return self._mode(self._t_us)
+
+    def _mode(self, t: int) -> Mode:
+        if self._gnss_ctl.is_active(t):
             return _GNSS
-        return _BRIDGING if self._outage.active else _FREE
+        if self._outage.active:
+            return _BRIDGING
+        air = self._air
+        return _DEAD_RECKONING if air is not None and air.is_fusing(t) else _FREE
+
+    @property
+    def wind_ne_mps(self) -> tuple[float, float] | None:
+        """Wind estimate North, East (m/s); ``None`` while the air-data states are dormant
+        or absent."""
+        air = self._air
+        if air is None or not air.state.active:
+            return None
+        return air.state.wind_ne_mps
+
+    @property
+    def air_data(self) -> AirDataStatus:
+        """The air-data status (``off`` without air-data states or with air data disabled)."""
+        air = self._air
+        return _AIR_OFF if air is None else air.status(self._t_us)
 
     @property
     def bridge_status(self) -> BridgeStatus:
@@ -467,6 +518,11 @@ class NavFilter:
             outage.begin(t, self._ins, self._ba, self._bg, self._prev_dth, self._prev_dv)
         if outage.in_outage and t >= outage.next_us:
             self._bridge_step(t)
+        if t >= self._air_next_us:
+            self._air_next_us += self._air_period_us
+            if self._air_next_us <= t:
+                self._air_next_us = t + self._air_period_us
+            self._air_tick(t)
         if t >= self._next_out_us:
             self._next_out_us += self._out_period_us
             if self._next_out_us <= t:
@@ -524,6 +580,10 @@ class NavFilter:
         self._next_out_us = time_us
         self._outage.restart()
         self._alt.restart()  # a (re)start also restarts the altitude channel
+        air = self._air
+        if air is not None:  # the air-data block starts dormant (the covariance restarted)
+            air.state.active = False
+            self._air_next_us = time_us + self._air_period_us
 
     # ------------------------------------------------------------------ covariance
     def _propagate(self) -> None:
@@ -567,6 +627,9 @@ class NavFilter:
             self.layout, ins, dx, self._ba, self._bg, self._bb, gb, self._sa, self._sg,
             self._ma, self._mg, self._bs,
         )
+        air = self._air
+        if air is not None and air.state.active:
+            air.state.correct(dx.tolist(), self.layout)
         if self._misalign:
             self._ta_inv = strapdown.sensor_inverse(self._sa, self._ma)
             self._tg_inv = strapdown.sensor_inverse(self._sg, self._mg)
@@ -574,6 +637,10 @@ class NavFilter:
         if new_gb is not None:
             self._gb = list(new_gb)
         self._history.add_correction(nav_dx)
+        vc = self._vel_corr
+        vc[0] -= nav_dx[3]
+        vc[1] -= nav_dx[4]
+        vc[2] -= nav_dx[5]
         self._cov.v0 = ins.v_ned_mps
 
     def _reset_velocity(self, z: FloatArray, variances: FloatArray) -> None:
@@ -598,6 +665,48 @@ class NavFilter:
                                              sb2)  # fmt: skip
         self._feedback(dx)
         self._cov.P = P
+
+    def _current_covariance(self) -> FloatArray:
+        """The covariance propagated to the current time (read-only use)."""
+        self._flush()
+        return self._cov.P
+
+    def _velocity_corrections(self) -> tuple[float, float, float]:
+        """Sum of every velocity correction the feedback made (new minus old), m/s NED."""
+        vc = self._vel_corr
+        return (vc[0], vc[1], vc[2])
+
+    def _activate_air(
+        self, wind_ne_mps: tuple[float, float], wind_variance: float, scale_variance: float
+    ) -> None:
+        """Start the air-data block: wind and scale estimates with uncorrelated variances,
+        their process noise from now on."""
+        self._flush()
+        lay, air = self.layout, self._air
+        assert air is not None
+        w = lay.WIND
+        P = self._cov.P.copy()
+        P[lay.air, :] = 0.0
+        P[:, lay.air] = 0.0
+        P[w, w] = P[w + 1, w + 1] = wind_variance
+        P[w + 2, w + 2] = scale_variance
+        self._cov.P = P
+        self._cov.air_offset = w
+        air.state.wind_ne_mps = wind_ne_mps
+        air.state.scale = 0.0
+
+    def _air_tick(self, t: int) -> None:
+        """The air-data epoch (every ``1 / AirspeedTuning.fuse_rate_hz``)."""
+        air, ins = self._air, self._ins
+        assert air is not None and ins is not None
+        p, temp = self._static_pa, self._static_temp_k
+        if not math.isfinite(p):  # no baro yet: ISA at the INS height
+            p = height_to_pressure(ins.alt_msl_m)
+            temp = math.nan
+        if not 150.0 <= temp <= 350.0:
+            temp = 288.15 - 0.0065 * min(ins.alt_msl_m, 11_000.0)  # ISA
+        air.tick(t, ins, self._past_state, p, temp, self._gnss_ctl.is_active(t))
+        self._air_status = air.status(t)
 
     def _init_baro_bias(self, bias_m: float, reference_alt_m: float) -> None:
         """``b^ = h_baro - h^`` at the INS height ``reference_alt_m``, from then on the baro
@@ -727,6 +836,11 @@ class NavFilter:
         ins = self._ins
         if ins is None:
             return []
+        self._static_pa = p  # for the airspeed conversion
+        try:
+            self._static_temp_k = float(s.temperature_k)
+        except (TypeError, ValueError, AttributeError):
+            self._static_temp_k = math.nan
         alt = self._alt
         if not (alt.screen_baro(s, p, t, self._t_us) and alt.repeat_ok(p, t)):
             return []
@@ -740,7 +854,16 @@ class NavFilter:
         return []
 
     def _on_airspeed(self, s: AirspeedSample) -> list[NavEstimate]:
-        # not fused yet (air-data fusion: issue #18)
+        t = self._screen.order("airspeed", s.time_us)
+        if t is None:
+            return []
+        air = self._air
+        if air is None:  # air data off, or a layout without the air-data block
+            self._c.airspeed_ignored += 1
+            return []
+        if self._ins is None:
+            return []
+        air.add_sample(s, t)
         return []
 
     def _on_vehicle_state(self, s: ActuatorSample | RpmSample) -> list[NavEstimate]:
@@ -800,15 +923,16 @@ class NavFilter:
         p_nav = P[:9, :9].copy()
         p_nav.setflags(write=False)
         if self._aid_changed:
-            aid = self._aid  # GNSS_POS, GNSS_VEL, BARO_HGT, MAG_HDG, BRIDGE_POS, BRIDGE_VEL
+            aid = self._aid  # AidSource order: GNSS_POS, GNSS_VEL, BARO_HGT, MAG_HDG, ...
             self._est_ratios = TestRatios(
-                aid[0].test_ratio, aid[1].test_ratio, aid[2].test_ratio, aid[3].test_ratio
+                aid[0].test_ratio, aid[1].test_ratio, aid[2].test_ratio, aid[3].test_ratio,
+                aid[6].test_ratio,
             )
             self._est_aiding = AidingStatus(*aid)
             self._aid_changed = False
         t = self._t_us
         gctl = self._gnss_ctl
-        mode = _GNSS if gctl.is_active(t) else _BRIDGING if outage.active else _FREE
+        mode = self._mode(t)
         return new_estimate(
             t, lat, lon, alt,
             buf[0:3], buf[3:7], buf[7:10],  # v_ned_mps, q_nb, euler_rad
@@ -816,7 +940,7 @@ class NavFilter:
             buf[10:13], buf[13:16], self._bb,  # accel_bias_b_mps2, gyro_bias_b_rps, baro_bias_m
             self._c.snapshot(), self._est_ratios,
             gctl.time_since_fused_s(t), self.layout.name,
-            self._alt.status(), self.bridge.status, self._est_aiding, p_nav,
+            self._alt.status(), self.bridge.status, self._est_aiding, p_nav, self._air_status,
         )  # fmt: skip
 
 

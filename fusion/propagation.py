@@ -64,6 +64,10 @@ class CovariancePropagator:
         m/s NED.
     f_n : 3 floats
         Mean specific force of the last propagated interval, m/s^2 NED.
+    air_offset : int or None
+        Offset of the air-data block once the filter activated it (its process noise is
+        added from then on, :meth:`fusion.error_model.ErrorModel.air_process_noise`);
+        ``None``: dormant or absent.
     """
 
     def __init__(
@@ -84,10 +88,12 @@ class CovariancePropagator:
         self._acc_f = [0.0, 0.0, 0.0]
         self._acc_w = [0.0, 0.0, 0.0]
         self.f_n: Vec3 = (0.0, 0.0, -earth.GE)
+        self.air_offset: int | None = None
 
     def restart(self, cov: FloatArray, v0: Sequence[float]) -> None:
         """Start from covariance ``cov`` (symmetrised) with nothing accumulated."""
         self.P = 0.5 * (cov + cov.T)
+        self.air_offset = None  # the air-data block starts dormant
         self.acc_dt = 0.0
         self.v0 = v0
         self._acc_f = [0.0, 0.0, 0.0]
@@ -160,6 +166,13 @@ class CovariancePropagator:
         # (np.dot: the same GEMMs as @, with less dispatch overhead on these small matrices)
         P = _dot(_dot(Phi, self.P), Phi.T)
         P += model.process_noise(T)
+        a = self.air_offset
+        if a is not None:
+            # wind random walk driven harder when climbing (the wind changes with height)
+            qw, qk = model.air_process_noise(T, vd)
+            P[a, a] += qw
+            P[a + 1, a + 1] += qw
+            P[a + 2, a + 2] += qk
         self.P = P
         k = self.baro_decay(T)
         self.acc_dt = 0.0

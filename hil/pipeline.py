@@ -24,7 +24,7 @@ from pathlib import Path
 from types import TracebackType
 
 from fusion.bridging.registry import BRIDGE_METHODS, make_bridge
-from fusion.config import ALTITUDE_METHODS, FilterConfig
+from fusion.config import ALTITUDE_METHODS, FilterConfig, airspeed_tuning
 from fusion.estimate import NavEstimate
 from fusion.filter import NavFilter
 from hil.codec import Decoder
@@ -272,10 +272,13 @@ def record_flight(setup: SimSetup, path: Path, *, progress: ProgressFn | None = 
 
 
 # ---------------------------------------------------------------------------------- fuse
-def filter_config(imu: str, receiver: GnssConfig, altitude: str = "ekf") -> FilterConfig:
+def filter_config(
+    imu: str, receiver: GnssConfig, altitude: str = "ekf", airspeed: str = "on"
+) -> FilterConfig:
     """The filter every command builds: tuned from the IMU datasheet preset ``imu``, modelling
     the GNSS ``receiver`` (its time-correlated error as bias states when it has one), with the
-    altitude method ``altitude``. ValueError names a bad preset or method."""
+    altitude method ``altitude`` and the air-data choice ``airspeed``
+    (:data:`fusion.config.AIRSPEED_MODES`). ValueError names a bad preset or method."""
     if altitude not in ALTITUDE_METHODS:
         raise ValueError(
             f"unknown altitude method {altitude!r}; valid methods: {', '.join(ALTITUDE_METHODS)}"
@@ -285,6 +288,7 @@ def filter_config(imu: str, receiver: GnssConfig, altitude: str = "ekf") -> Filt
         "altitude": config.altitude.model_copy(update={"method": altitude}),
         "gnss": filter_gnss_config(receiver, config.gnss),
         "state_layout": gnss_state_layout(receiver, config.state_layout),
+        "airspeed": airspeed_tuning(airspeed, config.airspeed),
     })
 
 

@@ -110,6 +110,8 @@ class FusionOptions(BaseModel):
     gnss: str = "modern"
     bridge: str = "none"
     altitude: str = "ekf"
+    airspeed: str = "on"
+    """Air data: ``on``, ``off`` or ``synthetic`` (:data:`fusion.config.AIRSPEED_MODES`)."""
     gcs: str | None = None
     shadow_system_id: int = Field(default=1, ge=1, le=255)
     companion: str | None = None
@@ -240,7 +242,8 @@ class FusionService:
 
     def __init__(self, options: FusionOptions, *, signing_key: bytes | None = None) -> None:
         self.options = options
-        self.config = filter_config(options.imu, gnss_preset(options.gnss), options.altitude)
+        self.config = filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
+                                    options.airspeed)
         self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None)
         self.nav = self.fusion.nav
         self.decoder = self.fusion.decoder

@@ -149,11 +149,17 @@ class ShadowEncoder:
             self.boot_ms(), w, x, y, z, *rates_rps, [0.0, 0.0, 0.0, 0.0]))
 
     def vfr_hud(self, est: NavEstimate) -> bytes:
-        """VFR_HUD: no air data in the estimate, so airspeed = ground speed (m/s)."""
+        """VFR_HUD: airspeed = the estimated true airspeed ``|v - w|`` when the wind states
+        run (air data), else the ground speed (m/s)."""
         vn, ve, vd = (float(v) for v in est.v_ned_mps)
         gs = math.hypot(vn, ve)
+        air = getattr(est, "air_data", None)
+        aspd = gs
+        if air is not None and air.wind_active:
+            wn, we = air.wind_ne_mps
+            aspd = math.sqrt((vn - wn) ** 2 + (ve - we) ** 2 + vd * vd)
         return self._p.pack(mavlink2.MAVLink_vfr_hud_message(
-            gs, gs, _clip(_heading_deg(est), 0, 359), 0, est.alt_msl_m, -vd))
+            aspd, gs, _clip(_heading_deg(est), 0, 359), 0, est.alt_msl_m, -vd))
 
     def sys_status(self, est: NavEstimate | None) -> bytes:
         """SYS_STATUS: IMU/mag/baro/GNSS/AHRS present; AHRS healthy when navigating."""
@@ -163,12 +169,14 @@ class ShadowEncoder:
             _SENSORS, _SENSORS, healthy, 0, UINT16_MAX, -1, -1, 0, 0, 0, 0, 0, 0))
 
     def estimator_status(self, est: NavEstimate) -> bytes:
-        """ESTIMATOR_STATUS: solution flags, test ratios (NaN -> 0), 1-sigma accuracies (m)."""
+        """ESTIMATOR_STATUS: solution flags (``dead-reckoning``, ``free-inertial`` and
+        ``bridging`` report a predicted horizontal position), test ratios (NaN -> 0; the
+        airspeed's as ``tas_ratio``), 1-sigma accuracies (m)."""
         flags = int(mavlink2.ESTIMATOR_ATTITUDE | mavlink2.ESTIMATOR_VELOCITY_HORIZ
                     | mavlink2.ESTIMATOR_VELOCITY_VERT | mavlink2.ESTIMATOR_POS_VERT_ABS)
         if est.mode == "gnss":
             flags |= int(mavlink2.ESTIMATOR_POS_HORIZ_ABS | mavlink2.ESTIMATOR_POS_HORIZ_REL)
-        elif est.mode in ("free-inertial", "bridging"):
+        elif est.mode in ("free-inertial", "bridging", "dead-reckoning"):
             flags |= int(mavlink2.ESTIMATOR_PRED_POS_HORIZ_ABS | mavlink2.ESTIMATOR_GPS_GLITCH)
         else:
             flags = int(mavlink2.ESTIMATOR_CONST_POS_MODE)
@@ -179,7 +187,7 @@ class ShadowEncoder:
 
         return self._p.pack(mavlink2.MAVLink_estimator_status_message(
             int(est.time_us), flags, ratio(tr.gnss_vel), ratio(tr.gnss_pos),
-            ratio(tr.baro_hgt), ratio(tr.mag_hdg), 0.0, 0.0,
+            ratio(tr.baro_hgt), ratio(tr.mag_hdg), 0.0, ratio(getattr(tr, "airspeed", math.nan)),
             math.hypot(_sigma(est, 0), _sigma(est, 1)), _sigma(est, 2)))
 
     def system_time(self, unix_s: float | None = None) -> bytes:

@@ -78,7 +78,7 @@ class HealthSeries:
     ----------
     time_s : ndarray, shape (N,)
     mode : ndarray of str, shape (N,)
-        ``"gnss"``, ``"free-inertial"`` or ``"bridging"``.
+        ``"gnss"``, ``"free-inertial"``, ``"dead-reckoning"`` or ``"bridging"``.
     ratio_gnss_pos, ratio_gnss_vel, ratio_baro, ratio_mag : ndarray, shape (N,)
     gnss_fused, gnss_rejected, gnss_resets : ndarray of int, shape (N,)
     gnss_quality_rejected : ndarray of int, shape (N,)

@@ -63,13 +63,16 @@ def filter_imu_config(imu: ImuConfig, base: ImuTuning | None = None) -> ImuTunin
 
 def datasheet_layout(layout: LayoutName) -> LayoutName:
     """``layout`` widened to carry every sensor error a datasheet specifies: bias, scale
-    factor and misalignment (``ins35``), keeping its GNSS position-bias block if it has one.
+    factor and misalignment (``ins35``), keeping its GNSS position-bias block if it has one,
+    plus the air-data block (``+air``: wind and airspeed scale).
 
     The simulator's IMU (and a real one) has scale-factor and cross-axis errors; without their
     states the filter is overconfident in turns (``bench/README.md``, consistency error
-    budget: NEES 72 with ``ins16+gnss``).
+    budget: NEES 72 with ``ins16+gnss``). The air-data block is dormant until the stream
+    carries air data (or a fixed-wing without a pitot flies), so it costs a stream without
+    air data nothing but three zero rows of the covariance.
     """
-    return "ins35+gnss" if layout.endswith("+gnss") else "ins35"
+    return "ins35+gnss+air" if "+gnss" in layout else "ins35+air"
 
 
 def filter_config_for_imu(preset: str, base: FilterConfig | None = None) -> FilterConfig:
@@ -109,10 +112,11 @@ def gnss_state_layout(gnss: GnssConfig, layout: LayoutName = "ins16") -> LayoutN
     rms(error / sigma) from 3-11 to 0.6-0.8 (``bench/README.md``, navigation filter accuracy).
     """
     correlated = gnss.horizontal_gm_sigma_m > 0.0 or gnss.vertical_gm_sigma_m > 0.0
-    for base in ("ins22", "ins35"):
-        if layout in (base, f"{base}+gnss"):
-            return typing.cast(LayoutName, f"{base}+gnss" if correlated else base)
-    return "ins16+gnss" if correlated else "ins16"
+    air = "+air" if layout.endswith("+air") else ""
+    base = layout.split("+")[0]
+    if base not in ("ins16", "ins22", "ins35"):
+        base = "ins16"
+    return typing.cast(LayoutName, f"{base}{'+gnss' if correlated else ''}{air}")
 
 
 def filter_config_for_presets(

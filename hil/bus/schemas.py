@@ -164,7 +164,7 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
         "Navigation solution of the fusion filter.",
         {
             "time_us": _TIME,
-            "mode": _d(_S, "initializing | gnss | bridging | free-inertial"),
+            "mode": _d(_S, "initializing | gnss | bridging | dead-reckoning | free-inertial"),
             **_LATLON,
             "v_ned_mps": _d(_arr(3), "velocity NED, m/s"),
             **_ATT,
@@ -192,7 +192,7 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
         "bridging (GMDH) health, link and bus counters.",
         {
             "time_us": _TIME,
-            "mode": _d(_S, "initializing | gnss | bridging | free-inertial"),
+            "mode": _d(_S, "initializing | gnss | bridging | dead-reckoning | free-inertial"),
             "time_since_gnss_s": _d(_N0, "outage timer: seconds since the last fused fix"),
             "state_layout": _d({"type": ["string", "null"]}, "error-state layout name"),
             "test_ratios": _d(
@@ -208,8 +208,13 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
                 "per-link counters (hil.link.LinkCounters fields)",
             ),
             "bus": _d({"type": ["object", "null"]}, "Zenoh bus counters of the publisher"),
+            "air_data": _d(
+                {"type": ["object", "null"]},
+                "air data: state (off | waiting | fusing | blocked | synthetic | stale), wind "
+                "N/E m/s, airspeed scale, last TAS m/s, pitot fault",
+            ),
         },
-        optional=("time_since_gnss_s", "state_layout", "bridge", "links", "bus"),
+        optional=("time_since_gnss_s", "state_layout", "bridge", "links", "bus", "air_data"),
     ),
     Topic.INNOVATIONS: _schema(
         Topic.INNOVATIONS,
@@ -217,7 +222,7 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
         {
             "time_us": _TIME,
             "source": _d(_S, "aiding source: gnss_pos, gnss_vel, baro_hgt, mag_hdg, "
-                         "bridge_pos, bridge_vel"),
+                         "bridge_pos, bridge_vel, airspeed, sideslip"),
             "innovation": _d(
                 _arr(None),
                 "innovation of the error-state filter: INS-predicted minus measured, SI units "

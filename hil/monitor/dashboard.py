@@ -28,6 +28,7 @@ _MODE_STYLE: Final = {
     "gnss": "bold green",
     "bridging": "bold yellow",
     "free-inertial": "bold red",
+    "dead-reckoning": "bold yellow",
     "initializing": "cyan",
 }
 
@@ -131,7 +132,7 @@ class MonitorState:
         t_s = est.get("time_us", 0) / 1e6 if est else None
         outage = (
             f"OUTAGE {_f(since, '.1f', ' s')}"
-            if mode in ("bridging", "free-inertial")
+            if mode in ("bridging", "free-inertial", "dead-reckoning")
             else (f"gnss age {_f(since, '.1f', ' s')}")
         )
         alive = {None: "?", True: "yes", False: "NO"}[self.alive]
@@ -207,7 +208,7 @@ class MonitorState:
         )
         errs.add_row("yaw", _f(err.get("yaw_error_deg"), ".2f", " deg"))
         errs.add_row("attitude", _f(err.get("att_error_deg"), ".2f", " deg"))
-        in_outage = mode in ("bridging", "free-inertial")
+        in_outage = mode in ("bridging", "free-inertial", "dead-reckoning")
         errs.add_row(
             "GNSS outage" if in_outage else "last GNSS fix",
             Text(_f(since, ".1f", " s"), style="bold red" if in_outage else ""),

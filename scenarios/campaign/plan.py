@@ -29,6 +29,7 @@ VARY_KEYS: dict[str, tuple[tuple[str, ...], str]] = {
     "pitot": (("sensors", "pitot", "preset"), "pitot (airspeed) preset, none = no pitot"),
     "bridge": (("fusion", "bridge"), "GNSS-outage bridging method"),
     "altitude": (("fusion", "altitude"), "vertical channel method"),
+    "airspeed": (("fusion", "airspeed"), "air data: on, off, synthetic"),
     "aircraft": (("aircraft",), "JSBSim aircraft (hilnav list)"),
     "plan": (("plan",), "flight plan: packaged name or YAML path relative to the scenario"),
 }

@@ -34,11 +34,11 @@ R = TypeVar("R")
 
 # the methods the fusion offers (fusion/ imports no I/O: cheap to import here)
 from fusion.bridging.registry import BRIDGE_METHODS  # noqa: E402
-from fusion.config import ALTITUDE_METHODS  # noqa: E402
+from fusion.config import AIRSPEED_MODES, ALTITUDE_METHODS  # noqa: E402
 
 # Options of every command that runs the filter: defined once so that replay, demo, fusion
 # and up build the filter from the same choices (run / compare / campaign take them from the
-# scenario file, with --bridge / --altitude overrides).
+# scenario file, with --bridge / --altitude / --airspeed overrides).
 ImuOption = Annotated[str, typer.Option(help="IMU datasheet preset the filter is tuned for.")]
 GnssOption = Annotated[
     str, typer.Option(help="GNSS receiver preset the filter models (its correlated error).")]
@@ -46,6 +46,11 @@ BridgeOption = Annotated[str, typer.Option(
     help=f"GNSS-outage bridging method: {', '.join(BRIDGE_METHODS)}.")]
 AltitudeOption = Annotated[str, typer.Option(
     help=f"Altitude method: {', '.join(ALTITUDE_METHODS)}.")]
+AirspeedOption = Annotated[str, typer.Option(
+    help="Air data: on (fused when the stream carries a pitot), off (not fused), synthetic "
+         "(on, plus synthetic airspeed for a fixed-wing without a pitot).")]
+AirspeedOverride = Annotated[str | None, typer.Option(
+    help=f"Override the scenario's air-data choice: {', '.join(AIRSPEED_MODES)}.")]
 SettleOption = Annotated[
     float, typer.Option(help="Scorecard: seconds excluded after the start and each outage.")]
 
@@ -280,6 +285,7 @@ def fusion(
     gnss: GnssOption = "modern",
     bridge: BridgeOption = "none",
     altitude: AltitudeOption = "ekf",
+    airspeed: AirspeedOption = "on",
     gcs: Annotated[
         str | None,
         typer.Option(help="Shadow vehicle for ground stations, e.g. udpout:127.0.0.1:14550."),
@@ -323,7 +329,7 @@ def fusion(
     options = FusionOptions(
         mavlink=mavlink, source=source, zenoh=zenoh, vehicle=vehicle, imu=imu, gnss=gnss,
         bridge=bridge,
-        altitude=altitude, gcs=gcs,
+        altitude=altitude, airspeed=airspeed, gcs=gcs,
         shadow_system_id=shadow_sysid, companion=companion,
         companion_kind=companion_kind,  # type: ignore[arg-type]  # pydantic checks the literal
         companion_system_id=companion_sysid, duration_s=duration, idle_exit_s=idle_exit, out=out,
@@ -332,7 +338,7 @@ def fusion(
     # a bad preset, method or source -> exit 2 before any socket opens
     if source is not None:
         parse_source(source)
-    build_filter(filter_config(imu, gnss_preset(gnss), altitude), bridge)
+    build_filter(filter_config(imu, gnss_preset(gnss), altitude, airspeed), bridge)
     key = _signing_key(signing_key_file)
 
     def ready(service: Any) -> None:
@@ -432,6 +438,7 @@ def up(
     gnss: Annotated[str, typer.Option(help="GNSS preset (sensor and filter model).")] = "modern",
     bridge: BridgeOption = "none",
     altitude: AltitudeOption = "ekf",
+    airspeed: AirspeedOption = "on",
     gcs: Annotated[
         str | None, typer.Option(help="Also show the shadow vehicle to this ground station URL.")
     ] = None,
@@ -446,7 +453,8 @@ def up(
 
     options = UpOptions(duration_s=duration, speed=speed, out=out, vehicle=vehicle, plan=plan,
                         seed=seed, gnss_off=tuple(gnss_off or ()), imu=imu, gnss=gnss,
-                        bridge=bridge, altitude=altitude, gcs=gcs, monitor=monitor,
+                        bridge=bridge, altitude=altitude, airspeed=airspeed, gcs=gcs,
+                        monitor=monitor,
                         lockstep=lockstep)
     summary = run_up(options, log=lambda text: console.print(text, highlight=False))
     if summary is not None:
@@ -467,6 +475,7 @@ def replay(
     out: Annotated[Path, typer.Option(help="Output folder for summary.json and plots.")],
     bridge: BridgeOption = "none",
     altitude: AltitudeOption = "ekf",
+    airspeed: AirspeedOption = "on",
     settle: SettleOption = 60.0,
     imu: ImuOption = "industrial-mems",
     gnss: GnssOption = "modern",
@@ -479,7 +488,9 @@ def replay(
 
     _choice("bridging method", bridge, BRIDGE_METHODS)
     _choice("altitude method", altitude, ALTITUDE_METHODS)
-    result = run_replay(log, out, config=filter_config(imu, gnss_preset(gnss), altitude),
+    _choice("airspeed mode", airspeed, AIRSPEED_MODES)
+    result = run_replay(log, out,
+                        config=filter_config(imu, gnss_preset(gnss), altitude, airspeed),
                         bridge=bridge, altitude=altitude, settle_s=settle)
     _print_summary(result.summary)
     _warn_input(result.summary)
@@ -534,6 +545,7 @@ def demo(
         "industrial-mems"
     ),
     gnss: Annotated[str, typer.Option(help="GNSS preset (sensor and filter model).")] = "modern",
+    airspeed: AirspeedOption = "on",
 ) -> None:
     """The main job: fly a racetrack, record it, run the filter with a GNSS outage, score it."""
     _out_dir(out)
@@ -543,7 +555,7 @@ def demo(
 
     out.mkdir(parents=True, exist_ok=True)
     log = out / "run.tlog"
-    config = filter_config(imu, gnss_preset(gnss))
+    config = filter_config(imu, gnss_preset(gnss), airspeed=airspeed)
     request = SimSetup.build(plan=plan, imu=imu, gnss=gnss, duration_s=duration, seed=seed,
                                gnss_off=[outage])
     with _progress(duration, "flying") as progress:
@@ -606,13 +618,15 @@ def run(
     seed: Annotated[int | None, typer.Option(help="Override the scenario's seed.")] = None,
     bridge: Annotated[str | None, typer.Option(help="Override the bridging method.")] = None,
     altitude: Annotated[str | None, typer.Option(help="Override the altitude method.")] = None,
+    airspeed: AirspeedOverride = None,
     quiet: Annotated[bool, typer.Option(help="No progress bar.")] = False,
 ) -> None:
     """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
     _out_dir(out)
     from scenarios.runner import run_scenario
 
-    scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude)
+    scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
+                         airspeed=airspeed)
     if quiet:
         result = run_scenario(scn, out)
     else:
@@ -642,6 +656,7 @@ def compare(
     seeds: Annotated[int, typer.Option(min=1, help="Number of seeds.")] = 3,
     seed_base: Annotated[int, typer.Option(help="First seed (seeds S, S+1, ...).")] = 100,
     altitude: Annotated[str | None, typer.Option(help="Override the altitude method.")] = None,
+    airspeed: AirspeedOverride = None,
 ) -> None:
     """Every bridging method on the same sensor data per seed (the papers' Tables 1 and 2)."""
     _out_dir(out)
@@ -649,7 +664,7 @@ def compare(
     from scenarios.compare import markdown, parse_methods
 
     names = parse_methods(methods)
-    scn = _load_scenario(scenario, altitude=altitude)
+    scn = _load_scenario(scenario, altitude=altitude, airspeed=airspeed)
     result = run_compare(scn, names, list(range(seed_base, seed_base + seeds)), out,
                          progress=lambda msg: err_console.print(msg, highlight=False))
     console.print(markdown(result), highlight=False)
@@ -682,9 +697,10 @@ def campaign(
     seeds: Annotated[int, typer.Option(min=1, help="Seeds per scenario and grid point.")] = 10,
     seed_base: Annotated[int, typer.Option(help="First seed.")] = 100,
     vary: Annotated[list[str] | None, typer.Option(
-        help="Grid axis KEY=V1,V2 (imu, gnss, baro, mag, pitot, bridge, altitude, aircraft, plan);"
-             " repeatable.")
+        help="Grid axis KEY=V1,V2 (imu, gnss, baro, mag, pitot, bridge, altitude, airspeed,"
+             " aircraft, plan); repeatable.")
     ] = None,
+    airspeed: AirspeedOverride = None,
     scheduler: Annotated[str | None, typer.Option(
         help="Dask scheduler address (tcp://HOST:8786); default: a local cluster.")] = None,
     workers: Annotated[int | None, typer.Option(help="Local cluster workers (default: cores).")
@@ -701,6 +717,11 @@ def campaign(
     if seed_base < 0:
         raise ValueError(f"--seed-base must be >= 0, got {seed_base}")
     grid = parse_vary(vary or [])
+    if airspeed is not None:  # one air-data choice for every run: a one-value grid axis
+        _choice("airspeed mode", airspeed, AIRSPEED_MODES)
+        if "airspeed" in grid:
+            raise ValueError("give --airspeed or --vary airspeed=..., not both")
+        grid["airspeed"] = [airspeed]
     seed_list = list(range(seed_base, seed_base + seeds))
     bar = Progress(TextColumn("[bold]campaign"), BarColumn(), MofNCompleteColumn(),
                    TextColumn("runs"), TimeElapsedColumn(), TimeRemainingColumn(),

@@ -59,6 +59,8 @@ class UpOptions(BaseModel):
     """The fusion's GNSS-outage bridging method."""
     altitude: str = "ekf"
     """The fusion's altitude method."""
+    airspeed: str = "on"
+    """The fusion's air-data choice (on, off, synthetic)."""
     gnss_off: tuple[str, ...] = ()
     gcs: str | None = None
     monitor: bool = True
@@ -163,8 +165,8 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
     SimSetup.build(plan=options.plan, seed=options.seed, gnss_off=list(options.gnss_off),
                    imu=options.imu, gnss=options.gnss,
                    duration_s=options.duration_s or _DEFAULT_DURATION_S)
-    build_filter(filter_config(options.imu, gnss_preset(options.gnss), options.altitude),
-                 options.bridge)
+    build_filter(filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
+                               options.airspeed), options.bridge)
     out = options.out
     out.mkdir(parents=True, exist_ok=True)
     summary_path = out / "summary.json"
@@ -175,7 +177,7 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
         fusion_args = ["fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
                        "--vehicle", options.vehicle, "--out", str(out), "--imu", options.imu,
                        "--gnss", options.gnss, "--bridge", options.bridge,
-                       "--altitude", options.altitude]
+                       "--altitude", options.altitude, "--airspeed", options.airspeed]
         settle = options.settle_s
         if settle is None:
             settle = min(60.0, 0.25 * (options.duration_s or _DEFAULT_DURATION_S))

@@ -329,6 +329,7 @@ class Scenario(Strict):
         bridge: str | None = None,
         altitude: str | None = None,
         duration_s: float | None = None,
+        airspeed: str | None = None,
     ) -> Scenario:
         """A re-validated copy with command-line overrides applied.
 
@@ -343,12 +344,14 @@ class Scenario(Strict):
             data["seed"] = seed
         if duration_s is not None:
             data["duration_s"] = duration_s
-        if bridge is not None or altitude is not None:
+        if bridge is not None or altitude is not None or airspeed is not None:
             fusion = dict(data.get("fusion", {}))
             if bridge is not None:
                 fusion["bridge"] = bridge
             if altitude is not None:
                 fusion["altitude"] = altitude
+            if airspeed is not None:
+                fusion["airspeed"] = airspeed
             data["fusion"] = fusion
         try:
             return Scenario.model_validate(data, context={"base_dir": self._base_dir})

@@ -20,7 +20,7 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 
 from fusion.bridging.registry import BRIDGE_METHODS
-from fusion.config import ALTITUDE_METHODS
+from fusion.config import AIRSPEED_MODES, ALTITUDE_METHODS
 from scenarios.schema.base import Strict, first_error, key_error, listing, unknown_name
 from sim import presets
 from sim.baro import BaroConfig
@@ -276,6 +276,11 @@ class FusionSection(Strict):
         default="ekf", description="Vertical-channel method.",
         json_schema_extra=listing("enum", list(ALTITUDE_METHODS)),
     )
+    airspeed: str = Field(
+        default="on", description="Air data: on (fused when the stream carries a pitot), off, "
+        "synthetic (on, plus synthetic airspeed for a fixed-wing without a pitot).",
+        json_schema_extra=listing("enum", list(AIRSPEED_MODES)),
+    )
 
     @field_validator("bridge")
     @classmethod
@@ -289,4 +294,11 @@ class FusionSection(Strict):
     def _known_altitude(cls, value: str) -> str:
         if value not in ALTITUDE_METHODS:
             raise ValueError(unknown_name("altitude method", value, ALTITUDE_METHODS))
+        return value
+
+    @field_validator("airspeed")
+    @classmethod
+    def _known_airspeed(cls, value: str) -> str:
+        if value not in AIRSPEED_MODES:
+            raise ValueError(unknown_name("airspeed mode", value, AIRSPEED_MODES))
         return value

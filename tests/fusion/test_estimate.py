@@ -13,6 +13,7 @@ from fusion.estimate import (
     AidingStatus,
     AidSource,
     AidSourceStatus,
+    AirDataStatus,
     Health,
     Mode,
     NavEstimate,
@@ -25,7 +26,9 @@ from fusion.estimate import (
 def test_mode_is_a_string_for_every_consumer() -> None:
     # comparisons, str(), f-strings, JSON, dict keys and numpy string arrays see the value
     assert Mode.GNSS == "gnss" and "free-inertial" == Mode.FREE_INERTIAL
-    assert [str(m) for m in Mode] == ["initializing", "gnss", "free-inertial", "bridging"]
+    assert [str(m) for m in Mode] == [
+        "initializing", "gnss", "free-inertial", "bridging", "dead-reckoning",
+    ]  # fmt: skip
     assert f"{Mode.BRIDGING}" == "bridging" and format(Mode.INITIALIZING) == "initializing"
     assert json.dumps({"mode": Mode.GNSS}) == '{"mode": "gnss"}'
     assert {"gnss": 1}[Mode.GNSS] == 1 and Mode("bridging") is Mode.BRIDGING
@@ -37,7 +40,8 @@ def test_mode_is_a_string_for_every_consumer() -> None:
 
 def test_aid_sources_are_named_as_on_the_innovations_topic() -> None:
     assert [str(s) for s in AidSource] == [
-        "gnss_pos", "gnss_vel", "baro_hgt", "mag_hdg", "bridge_pos", "bridge_vel",
+        "gnss_pos", "gnss_vel", "baro_hgt", "mag_hdg", "bridge_pos", "bridge_vel", "airspeed",
+        "sideslip",
     ]  # fmt: skip
     # the status record has one field per source, in the same order
     assert [f.name for f in dataclasses.fields(AidingStatus)] == [s.value for s in AidSource]
@@ -62,7 +66,7 @@ def test_new_estimate_fills_every_field_in_order() -> None:
     values = [
         5, 0.1, 0.2, 300.0, np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3), np.ones(16),
         Mode.GNSS, np.full(3, 0.01), np.full(3, 1e-5), 2.0, Health(), TestRatios(), 0.2,
-        "ins16", None, None, AidingStatus(), np.eye(9),
+        "ins16", None, None, AidingStatus(), np.eye(9), AirDataStatus(),
     ]  # fmt: skip
     est = new_estimate(*values)
     names = [f.name for f in dataclasses.fields(NavEstimate)]

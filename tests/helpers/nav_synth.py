@@ -20,7 +20,8 @@ from fusion.config import FilterConfig
 from fusion.filter import NavFilter
 from fusion.rotations import dcm_to_rotvec, euler_to_quat, quat_to_dcm
 from fusion.trajectory import SplineTrajectory, ideal_increments, imu_rates
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample
+from physconst.airdata import impact_pressure_pa
+from sim.samples import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample
 
 FloatArray = NDArray[np.float64]
 #: Earth field near 47 N 8 E, NED, tesla (declination ~3 deg, inclination ~63 deg).
@@ -55,6 +56,10 @@ class Flight:
     speed_wave_mps: float = 0.0
     """Amplitude of a slow speed oscillation (longitudinal acceleration), m/s."""
     ramp_s: float = 3.0
+    wind_ne_mps: tuple[float, float] = (0.0, 0.0)
+    """Steady horizontal wind, m/s: with it ``speed`` and the heading are air-relative (the
+    aircraft flies ``speed`` through the air along its heading, zero sideslip) and the ground
+    velocity is that plus the wind."""
 
     def turn_rate(self, t: FloatArray) -> FloatArray:
         out = np.zeros_like(t)
@@ -82,7 +87,8 @@ class Flight:
         )
         spd = self.speed(t)
         climb = self.climb_rate(t)
-        v = np.column_stack([spd * np.cos(psi), spd * np.sin(psi), -climb])
+        wn, we = self.wind_ne_mps
+        v = np.column_stack([spd * np.cos(psi) + wn, spd * np.sin(psi) + we, -climb])
         h = self.alt0_m + np.concatenate([[0.0], np.cumsum(0.5 * (climb[1:] + climb[:-1]) * dt)])
         lat = np.empty_like(t)
         lon = np.empty_like(t)
@@ -326,6 +332,57 @@ def make_scenario(
         baro_t,
         baro_b,
     )
+
+
+def airspeed_samples(
+    sc: Scenario,
+    wind_ne_mps: tuple[float, float],
+    rng: np.random.Generator | None,
+    *,
+    rate_hz: float = 20.0,
+    noise_pa: float = 1.0,
+    tas_noise_mps: float = 0.0,
+    temperature_k: float = 288.15,
+    fault: Callable[[float, float], float] | None = None,
+) -> list[AirspeedSample]:
+    """Pitot samples from the truth: impact pressure of ``|v - w|`` plus white noise
+    ``tas_noise_mps`` (turbulence, position error) through the isentropic relation (ISA static
+    pressure at the true height, ``temperature_k``), plus white sensor noise ``noise_pa``.
+
+    ``fault(t_s, q_c)`` may replace the reading (a blockage: stuck, zero, NaN...).
+    """
+    period_us = round(1e6 / rate_hz)
+    end_us = round(float(sc.imu_time_s[-1]) * 1e6)
+    times = np.arange(period_us, end_us + 1, period_us, dtype=np.int64)
+    kin = sc.traj(times * 1e-6)
+    out = []
+    for i, t_us in enumerate(times.tolist()):
+        v = kin.v_ned_mps[i]
+        tas = math.sqrt((v[0] - wind_ne_mps[0]) ** 2 + (v[1] - wind_ne_mps[1]) ** 2 + v[2] ** 2)
+        if rng is not None and tas_noise_mps > 0.0:
+            tas += float(rng.normal(0.0, tas_noise_mps))
+        qc = impact_pressure_pa(tas, height_to_pressure(float(kin.lla[i, 2])), temperature_k)
+        if rng is not None:
+            qc += float(rng.normal(0.0, noise_pa))
+        if fault is not None:
+            qc = fault(t_us * 1e-6, qc)
+        out.append(AirspeedSample(t_us, qc, temperature_k))
+    return out
+
+
+def merge(samples: list[object], extra: list[object]) -> list[object]:
+    """``samples`` with ``extra`` inserted in time order (an extra sample goes after the
+    samples of the same time)."""
+    out: list[object] = []
+    j = 0
+    for s in samples:
+        t = s.time_us  # type: ignore[attr-defined]
+        while j < len(extra) and extra[j].time_us < t:  # type: ignore[attr-defined]
+            out.append(extra[j])
+            j += 1
+        out.append(s)
+    out.extend(extra[j:])
+    return out
 
 
 def omega_in_n(lat: float, h: float, v: FloatArray) -> FloatArray:

@@ -43,6 +43,19 @@ def test_the_factory_names_bad_methods_and_presets() -> None:
         filter_config("no-such-imu", gnss_preset("modern"))
     with pytest.raises(ValueError, match=r"bridging method 'magic'.*gmdh"):
         build_filter(filter_config("industrial-mems", gnss_preset("modern")), "magic")
+    with pytest.raises(ValueError, match=r"airspeed mode 'maybe'.*synthetic"):
+        filter_config("industrial-mems", gnss_preset("modern"), "ekf", "maybe")
+
+
+def test_the_commands_filter_carries_the_air_data_states_and_the_airspeed_choice() -> None:
+    # the default layout has the (dormant) air-data block, with or without the GNSS bias block
+    on = filter_config("industrial-mems", gnss_preset("modern"))
+    assert on.state_layout == "ins35+gnss+air" and on.airspeed.enabled
+    assert not on.airspeed.synthetic_when_no_pitot
+    off = filter_config("industrial-mems", gnss_preset("modern"), airspeed="off")
+    assert off.state_layout == on.state_layout and not off.airspeed.enabled
+    syn = filter_config("industrial-mems", gnss_preset("modern"), airspeed="synthetic")
+    assert syn.airspeed.enabled and syn.airspeed.synthetic_when_no_pitot
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fusion import rotations
-from fusion.estimate import Health, NavEstimate, TestRatios
+from fusion.estimate import AirDataStatus, Health, NavEstimate, TestRatios
 from hil.bus import Bus, Message, Topic, error_payload
 from hil.codec import Decoder, mavlink2
 from hil.link import LinkRole, MavlinkLink
@@ -83,6 +83,17 @@ def test_attitude_vfr_hud_estimator_status() -> None:
     coasting = _decode(enc.estimator_status(_estimate(mode="free-inertial")))
     assert not coasting.flags & mavlink2.ESTIMATOR_POS_HORIZ_ABS
     assert coasting.flags & mavlink2.ESTIMATOR_PRED_POS_HORIZ_ABS
+    # dead reckoning on air data: predicted position; VFR_HUD airspeed is |v - w|
+    dr = dataclasses.replace(
+        _estimate(mode="dead-reckoning"), test_ratios=TestRatios(airspeed=0.25),
+        air_data=AirDataStatus("fusing", True, (1.0, 10.0), 0.0, 40.0, ""))
+    st_dr = _decode(enc.estimator_status(dr))
+    assert st_dr.flags & mavlink2.ESTIMATOR_PRED_POS_HORIZ_ABS
+    assert not st_dr.flags & mavlink2.ESTIMATOR_POS_HORIZ_ABS
+    assert st_dr.tas_ratio == pytest.approx(0.25)
+    hud_dr = _decode(enc.vfr_hud(dr))
+    assert hud_dr.airspeed == pytest.approx(math.hypot(40.0, 2.0), rel=1e-6)
+    assert hud_dr.groundspeed == pytest.approx(math.hypot(1.0, 50.0), rel=1e-6)
 
 
 def test_companion_gps_input_and_odometry() -> None:

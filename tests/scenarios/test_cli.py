@@ -203,3 +203,14 @@ def test_a_truncated_log_is_scored_and_says_so(tmp_path: Path, short_flight_log:
     w = json.loads((tmp_path / "w" / "summary.json").read_text())
     assert w["input"] == {"records": w["input"]["records"], "frames": w["input"]["frames"],
                           "bad_frames": 0, "truncated": False, "skipped_bytes": 0}
+
+
+def test_a_bad_airspeed_choice_is_bad_input(tmp_path: Path, short_flight_log: Path) -> None:
+    """GIVEN ``--airspeed`` with an unknown choice on a command that runs the filter THEN exit 2
+    with one line naming the valid choices, before anything runs."""
+    for args in (["replay", str(short_flight_log), "--out", str(tmp_path / "o")],
+                 ["fusion", "--duration", "0.1"]):
+        result = CliRunner().invoke(app, [*args, "--airspeed", "sometimes"])
+        assert result.exit_code == 2, (args, result.output)
+        assert "on, off, synthetic" in result.output and "Traceback" not in result.output
+        assert len(result.output.strip().splitlines()) == 1

@@ -96,8 +96,9 @@ def test_filter_models_the_scenario_gnss_receiver(scenario: Scenario, tmp_path: 
     # GIVEN the default (modern) receiver, whose position error is mostly Gauss-Markov
     assert gnss.horizontal_gm_sigma_m > 0.0
     # THEN the filter carries bias states with the receiver's sigma and correlation time
-    # (and the scale-factor and misalignment states the IMU datasheet calls for)
-    assert config.state_layout == "ins35+gnss"
+    # (and the scale-factor and misalignment states the IMU datasheet calls for, and the
+    # air-data block, dormant until the stream carries air data)
+    assert config.state_layout == "ins35+gnss+air"
     assert (cfg.bias_sigma_h_m, cfg.bias_tau_h_s) == (gnss.horizontal_gm_sigma_m,
                                                      gnss.horizontal_gm_tau_s)
     assert (cfg.bias_sigma_v_m, cfg.bias_tau_v_s) == (gnss.vertical_gm_sigma_m,
@@ -108,7 +109,7 @@ def test_filter_models_the_scenario_gnss_receiver(scenario: Scenario, tmp_path: 
     text = SCENARIO.replace(imu_line, imu_line + white_gnss)
     (tmp_path / "white.yaml").write_text(text % "100 m")
     white = load_scenario(tmp_path / "white.yaml")
-    assert filter_config(white).state_layout == "ins35"
+    assert filter_config(white).state_layout == "ins35+air"
 
 
 def test_same_seed_same_numbers(run_dir: Path, scenario: Scenario, tmp_path: Path) -> None:

@@ -296,6 +296,7 @@ def test_missing_duration(tmp_path: Path) -> None:
         ("aircraft: c17\n", "aircraft", "did you mean 'c172x'"),
         ("fusion: {bridge: gmhd}\n", "fusion.bridge", "did you mean 'gmdh'"),
         ("fusion: {altitude: mpc}\n", "fusion.altitude", "unknown altitude method"),
+        ("fusion: {airspeed: maybe}\n", "fusion.airspeed", "unknown airspeed mode"),
         ("plan: nowhere.yaml\n", "plan", "unknown flight plan"),
         ("turbulence: stormy\n", "turbulence", "unknown turbulence level"),
         ("sensors: {imu: {rate_hz: 70}}\n", "sensors.imu.rate_hz", "must divide"),

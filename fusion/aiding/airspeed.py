@@ -1,0 +1,489 @@
+"""Air-data aiding: true airspeed with wind and airspeed-scale states, synthetic sideslip,
+synthetic airspeed without a pitot (PX4 EKF2 ``aid_sources/airspeed``, ``.../sideslip``;
+ArduPilot EKF3 ``FuseAirspeed`` / ``FuseSideslip``; read, not copied).
+
+*Measurement* — the pitot's impact pressure ``q_c`` becomes a true airspeed through the
+isentropic relation (:func:`physconst.airdata.true_airspeed_mps`) with the static pressure of
+the last accepted baro sample (ISA at the INS height without one) and the temperature of the
+airspeed sample (the differential-pressure sensor's, as PX4's airspeed module uses), or the
+baro's when it is missing or implausible (outside 150-350 K). TAS goes with ``sqrt(T)``: a
+10 K error is 1.7 %, which the scale state absorbs.
+
+*Models* (``z = h(INS) - measurement``, :mod:`fusion.aiding`), with the air-relative velocity
+``a = v - (w_n, w_e, 0)`` (no vertical wind)::
+
+    TAS:       h = (1 + k) |a|          H_v = (1 + k) a^T / |a|,  H_w = -H_v[:2],  H_k = |a|
+    sideslip:  h = a_b,y / a_b,x = 0    a_b = C_bn a
+
+The scale ``k`` multiplies the speed, not ``q_c``: a calibration ratio error ``s`` on ``q_c``
+is ``k = sqrt(1 + s) - 1 ≈ s / 2``; in the speed domain the Jacobian is the same at every
+speed. The sideslip Jacobian follows from ``C^_bn = C_bn (I - [phi×])``:
+``d a_b = C_bn (dv - dw) + C_bn [a×] phi``, so with ``g = C_nb d(beta)/d(a_b)``:
+``H_v = g``, ``H_w = -g[:2]``, ``H_phi = g × a``. Both are checked numerically in the tests.
+
+*Noise* — one batch of ``n`` samples: ``sigma_TAS^2 = (sigma_qc / (rho |a|))^2 / n + floor^2``
+(``d q_c / dV ≈ rho V`` at low Mach; the floor is not averaged away: turbulence and position
+error are correlated over the batch).
+
+*When* (:class:`AirspeedAiding`): samples are screened (NaN, more negative than the noise
+around zero, absurd -> counted invalid) and averaged over ``1 / fuse_rate_hz``; at each tick
+(driven by the IMU clock, so it also runs without a pitot):
+
+1. a measured batch below ``min_airspeed_mps`` is not fused (on the ground); the first batch
+   above it starts the wind states (EKF2's reset: ``w = v_ne - TAS_h (cos psi, sin psi)``
+   with a large variance) and the scale (prior sigma); later batches are fused through the
+   pitot monitor (:mod:`fusion.aiding.pitot_monitor`): a blocked pitot is only tested;
+2. a fixed-wing aircraft that is flying fuses the synthetic sideslip ``beta = 0``;
+3. without a usable measured airspeed (blocked, timed out: ``synthetic_when_blocked``; or
+   none on the stream: ``synthetic_when_no_pitot``) and with GNSS lost, a fixed-wing
+   aircraft fuses a synthetic TAS: the airspeed estimate ``|v - w|`` latched while GNSS or
+   the pitot was last trusted, with ``synthetic_noise_mps`` and no scale column (ArduPilot
+   EKF3's default airspeed, which keeps it dead-reckoning). With ``synthetic_when_no_pitot``
+   a fixed-wing without a pitot starts its wind states (at zero, wide) once it flies on
+   GNSS, so that the sideslip fusion learns the wind the synthetic airspeed needs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fusion import kalman
+from fusion.aiding import Observation, Update
+from fusion.aiding.pitot_monitor import PitotMonitor
+from fusion.config import AirspeedTuning
+from fusion.error_model import StateLayout
+from fusion.estimate import AidSource, AirDataStatus, HealthCounters
+from fusion.rotations import dcm_from_quat, euler_from_quat
+from fusion.samples import AirspeedSample
+from fusion.strapdown import InsState
+from physconst.airdata import air_density_kgpm3, true_airspeed_mps
+
+FloatArray = NDArray[np.float64]
+Vec3 = tuple[float, float, float]
+_MIN_MODEL_SPEED_MPS = 1.0  # below this the direction of the air-relative velocity is noise
+
+
+def tas_model(
+    layout: StateLayout, v_ned_mps: Vec3, wind_ne_mps: tuple[float, float], scale: float,
+    tas_mps: float, sigma_mps: float, *, with_scale: bool = True,
+) -> Observation | None:  # fmt: skip
+    """True-airspeed observation ``z = (1 + k) |v - w| - TAS`` (see module docstring).
+
+    Parameters
+    ----------
+    layout : StateLayout
+        A layout with the air-data block.
+    v_ned_mps : 3 floats
+        INS velocity at the measurement time, m/s.
+    wind_ne_mps : 2 floats
+        Wind estimate North, East, m/s.
+    scale : float
+        Airspeed scale-factor estimate ``k``.
+    tas_mps : float
+        Measured (or synthetic) true airspeed, m/s.
+    sigma_mps : float
+        1-sigma of the measurement, m/s.
+    with_scale : bool
+        Include the scale column (a synthetic TAS does not come through the pitot).
+
+    Returns
+    -------
+    Observation or None
+        ``None`` for non-finite input or an air-relative speed below 1 m/s.
+    """
+    an = v_ned_mps[0] - wind_ne_mps[0]
+    ae = v_ned_mps[1] - wind_ne_mps[1]
+    ad = v_ned_mps[2]
+    va = math.sqrt(an * an + ae * ae + ad * ad)
+    if not (va >= _MIN_MODEL_SPEED_MPS and math.isfinite(tas_mps) and sigma_mps > 0.0):
+        return None
+    g = 1.0 + scale if with_scale else 1.0
+    H = np.zeros((1, layout.n))
+    v, w = layout.VEL, layout.WIND
+    H[0, v], H[0, v + 1], H[0, v + 2] = g * an / va, g * ae / va, g * ad / va
+    H[0, w], H[0, w + 1] = -g * an / va, -g * ae / va
+    if with_scale:
+        H[0, layout.ASPD_SCALE] = va
+    return Observation(np.array([g * va - tas_mps]), H, np.array([[sigma_mps * sigma_mps]]))
+
+
+def sideslip_model(
+    layout: StateLayout, v_ned_mps: Vec3, q_nb: tuple[float, float, float, float],
+    wind_ne_mps: tuple[float, float], sigma_rad: float,
+) -> Observation | None:  # fmt: skip
+    """Synthetic sideslip observation ``z = a_b,y / a_b,x - 0`` (see module docstring).
+
+    Parameters
+    ----------
+    layout : StateLayout
+        A layout with the air-data block.
+    v_ned_mps : 3 floats
+        INS velocity, m/s.
+    q_nb : 4 floats
+        INS attitude, body -> NED, scalar first.
+    wind_ne_mps : 2 floats
+        Wind estimate, m/s.
+    sigma_rad : float
+        1-sigma of the synthetic measurement, rad.
+
+    Returns
+    -------
+    Observation or None
+        ``None`` when the forward air-relative speed is below 1 m/s.
+    """
+    a = (v_ned_mps[0] - wind_ne_mps[0], v_ned_mps[1] - wind_ne_mps[1], v_ned_mps[2])
+    c = dcm_from_quat(q_nb)  # C_nb, row-major
+    # a_b = C_bn a = C_nb^T a
+    bx = c[0] * a[0] + c[3] * a[1] + c[6] * a[2]
+    by = c[1] * a[0] + c[4] * a[1] + c[7] * a[2]
+    if not bx >= _MIN_MODEL_SPEED_MPS:
+        return None
+    beta = by / bx
+    # d beta / d a_b = (-by / bx^2, 1 / bx, 0); g = C_nb (d beta / d a_b)
+    dx, dy = -by / (bx * bx), 1.0 / bx
+    g = (c[0] * dx + c[1] * dy, c[3] * dx + c[4] * dy, c[6] * dx + c[7] * dy)
+    H = np.zeros((1, layout.n))
+    v, w, p = layout.VEL, layout.WIND, layout.ATT
+    H[0, v], H[0, v + 1], H[0, v + 2] = g
+    H[0, w], H[0, w + 1] = -g[0], -g[1]
+    # H_phi = g × a
+    H[0, p] = g[1] * a[2] - g[2] * a[1]
+    H[0, p + 1] = g[2] * a[0] - g[0] * a[2]
+    H[0, p + 2] = g[0] * a[1] - g[1] * a[0]
+    return Observation(np.array([beta]), H, np.array([[sigma_rad * sigma_rad]]))
+
+
+def wind_from_airspeed(
+    v_ned_mps: Vec3, yaw_rad: float, tas_mps: float
+) -> tuple[float, float]:
+    """Wind that makes a zero-sideslip aircraft at heading ``yaw_rad`` fly ``tas_mps``
+    through the air at ground velocity ``v_ned_mps`` (no vertical wind), m/s North, East."""
+    tas_h = math.sqrt(max(0.0, tas_mps * tas_mps - v_ned_mps[2] ** 2))
+    return (v_ned_mps[0] - tas_h * math.cos(yaw_rad), v_ned_mps[1] - tas_h * math.sin(yaw_rad))
+
+
+class AirState:
+    """The air-data estimates the filter feeds back into (wind N/E, m/s; scale), and whether
+    the block is running."""
+
+    __slots__ = ("active", "scale", "wind_ne_mps")
+
+    def __init__(self) -> None:
+        self.active = False
+        self.wind_ne_mps: tuple[float, float] = (0.0, 0.0)
+        self.scale = 0.0
+
+    def correct(self, dx: list[float], layout: StateLayout) -> None:
+        """Subtract the error estimate (estimated minus true) of the air-data block."""
+        w = layout.WIND
+        self.wind_ne_mps = (self.wind_ne_mps[0] - dx[w], self.wind_ne_mps[1] - dx[w + 1])
+        self.scale -= dx[w + 2]
+
+
+class AirspeedAiding:
+    """Air-data aiding of :class:`fusion.filter.NavFilter` (see module docstring).
+
+    Parameters
+    ----------
+    cfg : AirspeedTuning
+    layout : StateLayout
+        A layout with the air-data block.
+    counters : HealthCounters
+        Where samples and updates are counted (``airspeed_*``, ``sideslip_*``,
+        ``synthetic_airspeed_*``, ``wind_resets``).
+    update : Update
+        The filter's shared measurement update.
+    covariance : callable ``() -> ndarray``
+        The filter's covariance at the current time (the test of a blocked pitot, the
+        wind initialisation).
+    activate : callable ``(wind_ne_mps, wind_variance, scale_variance) -> None``
+        Starts the air-data block: estimates and their (uncorrelated) variances, process
+        noise from then on.
+    corrections : callable ``() -> (3 floats)``, optional
+        Sum of the velocity corrections the filter's feedback made so far, m/s NED (the
+        pitot monitor's stuck check; default: none).
+    """
+
+    def __init__(
+        self, cfg: AirspeedTuning, layout: StateLayout, counters: HealthCounters,
+        update: Update, covariance: Callable[[], FloatArray],
+        activate: Callable[[tuple[float, float], float, float], None],
+        corrections: Callable[[], Vec3] | None = None,
+    ) -> None:  # fmt: skip
+        self.cfg = cfg
+        self.layout = layout
+        self.state = AirState()
+        self.monitor = PitotMonitor(cfg)
+        self.gate = kalman.chi2_gate(1, cfg.gate_probability)
+        self.beta_gate = kalman.chi2_gate(1, cfg.sideslip_gate_probability)
+        self._c = counters
+        self._update = update
+        self._covariance = covariance
+        self._activate = activate
+        self._corrections = corrections if corrections is not None else _no_corrections
+        self._timeout_us = round(cfg.timeout_s * 1e6)
+        self._sum_t = 0
+        self._sum_q = 0.0
+        self._sum_temp = 0.0
+        self._n_temp = 0
+        self._count = 0
+        self.pitot_seen = False
+        """A valid airspeed sample has arrived."""
+        self.last_tas_mps = math.nan
+        """Last measured batch TAS, m/s."""
+        self.last_measured_fused_us: int | None = None
+        self.last_fused_us: int | None = None
+        """Last accepted TAS update, measured or synthetic."""
+        self.synthetic_active = False
+        self._trusted_tas_mps: float | None = None
+        self._synthetic_period_us = round(1e6 / cfg.synthetic_rate_hz)
+        self._last_synthetic_us = -(1 << 62)
+        self._recent_v: deque[Vec3] = deque(
+            maxlen=max(1, round(cfg.fuse_rate_hz * cfg.synthetic_average_s)))
+
+    # --------------------------------------------------------------- samples
+    def add_sample(self, s: AirspeedSample, time_us: int) -> None:
+        """Screen one sample and add it to the current batch (NaN, negative or absurd
+        differential pressure: counted in ``airspeed_invalid``)."""
+        try:
+            qc = float(s.diff_pressure_pa)
+        except (TypeError, ValueError):
+            qc = math.nan
+        if not -self.cfg.negative_tolerance_pa <= qc <= self.cfg.max_diff_pressure_pa:  # NaN too
+            self._c.airspeed_invalid += 1
+            return
+        qc = max(qc, 0.0)  # noise around zero
+        self.pitot_seen = True
+        self.monitor.add_reading(time_us, qc)
+        try:
+            temp = float(s.temperature_k)
+        except (TypeError, ValueError):
+            temp = math.nan
+        if 150.0 <= temp <= 350.0:
+            self._sum_temp += temp
+            self._n_temp += 1
+        self._sum_t += time_us
+        self._sum_q += qc
+        self._count += 1
+
+    def _take_batch(self) -> tuple[int, float, float, int] | None:
+        n = self._count
+        if n == 0:
+            return None
+        temp = self._sum_temp / self._n_temp if self._n_temp else math.nan
+        out = (self._sum_t // n, self._sum_q / n, temp, n)
+        self._sum_t, self._sum_q, self._sum_temp, self._n_temp, self._count = 0, 0.0, 0.0, 0, 0
+        return out
+
+    # --------------------------------------------------------------- status
+    def is_fusing(self, now_us: int) -> bool:
+        """A TAS (measured or synthetic) was fused within ``timeout_s``."""
+        t = self.last_fused_us
+        return t is not None and now_us - t <= self._timeout_us
+
+    def measured_ok(self, now_us: int) -> bool:
+        """A measured TAS was fused within ``timeout_s`` (the pitot is usable)."""
+        t = self.last_measured_fused_us
+        return t is not None and now_us - t <= self._timeout_us
+
+    def status(self, now_us: int) -> AirDataStatus:
+        """The air-data status at ``now_us``."""
+        st = self.state
+        if self.monitor.blocked:
+            mode = "blocked"
+        elif self.measured_ok(now_us):
+            mode = "fusing"
+        elif self.synthetic_active and self.is_fusing(now_us):
+            mode = "synthetic"
+        elif self.last_fused_us is None:
+            mode = "waiting"
+        else:
+            mode = "stale"
+        wind = st.wind_ne_mps if st.active else (math.nan, math.nan)
+        return AirDataStatus(mode, st.active, wind, st.scale, self.last_tas_mps,
+                             self.monitor.fault)  # fmt: skip
+
+    # --------------------------------------------------------------- the tick
+    def tick(
+        self, now_us: int, ins: InsState, past: Callable[[int], InsState | None],
+        static_pa: float, static_temp_k: float, gnss_active: bool,
+    ) -> None:
+        """One fusion epoch (every ``1 / fuse_rate_hz`` of IMU time).
+
+        Parameters
+        ----------
+        now_us : int
+            IMU time (labels the updates).
+        ins : InsState
+            The current INS.
+        past : callable ``(time_us) -> InsState or None``
+            The INS at an earlier time (the batch's mean time).
+        static_pa, static_temp_k : float
+            Static pressure (Pa) and temperature (K) for the TAS conversion and the air
+            density.
+        gnss_active : bool
+            GNSS aiding is active (the synthetic airspeed is latched, not fused).
+        """
+        cfg, st = self.cfg, self.state
+        batch = self._take_batch()
+        if batch is not None:
+            ins = self._measured(batch, now_us, ins, past, static_pa, static_temp_k)
+        if not st.active:
+            if (cfg.fixed_wing and cfg.synthetic_when_no_pitot and not self.pitot_seen
+                    and gnss_active and math.hypot(*ins.v_ned_mps[:2]) > cfg.flying_speed_mps):
+                self._activate((0.0, 0.0), cfg.wind_init_sigma_no_pitot_mps**2,
+                               cfg.scale_sigma**2)  # fmt: skip
+                st.active = True
+                self._c.wind_resets += 1
+            return
+        ins = self._current(ins, past, now_us)
+        va = _air_speed(ins.v_ned_mps, st.wind_ne_mps)
+        flying = va > cfg.flying_speed_mps or self.measured_ok(now_us)
+        if cfg.fixed_wing and flying:
+            self._sideslip(ins, now_us)
+            ins = self._current(ins, past, now_us)
+            va = _air_speed(ins.v_ned_mps, st.wind_ne_mps)
+        if gnss_active or self.measured_ok(now_us):
+            self.synthetic_active = False
+            self._trusted_tas_mps = None
+            if va > cfg.min_airspeed_mps:
+                self._recent_v.append(ins.v_ned_mps)
+            else:
+                self._recent_v.clear()
+            return
+        if self._trusted_tas_mps is None and self._recent_v:
+            # the cruise airspeed: the mean over the recent ground velocities against the
+            # wind as known now (the best estimate), not the value of the last instant (a
+            # phugoid or a throttle change would bias the whole outage)
+            wn, we = st.wind_ne_mps
+            self._trusted_tas_mps = sum(
+                math.sqrt((v[0] - wn) ** 2 + (v[1] - we) ** 2 + v[2] ** 2) for v in self._recent_v
+            ) / len(self._recent_v)
+            self._recent_v.clear()
+        trusted = self._trusted_tas_mps
+        allowed = cfg.synthetic_when_blocked if self.pitot_seen else cfg.synthetic_when_no_pitot
+        if cfg.fixed_wing and allowed and trusted is not None:
+            self.synthetic_active = True
+            if now_us - self._last_synthetic_us < self._synthetic_period_us:
+                return
+            self._last_synthetic_us = now_us
+            obs = tas_model(self.layout, ins.v_ned_mps, st.wind_ne_mps, st.scale, trusted,
+                            cfg.synthetic_noise_mps, with_scale=False)  # fmt: skip
+            if obs is None:
+                return
+            res = self._update(obs, self.gate, AidSource.AIRSPEED, now_us)
+            if res.test_ratio <= 1.0:
+                self._c.synthetic_airspeed_fused += 1
+                self.last_fused_us = now_us
+            else:
+                self._c.synthetic_airspeed_rejected += 1
+
+    def _current(
+        self, ins: InsState, past: Callable[[int], InsState | None], now_us: int
+    ) -> InsState:
+        cur = past(now_us)
+        return ins if cur is None else cur
+
+    def _measured(
+        self, batch: tuple[int, float, float, int], now_us: int, ins: InsState,
+        past: Callable[[int], InsState | None], static_pa: float, static_temp_k: float,
+    ) -> InsState:  # fmt: skip
+        """One measured batch: start the wind, or fuse / test it through the monitor.
+        Returns the current INS (after a possible update)."""
+        cfg, st, c, mon = self.cfg, self.state, self._c, self.monitor
+        t_mean, qc, temp, n = batch
+        temp_k = temp if math.isfinite(temp) else static_temp_k
+        tas = true_airspeed_mps(qc, static_pa, temp_k)
+        if not math.isfinite(tas):
+            c.airspeed_invalid += n
+            return ins
+        self.last_tas_mps = tas
+        at = past(t_mean)
+        if at is None:
+            at = ins
+        if not st.active:
+            if tas < cfg.min_airspeed_mps:
+                c.airspeed_low += n
+                return ins
+            P = self._covariance()
+            yaw_var = float(P[self.layout.ATT + 2, self.layout.ATT + 2])
+            sigma = self._sigma(tas, static_pa, temp_k, n)
+            tas_h = math.sqrt(max(0.0, tas * tas - at.v_ned_mps[2] ** 2))
+            var_w = cfg.wind_init_sigma_mps**2 + sigma * sigma + tas_h * tas_h * yaw_var
+            wind = wind_from_airspeed(at.v_ned_mps, euler_from_quat(at.q_nb)[2], tas)
+            self._activate(wind, var_w, cfg.scale_sigma**2)
+            st.active = True
+            c.wind_resets += 1
+            return ins
+        va = _air_speed(at.v_ned_mps, st.wind_ne_mps)
+        fault = mon.assess(t_mean, tas, at.v_ned_mps, self._corrections(), st.wind_ne_mps,
+                           st.scale, static_pa, temp_k)  # fmt: skip
+        if tas < cfg.min_airspeed_mps:
+            c.airspeed_low += n
+            if mon.blocked:
+                c.airspeed_blocked += n
+                mon.on_low(t_mean)
+            elif mon.on_batch(t_mean, fault, True) == "blocked":
+                c.airspeed_blockages += 1
+            return ins
+        obs = tas_model(self.layout, at.v_ned_mps, st.wind_ne_mps, st.scale, tas,
+                        self._sigma(max(va, tas), static_pa, temp_k, n))  # fmt: skip
+        if obs is None:
+            c.airspeed_invalid += n
+            return ins
+        if mon.blocked:
+            c.airspeed_blocked += n
+            P = self._covariance()
+            h = obs.H[0]
+            s = float(h @ P @ h) + float(obs.R[0, 0])
+            ok = float(obs.z[0]) ** 2 / s <= self.gate
+            if mon.on_batch(t_mean, fault, ok) == "recovered":
+                c.airspeed_recoveries += 1
+            return ins
+        if fault:  # detected on this batch: not fused
+            mon.on_batch(t_mean, fault, True)
+            c.airspeed_blockages += 1
+            c.airspeed_blocked += n
+            return ins
+        res = self._update(obs, self.gate, AidSource.AIRSPEED, now_us)
+        ok = res.test_ratio <= 1.0
+        if ok:
+            c.airspeed_fused += 1
+            self.last_measured_fused_us = self.last_fused_us = now_us
+        else:
+            c.airspeed_rejected += 1
+        if mon.on_batch(t_mean, "", ok) == "blocked":
+            c.airspeed_blockages += 1
+        return ins
+
+    def _sigma(self, speed_mps: float, static_pa: float, temp_k: float, n: int) -> float:
+        """TAS sigma of a batch of ``n`` samples at ``speed_mps`` (module docstring)."""
+        cfg = self.cfg
+        rho_v = air_density_kgpm3(static_pa, temp_k) * max(speed_mps, cfg.min_airspeed_mps)
+        s_sensor = cfg.diff_pressure_noise_pa / rho_v
+        return math.sqrt(s_sensor * s_sensor / n + cfg.tas_noise_floor_mps**2)
+
+    def _sideslip(self, ins: InsState, now_us: int) -> None:
+        obs = sideslip_model(self.layout, ins.v_ned_mps, ins.q_nb, self.state.wind_ne_mps,
+                             self.cfg.sideslip_noise_rad)  # fmt: skip
+        if obs is None:
+            return
+        res = self._update(obs, self.beta_gate, AidSource.SIDESLIP, now_us)
+        if res.test_ratio <= 1.0:
+            self._c.sideslip_fused += 1
+        else:
+            self._c.sideslip_rejected += 1
+
+
+def _air_speed(v_ned_mps: Vec3, wind_ne_mps: tuple[float, float]) -> float:
+    an, ae = v_ned_mps[0] - wind_ne_mps[0], v_ned_mps[1] - wind_ne_mps[1]
+    return math.sqrt(an * an + ae * ae + v_ned_mps[2] ** 2)
+
+
+def _no_corrections() -> Vec3:
+    return (0.0, 0.0, 0.0)

@@ -1,0 +1,210 @@
+"""Pitot fault detection: a blocked or stuck pitot is dropped, and trusted again only after it
+passes a consistency check.
+
+Three signatures of a failed pitot-static system (icing, water, a disconnected line, a
+latched sensor), each checked on the averaged batches the filter fuses
+(:class:`fusion.aiding.airspeed.AirspeedAiding`):
+
+- **stuck** — over ``stuck_window_s`` the readings vary less than ``stuck_ratio`` times what
+  the sensor noise plus the predicted change of impact pressure would make (predicted from
+  the INS velocity with the filter's corrections within the window undone: a fused stuck
+  reading pulls the corrected velocity towards itself), while the INS
+  and the wind estimate say the airspeed changed by at least ``stuck_min_change_mps``
+  over the window (a pitot that keeps its last value through a climb or a throttle
+  change); or the readings are bit-identical over the window (a latched sensor) while flying.
+  A stuck reading in steady flight is not detectable, and harmless while it lasts: it
+  still reads the airspeed;
+- **zero** — the reading is below ``zero_airspeed_mps`` for ``zero_time_s`` while the
+  predicted airspeed is above ``flying_speed_mps`` (the pitot worked before: the wind
+  states are running only after it read a flying airspeed);
+- **rejected** — every batch rejected by the innovation gate for ``reject_time_s``.
+
+While blocked, each batch is still tested against the current wind and velocity (without
+being fused). The pitot is trusted again only after ``recover_time_s`` of batches that pass
+the gate and the zero and stuck checks; after a *stuck* fault one of those windows must also
+show the readings following a predicted airspeed change (a stuck pitot passes everything in
+steady flight).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+from fusion.config import AirspeedTuning
+from physconst.airdata import impact_pressure_pa
+
+Vec3 = tuple[float, float, float]
+
+
+class PitotMonitor:
+    """Pitot health: the three fault checks and the recovery test (see module docstring).
+
+    Parameters
+    ----------
+    cfg : AirspeedTuning
+
+    Attributes
+    ----------
+    blocked : bool
+        The pitot is declared blocked (not fused).
+    fault : str
+        ``stuck``, ``zero`` or ``rejected`` while blocked, ``""`` otherwise.
+    """
+
+    def __init__(self, cfg: AirspeedTuning) -> None:
+        self.cfg = cfg
+        self.blocked = False
+        self.fault = ""
+        self._window_us = round(cfg.stuck_window_s * 1e6)
+        self._zero_us = round(cfg.zero_time_s * 1e6)
+        self._reject_us = round(cfg.reject_time_s * 1e6)
+        self._recover_us = round(cfg.recover_time_s * 1e6)
+        self._readings: deque[tuple[int, float]] = deque()
+        # t, INS velocity at the batch, cumulative feedback velocity correction at the batch
+        self._predicted: deque[tuple[int, Vec3, Vec3]] = deque()
+        self._zero_since_us: int | None = None
+        self._rejected_since_us: int | None = None
+        self._pass_since_us: int | None = None
+        self._followed = False  # a stuck-evaluable window passed during recovery
+
+    def add_reading(self, time_us: int, diff_pressure_pa: float) -> None:
+        """One valid raw reading (the stuck check looks at their spread)."""
+        r = self._readings
+        r.append((time_us, diff_pressure_pa))
+        while r and r[0][0] < time_us - self._window_us:
+            r.popleft()
+
+    def assess(
+        self, time_us: int, tas_mps: float, v_ned_mps: Vec3, correction_ned_mps: Vec3,
+        wind_ne_mps: tuple[float, float], scale: float, static_pa: float, temp_k: float,
+    ) -> str:  # fmt: skip
+        """The fault the current batch shows, ``""`` if none.
+
+        Parameters
+        ----------
+        time_us : int
+            Batch time.
+        tas_mps : float
+            Measured TAS of the batch, m/s.
+        v_ned_mps : 3 floats
+            INS velocity at the batch time, m/s.
+        correction_ned_mps : 3 floats
+            Sum of every velocity correction the filter's feedback made so far, m/s: the
+            stuck check undoes the corrections made within its window, so that its predicted
+            airspeed is the inertial one (a fused stuck reading pulls the corrected velocity
+            towards itself and would hide the change it failed to follow).
+        wind_ne_mps, scale : the current wind and airspeed-scale estimates.
+        static_pa, temp_k : static pressure and temperature (the predicted impact pressure).
+        """
+        cfg = self.cfg
+        p = self._predicted
+        p.append((time_us, v_ned_mps, correction_ned_mps))
+        while p and p[0][0] < time_us - self._window_us:
+            p.popleft()
+        g = 1.0 + scale
+        wn, we = wind_ne_mps
+        predicted_tas_mps = g * math.sqrt((v_ned_mps[0] - wn) ** 2 + (v_ned_mps[1] - we) ** 2
+                                          + v_ned_mps[2] ** 2)  # fmt: skip
+        flying = predicted_tas_mps > cfg.flying_speed_mps
+        # zero while flying
+        if tas_mps < cfg.zero_airspeed_mps and flying:
+            if self._zero_since_us is None:
+                self._zero_since_us = time_us
+            if time_us - self._zero_since_us >= self._zero_us:
+                return "zero"
+        else:
+            self._zero_since_us = None
+        return self._stuck(time_us, flying, wind_ne_mps, g, correction_ned_mps, static_pa,
+                           temp_k)  # fmt: skip
+
+    def _stuck(
+        self, time_us: int, flying: bool, wind_ne_mps: tuple[float, float], gain: float,
+        corr_now: Vec3, static_pa: float, temp_k: float,
+    ) -> str:  # fmt: skip
+        r, p = self._readings, self._predicted
+        if not r or time_us - r[0][0] < 0.9 * self._window_us or len(r) < 5 or len(p) < 3:
+            return ""
+        values = [q for _, q in r]
+        if flying and max(values) == min(values):
+            return "stuck"
+        wn, we = wind_ne_mps
+        tas_pred = []
+        for _, v, c in p:
+            # the velocity as the INS alone would have carried it to now: corrections made
+            # since this batch undone
+            vn = v[0] + corr_now[0] - c[0] - wn
+            ve = v[1] + corr_now[1] - c[1] - we
+            vd = v[2] + corr_now[2] - c[2]
+            tas_pred.append(gain * math.sqrt(vn * vn + ve * ve + vd * vd))
+        if max(tas_pred) - min(tas_pred) < self.cfg.stuck_min_change_mps:
+            return ""  # no predicted change: nothing to follow
+        std_meas = _std(values)
+        std_pred = _std([impact_pressure_pa(v, static_pa, temp_k) for v in tas_pred])
+        expected = math.hypot(self.cfg.diff_pressure_noise_pa, std_pred)
+        if std_meas < self.cfg.stuck_ratio * expected:
+            return "stuck"
+        if self.blocked:
+            self._followed = True
+        return ""
+
+    def on_batch(self, time_us: int, fault: str, gate_ok: bool) -> str:
+        """Advance the state with one batch's verdicts.
+
+        Parameters
+        ----------
+        time_us : int
+        fault : str
+            :meth:`assess`'s result for the batch.
+        gate_ok : bool
+            The batch passed the innovation gate (fused, or, while blocked, tested).
+
+        Returns
+        -------
+        str
+            ``"blocked"`` when the pitot was just declared blocked, ``"recovered"`` when it was
+            just trusted again, ``""`` otherwise.
+        """
+        if not self.blocked:
+            if gate_ok:
+                self._rejected_since_us = None
+            elif self._rejected_since_us is None:
+                self._rejected_since_us = time_us
+            if not fault and self._rejected_since_us is not None and (
+                time_us - self._rejected_since_us >= self._reject_us
+            ):
+                fault = "rejected"
+            if fault:
+                self.blocked = True
+                self.fault = fault
+                self._pass_since_us = None
+                self._followed = False
+                self._rejected_since_us = None
+                return "blocked"
+            return ""
+        if fault or not gate_ok:
+            self._pass_since_us = None
+            self._followed = False
+            return ""
+        if self._pass_since_us is None:
+            self._pass_since_us = time_us
+        passed = time_us - self._pass_since_us >= self._recover_us
+        if passed and (self.fault != "stuck" or self._followed):
+            self.blocked = False
+            self.fault = ""
+            self._pass_since_us = None
+            self._zero_since_us = None
+            return "recovered"
+        return ""
+
+    def on_low(self, time_us: int) -> None:
+        """A batch too slow to fuse while blocked: it does not count towards recovery."""
+        if self.blocked:
+            self._pass_since_us = None
+            self._followed = False
+
+
+def _std(values: list[float]) -> float:
+    n = len(values)
+    mean = sum(values) / n
+    return math.sqrt(max(0.0, sum((v - mean) ** 2 for v in values) / n))
