@@ -148,6 +148,10 @@ class Health:
     synthetic_airspeed_fused: int = 0
     """Synthetic TAS updates fused (no usable pitot, GNSS lost, fixed-wing)."""
     synthetic_airspeed_rejected: int = 0
+    learned_airspeed_fused: int = 0
+    """Learned-model TAS updates fused (``--bridge gmdh-airspeed``: no usable pitot, GNSS
+    lost)."""
+    learned_airspeed_rejected: int = 0
     wind_resets: int = 0
     """Starts of the wind states (from the first airspeed batch, or at zero for sideslip-only
     wind learning without a pitot)."""
@@ -204,6 +208,8 @@ class HealthCounters:
     sideslip_rejected: int
     synthetic_airspeed_fused: int
     synthetic_airspeed_rejected: int
+    learned_airspeed_fused: int
+    learned_airspeed_rejected: int
     wind_resets: int
 
     def __init__(self) -> None:

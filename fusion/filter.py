@@ -60,6 +60,7 @@ from fusion.aiding.baro import BaroAiding, height_to_pressure, pressure_to_heigh
 from fusion.aiding.gnss import GnssAiding, fix_sigmas
 from fusion.aiding.mag import MagAiding
 from fusion.aiding.pseudo_gnss import PseudoGnssAiding
+from fusion.airspeed_model import AirspeedInputs
 from fusion.alignment import (
     AlignmentResult,
     InFlightAlignment,
@@ -97,7 +98,7 @@ from fusion.feedback import feedback, reset_baro_bias, reset_block, reset_positi
 from fusion.history import InsHistory, span_capacity
 from fusion.outage import OutageBridging
 from fusion.propagation import CovariancePropagator, decay_gnss_bias
-from fusion.rotations import euler_from_quat
+from fusion.rotations import dcm_from_quat, euler_from_quat
 from fusion.samples import (
     ActuatorSample,
     AirspeedSample,
@@ -110,6 +111,7 @@ from fusion.samples import (
 )
 from fusion.screening import SampleScreen
 from fusion.strapdown import InsState
+from physconst.airdata import air_density_kgpm3
 
 FloatArray = NDArray[np.float64]
 _ZERO3 = (0.0, 0.0, 0.0)
@@ -122,6 +124,7 @@ _IDENTITY9: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 _GNSS, _BRIDGING, _FREE = Mode.GNSS, Mode.BRIDGING, Mode.FREE_INERTIAL
 _DEAD_RECKONING = Mode.DEAD_RECKONING
 _NEVER_US = 1 << 62  # the air-data tick of a filter without air data
+_INPUT_MAX_AGE_US = 1_000_000  # controls / rpm older than this: the learned model has no inputs
 _AIR_OFF = AirDataStatus()
 _AID_INDEX = {s: i for i, s in enumerate(AidSource)}
 
@@ -231,9 +234,11 @@ class NavFilter:
         self._pseudo = PseudoGnssAiding(cfg.gnss, lay, self._correct)
         self._air: AirspeedAiding | None = (
             AirspeedAiding(cfg.airspeed, lay, self._c, self._correct, self._current_covariance,
-                           self._activate_air, self._velocity_corrections)
+                           self._activate_air, self._velocity_corrections,
+                           self.bridge.airspeed_model)
             if self._air_on else None
         )  # fmt: skip
+        self._learns_airspeed = self._air is not None and self._air.model is not None
         self._air_next_us = _NEVER_US
         self._air_status = _AIR_OFF
         self._vel_corr = [0.0, 0.0, 0.0]  # sum of the feedback's velocity corrections, m/s
@@ -705,7 +710,8 @@ class NavFilter:
             temp = math.nan
         if not 150.0 <= temp <= 350.0:
             temp = 288.15 - 0.0065 * min(ins.alt_msl_m, 11_000.0)  # ISA
-        air.tick(t, ins, self._past_state, p, temp, self._gnss_ctl.is_active(t))
+        inputs = self._model_inputs(t, ins, p, temp) if self._learns_airspeed else None
+        air.tick(t, ins, self._past_state, p, temp, self._gnss_ctl.is_active(t), inputs)
         self._air_status = air.status(t)
 
     def _init_baro_bias(self, bias_m: float, reference_alt_m: float) -> None:
@@ -867,8 +873,31 @@ class NavFilter:
         return []
 
     def _on_vehicle_state(self, s: ActuatorSample | RpmSample) -> list[NavEstimate]:
-        # actuator controls and propeller rpm are inputs for learned vehicle models (#18)
+        # the latest controls and propeller speed: inputs of a learned vehicle model
+        if isinstance(getattr(s, "controls", None), tuple):
+            c = s.controls  # type: ignore[union-attr]
+            if len(c) >= 4:
+                self._controls = (float(c[0]), float(c[1]), float(c[3]))
+                self._controls_us = int(s.time_us)
+        elif getattr(s, "index", 0) == 0:
+            self._rpm = float(s.rpm)  # type: ignore[union-attr]
+            self._rpm_us = int(s.time_us)
         return []
+
+    def _model_inputs(self, t: int, ins: InsState, p: float, temp: float) -> AirspeedInputs | None:
+        """The learned airspeed model's inputs now (None without fresh controls and rpm)."""
+        if t - self._controls_us > _INPUT_MAX_AGE_US or t - self._rpm_us > _INPUT_MAX_AGE_US:
+            return None
+        roll, pitch, _ = euler_from_quat(ins.q_nb)
+        c = dcm_from_quat(ins.q_nb)  # C_nb row-major: f_b = C_nb^T f_n
+        fn, fe, fd = self._cov.f_n
+        fx_b, fz_b = c[0] * fn + c[3] * fe + c[6] * fd, c[2] * fn + c[5] * fe + c[8] * fd
+        aileron, elevator, throttle = self._controls
+        return AirspeedInputs(
+            throttle=throttle, elevator=elevator, aileron=aileron, rpm_krpm=1e-3 * self._rpm,
+            density_kgpm3=air_density_kgpm3(p, temp), roll_rad=roll, pitch_rad=pitch,
+            fx_b_mps2=fx_b, fz_b_mps2=fz_b, climb_rate_mps=-ins.v_ned_mps[2],
+        )  # fmt: skip
 
     def _on_mag(self, s: MagSample) -> list[NavEstimate]:
         t = self._screen.order("mag", s.time_us)

@@ -55,6 +55,7 @@ from numpy.typing import NDArray
 from fusion import kalman
 from fusion.aiding import Observation, Update
 from fusion.aiding.pitot_monitor import PitotMonitor
+from fusion.airspeed_model import AirspeedInputs, OnlineAirspeedModel
 from fusion.config import AirspeedTuning
 from fusion.error_model import StateLayout
 from fusion.estimate import AidSource, AirDataStatus, HealthCounters
@@ -207,6 +208,11 @@ class AirspeedAiding:
     corrections : callable ``() -> (3 floats)``, optional
         Sum of the velocity corrections the filter's feedback made so far, m/s NED (the
         pitot monitor's stuck check; default: none).
+    model : OnlineAirspeedModel, optional
+        A learned vehicle model (``--bridge gmdh-airspeed``): while the airspeed is known (GNSS
+        or a trusted pitot) it learns ``|v - w|`` from the epoch's :class:`AirspeedInputs`;
+        with GNSS lost and no usable pitot its prediction, with its own sigma, replaces the
+        latched synthetic airspeed (which remains the fallback while it has none).
     """
 
     def __init__(
@@ -214,6 +220,7 @@ class AirspeedAiding:
         update: Update, covariance: Callable[[], FloatArray],
         activate: Callable[[tuple[float, float], float, float], None],
         corrections: Callable[[], Vec3] | None = None,
+        model: OnlineAirspeedModel | None = None,
     ) -> None:  # fmt: skip
         self.cfg = cfg
         self.layout = layout
@@ -226,6 +233,7 @@ class AirspeedAiding:
         self._covariance = covariance
         self._activate = activate
         self._corrections = corrections if corrections is not None else _no_corrections
+        self.model = model
         self._timeout_us = round(cfg.timeout_s * 1e6)
         self._sum_t = 0
         self._sum_q = 0.0
@@ -312,6 +320,7 @@ class AirspeedAiding:
     def tick(
         self, now_us: int, ins: InsState, past: Callable[[int], InsState | None],
         static_pa: float, static_temp_k: float, gnss_active: bool,
+        inputs: AirspeedInputs | None = None,
     ) -> None:
         """One fusion epoch (every ``1 / fuse_rate_hz`` of IMU time).
 
@@ -328,13 +337,17 @@ class AirspeedAiding:
             density.
         gnss_active : bool
             GNSS aiding is active (the synthetic airspeed is latched, not fused).
+        inputs : AirspeedInputs, optional
+            The learned model's inputs at this epoch (None: the stream has no controls or
+            rpm, or no model).
         """
         cfg, st = self.cfg, self.state
         batch = self._take_batch()
         if batch is not None:
             ins = self._measured(batch, now_us, ins, past, static_pa, static_temp_k)
         if not st.active:
-            if (cfg.fixed_wing and cfg.synthetic_when_no_pitot and not self.pitot_seen
+            learns = cfg.synthetic_when_no_pitot or self.model is not None
+            if (cfg.fixed_wing and learns and not self.pitot_seen
                     and gnss_active and math.hypot(*ins.v_ned_mps[:2]) > cfg.flying_speed_mps):
                 self._activate((0.0, 0.0), cfg.wind_init_sigma_no_pitot_mps**2,
                                cfg.scale_sigma**2)  # fmt: skip
@@ -353,8 +366,13 @@ class AirspeedAiding:
             self._trusted_tas_mps = None
             if va > cfg.min_airspeed_mps:
                 self._recent_v.append(ins.v_ned_mps)
+                if self.model is not None:
+                    # the aided filter's air-relative speed is the best airspeed there is
+                    self.model.observe(now_us, inputs, va)
             else:
                 self._recent_v.clear()
+            return
+        if self._learned_tas(now_us, ins, inputs):
             return
         if self._trusted_tas_mps is None and self._recent_v:
             # the cruise airspeed: the mean over the recent ground velocities against the
@@ -382,6 +400,32 @@ class AirspeedAiding:
                 self.last_fused_us = now_us
             else:
                 self._c.synthetic_airspeed_rejected += 1
+
+    def _learned_tas(self, now_us: int, ins: InsState, inputs: AirspeedInputs | None) -> bool:
+        """Fuse the learned model's airspeed (GNSS lost, no usable pitot); False when it has
+        no prediction (the latched synthetic airspeed is then the fallback)."""
+        model = self.model
+        if model is None or not self.cfg.fixed_wing:
+            return False
+        pred = model.predict(inputs)
+        if pred is None:
+            return False
+        self.synthetic_active = True
+        if now_us - self._last_synthetic_us < self._synthetic_period_us:
+            return True
+        self._last_synthetic_us = now_us
+        st = self.state
+        obs = tas_model(self.layout, ins.v_ned_mps, st.wind_ne_mps, st.scale, pred.tas_mps,
+                        pred.sigma_mps, with_scale=False)  # fmt: skip
+        if obs is None:
+            return True
+        res = self._update(obs, self.gate, AidSource.AIRSPEED, now_us)
+        if res.test_ratio <= 1.0:
+            self._c.learned_airspeed_fused += 1
+            self.last_fused_us = now_us
+        else:
+            self._c.learned_airspeed_rejected += 1
+        return True
 
     def _current(
         self, ins: InsState, past: Callable[[int], InsState | None], now_us: int

@@ -23,6 +23,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
+from fusion.airspeed_model import OnlineAirspeedModel
 from fusion.strapdown import InsState
 
 Vec3 = tuple[float, float, float]
@@ -32,7 +33,9 @@ _ZERO3: Vec3 = (0.0, 0.0, 0.0)
 COMPONENTS: tuple[str, ...] = ("pn", "pe", "pd", "vn", "ve", "vd")
 """The six corrected components: N/E/D position error (m), N/E/D velocity error (m/s)."""
 
-BRIDGE_STATES: tuple[str, ...] = ("off", "untrained", "training", "trained", "stale")
+BRIDGE_STATES: tuple[str, ...] = (
+    "off", "no inputs", "untrained", "training", "trained", "stale"
+)
 """Values of :attr:`BridgeStatus.state`."""
 
 
@@ -139,7 +142,8 @@ class BridgeStatus:
         ``"off"`` (plain filter), ``"untrained"`` (too little data: behaves as ``none``),
         ``"training"`` (first fits under way, some components not fitted yet), ``"trained"``,
         ``"stale"`` (no refit for longer than ``BridgeConfig.stale_after_s``, e.g. in a long
-        outage or after long GNSS rejection; the last models are still used).
+        outage or after long GNSS rejection; the last models are still used); ``"no inputs"``
+        (``gmdh-airspeed`` on a stream without the controls or rpm it learns from).
     samples : int
         Training pairs in the sliding window.
     refits : int
@@ -160,6 +164,12 @@ class BridgeStatus:
         training range are clipped to it, so predictions stop growing past it, s.
     active : bool
         A correction or pseudo-fix is being applied now.
+    model : str
+        A learned vehicle model's selected polynomial (``gmdh-airspeed``), readable; empty
+        for the other strategies.
+    model_rmse : float
+        That model's RMS error on the most recent, held-out part of its training window, in
+        its target's units (m/s of true airspeed); NaN before its first fit.
     """
 
     method: str
@@ -172,6 +182,8 @@ class BridgeStatus:
     last_fit_samples: int = 0
     horizon_s: float = 0.0
     active: bool = False
+    model: str = ""
+    model_rmse: float = math.nan
 
 
 class Bridge(Protocol):
@@ -206,6 +218,12 @@ class Bridge(Protocol):
         """The strategy's current health."""
         ...
 
+    @property
+    def airspeed_model(self) -> OnlineAirspeedModel | None:
+        """A learned vehicle model for the filter's air-data aiding (``gmdh-airspeed``), read
+        once at construction; None for the other strategies."""
+        ...
+
     def on_gnss(self, epoch: BridgeEpoch, error: InsError) -> None:
         """One fused (or attempted) GNSS fix: the training pair."""
         ...
@@ -228,6 +246,7 @@ class NoBridge:
     name = "none"
     virtual_outage_s = 0.0
     virtual_outage_count = 0
+    airspeed_model: OnlineAirspeedModel | None = None
 
     @property
     def status(self) -> BridgeStatus:

@@ -42,6 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion import earth
+from fusion.airspeed_model import OnlineAirspeedModel
 from fusion.bridging.features import (
     BASE_COLUMNS,
     COL_T,
@@ -153,6 +154,9 @@ class LearnedBridge:
     def virtual_outage_count(self) -> int:
         """Number of staggered shadow INS copies asked of the filter."""
         return self.config.virtual_outage_count if self._virtual else 0
+
+    airspeed_model: OnlineAirspeedModel | None = None
+    """These strategies correct position and velocity, not the air data."""
 
     @property
     def status(self) -> BridgeStatus:

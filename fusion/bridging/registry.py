@@ -16,6 +16,10 @@
 ``rbf``                   P0's comparator: 15 Gaussian neurons per component
 ``bp-parallel``           P2: one small sigmoid network per component; inputs the component
                           (since the outage start) and its rate
+``gmdh-airspeed``         a learned vehicle model: GMDH learns true airspeed from the controls,
+                          propeller rpm, air density, attitude and specific force while the
+                          airspeed is known; with GNSS lost and no usable pitot the filter
+                          fuses its prediction (:mod:`fusion.bridging.airspeed`)
 ========================  =====================================================================
 
 What each method achieves on held-out flights is measured by ``bench/bridging.py`` and
@@ -27,6 +31,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from fusion.bridging.airspeed import AirspeedModelBridge
 from fusion.bridging.interface import Bridge, NoBridge
 from fusion.bridging.learned import LearnedBridge
 from fusion.bridging.models import ComponentModel, NarxModel, StatelessModel
@@ -34,7 +39,9 @@ from fusion.config import BridgeConfig
 from fusion.gmdh import GmdhRegressor
 from fusion.regressors import BpNet, NarxMLP, RbfNet
 
-BRIDGE_METHODS: tuple[str, ...] = ("none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel")
+BRIDGE_METHODS: tuple[str, ...] = (
+    "none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel", "gmdh-airspeed"
+)
 """Names accepted by :func:`make_bridge`."""
 
 GMDH_FEATURES: tuple[str, ...] = ("t", "t2", "sinpsi", "cospsi")
@@ -74,7 +81,8 @@ def make_bridge(name: str, config: BridgeConfig | None = None) -> Bridge:
     Parameters
     ----------
     name : str
-        ``none``, ``gmdh``, ``gmdh-pseudo``, ``mlp``, ``rbf`` or ``bp-parallel``.
+        ``none``, ``gmdh``, ``gmdh-pseudo``, ``mlp``, ``rbf``, ``bp-parallel`` or
+        ``gmdh-airspeed``.
     config : BridgeConfig, optional
         Training and model settings. Fields not set explicitly take the method's
         :data:`METHOD_DEFAULTS`, then ``BridgeConfig``'s defaults; ``features=None`` picks
@@ -96,6 +104,8 @@ def make_bridge(name: str, config: BridgeConfig | None = None) -> Bridge:
         )
     if name == "none":
         return NoBridge()
+    if name == "gmdh-airspeed":
+        return AirspeedModelBridge()
     # the method's defaults fill in whatever the caller did not set explicitly
     given = {} if config is None else config.model_dump(include=config.model_fields_set)
     cfg = BridgeConfig(**{**METHOD_DEFAULTS.get(name, {}), **given})

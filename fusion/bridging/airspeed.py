@@ -1,0 +1,46 @@
+"""``gmdh-airspeed``: a learned vehicle model as a bridging method.
+
+It corrects neither the output nor the INS directly (its hooks are :class:`NoBridge`'s): it
+hands the filter an :class:`~fusion.airspeed_model.OnlineAirspeedModel` (a GMDH network with
+the regressor defaults of :class:`fusion.gmdh.GmdhRegressor`) which the air-data aiding
+trains while the airspeed is known and fuses, with its own held-out error as the sigma,
+when GNSS is lost and no pitot is usable (:mod:`fusion.aiding.airspeed`). Its status reports
+what it learned: the state (``no inputs`` when the stream carries no controls or rpm), the
+training pairs, the refits, the held-out error and the selected polynomial.
+"""
+
+from __future__ import annotations
+
+from fusion.airspeed_model import OnlineAirspeedModel
+from fusion.bridging.interface import BridgeStatus, NoBridge
+from fusion.gmdh import GmdhRegressor
+
+
+def _describe(model: object) -> str:
+    return model.polynomial(4) if isinstance(model, GmdhRegressor) else ""
+
+
+class AirspeedModelBridge(NoBridge):
+    """The ``gmdh-airspeed`` strategy (module docstring)."""
+
+    name = "gmdh-airspeed"
+
+    def __init__(self) -> None:
+        self.airspeed_model = OnlineAirspeedModel(
+            GmdhRegressor, method=self.name, describe=_describe
+        )
+
+    @property
+    def status(self) -> BridgeStatus:
+        """The learned model's state, pairs, refits, held-out error and polynomial."""
+        model = self.airspeed_model
+        assert model is not None
+        st = model.status
+        return BridgeStatus(
+            self.name,
+            st.state,
+            samples=st.samples,
+            refits=st.refits,
+            model=st.polynomial,
+            model_rmse=st.validation_rmse_mps,
+        )
