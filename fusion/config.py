@@ -306,6 +306,10 @@ class AirspeedTuning(_Frozen):
     synthetic_noise_mps: PositiveFloat = 3.0
     """Sigma of the synthetic TAS (throttle and pitch changes move the real airspeed by a
     few m/s: the cruise-speed spread of a small fixed-wing), m/s."""
+    learn_max_wind_sigma_mps: PositiveFloat = 2.0
+    """A learned airspeed model (``--bridge gmdh-airspeed``) trains on ``|v - w|`` only while
+    the wind is known to this 1-sigma per axis (m/s): before the wind has converged the target
+    would move under the model."""
 
 
 AIRSPEED_MODES: tuple[str, ...] = ("on", "off", "synthetic")

@@ -244,6 +244,9 @@ class NavFilter:
         self._vel_corr = [0.0, 0.0, 0.0]  # sum of the feedback's velocity corrections, m/s
         self._static_pa = math.nan  # last accepted baro pressure and temperature
         self._static_temp_k = math.nan
+        self._controls = (0.0, 0.0, 0.0)  # latest aileron, elevator (pitch), throttle
+        self._controls_us = self._rpm_us = -_NEVER_US
+        self._rpm = 0.0
         self._alt = AltitudeLink(cfg.altitude, cfg.gnss.lever_arm_b_m, self._c)
         self._outage = OutageBridging(self.bridge, cfg.bridge.rate_hz, self._epoch)
         self._shadows = self._outage.shadows  # the IMU path's view of it

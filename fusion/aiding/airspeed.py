@@ -346,7 +346,8 @@ class AirspeedAiding:
         if batch is not None:
             ins = self._measured(batch, now_us, ins, past, static_pa, static_temp_k)
         if not st.active:
-            learns = cfg.synthetic_when_no_pitot or self.model is not None
+            # the wind is learned (sideslip, GNSS) for the synthetic or learned airspeed
+            learns = cfg.synthetic_when_no_pitot or (self.model is not None and inputs is not None)
             if (cfg.fixed_wing and learns and not self.pitot_seen
                     and gnss_active and math.hypot(*ins.v_ned_mps[:2]) > cfg.flying_speed_mps):
                 self._activate((0.0, 0.0), cfg.wind_init_sigma_no_pitot_mps**2,
@@ -366,7 +367,7 @@ class AirspeedAiding:
             self._trusted_tas_mps = None
             if va > cfg.min_airspeed_mps:
                 self._recent_v.append(ins.v_ned_mps)
-                if self.model is not None:
+                if self.model is not None and self._wind_known():
                     # the aided filter's air-relative speed is the best airspeed there is
                     self.model.observe(now_us, inputs, va)
             else:
@@ -400,6 +401,10 @@ class AirspeedAiding:
                 self.last_fused_us = now_us
             else:
                 self._c.synthetic_airspeed_rejected += 1
+
+    def _wind_known(self) -> bool:
+        P, w = self._covariance(), self.layout.WIND
+        return max(float(P[w, w]), float(P[w + 1, w + 1])) <= self.cfg.learn_max_wind_sigma_mps**2
 
     def _learned_tas(self, now_us: int, ins: InsState, inputs: AirspeedInputs | None) -> bool:
         """Fuse the learned model's airspeed (GNSS lost, no usable pitot); False when it has
