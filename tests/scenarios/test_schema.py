@@ -660,7 +660,9 @@ def test_with_overrides(tmp_path: Path) -> None:
 
 
 def test_method_lists() -> None:
-    assert BRIDGE_METHODS == ("none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel")
+    assert BRIDGE_METHODS == (
+        "none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel", "gmdh-airspeed"
+    )
     assert ALTITUDE_METHODS == ("ekf", "loop", "loop-mpc", "loop-kf")
 
 
