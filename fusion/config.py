@@ -313,6 +313,11 @@ class AirspeedTuning(_Frozen):
 
 
 AIRSPEED_MODES: tuple[str, ...] = ("on", "off", "synthetic")
+DEFAULT_AIRSPEED_MODE = "off"
+"""The commands' air-data default. ``off`` until the air-data filter stops losing to the
+free-inertial filter on JSBSim: on held-out flights (industrial MEMS, wind 0-12 m/s,
+turbulence 0-0.4, ``bench/air_data.py``) fusing the pitot left 2.1x the horizontal error at
+300 s into an outage; ``--airspeed on`` fuses it (bench/README.md, "Air data on JSBSim")."""
 """Air-data choices of the commands (``--airspeed``): ``on`` fuses the pitot when the stream
 carries one; ``off`` fuses no air data (samples counted, not fused); ``synthetic`` is ``on``
 plus synthetic airspeed on a fixed-wing without a pitot (:class:`AirspeedTuning`)."""

@@ -24,7 +24,12 @@ from pathlib import Path
 from types import TracebackType
 
 from fusion.bridging.registry import BRIDGE_METHODS, make_bridge
-from fusion.config import ALTITUDE_METHODS, FilterConfig, airspeed_tuning
+from fusion.config import (
+    ALTITUDE_METHODS,
+    DEFAULT_AIRSPEED_MODE,
+    FilterConfig,
+    airspeed_tuning,
+)
 from fusion.estimate import NavEstimate
 from fusion.filter import NavFilter
 from hil.codec import Decoder
@@ -273,7 +278,8 @@ def record_flight(setup: SimSetup, path: Path, *, progress: ProgressFn | None = 
 
 # ---------------------------------------------------------------------------------- fuse
 def filter_config(
-    imu: str, receiver: GnssConfig, altitude: str = "ekf", airspeed: str = "on"
+    imu: str, receiver: GnssConfig, altitude: str = "ekf",
+    airspeed: str = DEFAULT_AIRSPEED_MODE,
 ) -> FilterConfig:
     """The filter every command builds: tuned from the IMU datasheet preset ``imu``, modelling
     the GNSS ``receiver`` (its time-correlated error as bias states when it has one), with the

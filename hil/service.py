@@ -63,6 +63,7 @@ from typing import Any, Final, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from fusion.config import DEFAULT_AIRSPEED_MODE
 from fusion.estimate import NavEstimate
 from hil.bus import Topic
 from hil.codec import TRUTH_COMPONENT_ID, mavlink2
@@ -110,7 +111,7 @@ class FusionOptions(BaseModel):
     gnss: str = "modern"
     bridge: str = "none"
     altitude: str = "ekf"
-    airspeed: str = "on"
+    airspeed: str = DEFAULT_AIRSPEED_MODE
     """Air data: ``on``, ``off`` or ``synthetic`` (:data:`fusion.config.AIRSPEED_MODES`)."""
     gcs: str | None = None
     shadow_system_id: int = Field(default=1, ge=1, le=255)

@@ -12,7 +12,13 @@ from __future__ import annotations
 import math
 import typing
 
-from fusion.config import FilterConfig, GnssTuning, ImuTuning
+from fusion.config import (
+    DEFAULT_AIRSPEED_MODE,
+    FilterConfig,
+    GnssTuning,
+    ImuTuning,
+    airspeed_tuning,
+)
 from fusion.error_model import LayoutName
 from sim.gnss import GnssConfig
 from sim.imu import ImuParams
@@ -77,11 +83,13 @@ def datasheet_layout(layout: LayoutName) -> LayoutName:
 
 def filter_config_for_imu(preset: str, base: FilterConfig | None = None) -> FilterConfig:
     """A :class:`FilterConfig` assuming the IMU ``preset``, with the sensor-error states its
-    datasheet calls for (:func:`datasheet_layout`; ValueError names valid presets)."""
+    datasheet calls for (:func:`datasheet_layout`; ValueError names valid presets) and the
+    commands' air-data default (:data:`fusion.config.DEFAULT_AIRSPEED_MODE`)."""
     base = base or FilterConfig()
     return base.model_copy(update={
         "imu": filter_imu_config(imu_preset(preset), base.imu),
         "state_layout": datasheet_layout(base.state_layout),
+        "airspeed": airspeed_tuning(DEFAULT_AIRSPEED_MODE, base.airspeed),
     })
 
 

@@ -34,7 +34,7 @@ R = TypeVar("R")
 
 # the methods the fusion offers (fusion/ imports no I/O: cheap to import here)
 from fusion.bridging.registry import BRIDGE_METHODS  # noqa: E402
-from fusion.config import AIRSPEED_MODES, ALTITUDE_METHODS  # noqa: E402
+from fusion.config import AIRSPEED_MODES, ALTITUDE_METHODS, DEFAULT_AIRSPEED_MODE  # noqa: E402
 
 # Options of every command that runs the filter: defined once so that replay, demo, fusion
 # and up build the filter from the same choices (run / compare / campaign take them from the
@@ -285,7 +285,7 @@ def fusion(
     gnss: GnssOption = "modern",
     bridge: BridgeOption = "none",
     altitude: AltitudeOption = "ekf",
-    airspeed: AirspeedOption = "on",
+    airspeed: AirspeedOption = DEFAULT_AIRSPEED_MODE,
     gcs: Annotated[
         str | None,
         typer.Option(help="Shadow vehicle for ground stations, e.g. udpout:127.0.0.1:14550."),
@@ -438,7 +438,7 @@ def up(
     gnss: Annotated[str, typer.Option(help="GNSS preset (sensor and filter model).")] = "modern",
     bridge: BridgeOption = "none",
     altitude: AltitudeOption = "ekf",
-    airspeed: AirspeedOption = "on",
+    airspeed: AirspeedOption = DEFAULT_AIRSPEED_MODE,
     gcs: Annotated[
         str | None, typer.Option(help="Also show the shadow vehicle to this ground station URL.")
     ] = None,
@@ -475,7 +475,7 @@ def replay(
     out: Annotated[Path, typer.Option(help="Output folder for summary.json and plots.")],
     bridge: BridgeOption = "none",
     altitude: AltitudeOption = "ekf",
-    airspeed: AirspeedOption = "on",
+    airspeed: AirspeedOption = DEFAULT_AIRSPEED_MODE,
     settle: SettleOption = 60.0,
     imu: ImuOption = "industrial-mems",
     gnss: GnssOption = "modern",
@@ -545,7 +545,7 @@ def demo(
         "industrial-mems"
     ),
     gnss: Annotated[str, typer.Option(help="GNSS preset (sensor and filter model).")] = "modern",
-    airspeed: AirspeedOption = "on",
+    airspeed: AirspeedOption = DEFAULT_AIRSPEED_MODE,
 ) -> None:
     """The main job: fly a racetrack, record it, run the filter with a GNSS outage, score it."""
     _out_dir(out)

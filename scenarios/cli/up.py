@@ -28,6 +28,7 @@ from typing import IO, Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from fusion.config import DEFAULT_AIRSPEED_MODE
 from hil.bus import validate_vehicle
 from hil.pipeline import SimSetup, build_filter, filter_config
 from hil.router import zenoh_router
@@ -59,7 +60,7 @@ class UpOptions(BaseModel):
     """The fusion's GNSS-outage bridging method."""
     altitude: str = "ekf"
     """The fusion's altitude method."""
-    airspeed: str = "on"
+    airspeed: str = DEFAULT_AIRSPEED_MODE
     """The fusion's air-data choice (on, off, synthetic)."""
     gnss_off: tuple[str, ...] = ()
     gcs: str | None = None

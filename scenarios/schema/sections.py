@@ -20,7 +20,7 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 
 from fusion.bridging.registry import BRIDGE_METHODS
-from fusion.config import AIRSPEED_MODES, ALTITUDE_METHODS
+from fusion.config import AIRSPEED_MODES, ALTITUDE_METHODS, DEFAULT_AIRSPEED_MODE
 from scenarios.schema.base import Strict, first_error, key_error, listing, unknown_name
 from sim import presets
 from sim.baro import BaroConfig
@@ -277,7 +277,8 @@ class FusionSection(Strict):
         json_schema_extra=listing("enum", list(ALTITUDE_METHODS)),
     )
     airspeed: str = Field(
-        default="on", description="Air data: on (fused when the stream carries a pitot), off, "
+        default=DEFAULT_AIRSPEED_MODE,
+        description="Air data: on (fused when the stream carries a pitot), off, "
         "synthetic (on, plus synthetic airspeed for a fixed-wing without a pitot).",
         json_schema_extra=listing("enum", list(AIRSPEED_MODES)),
     )
