@@ -61,6 +61,7 @@ class Fixes:
 _COUNTERS = (
     "gnss_fused", "gnss_rejected", "gnss_resets", "gnss_quality_rejected",
     "baro_fused", "baro_rejected", "baro_resets", "mag_fused", "mag_rejected",
+    "airspeed_blockages",
 )  # fmt: skip
 _RATIOS = ("ratio_gnss_pos", "ratio_gnss_vel", "ratio_baro", "ratio_mag")
 
@@ -84,6 +85,8 @@ class HealthSeries:
     gnss_quality_rejected : ndarray of int, shape (N,)
         Fixes refused by the quality checks (no 3-D fix, invalid, inaccurate).
     baro_fused, baro_rejected, baro_resets, mag_fused, mag_rejected : ndarray of int, shape (N,)
+    airspeed_blockages : ndarray of int, shape (N,)
+        Pitot faults the filter declared (stuck, zero, persistently rejected).
     fixes : Fixes, optional
         The GNSS fixes received, to tell whether a fused fix was far from truth.
     """
@@ -103,6 +106,7 @@ class HealthSeries:
     baro_resets: NDArray[np.int64] | None = None
     mag_fused: NDArray[np.int64] | None = None
     mag_rejected: NDArray[np.int64] | None = None
+    airspeed_blockages: NDArray[np.int64] | None = None
     fixes: Fixes | None = None
 
     def __post_init__(self) -> None:
@@ -220,7 +224,8 @@ class Collector:
         counts = np.array(
             [(h.gnss_fused, h.gnss_rejected, h.gnss_resets,
               h.gnss_no_fix + h.gnss_invalid + h.gnss_inaccurate,
-              h.baro_fused, h.baro_rejected, h.baro_resets, h.mag_fused, h.mag_rejected)
+              h.baro_fused, h.baro_rejected, h.baro_resets, h.mag_fused, h.mag_rejected,
+              h.airspeed_blockages)
              for h in (e.health for e in est)], dtype=np.int64)  # fmt: skip
         fixes = self.fix_track()
         order = np.argsort(fixes.time_s, kind="stable")  # fixes arrive in time order, mostly
@@ -240,6 +245,7 @@ class Collector:
             baro_resets=counts[:, 6],
             mag_fused=counts[:, 7],
             mag_rejected=counts[:, 8],
+            airspeed_blockages=counts[:, 9],
             fixes=Fixes(fixes.time_s[order], fixes.lat_rad[order], fixes.lon_rad[order],
                         fixes.alt_m[order]),
         )

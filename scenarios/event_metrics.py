@@ -1,7 +1,8 @@
 """Event scoring: how the filter handled each fault of a scenario's timeline.
 
 For every event window (a spoof, a glitch, jamming, or a generic fault): the time the filter
-took to detect it (first rejection or mode change of the concerned sensor), the worst error
+took to detect it (first rejection or mode change of the concerned sensor; for a pitot fault
+the first declared blockage), the worst error
 while it lasted, whether the filter re-accepted the faulty sensor early, how many bad fixes it
 took in, and re-convergence after it; plus the rejections of good data outside every event.
 Pure numpy on the collected tracks and health series (:mod:`hil.tracks`).
@@ -10,7 +11,7 @@ Pure numpy on the collected tracks and health series (:mod:`hil.tracks`).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -47,7 +48,7 @@ def fix_errors(fixes: Fixes, truth: Track) -> FloatArray:
 #: Event kinds scored by :func:`event_metrics`.
 EVENT_KINDS = ("spoof", "glitch", "jamming", "generic")
 #: Sensors an event can concern; ``"any"`` looks at every detector.
-EVENT_SENSORS = ("gnss", "baro", "mag", "imu", "any")
+EVENT_SENSORS = ("gnss", "baro", "mag", "imu", "airspeed", "any")
 
 
 def event_kind(type_name: str) -> str:
@@ -60,10 +61,13 @@ def event_kind(type_name: str) -> str:
 
 def event_sensor(type_name: str) -> str:
     """Sensor a fault type name concerns (``"baro_glitch"`` -> ``"baro"``; pressure weather
-    acts on the barometer; unknown -> ``"any"``)."""
+    acts on the barometer; ``pitot_*`` and ``airspeed_*`` on the airspeed sensor; unknown ->
+    ``"any"``)."""
     prefix = type_name.split("_", 1)[0]
-    if prefix in ("gnss", "baro", "mag", "imu"):
+    if prefix in ("gnss", "baro", "mag", "imu", "airspeed"):
         return prefix
+    if prefix == "pitot":
+        return "airspeed"
     if type_name == "weather_front":
         return "baro"
     return "any"
@@ -119,6 +123,10 @@ _DETECTORS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
              ("ratio_gnss_pos", "ratio_gnss_vel")),
     "baro": (("baro_rejected", "baro_resets"), ("ratio_baro",)),
     "mag": (("mag_rejected",), ("ratio_mag",)),
+    # a pitot fault is detected when the filter declares the pitot blocked (one rejected
+    # batch is not: the monitor needs 5 s of them); an airspeed failure sends no samples, so
+    # nothing is refused and it stays undetected here
+    "airspeed": (("airspeed_blockages",), ()),
 }  # fmt: skip
 _DETECTORS["imu"] = _DETECTORS["any"] = (
     tuple(c for v in _DETECTORS.values() for c in v[0]),
@@ -148,9 +156,10 @@ def _increase(x: NDArray[Any], idx: NDArray[np.intp]) -> NDArray[np.int64]:
 def rejection_flags(health: HealthSeries, sensor: str, idx: NDArray[np.intp]) -> NDArray[np.bool_]:
     """True at the samples ``idx`` where the filter refused ``sensor``'s data.
 
-    A refusal is a rejection or reset counter (or, for GNSS, the quality-check counter)
-    increasing since the previous sample, a *fresh* test ratio above 1, or (GNSS, ``"imu"``
-    and ``"any"``) the mode leaving ``"gnss"``: the filter declared GNSS lost.
+    A refusal is a rejection or reset counter (or, for GNSS, the quality-check counter; for
+    the airspeed sensor, the declared pitot blockages) increasing since the previous sample, a
+    *fresh* test ratio above 1, or (GNSS, ``"imu"`` and ``"any"``) the mode leaving
+    ``"gnss"``: the filter declared GNSS lost.
     """
     if sensor not in _DETECTORS:
         raise ValueError(f"sensor must be one of {tuple(_DETECTORS)}")
@@ -325,6 +334,19 @@ def event_metrics(
         max_horizontal_m=max_h, max_vertical_m=max_v, reaccepted_early=reaccepted,
         reaccept_count=count, bad_fixes_fused=bad, reconverge_s=reconv,
     )
+
+
+def detect_s_by_sensor(rows: Sequence[Mapping[str, Any]]) -> dict[str, list[float | None]]:
+    """``detect_s`` of the scored events (:meth:`EventMetrics.as_dict` rows) grouped by the
+    sensor they concern, in timeline order (``None`` = never detected), so that a criterion can
+    gate one sensor's detections without the others' (e.g. a pitot blockage inside a GNSS
+    outage: ``detect_s_by_sensor.airspeed``). Every sensor of :data:`EVENT_SENSORS` has a
+    list, empty without events (a criterion on it then fails: there was nothing to detect)."""
+    out: dict[str, list[float | None]] = {s: [] for s in EVENT_SENSORS}
+    for row in rows:
+        d = row.get("detect_s")
+        out[str(row["sensor"])].append(None if d is None else float(d))
+    return out
 
 
 def rejections_outside(

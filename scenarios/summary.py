@@ -148,9 +148,10 @@ def build_summary(
     -------
     summary : dict
         The ``summary.json`` contract of ARCHITECTURE.md plus ``containment_3sigma``,
-        ``events``, ``scoring`` and (with ``series``) ``rejections_outside_events``; each
-        outage also has ``cep50_m``, ``cep95_m``, ``containment_3sigma``, ``reconverge_s``,
-        vertical error figures, ``nees_mean`` and its ``drift`` curve.
+        ``events``, ``detect_s_by_sensor`` (the events' ``detect_s`` per sensor), ``scoring``
+        and (with ``series``) ``rejections_outside_events``; each outage also has
+        ``cep50_m``, ``cep95_m``, ``containment_3sigma``, ``reconverge_s``, vertical error
+        figures, ``nees_mean`` and its ``drift`` curve.
     err : Errors
     """
     cfg = scoring if scoring is not None else ScoringConfig()
@@ -212,6 +213,7 @@ def build_summary(
         "containment_3sigma": metrics.containment_3sigma(
             err, err.time_s >= err.time_s[0] + settle_s if err.time_s.size else None),
         "events": event_rows,
+        "detect_s_by_sensor": event_metrics.detect_s_by_sensor(event_rows),
         "scoring": {"reconverge_threshold_m": threshold,
                     "reconverge_hold_s": cfg.reconverge_hold_s, "bad_fix_m": bad_fix_m},
         "health": health or {},

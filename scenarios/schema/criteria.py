@@ -8,6 +8,7 @@ from typing import Literal, Self
 
 from pydantic import Field, field_validator, model_validator
 
+from scenarios.event_metrics import EVENT_SENSORS
 from scenarios.metrics import ERROR_AT_S
 from scenarios.schema.base import Strict, key_error, unknown_name
 from scenarios.schema.units import parse_quantity
@@ -34,6 +35,7 @@ def _metric_names() -> tuple[str, ...]:
     names += [f"events.{n}" for n in (
         "start_s", "end_s", "detect_s", "max_horizontal_m", "max_vertical_m", "reaccept_count",
         "bad_fixes_fused", "reconverge_s")]
+    names += [f"detect_s_by_sensor.{n}" for n in EVENT_SENSORS]
     names += [f"gnss_on.{n}" for n in (
         "horizontal_rmse_m", "vertical_rmse_m", "roll_rmse_deg", "pitch_rmse_deg",
         "yaw_rmse_deg")]

@@ -352,6 +352,30 @@ def test_undetected_slow_spoof_counts_the_bad_fixes_fused() -> None:
     assert em.reaccept_count == 55 and em.reaccepted_early is True
 
 
+def test_pitot_blockage_detected_when_the_filter_declares_it_blocked() -> None:
+    """GIVEN a pitot blockage 100-160 s inside a GNSS outage (mode dead-reckoning throughout)
+    and a filter that declares the pitot blocked at 106.5 s WHEN scored THEN the event concerns
+    the airspeed sensor, is detected 6.5 s in, and the outage's mode change does not count."""
+    mode = np.where(T50 >= 50.0, "dead-reckoning", "gnss")
+    health = _series(T50, mode=mode, airspeed_blockages=_steps(T50, [106.5]))
+    ev = event_metrics.EventWindow("pitot_blockage", 100.0, 160.0)
+    assert ev.sensor == "airspeed" and ev.kind == "generic"
+    em = event_metrics.event_metrics(_h_errors(T50, T50 * 0), ev, health=health)
+    assert em.detect_s == pytest.approx(6.5)
+    # a blockage declared before the event (an earlier fault) is no detection of this one
+    early = _series(T50, mode=mode, airspeed_blockages=_steps(T50, [80.0]))
+    assert event_metrics.event_metrics(_h_errors(T50, T50 * 0), ev, health=early).detect_s \
+        is None
+    # the GNSS outage itself is detected by the mode change, under its own sensor
+    outage = event_metrics.EventWindow("gnss_outage", 40.0, 200.0)
+    rows = [event_metrics.event_metrics(_h_errors(T50, T50 * 0), e, health=h).as_dict()
+            for e, h in ((outage, health), (ev, health), (ev, early))]
+    by_sensor = event_metrics.detect_s_by_sensor(rows)
+    assert by_sensor["gnss"] == [pytest.approx(10.0)]
+    assert by_sensor["airspeed"] == [pytest.approx(6.5), None]
+    assert by_sensor["baro"] == [] and set(by_sensor) == set(event_metrics.EVENT_SENSORS)
+
+
 def test_fix_errors_against_truth() -> None:
     t = np.arange(0.0, 10.0, 0.5)
     zero = np.zeros_like(t)
@@ -378,6 +402,8 @@ def test_event_and_series_validation() -> None:
     assert ev.sensor == "baro" and ev.kind == "generic" and ev.end_s == math.inf
     assert event_metrics.event_sensor("imu_bias_step") == "imu"
     assert event_metrics.event_sensor("solar_flare") == "any"
+    assert event_metrics.event_sensor("pitot_drift") == "airspeed"
+    assert event_metrics.event_sensor("airspeed_failure") == "airspeed"
 
 
 def test_rejections_outside_windows() -> None:

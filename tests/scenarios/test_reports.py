@@ -126,6 +126,8 @@ def test_summary_keeps_the_contract_and_adds_the_scorecard(
     assert ev["reaccepted_early"] is True and ev["reaccept_count"] == 10
     assert ev["max_horizontal_m"] == pytest.approx(6.0, abs=1e-6)
     assert ev["reconverge_s"] == pytest.approx(0.0)  # 1 m again when the spoof ends
+    assert s["detect_s_by_sensor"]["gnss"] == [pytest.approx(2.1, abs=1e-6)]
+    assert s["detect_s_by_sensor"]["airspeed"] == []
     # the spoof window and its settling are not "GNSS on": the GNSS-on RMSE stays 1 m
     assert s["gnss_on"]["horizontal_rmse_m"] == pytest.approx(1.0, abs=1e-6)
     assert s["rejections_outside_events"] == {"gnss_rejected": 0}
@@ -153,6 +155,12 @@ def test_criteria_worst_case_ops_and_missing_values(
     lenient = Criterion("d", "events.detect_s", 5.0).evaluate(tree)
     assert strict["ok"] is False and strict["value"] is None
     assert lenient["ok"] is True and lenient["value"] == 1.0
+    # a per-sensor detection list: the same rules, and an empty one (no such event) fails
+    per = {"detect_s_by_sensor": {"airspeed": [4.0, None], "baro": []}}
+    assert Criterion("a", "detect_s_by_sensor.airspeed", 5.0).evaluate(per)["value"] == 4.0
+    assert not Criterion("a", "detect_s_by_sensor.airspeed", 5.0, none_fails=True).evaluate(
+        per)["ok"]
+    assert not Criterion("b", "detect_s_by_sensor.baro", 5.0).evaluate(per)["ok"]
     # >= takes the smallest value over a list
     low = Criterion("c", "outages.x", 0.5, op=">=").evaluate({"outages": [{"x": 0.9}, {"x": 0.4}]})
     assert low["value"] == 0.4 and low["ok"] is False

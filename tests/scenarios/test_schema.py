@@ -124,8 +124,45 @@ def test_library_covers_the_rehearsals() -> None:
     types = {type(e).__name__ for p in LIBRARY for e in load_scenario(p).fault_events()}
     assert {
         "GnssOutage", "GnssJamming", "GnssSpoofDrift", "GnssSpoofHijack", "WeatherFront",
-        "ImuBiasStep", "BaroGlitch",
+        "ImuBiasStep", "BaroGlitch", "PitotBlockage",
     } <= types
+
+
+def test_library_covers_long_denial_with_air_data() -> None:
+    """Issue #18: 300 s and 900 s outages in survey, climb-descent and racetrack flight, wind
+    up to 12 m/s with turbulence and shear, pitot blockages (stuck, zero) inside an outage, an
+    aircraft without a pitot on synthetic airspeed; every one gated at 300 s into the outage."""
+    long = {}
+    for p in LIBRARY:
+        s = load_scenario(p)
+        outages = [e for e in s.fault_events() if isinstance(e, faults.GnssOutage)]
+        if any(e.duration_s is not None and e.duration_s >= 300.0 for e in outages):
+            long[p.stem] = s
+    air = {k: s for k, s in long.items() if s.fusion.airspeed != "off"
+           and any(c.path == "outages.horizontal_error_m_at.300" for c in s.criteria())}
+    assert {s.plan for s in air.values()} >= {"survey", "climb-descent", "racetrack"}
+    durations = {e.duration_s for s in air.values() for e in s.fault_events()
+                 if isinstance(e, faults.GnssOutage)}
+    assert {300.0, 900.0} <= durations
+    speeds = [math.hypot(*s.wind_ned_mps[:2]) for s in air.values()]
+    speeds += [math.hypot(r[1], r[2]) for s in air.values() for r in s.wind_table]
+    assert max(speeds) >= 12.0 - 1e-9
+    assert all(s.turbulence > 0.0 for s in air.values())
+    assert any(s.wind_shear_exponent > 0.0 or s.wind_table for s in air.values())
+    modes = set()
+    for s in air.values():
+        (outage,) = [e for e in s.fault_events() if isinstance(e, faults.GnssOutage)]
+        assert outage.duration_s is not None
+        for e in s.fault_events():
+            if isinstance(e, faults.PitotBlockage):
+                # inside the outage, and gated on its detection
+                assert outage.start_s < e.start_s < outage.start_s + outage.duration_s
+                assert any(c.path == "detect_s_by_sensor.airspeed" and c.none_fails
+                           for c in s.criteria())
+                modes.add(e.mode)
+    assert modes == {"stuck", "zero"}
+    no_pitot = [s for s in air.values() if s.sensors.pitot.preset == "none"]
+    assert no_pitot and all(s.fusion.airspeed == "synthetic" for s in no_pitot)
 
 
 # -------------------------------------------------------------------------- bad input
@@ -709,6 +746,8 @@ NOT_CRITERIA = {
     "schema_version", "seed", "wall_s", "nees.nees_dof", "outages.drift.step_s",
     "outages.drift.horizontal_m", "scoring.reconverge_threshold_m", "scoring.reconverge_hold_s",
     "scoring.bad_fix_m",
+    # a flag (true / false; null for an event without a re-accept check), not a number
+    "events.reaccepted_early",
 }
 
 
@@ -728,8 +767,8 @@ def _numeric_paths(node: Any, prefix: str = "") -> set[str]:
 
 
 def _full_summary() -> dict[str, Any]:
-    """A scored run that fills every part of summary.json: a 130 s outage, a spoof event,
-    sigmas, and a health series with every counter and the fixes."""
+    """A scored run that fills every part of summary.json: a 130 s outage, a spoof event and
+    one event per other sensor, sigmas, and a health series with every counter and the fixes."""
     t = np.round(np.arange(0.0, 320.0, 0.1), 6)
     n = t.size
     lat0, lon0 = math.radians(47.0), math.radians(8.0)
@@ -753,11 +792,15 @@ def _full_summary() -> dict[str, Any]:
         t, mode=np.where((t > 101.0) & (t < 230.0), "free-inertial", "gnss"),
         gnss_fused=counter, gnss_rejected=rejected, gnss_resets=counter,
         gnss_quality_rejected=counter, baro_fused=counter, baro_rejected=counter,
-        baro_resets=counter, mag_fused=counter, mag_rejected=counter, fixes=fixes)
+        baro_resets=counter, mag_fused=counter, mag_rejected=counter,
+        airspeed_blockages=counter, fixes=fixes)
+    # one event per sensor, so that every detect_s_by_sensor list has a value
+    others = [{"type": name, "start_s": 300.0, "end_s": 310.0} for name in (
+        "baro_glitch", "mag_anomaly", "imu_bias_step", "pitot_blockage", "solar_flare")]
     summary, _ = build_summary(
         RunInfo("full", 1, 320.0, 1.0, "none", "ekf"), est, truth, [Window(100.0, 230.0)],
         settle_s=20.0, health={"filter": {"gnss_fused": 1}}, series=health,
-        events=[{"type": "gnss_spoof_hijack", "start_s": 260.0, "end_s": 290.0}],
+        events=[{"type": "gnss_spoof_hijack", "start_s": 260.0, "end_s": 290.0}, *others],
         scoring=ScoringConfig(bad_fix_m=50.0))
     return summary
 
