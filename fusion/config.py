@@ -221,17 +221,22 @@ class AirspeedTuning(_Frozen):
     fixed_wing: bool = True
     """The vehicle flies on a wing: its air-relative velocity lies along the body x axis
     (synthetic sideslip ``beta = 0``), and synthetic airspeed is meaningful."""
-    fuse_rate_hz: PositiveFloat = 5.0
+    fuse_rate_hz: PositiveFloat = 1.0
     """Airspeed samples are averaged over ``1 / fuse_rate_hz`` and fused as one (the sensor
-    noise part of the variance divided by the count); sideslip is fused at the same rate."""
+    noise part of the variance divided by the count); sideslip is fused at the same rate.
+    1 Hz, not EKF2's ~10 Hz: in turbulence the airspeed error is a gust, correlated over
+    ~10 s (Dryden, L/V), so faster updates count one error many times. Chosen with
+    ``tas_noise_floor_mps`` on tuning flights (seeds 2-5 x manoeuvre, cruise; ``bench/
+    README.md``, "Air data on JSBSim"): 5 Hz / 1 m/s left 2,200 m summed at 300 s into the
+    outage, 1 Hz / 2 m/s 1,514 m, free inertial 4,192 m."""
     diff_pressure_noise_pa: PositiveFloat = 1.0
     """White noise of one differential-pressure reading, Pa (about the MS4525DO / SDP3x
     class); sets the sensor part of the TAS sigma, ``sigma_qc / (rho V)``, and what the
     stuck-sensor check expects to see."""
-    tas_noise_floor_mps: PositiveFloat = 1.0
-    """Floor of the TAS sigma of one fused batch, m/s: covers turbulence, pitot position
-    error and the sideslip the model neglects. PX4's EKF2_EAS_NOISE is 1.4 m/s fused at
-    about 10 Hz; 1.0 m/s at 5 Hz is the same information rate."""
+    tas_noise_floor_mps: PositiveFloat = 2.0
+    """Floor of the TAS sigma of one fused batch, m/s: covers turbulence (light-turbulence
+    gusts are 1-2 m/s), pitot position error and the sideslip the model neglects (see
+    ``fuse_rate_hz``)."""
     gate_probability: Probability = Field(default=0.999, gt=0.5, lt=1.0)
     """Chi-square gate of the TAS update (0.999: 3.3 sigma; EKF2_TAS_GATE is 3 sigma)."""
     min_airspeed_mps: PositiveFloat = 8.0

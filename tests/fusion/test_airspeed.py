@@ -30,7 +30,10 @@ from tests.helpers.nav_synth import (
 )
 
 WIND = (6.0, -4.0)
-CFG = FilterConfig(state_layout="ins16+air")
+# these synthetic flights have *white* TAS noise: the matched setting is 5 Hz batches with a
+# 1 m/s floor (the defaults, 1 Hz / 2 m/s, are for correlated gusts: AirspeedTuning.fuse_rate_hz)
+WHITE_NOISE_AIR = AirspeedTuning(fuse_rate_hz=5.0, tas_noise_floor_mps=1.0)
+CFG = FilterConfig(state_layout="ins16+air", airspeed=WHITE_NOISE_AIR)
 ERRORS = SensorErrors.from_config(CFG)
 # the filter's TAS model: 1 m/s floor per 5 Hz batch = 2 m/s white at 20 Hz (4 per batch)
 TAS_NOISE_MPS = 2.0
@@ -66,7 +69,7 @@ def at(est: list[NavEstimate], t_s: float) -> NavEstimate:
 
 
 def air_config(**kw: object) -> FilterConfig:
-    return CFG.model_copy(update={"airspeed": AirspeedTuning(**kw)})  # type: ignore[arg-type]
+    return CFG.model_copy(update={"airspeed": WHITE_NOISE_AIR.model_copy(update=kw)})
 
 
 # --------------------------------------------------------------------------- models
