@@ -194,8 +194,9 @@ class OnlineAirspeedModel:
     def observe(self, time_us: int, inputs: AirspeedInputs | None, tas_mps: float) -> None:
         """A training pair: the inputs at ``time_us`` and the true airspeed then (m/s).
 
-        ``inputs=None`` (a stream without controls or rpm) only marks the model as having no
-        inputs; non-finite inputs or airspeed are ignored.
+        ``inputs=None`` (a stream without controls or rpm) leaves the model without inputs;
+        non-finite inputs or airspeed are not learned (a NaN airspeed: inputs are there, the
+        target is not known yet).
         """
         if inputs is None:
             return

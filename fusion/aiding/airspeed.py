@@ -367,9 +367,10 @@ class AirspeedAiding:
             self._trusted_tas_mps = None
             if va > cfg.min_airspeed_mps:
                 self._recent_v.append(ins.v_ned_mps)
-                if self.model is not None and self._wind_known():
-                    # the aided filter's air-relative speed is the best airspeed there is
-                    self.model.observe(now_us, inputs, va)
+                if self.model is not None:
+                    # the aided filter's air-relative speed is the best airspeed there is, once
+                    # the wind is known (NaN: the model only notes that it has inputs)
+                    self.model.observe(now_us, inputs, va if self._wind_known() else math.nan)
             else:
                 self._recent_v.clear()
             return

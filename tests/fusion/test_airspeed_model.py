@@ -120,3 +120,12 @@ def test_extrapolation_costs_sigma_and_stays_finite() -> None:
 def test_rejects_bad_settings() -> None:
     with pytest.raises(ValueError, match="validation_fraction"):
         OnlineAirspeedModel(GmdhRegressor, validation_fraction=1.0)
+
+
+def test_inputs_without_a_known_airspeed_make_the_model_untrained_not_inputless() -> None:
+    inputs, _tas, _measured = _aircraft(10, seed=7)
+    model = _model()
+    for i, x in enumerate(inputs):
+        model.observe(i * 500_000, x, math.nan)
+    st = model.status
+    assert st.state == "untrained" and st.samples == 0
