@@ -223,12 +223,16 @@ class AirspeedTuning(_Frozen):
     (synthetic sideslip ``beta = 0``), and synthetic airspeed is meaningful."""
     fuse_rate_hz: PositiveFloat = 1.0
     """Airspeed samples are averaged over ``1 / fuse_rate_hz`` and fused as one (the sensor
-    noise part of the variance divided by the count); sideslip is fused at the same rate.
+    noise part of the variance divided by the count); sideslip at ``sideslip_rate_hz``.
     1 Hz, not EKF2's ~10 Hz: in turbulence the airspeed error is a gust, correlated over
     ~10 s (Dryden, L/V), so faster updates count one error many times. Chosen with
     ``tas_noise_floor_mps`` on tuning flights (seeds 2-5 x manoeuvre, cruise; ``bench/
     README.md``, "Air data on JSBSim"): 5 Hz / 1 m/s left 2,200 m summed at 300 s into the
     outage, 1 Hz / 2 m/s 1,514 m, free inertial 4,192 m."""
+    sideslip_rate_hz: PositiveFloat = 5.0
+    """Rate of the air-data epochs that fuse the synthetic sideslip (and start the wind states),
+    Hz; the TAS is fused at the slower ``fuse_rate_hz``. Without a pitot the wind is learned
+    from sideslip alone, and at 1 Hz it did not converge within minutes."""
     diff_pressure_noise_pa: PositiveFloat = 1.0
     """White noise of one differential-pressure reading, Pa (about the MS4525DO / SDP3x
     class); sets the sensor part of the TAS sigma, ``sigma_qc / (rho V)``, and what the

@@ -194,7 +194,8 @@ class NavFilter:
         self._loop_alt = method != "ekf"
         # air data: fused only with the layout's air-data block and air data enabled
         self._air_on = self.layout.has_air and cfg.airspeed.enabled
-        self._air_period_us = round(1e6 / cfg.airspeed.fuse_rate_hz)
+        self._air_period_us = round(
+            1e6 / max(cfg.airspeed.fuse_rate_hz, cfg.airspeed.sideslip_rate_hz))
         self._handlers: dict[type, Callable[[Any], list[NavEstimate]]] = {}
         self.reset()
 
@@ -704,7 +705,8 @@ class NavFilter:
         air.state.scale = 0.0
 
     def _air_tick(self, t: int) -> None:
-        """The air-data epoch (every ``1 / AirspeedTuning.fuse_rate_hz``)."""
+        """The air-data epoch (every ``1 / AirspeedTuning.sideslip_rate_hz``, or the TAS rate
+        if faster)."""
         air, ins = self._air, self._ins
         assert air is not None and ins is not None
         p, temp = self._static_pa, self._static_temp_k

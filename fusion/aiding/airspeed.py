@@ -249,10 +249,14 @@ class AirspeedAiding:
         """Last accepted TAS update, measured or synthetic."""
         self.synthetic_active = False
         self._trusted_tas_mps: float | None = None
+        tick_hz = max(cfg.fuse_rate_hz, cfg.sideslip_rate_hz)  # the filter's epoch rate
         self._synthetic_period_us = round(1e6 / cfg.synthetic_rate_hz)
         self._last_synthetic_us = -(1 << 62)
         self._recent_v: deque[Vec3] = deque(
-            maxlen=max(1, round(cfg.fuse_rate_hz * cfg.synthetic_average_s)))
+            maxlen=max(1, round(tick_hz * cfg.synthetic_average_s)))
+        self._tas_period_us = round(1e6 / cfg.fuse_rate_hz)
+        self._tas_slack_us = round(0.5e6 / tick_hz)  # half an epoch: IMU-step jitter
+        self._next_tas_us = -(1 << 62)
 
     # --------------------------------------------------------------- samples
     def add_sample(self, s: AirspeedSample, time_us: int) -> None:
@@ -322,7 +326,8 @@ class AirspeedAiding:
         static_pa: float, static_temp_k: float, gnss_active: bool,
         inputs: AirspeedInputs | None = None,
     ) -> None:
-        """One fusion epoch (every ``1 / fuse_rate_hz`` of IMU time).
+        """One air-data epoch (every ``1 / max(fuse_rate_hz, sideslip_rate_hz)`` of IMU time;
+        the TAS batch is fused every ``1 / fuse_rate_hz``).
 
         Parameters
         ----------
@@ -342,7 +347,10 @@ class AirspeedAiding:
             rpm, or no model).
         """
         cfg, st = self.cfg, self.state
-        batch = self._take_batch()
+        batch = None
+        if now_us >= self._next_tas_us:  # the TAS at its own (slower) rate
+            self._next_tas_us = now_us + self._tas_period_us - self._tas_slack_us
+            batch = self._take_batch()
         if batch is not None:
             ins = self._measured(batch, now_us, ins, past, static_pa, static_temp_k)
         if not st.active:
