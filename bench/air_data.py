@@ -134,22 +134,8 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
             "mode_at_end": modes[min(k, len(modes) - 1)] if modes else None,
             "curve_m": curve,
             "filter_wall_s": wall,
-            "status": _status(run),
         }
     return row
-
-
-def _status(run: Any) -> dict[str, Any]:
-    """What the filter says about its air data and learned model at the end."""
-    est = run.nav.estimate
-    out: dict[str, Any] = {}
-    if est is None:
-        return out
-    air = getattr(est, "air_data", None)
-    if air is not None:
-        out["air_data"] = {k: getattr(air, k) for k in getattr(air, "__slots__", ())
-                           if isinstance(getattr(air, k), int | float | str | bool)}
-    return out
 
 
 def _run_star(task: dict[str, Any]) -> dict[str, Any]:

@@ -454,8 +454,10 @@ class NavFilter:
             handler = self._on_mag
         elif hasattr(sample, "diff_pressure_pa"):
             handler = self._on_airspeed
-        elif hasattr(sample, "controls") or hasattr(sample, "rpm"):
-            handler = self._on_vehicle_state
+        elif hasattr(sample, "controls"):
+            handler = self._on_controls
+        elif hasattr(sample, "rpm"):
+            handler = self._on_rpm
         else:
             raise TypeError(
                 f"{type(sample).__name__} is not an IMU, GNSS, baro or magnetometer sample"
@@ -877,15 +879,17 @@ class NavFilter:
         air.add_sample(s, t)
         return []
 
-    def _on_vehicle_state(self, s: ActuatorSample | RpmSample) -> list[NavEstimate]:
-        # the latest controls and propeller speed: inputs of a learned vehicle model
-        if isinstance(getattr(s, "controls", None), tuple):
-            c = s.controls  # type: ignore[union-attr]
-            if len(c) >= 4:
-                self._controls = (float(c[0]), float(c[1]), float(c[3]))
-                self._controls_us = int(s.time_us)
-        elif getattr(s, "index", 0) == 0:
-            self._rpm = float(s.rpm)  # type: ignore[union-attr]
+    # the latest controls and propeller speed: inputs of a learned vehicle model
+    def _on_controls(self, s: ActuatorSample) -> list[NavEstimate]:
+        c = s.controls
+        if len(c) >= 4:
+            self._controls = (float(c[0]), float(c[1]), float(c[3]))
+            self._controls_us = int(s.time_us)
+        return []
+
+    def _on_rpm(self, s: RpmSample) -> list[NavEstimate]:
+        if getattr(s, "index", 0) == 0:  # the first propeller (RAW_RPM index 0)
+            self._rpm = float(s.rpm)
             self._rpm_us = int(s.time_us)
         return []
 
