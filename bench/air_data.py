@@ -16,7 +16,14 @@ and the same samples go to every method:
   and ArduPilot-style synthetic airspeed from the last wind estimate (``--airspeed
   synthetic``): the baseline a learned vehicle model must beat;
 - ``gmdh-airspeed``: the stream without a pitot and the learned vehicle model
-  (``--bridge gmdh-airspeed``), when that method exists.
+  (``--bridge gmdh-airspeed``), when that method exists;
+- ``gmdh-wind``: the pitot filter with the learned wind profile (``--bridge gmdh-wind``): the
+  residual the physics filter leaves, the wind's change with height (``--wind-shear``).
+
+``--methods`` runs a subset (``inertial`` is always run: every ratio is relative to it).
+``--wind-shear P`` gives the flights a power-law shear ``w(h) = w_ref (h / h_ref)^P`` (the
+drawn wind at the start height; P = 1/7 is the neutral boundary layer), ``--start-alt`` the
+start height (m above the flat terrain: the shear is larger near the ground).
 
 Reported per method: the horizontal error 25 s, 60 s and 300 s into the outage (linear
 interpolation of the 10 Hz estimate error; 900 s too with ``--outage 900``), per flight and as
@@ -30,6 +37,7 @@ are held-out seeds 100.. on ``survey``, ``climb-descent`` and ``racetrack``.
 
     python bench/air_data.py --out bench/results/air_data.json [--seeds 10] [--seed-base 100]
         [--plans survey,climb-descent,racetrack] [--imu industrial-mems] [--outage 300]
+        [--methods inertial,air-data,...] [--wind-shear 0.143] [--start-alt 1000]
         [--jobs 2] [--plot docs/air_data_outage.png]
 """
 
@@ -64,6 +72,8 @@ def _methods() -> list[tuple[str, str, str, bool]]:
     ]
     if "gmdh-airspeed" in BRIDGE_METHODS:
         rows.append(("gmdh-airspeed", "synthetic", "gmdh-airspeed", False))
+    if "gmdh-wind" in BRIDGE_METHODS:
+        rows.append(("gmdh-wind", "on", "gmdh-wind", True))
     return rows
 
 
@@ -91,6 +101,7 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
         plan=plan, imu=imu, gnss="modern", seed=seed,
         duration_s=start_s + outage_s + 5.0,
         wind=",".join(f"{w:.3f}" for w in wind), turbulence=turbulence,
+        wind_shear_exponent=task.get("wind_shear", 0.0), alt_msl_m=task.get("start_alt_m", 1000.0),
         gnss_off=[f"{start_s}:{outage_s + 10.0}"],
     )  # fmt: skip
     t0 = time.perf_counter()
@@ -107,6 +118,8 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
     }  # fmt: skip
     end_s = start_s + outage_s
     for name, airspeed, bridge, keep_pitot in _methods():
+        if name not in task.get("methods", (name,)):
+            continue
         cfg = filter_config(imu, receiver, airspeed=airspeed)
         run = FusionRun(cfg, bridge)
         t1 = time.perf_counter()
@@ -216,11 +229,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-wind", type=float, default=12.0)
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--plot", type=Path, default=None)
+    ap.add_argument("--methods", default=None, help="comma-separated subset (default: all)")
+    ap.add_argument("--wind-shear", type=float, default=0.0)
+    ap.add_argument("--start-alt", type=float, default=1000.0)
     args = ap.parse_args(argv)
+    known = [m[0] for m in _methods()]
+    methods = known if args.methods is None else ["inertial", *(
+        m for m in args.methods.split(",") if m != "inertial")]
+    if unknown := set(methods) - set(known):
+        ap.error(f"unknown methods {sorted(unknown)}; known: {', '.join(known)}")
     tasks = [
         {"plan": p, "seed": args.seed_base + i, "imu": args.imu,
          "outage_start_s": args.outage_start, "outage_s": args.outage,
-         "max_wind_mps": args.max_wind}
+         "max_wind_mps": args.max_wind, "methods": methods,
+         "wind_shear": args.wind_shear, "start_alt_m": args.start_alt}
         for p in args.plans.split(",") for i in range(args.seeds)
     ]  # fmt: skip
     t0 = time.perf_counter()
@@ -237,6 +259,7 @@ def main(argv: list[str] | None = None) -> int:
         "seeds": [args.seed_base, args.seed_base + args.seeds - 1],
         "outage_start_s": args.outage_start, "outage_s": args.outage,
         "max_wind_mps": args.max_wind, "max_turbulence": MAX_TURBULENCE,
+        "wind_shear_exponent": args.wind_shear, "start_alt_m": args.start_alt,
         "summary": summary, "rows": rows,
         "wall_s": time.perf_counter() - t0,
         "load_average": os.getloadavg(), "machine": platform.processor() or platform.machine(),

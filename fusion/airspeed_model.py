@@ -25,6 +25,9 @@ clipped, since clipping breaks the relations that do extrapolate (airspeed from 
 throttle is nearly linear), and bounding a polynomial's output is the regressor's job
 (:class:`fusion.gmdh.GmdhRegressor` clips every neuron to its fitted range).
 
+The learner itself is generic (any inputs with ``as_tuple()``, :class:`ModelInputs`): the
+wind profile of ``gmdh-wind`` (:mod:`fusion.wind_model`) is two of them.
+
 Pure: no I/O, no clocks; time comes from the samples.
 """
 
@@ -104,6 +107,9 @@ class AirspeedModelStatus:
     validation_rmse_mps : float
         RMS error of the last fit on the most recent (held-out) part of its window; NaN
         before the first fit.
+    constant_rmse_mps : float
+        RMS error of a constant (the mean of the training targets) on the same held-out
+        part: what the model must beat to have learned anything.
     polynomial : str
         The selected model in readable form (empty before the first fit, or for a regressor
         that has no such form).
@@ -115,6 +121,13 @@ class AirspeedModelStatus:
     refits: int = 0
     validation_rmse_mps: float = math.nan
     polynomial: str = ""
+    constant_rmse_mps: float = math.nan
+
+
+class ModelInputs(Protocol):
+    """One epoch's inputs of a learner: its columns as floats, in a fixed order."""
+
+    def as_tuple(self) -> tuple[float, ...]: ...
 
 
 class Regressor(Protocol):
@@ -149,6 +162,8 @@ class OnlineAirspeedModel:
     describe : callable, optional
         The fitted regressor as readable text (e.g. ``GmdhRegressor.polynomial``), for the
         status.
+    non_negative : bool
+        Predictions are floored at zero (an airspeed; not a wind component).
     """
 
     def __init__(
@@ -164,6 +179,7 @@ class OnlineAirspeedModel:
         sigma_scale: float = 1.5,
         sigma_floor_mps: float = 0.5,
         describe: Callable[[Regressor], str] | None = None,
+        non_negative: bool = True,
     ) -> None:
         if not (train_rate_hz > 0 and window_s > 0 and refit_interval_s > 0):
             raise ValueError("train_rate_hz, window_s and refit_interval_s must be > 0")
@@ -171,6 +187,7 @@ class OnlineAirspeedModel:
             raise ValueError(f"validation_fraction must be in (0, 1) (got {validation_fraction})")
         self._make = make_regressor
         self._describe = describe
+        self._non_negative = non_negative
         self.method = method
         self._period_us = int(1e6 / train_rate_hz)
         self._window_us = int(window_s * 1e6)
@@ -187,11 +204,12 @@ class OnlineAirspeedModel:
         self._hi: FloatArray | None = None
         self._span: FloatArray | None = None
         self._val_rmse = math.nan
+        self._const_rmse = math.nan
         self._refits = 0
         self._has_inputs = False
 
     # ------------------------------------------------------------------ learning
-    def observe(self, time_us: int, inputs: AirspeedInputs | None, tas_mps: float) -> None:
+    def observe(self, time_us: int, inputs: ModelInputs | None, tas_mps: float) -> None:
         """A training pair: the inputs at ``time_us`` and the true airspeed then (m/s).
 
         ``inputs=None`` (a stream without controls or rpm) leaves the model without inputs;
@@ -233,6 +251,7 @@ class OnlineAirspeedModel:
         rmse = float(np.sqrt(np.mean((pred - y[n_fit:]) ** 2)))
         if not math.isfinite(rmse):
             return
+        self._const_rmse = float(np.sqrt(np.mean((y[n_fit:] - y[:n_fit].mean()) ** 2)))
         self._model = model
         self._lo = X[:n_fit].min(axis=0)
         self._hi = X[:n_fit].max(axis=0)
@@ -241,7 +260,7 @@ class OnlineAirspeedModel:
         self._refits += 1
 
     # ------------------------------------------------------------------ prediction
-    def predict(self, inputs: AirspeedInputs | None) -> AirspeedPrediction | None:
+    def predict(self, inputs: ModelInputs | None) -> AirspeedPrediction | None:
         """The predicted true airspeed with its sigma; ``None`` before the first fit, without
         inputs, or for non-finite inputs."""
         model, lo, hi, span = self._model, self._lo, self._hi, self._span
@@ -256,7 +275,14 @@ class OnlineAirspeedModel:
         if not math.isfinite(tas):
             return None
         sigma = max(self._sigma_floor, self._sigma_scale * self._val_rmse) * (1.0 + outside)
-        return AirspeedPrediction(max(tas, 0.0), sigma)
+        return AirspeedPrediction(max(tas, 0.0) if self._non_negative else tas, sigma)
+
+    @property
+    def held_out_ratio(self) -> float:
+        """Held-out RMS error of the last fit over a constant's (< 1: it learned something;
+        NaN before the first fit)."""
+        c = self._const_rmse
+        return self._val_rmse / c if c > 0.0 else math.nan
 
     @property
     def status(self) -> AirspeedModelStatus:
@@ -276,4 +302,5 @@ class OnlineAirspeedModel:
             refits=self._refits,
             validation_rmse_mps=self._val_rmse,
             polynomial=poly,
+            constant_rmse_mps=self._const_rmse,
         )

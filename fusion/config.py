@@ -224,11 +224,12 @@ class AirspeedTuning(_Frozen):
     fuse_rate_hz: PositiveFloat = 1.0
     """Airspeed samples are averaged over ``1 / fuse_rate_hz`` and fused as one (the sensor
     noise part of the variance divided by the count); sideslip at ``sideslip_rate_hz``.
-    1 Hz, not EKF2's ~10 Hz: in turbulence the airspeed error is a gust, correlated over
-    ~10 s (Dryden, L/V), so faster updates count one error many times. Chosen with
-    ``tas_noise_floor_mps`` on tuning flights (seeds 2-5 x manoeuvre, cruise; ``bench/
-    README.md``, "Air data on JSBSim"): 5 Hz / 1 m/s left 2,200 m summed at 300 s into the
-    outage, 1 Hz / 2 m/s 1,514 m, free inertial 4,192 m."""
+    1 Hz, not EKF2's ~10 Hz. Chosen before the gust states, when a gust (correlated over
+    ~6 s, Dryden L/V) was white noise to the filter and faster updates counted it many times
+    (tuning flights, seeds 2-5 x manoeuvre, cruise: 5 Hz / 1 m/s left 2,200 m summed 300 s
+    into the outage, 1 Hz / 2 m/s 1,514 m, free inertial 4,192 m). With the gust states 1 Hz
+    and 2 Hz are alike on the tuning flights (seeds 1-5: 1,366 and 1,404 m; ``bench/
+    README.md``, "Air data on JSBSim")."""
     sideslip_rate_hz: PositiveFloat = 5.0
     """Rate of the air-data epochs that fuse the synthetic sideslip (and start the wind states),
     Hz; the TAS is fused at the slower ``fuse_rate_hz``. Without a pitot the wind is learned
@@ -237,10 +238,12 @@ class AirspeedTuning(_Frozen):
     """White noise of one differential-pressure reading, Pa (about the MS4525DO / SDP3x
     class); sets the sensor part of the TAS sigma, ``sigma_qc / (rho V)``, and what the
     stuck-sensor check expects to see."""
-    tas_noise_floor_mps: PositiveFloat = 2.0
-    """Floor of the TAS sigma of one fused batch, m/s: covers turbulence (light-turbulence
-    gusts are 1-2 m/s), pitot position error and the sideslip the model neglects (see
-    ``fuse_rate_hz``)."""
+    tas_noise_floor_mps: PositiveFloat = 1.0
+    """Floor of the TAS sigma of one fused batch, m/s: pitot position error, sensor lag and the
+    sideslip the model neglects. Turbulence is not in it: the gust states carry it
+    (``gust_sigma_mps``). 2 m/s before the gust states, when the floor had to cover the gusts;
+    on the tuning flights (seeds 1-5 x manoeuvre, cruise) 1 and 2 m/s left the same summed
+    error 300 s into the outage (1,366 and 1,379 m; ``bench/README.md``)."""
     gate_probability: Probability = Field(default=0.999, gt=0.5, lt=1.0)
     """Chi-square gate of the TAS update (0.999: 3.3 sigma; EKF2_TAS_GATE is 3 sigma)."""
     min_airspeed_mps: PositiveFloat = 8.0
@@ -267,6 +270,15 @@ class AirspeedTuning(_Frozen):
     """Wind noise times ``1 + scaler |climb rate|``, s/m (EKF2's ``wind_vel_nsd_scaler``)."""
     scale_noise_rthz: PositiveFloat = 1e-4
     """Airspeed scale random walk, 1/sqrt(s) (PX4 WEST_SC_P_NOISE)."""
+    gust_sigma_mps: PositiveFloat = 1.5
+    """Horizontal gust (turbulence) sigma per axis, m/s: the steady state of the gust states
+    (:mod:`fusion.error_model`). MIL-F-8785C light turbulence at low altitude is about
+    1 m/s (sigma_w = 0.1 W_20 with a 15 kt 20-ft wind, sigma_u = sigma_w / (0.177 +
+    0.000823 h)^0.4 at h = 1000 ft), moderate about 2 m/s."""
+    gust_length_m: PositiveFloat = 300.0
+    """Gust correlation length, m: the correlation time is this over the airspeed (Dryden
+    ``L_u = h / (0.177 + 0.000823 h)^1.2`` ft, 1000 ft at 1000 ft above ground; 1750 ft above
+    2000 ft). Measured on JSBSim's MIL-F-8785C turbulence at 50 m/s: 5.5-6 s, 275-300 m."""
     sideslip_noise_rad: PositiveFloat = 0.3
     """Synthetic sideslip sigma, rad (EKF2_BETA_NOISE default 0.3)."""
     sideslip_gate_probability: Probability = Field(default=0.999, gt=0.5, lt=1.0)

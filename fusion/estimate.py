@@ -152,6 +152,9 @@ class Health:
     """Learned-model TAS updates fused (``--bridge gmdh-airspeed``: no usable pitot, GNSS
     lost)."""
     learned_airspeed_rejected: int = 0
+    learned_wind_updates: int = 0
+    """Air-data epochs whose mean wind moved with the learned wind profile (``--bridge
+    gmdh-wind``: GNSS lost, height changed within the profile)."""
     wind_resets: int = 0
     """Starts of the wind states (from the first airspeed batch, or at zero for sideslip-only
     wind learning without a pitot)."""
@@ -210,6 +213,7 @@ class HealthCounters:
     synthetic_airspeed_rejected: int
     learned_airspeed_fused: int
     learned_airspeed_rejected: int
+    learned_wind_updates: int
     wind_resets: int
 
     def __init__(self) -> None:
@@ -415,13 +419,16 @@ class AirDataStatus:
     wind_active : bool
         The wind states are running.
     wind_ne_mps : (float, float)
-        Wind estimate North, East (NaN while dormant), m/s.
+        Mean-wind estimate North, East (NaN while dormant), m/s.
     airspeed_scale : float
         Airspeed scale-factor estimate (``TAS_measured = (1 + k) |v - w|``).
     tas_mps : float
         Last valid measured TAS batch (NaN before the first), m/s.
     fault : str
         Why the pitot is blocked: ``stuck``, ``zero``, ``rejected`` (``""`` when not).
+    gust_ne_mps : (float, float)
+        Gust (turbulence) estimate North, East, on top of the mean wind (NaN while dormant),
+        m/s.
     """
 
     state: str = "off"
@@ -430,6 +437,7 @@ class AirDataStatus:
     airspeed_scale: float = 0.0
     tas_mps: float = math.nan
     fault: str = ""
+    gust_ne_mps: tuple[float, float] = (math.nan, math.nan)
 
 
 @dataclass(frozen=True, slots=True)

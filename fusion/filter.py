@@ -182,6 +182,8 @@ class NavFilter:
             wind_noise_mps2_rthz=cfg.airspeed.wind_noise_mps2_rthz,
             wind_climb_scaler_spm=cfg.airspeed.wind_climb_scaler_spm,
             airspeed_scale_noise_rthz=cfg.airspeed.scale_noise_rthz,
+            gust_sigma_mps=cfg.airspeed.gust_sigma_mps,
+            gust_length_m=cfg.airspeed.gust_length_m,
         )
         self._model = ErrorModel(self.layout, self._noise)
         self._scale = self.layout.has_scale_factors
@@ -236,7 +238,7 @@ class NavFilter:
         self._air: AirspeedAiding | None = (
             AirspeedAiding(cfg.airspeed, lay, self._c, self._correct, self._current_covariance,
                            self._activate_air, self._velocity_corrections,
-                           self.bridge.airspeed_model)
+                           self.bridge.airspeed_model, self.bridge.wind_model)
             if self._air_on else None
         )  # fmt: skip
         self._learns_airspeed = self._air is not None and self._air.model is not None
@@ -690,21 +692,25 @@ class NavFilter:
     def _activate_air(
         self, wind_ne_mps: tuple[float, float], wind_variance: float, scale_variance: float
     ) -> None:
-        """Start the air-data block: wind and scale estimates with uncorrelated variances,
-        their process noise from now on."""
+        """Start the air-data block: mean-wind and scale estimates with uncorrelated variances,
+        no gust (its steady-state variance), their process noise from now on."""
         self._flush()
         lay, air = self.layout, self._air
         assert air is not None
-        w = lay.WIND
+        w, g = lay.WIND, lay.GUST
         P = self._cov.P.copy()
         P[lay.air, :] = 0.0
         P[:, lay.air] = 0.0
         P[w, w] = P[w + 1, w + 1] = wind_variance
         P[w + 2, w + 2] = scale_variance
-        self._cov.P = P
-        self._cov.air_offset = w
-        air.state.wind_ne_mps = wind_ne_mps
-        air.state.scale = 0.0
+        P[g, g] = P[g + 1, g + 1] = self.config.airspeed.gust_sigma_mps**2
+        cov = self._cov
+        cov.P = P
+        cov.air_offset = w
+        cov.take_gust_decay()
+        air.state.start(wind_ne_mps)
+        if self._ins is not None:
+            cov.airspeed_mps = air.air_speed_mps(self._ins.v_ned_mps)
 
     def _air_tick(self, t: int) -> None:
         """The air-data epoch (every ``1 / AirspeedTuning.sideslip_rate_hz``, or the TAS rate
@@ -718,7 +724,13 @@ class NavFilter:
         if not 150.0 <= temp <= 350.0:
             temp = 288.15 - 0.0065 * min(ins.alt_msl_m, 11_000.0)  # ISA
         inputs = self._model_inputs(t, ins, p, temp) if self._learns_airspeed else None
+        cov = self._cov
+        if air.state.active:  # the nominal gust decays as its error did
+            self._flush()
+            air.state.decay(cov.take_gust_decay())
         air.tick(t, ins, self._past_state, p, temp, self._gnss_ctl.is_active(t), inputs)
+        if air.state.active and self._ins is not None:
+            cov.airspeed_mps = air.air_speed_mps(self._ins.v_ned_mps)
         self._air_status = air.status(t)
 
     def _init_baro_bias(self, bias_m: float, reference_alt_m: float) -> None:

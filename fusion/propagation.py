@@ -68,6 +68,12 @@ class CovariancePropagator:
         Offset of the air-data block once the filter activated it (its process noise is
         added from then on, :meth:`fusion.error_model.ErrorModel.air_process_noise`);
         ``None``: dormant or absent.
+    airspeed_mps : float
+        Air-relative speed that sets the gust correlation time (the filter updates it at
+        its air-data epochs), m/s.
+    gust_decay : float
+        Product of the gust decay factors since the filter last took it
+        (:meth:`take_gust_decay`): the nominal gust decays with its error.
     """
 
     def __init__(
@@ -89,11 +95,19 @@ class CovariancePropagator:
         self._acc_w = [0.0, 0.0, 0.0]
         self.f_n: Vec3 = (0.0, 0.0, -earth.GE)
         self.air_offset: int | None = None
+        self.airspeed_mps = 0.0
+        self.gust_decay = 1.0
+
+    def take_gust_decay(self) -> float:
+        """The gust decay since the last call (the nominal gust is multiplied by it)."""
+        d, self.gust_decay = self.gust_decay, 1.0
+        return d
 
     def restart(self, cov: FloatArray, v0: Sequence[float]) -> None:
         """Start from covariance ``cov`` (symmetrised) with nothing accumulated."""
         self.P = 0.5 * (cov + cov.T)
         self.air_offset = None  # the air-data block starts dormant
+        self.gust_decay = 1.0
         self.acc_dt = 0.0
         self.v0 = v0
         self._acc_f = [0.0, 0.0, 0.0]
@@ -173,6 +187,14 @@ class CovariancePropagator:
             P[a, a] += qw
             P[a + 1, a + 1] += qw
             P[a + 2, a + 2] += qk
+            # gusts: first-order Gauss-Markov, decaying with the distance flown through the air
+            phi, qg = model.gust_transition(T, self.airspeed_mps)
+            g = a + 3
+            P[g : g + 2, :] *= phi
+            P[:, g : g + 2] *= phi
+            P[g, g] += qg
+            P[g + 1, g + 1] += qg
+            self.gust_decay *= phi
         self.P = P
         k = self.baro_decay(T)
         self.acc_dt = 0.0

@@ -10,16 +10,22 @@ baro's when it is missing or implausible (outside 150-350 K). TAS goes with ``sq
 10 K error is 1.7 %, which the scale state absorbs.
 
 *Models* (``z = h(INS) - measurement``, :mod:`fusion.aiding`), with the air-relative velocity
-``a = v - (w_n, w_e, 0)`` (no vertical wind)::
+``a = v - (w_n + g_n, w_e + g_e, 0)``: the mean wind ``w`` plus the gust ``g`` (turbulence, a
+Gauss-Markov process, :mod:`fusion.error_model`), no vertical wind::
 
-    TAS:       h = (1 + k) |a|          H_v = (1 + k) a^T / |a|,  H_w = -H_v[:2],  H_k = |a|
+    TAS:       h = (1 + k) |a|          H_v = (1 + k) a^T / |a|,  H_w = H_g = -H_v[:2],
+                                        H_k = |a|
     sideslip:  h = a_b,y / a_b,x = 0    a_b = C_bn a
 
 The scale ``k`` multiplies the speed, not ``q_c``: a calibration ratio error ``s`` on ``q_c``
 is ``k = sqrt(1 + s) - 1 ≈ s / 2``; in the speed domain the Jacobian is the same at every
 speed. The sideslip Jacobian follows from ``C^_bn = C_bn (I - [phi×])``:
-``d a_b = C_bn (dv - dw) + C_bn [a×] phi``, so with ``g = C_nb d(beta)/d(a_b)``:
-``H_v = g``, ``H_w = -g[:2]``, ``H_phi = g × a``. Both are checked numerically in the tests.
+``d a_b = C_bn (dv - dw - dg) + C_bn [a×] phi``, so with ``g' = C_nb d(beta)/d(a_b)``:
+``H_v = g'``, ``H_w = H_g = -g'[:2]``, ``H_phi = g' × a``. Both are checked numerically in
+the tests. With GNSS the gust is observed (the instantaneous wind is ``v - a``) and the mean
+wind is what stays; in an outage the gust estimate decays to zero and its variance grows to
+``gust_sigma_mps^2``: the filter dead-reckons on the mean wind, knowing how far turbulence
+can carry it.
 
 *Noise* — one batch of ``n`` samples: ``sigma_TAS^2 = (sigma_qc / (rho |a|))^2 / n + floor^2``
 (``d q_c / dV ≈ rho V`` at low Mach; the floor is not averaged away: turbulence and position
@@ -62,6 +68,7 @@ from fusion.estimate import AidSource, AirDataStatus, HealthCounters
 from fusion.rotations import dcm_from_quat, euler_from_quat
 from fusion.samples import AirspeedSample
 from fusion.strapdown import InsState
+from fusion.wind_model import OnlineWindModel
 from physconst.airdata import air_density_kgpm3, true_airspeed_mps
 
 FloatArray = NDArray[np.float64]
@@ -82,7 +89,7 @@ def tas_model(
     v_ned_mps : 3 floats
         INS velocity at the measurement time, m/s.
     wind_ne_mps : 2 floats
-        Wind estimate North, East, m/s.
+        Wind at the aircraft (mean wind plus gust) North, East, m/s.
     scale : float
         Airspeed scale-factor estimate ``k``.
     tas_mps : float
@@ -105,9 +112,10 @@ def tas_model(
         return None
     g = 1.0 + scale if with_scale else 1.0
     H = np.zeros((1, layout.n))
-    v, w = layout.VEL, layout.WIND
+    v, w, u = layout.VEL, layout.WIND, layout.GUST
     H[0, v], H[0, v + 1], H[0, v + 2] = g * an / va, g * ae / va, g * ad / va
-    H[0, w], H[0, w + 1] = -g * an / va, -g * ae / va
+    H[0, w] = H[0, u] = -g * an / va
+    H[0, w + 1] = H[0, u + 1] = -g * ae / va
     if with_scale:
         H[0, layout.ASPD_SCALE] = va
     return Observation(np.array([g * va - tas_mps]), H, np.array([[sigma_mps * sigma_mps]]))
@@ -128,7 +136,7 @@ def sideslip_model(
     q_nb : 4 floats
         INS attitude, body -> NED, scalar first.
     wind_ne_mps : 2 floats
-        Wind estimate, m/s.
+        Wind at the aircraft (mean wind plus gust), m/s.
     sigma_rad : float
         1-sigma of the synthetic measurement, rad.
 
@@ -149,9 +157,10 @@ def sideslip_model(
     dx, dy = -by / (bx * bx), 1.0 / bx
     g = (c[0] * dx + c[1] * dy, c[3] * dx + c[4] * dy, c[6] * dx + c[7] * dy)
     H = np.zeros((1, layout.n))
-    v, w, p = layout.VEL, layout.WIND, layout.ATT
+    v, w, u, p = layout.VEL, layout.WIND, layout.GUST, layout.ATT
     H[0, v], H[0, v + 1], H[0, v + 2] = g
-    H[0, w], H[0, w + 1] = -g[0], -g[1]
+    H[0, w] = H[0, u] = -g[0]
+    H[0, w + 1] = H[0, u + 1] = -g[1]
     # H_phi = g × a
     H[0, p] = g[1] * a[2] - g[2] * a[1]
     H[0, p + 1] = g[2] * a[0] - g[0] * a[2]
@@ -169,20 +178,40 @@ def wind_from_airspeed(
 
 
 class AirState:
-    """The air-data estimates the filter feeds back into (wind N/E, m/s; scale), and whether
-    the block is running."""
+    """The air-data estimates the filter feeds back into (mean wind and gust N/E, m/s;
+    scale), and whether the block is running."""
 
-    __slots__ = ("active", "scale", "wind_ne_mps")
+    __slots__ = ("active", "gust_ne_mps", "mean_wind_ne_mps", "scale")
 
     def __init__(self) -> None:
         self.active = False
-        self.wind_ne_mps: tuple[float, float] = (0.0, 0.0)
+        self.mean_wind_ne_mps: tuple[float, float] = (0.0, 0.0)
+        self.gust_ne_mps: tuple[float, float] = (0.0, 0.0)
         self.scale = 0.0
+
+    @property
+    def wind_ne_mps(self) -> tuple[float, float]:
+        """The wind at the aircraft: mean wind plus gust, m/s North, East."""
+        w, g = self.mean_wind_ne_mps, self.gust_ne_mps
+        return (w[0] + g[0], w[1] + g[1])
+
+    def start(self, wind_ne_mps: tuple[float, float]) -> None:
+        """Start from a mean wind, no gust and no scale error."""
+        self.mean_wind_ne_mps = wind_ne_mps
+        self.gust_ne_mps = (0.0, 0.0)
+        self.scale = 0.0
+
+    def decay(self, factor: float) -> None:
+        """The gust's Gauss-Markov decay over the propagated time."""
+        g = self.gust_ne_mps
+        self.gust_ne_mps = (g[0] * factor, g[1] * factor)
 
     def correct(self, dx: list[float], layout: StateLayout) -> None:
         """Subtract the error estimate (estimated minus true) of the air-data block."""
-        w = layout.WIND
-        self.wind_ne_mps = (self.wind_ne_mps[0] - dx[w], self.wind_ne_mps[1] - dx[w + 1])
+        w, u = layout.WIND, layout.GUST
+        m, g = self.mean_wind_ne_mps, self.gust_ne_mps
+        self.mean_wind_ne_mps = (m[0] - dx[w], m[1] - dx[w + 1])
+        self.gust_ne_mps = (g[0] - dx[u], g[1] - dx[u + 1])
         self.scale -= dx[w + 2]
 
 
@@ -213,6 +242,11 @@ class AirspeedAiding:
         or a trusted pitot) it learns ``|v - w|`` from the epoch's :class:`AirspeedInputs`;
         with GNSS lost and no usable pitot its prediction, with its own sigma, replaces the
         latched synthetic airspeed (which remains the fallback while it has none).
+    wind_model : OnlineWindModel, optional
+        A learned wind profile (``--bridge gmdh-wind``): while GNSS is good and the wind is
+        known it learns the mean-wind estimate against the INS height; with GNSS lost the
+        mean wind moves with the profile as the height changes (counted in
+        ``learned_wind_updates``).
     """
 
     def __init__(
@@ -221,6 +255,7 @@ class AirspeedAiding:
         activate: Callable[[tuple[float, float], float, float], None],
         corrections: Callable[[], Vec3] | None = None,
         model: OnlineAirspeedModel | None = None,
+        wind_model: OnlineWindModel | None = None,
     ) -> None:  # fmt: skip
         self.cfg = cfg
         self.layout = layout
@@ -234,6 +269,8 @@ class AirspeedAiding:
         self._activate = activate
         self._corrections = corrections if corrections is not None else _no_corrections
         self.model = model
+        self.wind_model = wind_model
+        self._profile_last: tuple[float, float] | None = None
         self._timeout_us = round(cfg.timeout_s * 1e6)
         self._sum_t = 0
         self._sum_q = 0.0
@@ -293,6 +330,10 @@ class AirspeedAiding:
         return out
 
     # --------------------------------------------------------------- status
+    def air_speed_mps(self, v_ned_mps: Vec3) -> float:
+        """Air-relative speed ``|v - w - g|`` at INS velocity ``v_ned_mps``, m/s."""
+        return _air_speed(v_ned_mps, self.state.wind_ne_mps)
+
     def is_fusing(self, now_us: int) -> bool:
         """A TAS (measured or synthetic) was fused within ``timeout_s``."""
         t = self.last_fused_us
@@ -316,9 +357,10 @@ class AirspeedAiding:
             mode = "waiting"
         else:
             mode = "stale"
-        wind = st.wind_ne_mps if st.active else (math.nan, math.nan)
-        return AirDataStatus(mode, st.active, wind, st.scale, self.last_tas_mps,
-                             self.monitor.fault)  # fmt: skip
+        nan2 = (math.nan, math.nan)
+        return AirDataStatus(mode, st.active, st.mean_wind_ne_mps if st.active else nan2,
+                             st.scale, self.last_tas_mps, self.monitor.fault,
+                             st.gust_ne_mps if st.active else nan2)  # fmt: skip
 
     # --------------------------------------------------------------- the tick
     def tick(
@@ -370,6 +412,8 @@ class AirspeedAiding:
             self._sideslip(ins, now_us)
             ins = self._current(ins, past, now_us)
             va = _air_speed(ins.v_ned_mps, st.wind_ne_mps)
+        if self.wind_model is not None:
+            self._learned_wind(now_us, ins, gnss_active)
         if gnss_active or self.measured_ok(now_us):
             self.synthetic_active = False
             self._trusted_tas_mps = None
@@ -377,8 +421,11 @@ class AirspeedAiding:
                 self._recent_v.append(ins.v_ned_mps)
                 if self.model is not None:
                     # the aided filter's air-relative speed is the best airspeed there is, once
-                    # the wind is known (NaN: the model only notes that it has inputs)
-                    self.model.observe(now_us, inputs, va if self._wind_known() else math.nan)
+                    # the wind is known (NaN: the model only notes that it has inputs); against
+                    # the mean wind without a pitot (the gust is then seen only across track)
+                    target = va if self.pitot_seen else _air_speed(ins.v_ned_mps,
+                                                                   st.mean_wind_ne_mps)
+                    self.model.observe(now_us, inputs, target if self._wind_known() else math.nan)
             else:
                 self._recent_v.clear()
             return
@@ -388,7 +435,7 @@ class AirspeedAiding:
             # the cruise airspeed: the mean over the recent ground velocities against the
             # wind as known now (the best estimate), not the value of the last instant (a
             # phugoid or a throttle change would bias the whole outage)
-            wn, we = st.wind_ne_mps
+            wn, we = st.mean_wind_ne_mps  # the gusts of the recent epochs average out
             self._trusted_tas_mps = sum(
                 math.sqrt((v[0] - wn) ** 2 + (v[1] - we) ** 2 + v[2] ** 2) for v in self._recent_v
             ) / len(self._recent_v)
@@ -410,6 +457,36 @@ class AirspeedAiding:
                 self.last_fused_us = now_us
             else:
                 self._c.synthetic_airspeed_rejected += 1
+
+    def _learned_wind(self, now_us: int, ins: InsState, gnss_active: bool) -> None:
+        """Train the wind profile (GNSS good, wind known), or, with GNSS lost, move the mean
+        wind by the profile's change between the last height and this one.
+
+        The profile enters as a known input of the wind's process model (``dw = w(h) -
+        w(h_last)``), not as a measurement: its error is the same at every epoch, and fused
+        at 1 Hz it would be counted as hundreds of independent measurements. The wind's
+        random walk keeps its variance; where the profile is flat or clipped (outside the
+        heights it was trained on) nothing moves.
+        """
+        model, st = self.wind_model, self.state
+        assert model is not None
+        if gnss_active:
+            self._profile_last = None
+            if self._wind_known():
+                model.observe(now_us, ins.alt_msl_m, st.mean_wind_ne_mps)
+            return
+        pred = model.predict(ins.alt_msl_m)
+        if pred is None:
+            return
+        last, self._profile_last = self._profile_last, pred.wind_ne_mps
+        if last is None:
+            return
+        dn, de = pred.wind_ne_mps[0] - last[0], pred.wind_ne_mps[1] - last[1]
+        dn, de = (dn if math.isfinite(dn) else 0.0), (de if math.isfinite(de) else 0.0)
+        if dn or de:  # an axis without skill is NaN: held flat
+            m = st.mean_wind_ne_mps
+            st.mean_wind_ne_mps = (m[0] + dn, m[1] + de)
+            self._c.learned_wind_updates += 1
 
     def _wind_known(self) -> bool:
         P, w = self._covariance(), self.layout.WIND

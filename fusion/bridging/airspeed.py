@@ -1,4 +1,5 @@
-"""``gmdh-airspeed``: a learned vehicle model as a bridging method.
+"""``gmdh-airspeed`` and ``gmdh-wind``: learned models of the air-data channel as bridging
+methods.
 
 It corrects neither the output nor the INS directly (its hooks are :class:`NoBridge`'s): it
 hands the filter an :class:`~fusion.airspeed_model.OnlineAirspeedModel` (a GMDH network with
@@ -7,13 +8,19 @@ trains while the airspeed is known and fuses, with its own held-out error as the
 when GNSS is lost and no pitot is usable (:mod:`fusion.aiding.airspeed`). Its status reports
 what it learned: the state (``no inputs`` when the stream carries no controls or rpm), the
 training pairs, the refits, the held-out error and the selected polynomial.
+
+``gmdh-wind`` (:class:`WindModelBridge`) is the same arrangement for the wind profile: it hands
+the filter an :class:`~fusion.wind_model.OnlineWindModel`, which the air-data aiding trains on
+its mean-wind estimate against height while GNSS is good and fuses as a mean-wind measurement
+when GNSS is lost (:mod:`fusion.aiding.airspeed`).
 """
 
 from __future__ import annotations
 
-from fusion.airspeed_model import OnlineAirspeedModel
+from fusion.airspeed_model import AirspeedModelStatus, OnlineAirspeedModel
 from fusion.bridging.interface import BridgeStatus, NoBridge
 from fusion.gmdh import GmdhRegressor
+from fusion.wind_model import OnlineWindModel
 
 
 def _describe(model: object) -> str:
@@ -35,12 +42,25 @@ class AirspeedModelBridge(NoBridge):
         """The learned model's state, pairs, refits, held-out error and polynomial."""
         model = self.airspeed_model
         assert model is not None
-        st = model.status
-        return BridgeStatus(
-            self.name,
-            st.state,
-            samples=st.samples,
-            refits=st.refits,
-            model=st.polynomial,
-            model_rmse=st.validation_rmse_mps,
-        )
+        return _status(self.name, model.status)
+
+
+class WindModelBridge(NoBridge):
+    """The ``gmdh-wind`` strategy (module docstring)."""
+
+    name = "gmdh-wind"
+
+    def __init__(self) -> None:
+        self.wind_model = OnlineWindModel(GmdhRegressor, method=self.name, describe=_describe)
+
+    @property
+    def status(self) -> BridgeStatus:
+        """The learned profile's state, pairs, refits, held-out error and polynomials."""
+        model = self.wind_model
+        assert model is not None
+        return _status(self.name, model.status)
+
+
+def _status(name: str, st: AirspeedModelStatus) -> BridgeStatus:
+    return BridgeStatus(name, st.state, samples=st.samples, refits=st.refits,
+                        model=st.polynomial, model_rmse=st.validation_rmse_mps)  # fmt: skip

@@ -25,6 +25,7 @@ from typing import Protocol
 
 from fusion.airspeed_model import OnlineAirspeedModel
 from fusion.strapdown import InsState
+from fusion.wind_model import OnlineWindModel
 
 Vec3 = tuple[float, float, float]
 Vec6 = tuple[float, float, float, float, float, float]
@@ -165,11 +166,11 @@ class BridgeStatus:
     active : bool
         A correction or pseudo-fix is being applied now.
     model : str
-        A learned vehicle model's selected polynomial (``gmdh-airspeed``), readable; empty
-        for the other strategies.
+        A learned model's selected polynomial (``gmdh-airspeed``; ``gmdh-wind``: one per wind
+        axis), readable; empty for the other strategies.
     model_rmse : float
         That model's RMS error on the most recent, held-out part of its training window, in
-        its target's units (m/s of true airspeed); NaN before its first fit.
+        its target's units (m/s of true airspeed or of wind); NaN before its first fit.
     """
 
     method: str
@@ -224,6 +225,12 @@ class Bridge(Protocol):
         once at construction; None for the other strategies."""
         ...
 
+    @property
+    def wind_model(self) -> OnlineWindModel | None:
+        """A learned wind profile for the filter's air-data aiding (``gmdh-wind``), read once
+        at construction; None for the other strategies."""
+        ...
+
     def on_gnss(self, epoch: BridgeEpoch, error: InsError) -> None:
         """One fused (or attempted) GNSS fix: the training pair."""
         ...
@@ -247,6 +254,7 @@ class NoBridge:
     virtual_outage_s = 0.0
     virtual_outage_count = 0
     airspeed_model: OnlineAirspeedModel | None = None
+    wind_model: OnlineWindModel | None = None
 
     @property
     def status(self) -> BridgeStatus:

@@ -62,6 +62,7 @@ from fusion.bridging.interface import (
 )
 from fusion.bridging.models import Candidate, ComponentModel
 from fusion.config import BridgeConfig
+from fusion.wind_model import OnlineWindModel
 
 FloatArray = NDArray[np.float64]
 
@@ -156,6 +157,7 @@ class LearnedBridge:
         return self.config.virtual_outage_count if self._virtual else 0
 
     airspeed_model: OnlineAirspeedModel | None = None
+    wind_model: OnlineWindModel | None = None
     """These strategies correct position and velocity, not the air data."""
 
     @property

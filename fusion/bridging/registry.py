@@ -20,6 +20,9 @@
                           propeller rpm, air density, attitude and specific force while the
                           airspeed is known; with GNSS lost and no usable pitot the filter
                           fuses its prediction (:mod:`fusion.bridging.airspeed`)
+``gmdh-wind``             a learned wind profile: GMDH learns the filter's mean wind against
+                          height while GNSS is good; with GNSS lost the filter fuses its
+                          prediction at the current height (:mod:`fusion.wind_model`)
 ========================  =====================================================================
 
 What each method achieves on held-out flights is measured by ``bench/bridging.py`` and
@@ -31,7 +34,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from fusion.bridging.airspeed import AirspeedModelBridge
+from fusion.bridging.airspeed import AirspeedModelBridge, WindModelBridge
 from fusion.bridging.interface import Bridge, NoBridge
 from fusion.bridging.learned import LearnedBridge
 from fusion.bridging.models import ComponentModel, NarxModel, StatelessModel
@@ -40,7 +43,7 @@ from fusion.gmdh import GmdhRegressor
 from fusion.regressors import BpNet, NarxMLP, RbfNet
 
 BRIDGE_METHODS: tuple[str, ...] = (
-    "none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel", "gmdh-airspeed"
+    "none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel", "gmdh-airspeed", "gmdh-wind"
 )
 """Names accepted by :func:`make_bridge`."""
 
@@ -81,8 +84,8 @@ def make_bridge(name: str, config: BridgeConfig | None = None) -> Bridge:
     Parameters
     ----------
     name : str
-        ``none``, ``gmdh``, ``gmdh-pseudo``, ``mlp``, ``rbf``, ``bp-parallel`` or
-        ``gmdh-airspeed``.
+        ``none``, ``gmdh``, ``gmdh-pseudo``, ``mlp``, ``rbf``, ``bp-parallel``,
+        ``gmdh-airspeed`` or ``gmdh-wind``.
     config : BridgeConfig, optional
         Training and model settings. Fields not set explicitly take the method's
         :data:`METHOD_DEFAULTS`, then ``BridgeConfig``'s defaults; ``features=None`` picks
@@ -106,6 +109,8 @@ def make_bridge(name: str, config: BridgeConfig | None = None) -> Bridge:
         return NoBridge()
     if name == "gmdh-airspeed":
         return AirspeedModelBridge()
+    if name == "gmdh-wind":
+        return WindModelBridge()
     # the method's defaults fill in whatever the caller did not set explicitly
     given = {} if config is None else config.model_dump(include=config.model_fields_set)
     cfg = BridgeConfig(**{**METHOD_DEFAULTS.get(name, {}), **given})

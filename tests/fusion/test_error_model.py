@@ -223,11 +223,13 @@ def test_layouts_are_contiguous_and_named() -> None:
     assert INS22_GNSS.labels[:22] == INS22.labels and INS22_GNSS.sg == INS22.sg
     assert INS16_GNSS.labels[-3:] == ("gnss_bias_n_m", "gnss_bias_e_m", "gnss_bias_d_m")
     assert layout_for("ins16") is INS16 and layout_for("ins22+gnss") is INS22_GNSS
-    # the air-data block is appended last: wind N, wind E, airspeed scale
+    # the air-data block is appended last: wind N, wind E, airspeed scale, gust N, gust E
     air = layout_for("ins35+gnss+air")
-    assert (air.n, air.WIND, air.ASPD_SCALE, air.GNSS) == (41, 38, 40, 35) and air.has_air
-    assert air.labels[:38] == INS35_GNSS.labels
-    assert air.labels[-3:] == ("wind_n_mps", "wind_e_mps", "airspeed_scale")
+    assert (air.n, air.WIND, air.ASPD_SCALE, air.GUST, air.GNSS) == (43, 38, 40, 41, 35)
+    assert air.has_air and air.labels[:38] == INS35_GNSS.labels
+    assert air.labels[-5:] == (
+        "wind_n_mps", "wind_e_mps", "airspeed_scale", "gust_n_mps", "gust_e_mps"
+    )  # fmt: skip
     assert not INS35_GNSS.has_air
     assert layout_for("ins16+gnss") is INS16_GNSS and layout_for("ins22") is INS22
     assert INS22.has_scale_factors and not INS16_GNSS.has_scale_factors

@@ -698,7 +698,7 @@ def test_with_overrides(tmp_path: Path) -> None:
 
 def test_method_lists() -> None:
     assert BRIDGE_METHODS == (
-        "none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel", "gmdh-airspeed"
+        "none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel", "gmdh-airspeed", "gmdh-wind"
     )
     assert ALTITUDE_METHODS == ("ekf", "loop", "loop-mpc", "loop-kf")
 
