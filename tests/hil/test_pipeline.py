@@ -49,14 +49,13 @@ def test_the_factory_names_bad_methods_and_presets() -> None:
 
 def test_the_commands_filter_carries_the_air_data_states_and_the_airspeed_choice() -> None:
     # the default layout has the (dormant) air-data block, with or without the GNSS bias block;
-    # air data is opt-in (DEFAULT_AIRSPEED_MODE: it loses to free inertial on JSBSim today)
+    # air data is used when the stream carries it (DEFAULT_AIRSPEED_MODE)
     default = filter_config("industrial-mems", gnss_preset("modern"))
-    assert default.state_layout == "ins35+gnss+air" and not default.airspeed.enabled
+    assert default.state_layout == "ins35+gnss+air" and default.airspeed.enabled
     on = filter_config("industrial-mems", gnss_preset("modern"), airspeed="on")
-    assert on.state_layout == default.state_layout and on.airspeed.enabled
-    assert not on.airspeed.synthetic_when_no_pitot
+    assert on == default and not on.airspeed.synthetic_when_no_pitot
     off = filter_config("industrial-mems", gnss_preset("modern"), airspeed="off")
-    assert off == default
+    assert off.state_layout == default.state_layout and not off.airspeed.enabled
     syn = filter_config("industrial-mems", gnss_preset("modern"), airspeed="synthetic")
     assert syn.airspeed.enabled and syn.airspeed.synthetic_when_no_pitot
 

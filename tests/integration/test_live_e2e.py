@@ -566,7 +566,8 @@ def test_lockstep_loses_nothing_when_the_fusion_freezes_and_innovations_match_re
         assert got["test_ratio"] == pytest.approx(ratio, rel=1e-12)
         assert got["accepted"] == (ratio <= 1.0)
     sources = {g["source"] for g in innovations}
-    assert sources == {"gnss_pos", "gnss_vel", "baro_hgt", "mag_hdg"}
+    # the simulator's pitot is fused by default: airspeed and the synthetic sideslip too
+    assert sources == {"gnss_pos", "gnss_vel", "baro_hgt", "mag_hdg", "airspeed", "sideslip"}
     health = summary["health"]["filter"]
     per_source = {s: sum(g["source"] == s for g in innovations) for s in sources}
     assert per_source["baro_hgt"] == health["baro_fused"] + health["baro_rejected"]
