@@ -210,8 +210,8 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
             "bus": _d({"type": ["object", "null"]}, "Zenoh bus counters of the publisher"),
             "air_data": _d(
                 {"type": ["object", "null"]},
-                "air data: state (off | waiting | fusing | blocked | synthetic | stale), wind "
-                "N/E m/s, airspeed scale, last TAS m/s, pitot fault",
+                "air data: state (off | waiting | fusing | blocked | synthetic | stale), mean "
+                "wind N/E m/s, airspeed scale, last TAS m/s, pitot fault, gust N/E m/s",
             ),
         },
         optional=("time_since_gnss_s", "state_layout", "bridge", "links", "bus", "air_data"),
