@@ -58,12 +58,19 @@ def test_up_signs_every_link_with_the_key_from_the_environment(tmp_path: Path) -
     assert mav["accepted"] > 1000 and mav["unsigned"] == 0 and mav["bad_signature"] == 0
 
 
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_up_stops_every_child_on_sigint(tmp_path: Path) -> None:
     proc = subprocess.Popen(
         [sys.executable, "-m", "scenarios.cli", "up", "--speed", "1",
          "--out", str(tmp_path / "up")],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=_env(),
         start_new_session=True,
+        # as from a terminal: a shell starts background jobs (pytest under `cmd &`) with SIGINT
+        # ignored, children inherit that, and Python then installs no KeyboardInterrupt handler
+        preexec_fn=_default_sigint,
     )
     lines: list[str] = []
     try:
