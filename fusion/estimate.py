@@ -487,6 +487,10 @@ class NavEstimate:
         consistency check (NEES) needs.
     air_data : AirDataStatus or None
         Air data: wind, airspeed scale, pitot state.
+    omega_b_rps : ndarray, shape (3,), or None
+        Body angular rate of the last IMU step (gyro increment minus the estimated bias, over
+        the step; inertial rate, Earth rate included), rad/s: what ground stations show as
+        roll / pitch / yaw rates. None from producers that do not know it.
     """
 
     time_us: int
@@ -510,6 +514,7 @@ class NavEstimate:
     aiding: AidingStatus | None = None
     P_nav: FloatArray | None = None
     air_data: AirDataStatus | None = None
+    omega_b_rps: FloatArray | None = None
 
 
 _ESTIMATE_SETTERS = tuple(getattr(NavEstimate, f.name).__set__ for f in fields(NavEstimate))
@@ -520,6 +525,6 @@ def new_estimate(*values: Any) -> NavEstimate:
     generated frozen ``__init__`` goes through ``object.__setattr__`` per field and costs about
     twice as much at the output rate. No validation, as with ``__init__``."""
     est = object.__new__(NavEstimate)
-    for setter, value in zip(_ESTIMATE_SETTERS, values):  # noqa: B905  # 21 values, one caller
+    for setter, value in zip(_ESTIMATE_SETTERS, values):  # noqa: B905  # 22 values, one caller
         setter(est, value)
     return est

@@ -965,7 +965,7 @@ class NavFilter:
             alt, vz = vertical
             v = (v[0], v[1], -vz)
         # one read-only array, the vector fields are views of it
-        buf = np.array((*v, *q, *euler_from_quat(q), *self._ba, *self._bg))
+        buf = np.array((*v, *q, *euler_from_quat(q), *self._ba, *self._bg, *self._omega_b()))
         buf.setflags(write=False)
         P = self._cov.P
         p_diag = P.diagonal().copy()
@@ -991,6 +991,7 @@ class NavFilter:
             self._c.snapshot(), self._est_ratios,
             gctl.time_since_fused_s(t), self.layout.name,
             self._alt.status(), self.bridge.status, self._est_aiding, p_nav, self._air_status,
+            buf[16:19],  # omega_b_rps
         )  # fmt: skip
 
 

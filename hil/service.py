@@ -11,11 +11,17 @@ Input (``--mavlink URL``)
 
 Outputs (all optional; none of them can block the filter)
     * ``--gcs URL``: a *shadow vehicle* for ground stations (own system id, component 1):
-      HEARTBEAT (the link), GLOBAL_POSITION_INT / ATTITUDE / ATTITUDE_QUATERNION / VFR_HUD at
-      ``telemetry_hz`` and SYS_STATUS / ESTIMATOR_STATUS / SYSTEM_TIME at 1 Hz (wall clock);
-      minimal answers to PARAM_REQUEST_LIST / PARAM_REQUEST_READ (one parameter),
-      COMMAND_LONG REQUEST_AUTOPILOT_CAPABILITIES / REQUEST_MESSAGE(AUTOPILOT_VERSION), and
-      MISSION_REQUEST_LIST (zero items) so QGC / MAVProxy / MAVSDK connect without retries.
+      HEARTBEAT (the link; custom mode = the navigation mode), the fast group at
+      ``telemetry_hz`` and the slow group at 1 Hz (wall-clock pacing, estimate-time stamps;
+      :mod:`hil.shadow_vehicle`), a STATUSTEXT per navigation event; answers to
+      PARAM_REQUEST_LIST / PARAM_REQUEST_READ (one parameter), COMMAND_LONG
+      REQUEST_AUTOPILOT_CAPABILITIES, GET_HOME_POSITION, REQUEST_MESSAGE of AUTOPILOT_VERSION,
+      HOME_POSITION, AVAILABLE_MODES and CURRENT_MODE, and MISSION_REQUEST_LIST (zero items)
+      so QGC / MAVProxy / MAVSDK connect without retries. ``--gcs-tlog PATH`` records every
+      frame the shadow vehicle sends (and its heartbeats) as a .tlog stamped with estimate
+      time, for pymavlink's log tools.
+    * ``fusion/events`` on Zenoh: every :class:`hil.nav_events.NavEvent` (mode changes and
+      detected faults), with or without a ground station.
     * ``--companion URL --companion-kind gps_input|odometry``: GPS_INPUT (ArduPilot, 5 Hz)
       or ODOMETRY (PX4, 30 Hz) to a flight controller, on simulated time.
     * ``--zenoh EP``: estimate, status (mode, test ratios, health, link counters), error vs
@@ -64,9 +70,10 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from fusion.config import DEFAULT_AIRSPEED_MODE
-from fusion.estimate import NavEstimate
+from fusion.estimate import Mode, NavEstimate
 from hil.bus import Topic
 from hil.codec import TRUTH_COMPONENT_ID, mavlink2
+from hil.codec.wire import STANDARD_MODES_DIALECT
 from hil.link import (
     FC_SENSOR_MSG_IDS,
     HIL_MSG_IDS,
@@ -75,8 +82,11 @@ from hil.link import (
     MavlinkLink,
 )
 from hil.pipeline import FusionRun, filter_config
-from hil.shadow import CompanionEncoder, ShadowEncoder
+from hil.nav_events import NavEvent, NavEventDetector
+from hil.shadow import CUSTOM_MODES, CompanionEncoder, ShadowEncoder, heartbeat_state
+from hil.shadow_vehicle import ShadowVehicle
 from hil.signing import Signer
+from hil.tlog import TlogWriter
 from sim.presets import gnss_preset
 from sim.samples import Truth
 
@@ -93,6 +103,9 @@ _GCS_MSG_IDS: Final = frozenset({
     int(mavlink2.MAVLINK_MSG_ID_COMMAND_LONG),
     int(mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST_LIST),
 })
+_HOME_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HOME_POSITION)
+_AVAILABLE_MODES_ID: Final = int(STANDARD_MODES_DIALECT.MAVLINK_MSG_ID_AVAILABLE_MODES)
+_CURRENT_MODE_ID: Final = int(STANDARD_MODES_DIALECT.MAVLINK_MSG_ID_CURRENT_MODE)
 _COMPANION_RATE_HZ: Final = {"gps_input": 5.0, "odometry": 30.0}
 _ERROR_MATCH_KEEP: Final = 64  # recent estimates kept to pair with truth of the same time
 
@@ -114,6 +127,8 @@ class FusionOptions(BaseModel):
     airspeed: str = DEFAULT_AIRSPEED_MODE
     """Air data: ``on``, ``off`` or ``synthetic`` (:data:`fusion.config.AIRSPEED_MODES`)."""
     gcs: str | None = None
+    gcs_tlog: Path | None = None
+    """Record the shadow vehicle's stream here (.tlog, estimate-time stamps); needs ``gcs``."""
     shadow_system_id: int = Field(default=1, ge=1, le=255)
     companion: str | None = None
     companion_kind: Literal["gps_input", "odometry"] = "gps_input"
@@ -167,12 +182,22 @@ class GcsResponder:
     """Minimal answers to ground-station requests (returns frames to send).
 
     One parameter is published (``HILNAV_SYSID``); AUTOPILOT_VERSION is answered to
-    MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES and REQUEST_MESSAGE(148); any other command gets
-    MAV_RESULT_UNSUPPORTED; mission lists have zero items.
+    MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES and REQUEST_MESSAGE(148); HOME_POSITION to
+    MAV_CMD_GET_HOME_POSITION and REQUEST_MESSAGE(242) (TEMPORARILY_REJECTED before
+    alignment); AVAILABLE_MODES to REQUEST_MESSAGE(435, index; index 0 = every mode) and
+    CURRENT_MODE to REQUEST_MESSAGE(436); any other command gets MAV_RESULT_UNSUPPORTED;
+    mission lists have zero items.
+
+    Parameters
+    ----------
+    encoder : ShadowEncoder
+    mode : callable, optional
+        The current navigation mode (None: aligning).
     """
 
-    def __init__(self, encoder: ShadowEncoder) -> None:
+    def __init__(self, encoder: ShadowEncoder, mode: Any = None) -> None:
         self.enc = encoder
+        self._mode = mode or (lambda: Mode.INITIALIZING)
         self.params: dict[str, float] = {"HILNAV_SYSID": float(encoder.system_id)}
 
     def _for_us(self, msg: Any) -> bool:
@@ -211,9 +236,27 @@ class GcsResponder:
             cmd == mavlink2.MAV_CMD_REQUEST_MESSAGE
             and int(msg.param1) == mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION
         )
+        accepted = int(mavlink2.MAV_RESULT_ACCEPTED)
         if wants_version:
-            return [self.enc.command_ack(cmd, int(mavlink2.MAV_RESULT_ACCEPTED), *src),
-                    self.enc.autopilot_version()]
+            return [self.enc.command_ack(cmd, accepted, *src), self.enc.autopilot_version()]
+        requested = int(msg.param1) if cmd == mavlink2.MAV_CMD_REQUEST_MESSAGE else None
+        if cmd == mavlink2.MAV_CMD_GET_HOME_POSITION or requested == _HOME_ID:
+            home = self.enc.home_position()
+            if home is None:
+                return [self.enc.command_ack(
+                    cmd, int(mavlink2.MAV_RESULT_TEMPORARILY_REJECTED), *src)]
+            return [self.enc.command_ack(cmd, accepted, *src), home]
+        if requested == _AVAILABLE_MODES_ID:
+            n = len(CUSTOM_MODES)
+            index = int(msg.param2)
+            if not 0 <= index <= n:
+                return [self.enc.command_ack(cmd, int(mavlink2.MAV_RESULT_DENIED), *src)]
+            indices = range(1, n + 1) if index == 0 else [index]
+            return [self.enc.command_ack(cmd, accepted, *src),
+                    *(self.enc.available_modes(i) for i in indices)]
+        if requested == _CURRENT_MODE_ID:
+            mode = self._mode() or Mode.INITIALIZING
+            return [self.enc.command_ack(cmd, accepted, *src), self.enc.current_mode(mode)]
         return [self.enc.command_ack(cmd, int(mavlink2.MAV_RESULT_UNSUPPORTED), *src)]
 
 
@@ -224,6 +267,8 @@ class _Stats:
     estimates: int = 0
     gcs_answers: int = 0
     innovations: int = 0
+    events: int = 0
+    statustexts: int = 0
     lockstep_acks: int = 0
     first_input_wall: float | None = None
     last_input_wall: float | None = None
@@ -256,7 +301,11 @@ class FusionService:
         self._links: dict[str, MavlinkLink] = {}
         self._bus: Any = None
         self.shadow: ShadowEncoder | None = None
+        self.vehicle: ShadowVehicle | None = None
         self.responder: GcsResponder | None = None
+        self.events = NavEventDetector()
+        self._pending_text: deque[NavEvent] = deque(maxlen=64)
+        self._gcs_tlog: TlogWriter | None = None
         self.companion: CompanionEncoder | None = None
         self._next_companion_us = 0
         self._wall0 = time.monotonic()
@@ -282,9 +331,13 @@ class FusionService:
                         signer=self._signer(0)))
         if o.gcs is not None:
             self.shadow = ShadowEncoder(o.shadow_system_id)
-            self.responder = GcsResponder(self.shadow)
+            self.vehicle = ShadowVehicle(self.shadow, airspeed_enabled=o.airspeed != "off")
+            vehicle = self.vehicle
+            self.responder = GcsResponder(self.shadow, lambda: vehicle.mode)
             self._links["gcs"] = stack.enter_context(
                 MavlinkLink(o.gcs, shadow_role(o.shadow_system_id), signer=self._signer(1)))
+            if o.gcs_tlog is not None:
+                self._gcs_tlog = stack.enter_context(TlogWriter(o.gcs_tlog))
         if o.companion is not None:
             role = LinkRole.companion(system_id=o.companion_system_id)
             self.companion = CompanionEncoder(role.system_id, role.component_id)
@@ -324,6 +377,8 @@ class FusionService:
         new: list[NavEstimate] = []
         for d in self.decoder.decode_message(msg):
             item = d.sample
+            if self.vehicle is not None:
+                self.vehicle.on_sample(item)
             if item.time_us > self._processed_us:
                 self._processed_us = item.time_us
             if isinstance(item, Truth):
@@ -357,6 +412,14 @@ class FusionService:
         self._recent[est.time_us] = est
         if len(self._recent) > _ERROR_MATCH_KEEP:
             self._recent.popitem(last=False)
+        events = self.events.update(est)
+        for ev in events:
+            self.stats.events += 1
+            if self.vehicle is not None:
+                self._pending_text.append(ev)
+            if self._bus is not None:
+                self._bus.publish_fusion_event(ev.time_us, ev.event, ev.severity, ev.message,
+                                               ev.detail)
         if est.mode == "initializing":
             return
         if self._bus is not None:
@@ -383,24 +446,39 @@ class FusionService:
                     self.stats.errors_published += 1
 
     # ---------------------------------------------------------------- outputs on wall time
+    def _gcs_send(self, link: MavlinkLink, frame: bytes) -> None:
+        link.send(frame)
+        if self._gcs_tlog is not None and self.shadow is not None:
+            self._gcs_tlog.write(frame, self.shadow.time_us)
+
     def _gcs_step(self, now: float, schedule: dict[str, float]) -> None:
         link = self._links.get("gcs")
-        if link is None or self.shadow is None or self.responder is None:
+        vehicle, responder = self.vehicle, self.responder
+        if link is None or self.shadow is None or vehicle is None or responder is None:
             return
-        for msg in link.recv(0.0):
-            for frame in self.responder.handle(msg):
-                link.send(frame)
-                self.stats.gcs_answers += 1
         est = self.last_estimate
+        mode = None if est is None else Mode(est.mode)
+        base_mode, custom_mode, status = heartbeat_state(mode)
+        link.set_heartbeat_state(base_mode=base_mode, custom_mode=custom_mode,
+                                 system_status=status)
+        for msg in link.recv(0.0):
+            for frame in responder.handle(msg):
+                self._gcs_send(link, frame)
+                self.stats.gcs_answers += 1
+        while self._pending_text:
+            ev = self._pending_text.popleft()
+            for frame in vehicle.statustexts([ev]):
+                self._gcs_send(link, frame)
+                self.stats.statustexts += 1
         if est is not None and est.mode != "initializing" and now >= schedule["fast"]:
-            for frame in self.shadow.telemetry(est):
-                link.send(frame)
+            for frame in vehicle.fast(est):
+                self._gcs_send(link, frame)
             schedule["fast"] = now + 1.0 / self.options.telemetry_hz
         if now >= schedule["slow"]:
-            link.send(self.shadow.sys_status(est))
-            link.send(self.shadow.system_time())
-            if est is not None:
-                link.send(self.shadow.estimator_status(est))
+            if self._gcs_tlog is not None:  # the link sends its own; the log needs one too
+                self._gcs_tlog.write(self.shadow.heartbeat(mode), self.shadow.time_us)
+            for frame in vehicle.slow(est):
+                self._gcs_send(link, frame)
             schedule["slow"] = now + 1.0
 
     def _reader(self, link: MavlinkLink, stop: threading.Event) -> None:
@@ -519,6 +597,8 @@ class FusionService:
             "fixes": 0 if col is None else len(col.fix_times_us),
             "errors_published": self.stats.errors_published,
             "gcs_answers": self.stats.gcs_answers,
+            "nav_events": self.stats.events,
+            "statustexts_sent": self.stats.statustexts,
             "innovations_published": self.stats.innovations,
             "lockstep_acks": self.stats.lockstep_acks,
             "truth_from_other_components": self.stats.truth_other_component,

@@ -6,10 +6,24 @@ cdeg) are known only here and in the codec; callers hand over SI
 constants are the codec's own (:mod:`hil.codec.wire`).
 
 Shadow vehicle (towards ground stations; own system id, component 1)
-    HEARTBEAT comes from the link; this module builds GLOBAL_POSITION_INT,
-    ATTITUDE_QUATERNION, ATTITUDE, VFR_HUD, SYS_STATUS, ESTIMATOR_STATUS, SYSTEM_TIME and the
-    minimal answers ground stations wait for: PARAM_VALUE, AUTOPILOT_VERSION, COMMAND_ACK,
+    HEARTBEAT comes from the link (its fields from :func:`heartbeat_state`); this module
+    builds GLOBAL_POSITION_INT, ATTITUDE_QUATERNION, ATTITUDE, VFR_HUD, SYS_STATUS,
+    ESTIMATOR_STATUS, SYSTEM_TIME, GPS_RAW_INT, HOME_POSITION, EXTENDED_SYS_STATE, STATUSTEXT,
+    the standard-modes messages (AVAILABLE_MODES, CURRENT_MODE, AVAILABLE_MODES_MONITOR) and
+    the minimal answers ground stations wait for: PARAM_VALUE, AUTOPILOT_VERSION, COMMAND_ACK,
     MISSION_COUNT (0 items).
+
+    One time base: every ``time_boot_ms`` / ``time_usec`` is the estimate's time (simulated
+    time in a simulation, the IMU's clock on a real flight controller), never the wall clock;
+    SYSTEM_TIME's ``time_unix_usec`` alone is UTC.
+
+Flight modes (HEARTBEAT ``base_mode = MAV_MODE_FLAG_CUSTOM_MODE_ENABLED``, ``custom_mode``)
+    :data:`CUSTOM_MODES`: what the navigation rests on, numbered from 101 so that pymavlink /
+    MAVProxy, which look ``custom_mode`` up in ArduPlane's table for any fixed-wing vehicle,
+    do not show an ArduPlane name (ArduPlane uses 0-25). The names reach clients through
+    MAVLink's standard-modes microservice (AVAILABLE_MODES, ``standard_mode`` NON_STANDARD,
+    not user-selectable); the three messages exist only in pymavlink's ``development``
+    dialect, whose definitions (:data:`STANDARD_MODES_DIALECT`) pack them.
 
 Companion (towards a flight controller)
     GPS_INPUT (ArduPilot ``GPS_TYPE=14``) and ODOMETRY (PX4 external vision / odometry,
@@ -21,14 +35,17 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from typing import Any, Final
 
 import numpy as np
 
 from fusion.earth import ned_offset_m
 from fusion.estimate import NavEstimate
+from fusion.estimate import Mode
 from hil.codec.wire import (
     DEGE7_PER_RAD,
+    STANDARD_MODES_DIALECT,
     INT16_MAX,
     INT16_MIN,
     INT32_MAX,
@@ -36,21 +53,48 @@ from hil.codec.wire import (
     UINT16_MAX,
     mavlink2,
 )
+from sim.samples import GnssFix
 
-__all__ = ["CompanionEncoder", "ShadowEncoder", "gps_time"]
+__all__ = [
+    "CUSTOM_MODES", "CompanionEncoder", "SensorBits", "ShadowEncoder", "gps_time",
+    "heartbeat_state",
+]
+
+CUSTOM_MODES: Final = {
+    Mode.INITIALIZING: (101, "ALIGNING"),
+    Mode.GNSS: (102, "GNSS"),
+    Mode.BRIDGING: (103, "BRIDGING"),
+    Mode.DEAD_RECKONING: (104, "DEAD-RECKONING"),
+    Mode.FREE_INERTIAL: (105, "FREE-INERTIAL"),
+}
+"""Navigation mode -> (HEARTBEAT ``custom_mode``, name in AVAILABLE_MODES)."""
 
 _GPS_EPOCH_UNIX_S: Final = 315_964_800  # 1980-01-06
 _GPS_LEAP_S: Final = 18  # GPS - UTC since 2017
 _WEEK_S: Final = 7 * 86_400
 
-_SENSORS: Final = int(
-    mavlink2.MAV_SYS_STATUS_SENSOR_3D_GYRO
-    | mavlink2.MAV_SYS_STATUS_SENSOR_3D_ACCEL
-    | mavlink2.MAV_SYS_STATUS_SENSOR_3D_MAG
-    | mavlink2.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-    | mavlink2.MAV_SYS_STATUS_SENSOR_GPS
-    | mavlink2.MAV_SYS_STATUS_AHRS
-)
+_GEOFENCE: Final = int(mavlink2.MAV_SYS_STATUS_GEOFENCE)
+_STD = STANDARD_MODES_DIALECT
+
+
+@dataclass(frozen=True, slots=True)
+class SensorBits:
+    """SYS_STATUS ``onboard_control_sensors_{present,enabled,health}`` (``MAV_SYS_STATUS_*``
+    bits). A health bit of a sensor that is not present is 0, except the geofence's (see
+    :meth:`ShadowEncoder.sys_status`)."""
+
+    present: int = 0
+    enabled: int = 0
+    health: int = 0
+
+
+def heartbeat_state(mode: Mode | None) -> tuple[int, int, int]:
+    """HEARTBEAT ``(base_mode, custom_mode, system_status)`` of the navigation mode: custom
+    mode enabled (never armed: the shadow vehicle does not know), :data:`CUSTOM_MODES`,
+    ``MAV_STATE_STANDBY`` while aligning else ``MAV_STATE_ACTIVE``."""
+    m = Mode.INITIALIZING if mode is None else mode
+    status = mavlink2.MAV_STATE_STANDBY if m == Mode.INITIALIZING else mavlink2.MAV_STATE_ACTIVE
+    return int(mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), CUSTOM_MODES[m][0], int(status)
 
 
 def _clip(value: float, lo: int, hi: int) -> int:
@@ -68,6 +112,18 @@ def _heading_deg(est: NavEstimate) -> float:
     return math.degrees(float(est.euler_rad[2])) % 360.0
 
 
+def _rates(est: NavEstimate) -> tuple[float, float, float]:
+    w = est.omega_b_rps
+    if w is None:
+        return 0.0, 0.0, 0.0
+    return float(w[0]), float(w[1]), float(w[2])
+
+
+def _mm(value_m: float) -> int:
+    """An accuracy in mm (uint32; NaN -> 0 = unknown)."""
+    return _clip(value_m * 1000.0, 0, 0xFFFF_FFFF)
+
+
 def _sigma(est: NavEstimate, i: int) -> float:
     p = float(est.P_diag[i])
     return math.sqrt(p) if p > 0.0 else 0.0
@@ -81,8 +137,8 @@ def gps_time(unix_s: float) -> tuple[int, int]:
 
 
 class _Packer:
-    def __init__(self, system_id: int, component_id: int) -> None:
-        self.mav = mavlink2.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
+    def __init__(self, system_id: int, component_id: int, dialect: Any = mavlink2) -> None:
+        self.mav = dialect.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
 
     def pack(self, msg: Any) -> bytes:
         # the link re-sequences frames per component; the packer's own seq is irrelevant
@@ -96,20 +152,36 @@ class ShadowEncoder:
     ----------
     system_id : int
         The shadow vehicle's MAVLink system id (component 1, the autopilot).
-    boot_clock : callable
-        Monotonic wall time, s; ``time_boot_ms`` counts from construction.
+
+    Every time field is the estimate time of the newest estimate encoded (:meth:`boot_ms`,
+    see the module docstring).
     """
 
-    def __init__(self, system_id: int, *, boot_clock: Any = time.monotonic) -> None:
-        self._p = _Packer(system_id, int(mavlink2.MAV_COMP_ID_AUTOPILOT1))
+    def __init__(self, system_id: int) -> None:
+        comp = int(mavlink2.MAV_COMP_ID_AUTOPILOT1)
+        self._p = _Packer(system_id, comp)
+        self._std = _Packer(system_id, comp, _STD)
         self.system_id = system_id
-        self._clock = boot_clock
-        self._boot = boot_clock()
-        self._home_alt_m: float | None = None
+        self.time_us = 0
+        """Estimate time of the newest estimate encoded, us (0 before the first)."""
+        self.home: tuple[float, float, float] | None = None
+        """Home (lat rad, lon rad, alt MSL m): the first estimate after alignment."""
+
+    def _at(self, est: NavEstimate) -> None:
+        self.time_us = max(self.time_us, int(est.time_us))
+        if self.home is None and est.mode != Mode.INITIALIZING:
+            self.home = (float(est.lat_rad), float(est.lon_rad), float(est.alt_msl_m))
+
+    def heartbeat(self, mode: Mode | None) -> bytes:
+        """HEARTBEAT as the link sends it (:func:`heartbeat_state`), for a recorded log."""
+        base_mode, custom_mode, status = heartbeat_state(mode)
+        return self._p.pack(mavlink2.MAVLink_heartbeat_message(
+            int(mavlink2.MAV_TYPE_FIXED_WING), int(mavlink2.MAV_AUTOPILOT_GENERIC), base_mode,
+            custom_mode, status, 3))
 
     def boot_ms(self) -> int:
-        """Milliseconds since construction (uint32 wrap)."""
-        return int((self._clock() - self._boot) * 1000.0) & 0xFFFF_FFFF
+        """``time_boot_ms``: the newest estimate time, ms (uint32 wrap)."""
+        return (self.time_us // 1000) & 0xFFFF_FFFF
 
     def telemetry(self, est: NavEstimate) -> list[bytes]:
         """The fast group: GLOBAL_POSITION_INT, ATTITUDE, ATTITUDE_QUATERNION, VFR_HUD."""
@@ -117,36 +189,37 @@ class ShadowEncoder:
                 self.attitude_quaternion(est), self.vfr_hud(est)]
 
     def global_position_int(self, est: NavEstimate) -> bytes:
-        """GLOBAL_POSITION_INT: degE7, mm (MSL and above the first estimate), cm/s, cdeg."""
-        if self._home_alt_m is None:
-            self._home_alt_m = est.alt_msl_m
+        """GLOBAL_POSITION_INT: degE7, mm (MSL and above home), cm/s, cdeg."""
+        self._at(est)
+        home_alt_m = est.alt_msl_m if self.home is None else self.home[2]
         vn, ve, vd = (float(v) for v in est.v_ned_mps)
         return self._p.pack(mavlink2.MAVLink_global_position_int_message(
             self.boot_ms(),
             _clip(est.lat_rad * DEGE7_PER_RAD, INT32_MIN, INT32_MAX),
             _clip(est.lon_rad * DEGE7_PER_RAD, INT32_MIN, INT32_MAX),
             _clip(est.alt_msl_m * 1000.0, INT32_MIN, INT32_MAX),
-            _clip((est.alt_msl_m - self._home_alt_m) * 1000.0, INT32_MIN, INT32_MAX),
+            _clip((est.alt_msl_m - home_alt_m) * 1000.0, INT32_MIN, INT32_MAX),
             _clip(vn * 100.0, INT16_MIN, INT16_MAX),
             _clip(ve * 100.0, INT16_MIN, INT16_MAX),
             _clip(vd * 100.0, INT16_MIN, INT16_MAX),
             _clip(_heading_deg(est) * 100.0, 0, 35999),
         ))
 
-    def attitude(self, est: NavEstimate, rates_rps: tuple[float, float, float] = (0.0, 0.0, 0.0)
-                 ) -> bytes:
-        """ATTITUDE: Euler angles (rad, yaw in [-pi, pi]) and body rates (rad/s)."""
+    def attitude(self, est: NavEstimate) -> bytes:
+        """ATTITUDE: Euler angles (rad, yaw in [-pi, pi]) and the estimate's bias-corrected
+        body rates (rad/s; 0 when the estimate carries none)."""
+        self._at(est)
         r, p, y = (float(a) for a in est.euler_rad)
         y = math.atan2(math.sin(y), math.cos(y))
-        return self._p.pack(mavlink2.MAVLink_attitude_message(self.boot_ms(), r, p, y, *rates_rps))
+        return self._p.pack(mavlink2.MAVLink_attitude_message(
+            self.boot_ms(), r, p, y, *_rates(est)))
 
-    def attitude_quaternion(
-        self, est: NavEstimate, rates_rps: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    ) -> bytes:
+    def attitude_quaternion(self, est: NavEstimate) -> bytes:
         """ATTITUDE_QUATERNION: q body->NED (w, x, y, z), body rates rad/s."""
+        self._at(est)
         w, x, y, z = (float(q) for q in est.q_nb)
         return self._p.pack(mavlink2.MAVLink_attitude_quaternion_message(
-            self.boot_ms(), w, x, y, z, *rates_rps, [0.0, 0.0, 0.0, 0.0]))
+            self.boot_ms(), w, x, y, z, *_rates(est), [0.0, 0.0, 0.0, 0.0]))
 
     def vfr_hud(self, est: NavEstimate) -> bytes:
         """VFR_HUD: airspeed = the estimated true airspeed ``|v - w|`` when the wind states
@@ -161,12 +234,87 @@ class ShadowEncoder:
         return self._p.pack(mavlink2.MAVLink_vfr_hud_message(
             aspd, gs, _clip(_heading_deg(est), 0, 359), 0, est.alt_msl_m, -vd))
 
-    def sys_status(self, est: NavEstimate | None) -> bytes:
-        """SYS_STATUS: IMU/mag/baro/GNSS/AHRS present; AHRS healthy when navigating."""
-        healthy = _SENSORS if est is not None and est.mode != "initializing" else (
-            _SENSORS & ~int(mavlink2.MAV_SYS_STATUS_AHRS))
+    def sys_status(self, bits: SensorBits) -> bytes:
+        """SYS_STATUS with ``bits``; battery unknown as the message's text says (voltage
+        UINT16_MAX, current -1, remaining -1), load and errors 0.
+
+        The GEOFENCE *health* bit is always set (present and enabled never are): MAVProxy's
+        fence module starts from "healthy" and says "fence breach" when a SYS_STATUS lacks
+        that health bit, whether or not a fence is present (MAVProxy 1.8.75
+        ``modules/mavproxy_fence.py``, ``handle_sys_status``); ArduPilot likewise reports a
+        healthy, absent fence."""
         return self._p.pack(mavlink2.MAVLink_sys_status_message(
-            _SENSORS, _SENSORS, healthy, 0, UINT16_MAX, -1, -1, 0, 0, 0, 0, 0, 0))
+            bits.present & ~_GEOFENCE, bits.enabled & ~_GEOFENCE, bits.health | _GEOFENCE,
+            0, UINT16_MAX, -1, -1, 0, 0, 0, 0, 0, 0))
+
+    def gps_raw_int(self, fix: GnssFix | None, fix_lost: bool) -> bytes:
+        """GPS_RAW_INT of the receiver's last fix: ``fix_type`` as received, or
+        ``GPS_FIX_TYPE_NO_FIX`` with 0 satellites when ``fix_lost`` (no fix for a while: an
+        outage or jamming); ``GPS_FIX_TYPE_NO_GPS`` before any fix. ``eph`` / ``epv`` are
+        dilutions of precision in this message, which hilnav's receiver does not know:
+        UINT16_MAX (unknown); its accuracies go to ``h_acc`` / ``v_acc`` / ``vel_acc`` (mm,
+        mm/s). ``cog`` is unknown (UINT16_MAX) below 0.5 m/s."""
+        if fix is None:
+            return self._p.pack(mavlink2.MAVLink_gps_raw_int_message(
+                self.time_us, int(mavlink2.GPS_FIX_TYPE_NO_GPS), 0, 0, 0, UINT16_MAX,
+                UINT16_MAX, UINT16_MAX, UINT16_MAX, 0))
+        vn, ve = float(fix.v_ned_mps[0]), float(fix.v_ned_mps[1])
+        gs = math.hypot(vn, ve)
+        cog = _clip(math.degrees(math.atan2(ve, vn)) % 360.0 * 100.0, 0, 35999) if (
+            gs >= 0.5) else UINT16_MAX
+        fix_type = int(mavlink2.GPS_FIX_TYPE_NO_FIX) if fix_lost else int(fix.fix_type)
+        sats = 0 if fix_lost else int(fix.satellites_visible)
+        return self._p.pack(mavlink2.MAVLink_gps_raw_int_message(
+            int(fix.time_us), fix_type,
+            _clip(fix.lat_rad * DEGE7_PER_RAD, INT32_MIN, INT32_MAX),
+            _clip(fix.lon_rad * DEGE7_PER_RAD, INT32_MIN, INT32_MAX),
+            _clip(fix.alt_msl_m * 1000.0, INT32_MIN, INT32_MAX),
+            UINT16_MAX, UINT16_MAX, _clip(gs * 100.0, 0, UINT16_MAX - 1), cog,
+            min(max(sats, 0), 254), 0,
+            _mm(fix.eph_m), _mm(fix.epv_m), _mm(fix.speed_accuracy_mps), 0, 0))
+
+    def home_position(self) -> bytes | None:
+        """HOME_POSITION at :attr:`home` (None before alignment): degE7, mm MSL, local
+        position 0 (the home is the local origin), q identity, approach vector 0."""
+        if self.home is None:
+            return None
+        lat, lon, alt = self.home
+        return self._p.pack(mavlink2.MAVLink_home_position_message(
+            _clip(lat * DEGE7_PER_RAD, INT32_MIN, INT32_MAX),
+            _clip(lon * DEGE7_PER_RAD, INT32_MIN, INT32_MAX),
+            _clip(alt * 1000.0, INT32_MIN, INT32_MAX),
+            0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, self.time_us))
+
+    def extended_sys_state(self, in_air: bool | None) -> bytes:
+        """EXTENDED_SYS_STATE: not a VTOL; landed state in air / on ground (None: undefined)."""
+        landed = (mavlink2.MAV_LANDED_STATE_UNDEFINED if in_air is None
+                  else mavlink2.MAV_LANDED_STATE_IN_AIR if in_air
+                  else mavlink2.MAV_LANDED_STATE_ON_GROUND)
+        return self._p.pack(mavlink2.MAVLink_extended_sys_state_message(
+            int(mavlink2.MAV_VTOL_STATE_UNDEFINED), int(landed)))
+
+    def statustext(self, severity: int, text: str) -> bytes:
+        """STATUSTEXT of ``severity`` (``MAV_SEVERITY``), ``text`` cut to 50 ASCII chars."""
+        raw = text.encode("ascii", "replace")[:50]
+        return self._p.pack(mavlink2.MAVLink_statustext_message(int(severity), raw, 0, 0))
+
+    def available_modes(self, index: int) -> bytes:
+        """AVAILABLE_MODES of mode ``index`` (1-based, :data:`CUSTOM_MODES` order)."""
+        modes = list(CUSTOM_MODES.values())
+        number, name = modes[index - 1]
+        return self._std.pack(_STD.MAVLink_available_modes_message(
+            len(modes), index, int(_STD.MAV_STANDARD_MODE_NON_STANDARD), number,
+            int(_STD.MAV_MODE_PROPERTY_NOT_USER_SELECTABLE), name.encode()))
+
+    def current_mode(self, mode: Mode) -> bytes:
+        """CURRENT_MODE: non-standard, the :data:`CUSTOM_MODES` number (also the intended one)."""
+        number = CUSTOM_MODES[mode][0]
+        return self._std.pack(_STD.MAVLink_current_mode_message(
+            int(_STD.MAV_STANDARD_MODE_NON_STANDARD), number, number))
+
+    def available_modes_monitor(self) -> bytes:
+        """AVAILABLE_MODES_MONITOR: sequence 0 (the set of modes never changes)."""
+        return self._std.pack(_STD.MAVLink_available_modes_monitor_message(0))
 
     def estimator_status(self, est: NavEstimate) -> bytes:
         """ESTIMATOR_STATUS: solution flags (``dead-reckoning``, ``free-inertial`` and
@@ -191,7 +339,7 @@ class ShadowEncoder:
             math.hypot(_sigma(est, 0), _sigma(est, 1)), _sigma(est, 2)))
 
     def system_time(self, unix_s: float | None = None) -> bytes:
-        """SYSTEM_TIME: wall-clock UTC (us) and time since boot (ms)."""
+        """SYSTEM_TIME: wall-clock UTC (us) and the estimate time (ms)."""
         now = time.time() if unix_s is None else unix_s
         return self._p.pack(mavlink2.MAVLink_system_time_message(int(now * 1e6), self.boot_ms()))
 

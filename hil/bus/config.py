@@ -23,6 +23,7 @@ _DEFAULT_RATES: Final[dict[Topic, float | None]] = {
     Topic.INNOVATIONS: None,
     Topic.ERROR: 25.0,
     Topic.EVENTS: None,
+    Topic.FUSION_EVENTS: None,
 }
 
 
@@ -36,7 +37,7 @@ class BusConfig(pydantic.BaseModel):
         a faster-than-real-time run is evenly sampled; payloads without ``time_us`` are
         decimated on the wall clock. Topics not listed keep their default
         (truth, IMU, baro, mag, airspeed, estimate, error 25 Hz; status 2 Hz; GNSS, innovations,
-        events unlimited).
+        both event topics unlimited).
     queue_size : int
         Messages waiting for the publisher thread; beyond it the oldest is dropped.
     connect_timeout_s : float

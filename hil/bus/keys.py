@@ -8,6 +8,7 @@ One subtree per vehicle::
     hilnav/<vehicle>/fusion/status          mode, outage timer, health, innovation ratios, links
     hilnav/<vehicle>/fusion/innovations     one message per aiding update
     hilnav/<vehicle>/fusion/error           estimate - truth (when truth is known)
+    hilnav/<vehicle>/fusion/events          what the navigation did and detected (mode, faults)
     hilnav/<vehicle>/scenario/events        scenario timeline (GNSS off/on, faults, ...)
     hilnav/<vehicle>/fusion/config          queryable: the fusion service's configuration
     hilnav/<vehicle>/fusion/alive           liveliness token of the fusion service
@@ -45,6 +46,7 @@ class Topic(StrEnum):
     STATUS = "fusion/status"
     INNOVATIONS = "fusion/innovations"
     ERROR = "fusion/error"
+    FUSION_EVENTS = "fusion/events"
     EVENTS = "scenario/events"
     CONFIG = "fusion/config"
     """Queryable, not published: answers with :func:`config_reply_payload`."""

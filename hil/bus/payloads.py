@@ -18,7 +18,7 @@ import numpy as np
 from fusion.earth import ned_offset_m
 from fusion.rotations import quat_conjugate, quat_multiply
 from hil.bus.keys import Topic
-from hil.bus.schemas import SCHEMA_VERSION
+from hil.bus.schemas import EVENT_SEVERITIES, SCHEMA_VERSION
 
 if TYPE_CHECKING:
     from hil.bus.stats import BusStats
@@ -29,6 +29,7 @@ __all__ = [
     "error_payload",
     "estimate_payload",
     "event_payload",
+    "fusion_event_payload",
     "innovation_payload",
     "sample_payload",
     "sample_topic",
@@ -443,6 +444,16 @@ def event_payload(
         "message": str(message),
         "detail": _plain(dict(detail or {})),
     }
+
+
+def fusion_event_payload(
+    time_us: int, event: str, severity: str, message: str = "",
+    detail: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Payload of ``fusion/events`` (:class:`hil.nav_events.NavEvent`'s fields)."""
+    if severity not in EVENT_SEVERITIES:
+        raise ValueError(f"severity must be one of {', '.join(EVENT_SEVERITIES)}, got {severity!r}")
+    return {**event_payload(time_us, event, message, detail), "severity": severity}
 
 
 def config_reply_payload(vehicle: str, config: Any) -> dict[str, Any]:

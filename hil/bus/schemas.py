@@ -15,7 +15,7 @@ from typing import Any, Final
 
 from hil.bus.keys import Topic
 
-__all__ = ["SCHEMAS", "SCHEMA_VERSION"]
+__all__ = ["EVENT_SEVERITIES", "SCHEMAS", "SCHEMA_VERSION"]
 
 SCHEMA_VERSION: Final = 1
 """Version of every payload schema below; bump it when a field changes meaning or disappears."""
@@ -61,6 +61,10 @@ def _schema(
         "additionalProperties": True,
     }
 
+
+EVENT_SEVERITIES: Final = ("emergency", "alert", "critical", "error", "warning", "notice", "info",
+                           "debug")
+"""``fusion/events`` severities: MAVLink's ``MAV_SEVERITY`` names, index = value (0 .. 7)."""
 
 _TIME = _d(_I, "simulated time of validity, microseconds")
 _LATLON = {
@@ -262,6 +266,20 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
             "time_us": _TIME,
             "event": _d(_S, "event kind, e.g. gnss_off, gnss_on, fault, note"),
             "message": _d(_S, "human-readable text"),
+            "detail": _d({"type": "object"}, "event parameters"),
+        },
+    ),
+    Topic.FUSION_EVENTS: _schema(
+        Topic.FUSION_EVENTS,
+        "Navigation event: a mode change or a fault the fusion detected (hil.nav_events).",
+        {
+            "time_us": _TIME,
+            "event": _d(_S, "kind: mode, gnss_rejected, spoof_suspected, gnss_reset, "
+                            "gnss_reset_refused, pitot_dropped, pitot_recovered, baro_frozen, "
+                            "baro_reset, imu_invalid, filter_rebase"),
+            "severity": _d({"type": "string", "enum": list(EVENT_SEVERITIES)},
+                           "MAVLink MAV_SEVERITY name, lower case"),
+            "message": _d(_S, "human-readable text (the STATUSTEXT sent)"),
             "detail": _d({"type": "object"}, "event parameters"),
         },
     ),

@@ -38,6 +38,7 @@ from hil.bus.payloads import (
     error_payload,
     estimate_payload,
     event_payload,
+    fusion_event_payload,
     innovation_payload,
     sample_payload,
     sample_topic,
@@ -377,6 +378,14 @@ class Bus:
     ) -> bool:
         """Publish a scenario event on ``scenario/events``."""
         return self.publish(Topic.EVENTS, event_payload(time_us, event, message, detail))
+
+    def publish_fusion_event(
+        self, time_us: int, event: str, severity: str, message: str = "",
+        detail: Mapping[str, Any] | None = None,
+    ) -> bool:
+        """Publish a navigation event on ``fusion/events``."""
+        return self.publish(Topic.FUSION_EVENTS,
+                            fusion_event_payload(time_us, event, severity, message, detail))
 
     # ---------------------------------------------------------------- declarations
     def _declare(self, kind: str, key_expr: str, make: Callable[[Any], Any]) -> Declaration:

@@ -10,7 +10,11 @@ Dialect
     "known, ignored" instead of "unknown"), MAVLink 2 framing. The process-global dialect that
     ``pymavlink.mavutil`` picks from environment variables is never used. Import the dialect
     from here (:data:`mavlink2`, also ``hil.codec.mavlink2``) so every hilnav module agrees on
-    it.
+    it. Plus the three messages of MAVLink's standard-modes microservice (AVAILABLE_MODES 435,
+    CURRENT_MODE 436, AVAILABLE_MODES_MONITOR 437), which pymavlink 2.4.50 has only in its
+    ``development`` dialect (:data:`STANDARD_MODES_DIALECT`): they are added to the dialect's
+    id map on import, so links can frame, sign and decode them (ids unused by ardupilotmega;
+    the shadow vehicle packs them with the ``development`` classes).
 
 Component ids
     Sensors (HIL_SENSOR, HIL_GPS) come from :data:`SENSOR_COMPONENT_ID` = 200
@@ -32,6 +36,7 @@ from typing import Final
 
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+from pymavlink.dialects.v20 import development as STANDARD_MODES_DIALECT
 
 __all__ = [
     "AUTOPILOT_COMPONENT_ID",
@@ -49,9 +54,19 @@ __all__ = [
     "UINT8_MAX",
     "UINT16_MAX",
     "UINT64_MAX",
+    "STANDARD_MODES_DIALECT",
+    "STANDARD_MODE_MSG_IDS",
     "HilSensorField",
     "mavlink2",
 ]
+
+STANDARD_MODE_MSG_IDS: Final = (
+    int(STANDARD_MODES_DIALECT.MAVLINK_MSG_ID_AVAILABLE_MODES),
+    int(STANDARD_MODES_DIALECT.MAVLINK_MSG_ID_CURRENT_MODE),
+    int(STANDARD_MODES_DIALECT.MAVLINK_MSG_ID_AVAILABLE_MODES_MONITOR),
+)
+for _msg_id in STANDARD_MODE_MSG_IDS:
+    mavlink2.mavlink_map.setdefault(_msg_id, STANDARD_MODES_DIALECT.mavlink_map[_msg_id])
 
 TESLA_PER_GAUSS: Final = 1e-4
 PA_PER_HPA: Final = 100.0

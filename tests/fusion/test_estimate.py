@@ -66,7 +66,7 @@ def test_new_estimate_fills_every_field_in_order() -> None:
     values = [
         5, 0.1, 0.2, 300.0, np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3), np.ones(16),
         Mode.GNSS, np.full(3, 0.01), np.full(3, 1e-5), 2.0, Health(), TestRatios(), 0.2,
-        "ins16", None, None, AidingStatus(), np.eye(9), AirDataStatus(),
+        "ins16", None, None, AidingStatus(), np.eye(9), AirDataStatus(), np.zeros(3),
     ]  # fmt: skip
     est = new_estimate(*values)
     names = [f.name for f in dataclasses.fields(NavEstimate)]

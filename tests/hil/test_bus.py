@@ -34,6 +34,7 @@ from hil.bus import (
     error_payload,
     estimate_payload,
     event_payload,
+    fusion_event_payload,
     innovation_payload,
     key,
     parse_key,
@@ -139,6 +140,9 @@ def every_payload() -> dict[Topic, dict[str, Any]]:
     )  # fmt: skip
     out[Topic.ERROR] = error_payload(est, make_truth(2_000_000))
     out[Topic.EVENTS] = event_payload(3_000_000, "gnss_off", "GNSS jammed", {"duration_s": 60})
+    out[Topic.FUSION_EVENTS] = fusion_event_payload(3_100_000, "mode", "warning",
+                                                    "GNSS lost: dead-reckoning",
+                                                    {"from": "gnss", "to": "dead-reckoning"})
     return out
 
 
