@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from hil.pipeline import SimChain, SimSetup
+from hil.scenario_events import ScenarioTimeline
 from sim.flight import FlightEnded
 from sim.samples import ActuatorSample, RpmSample
 
@@ -257,6 +258,7 @@ def _fly(
     peer_seen: bool,
 ) -> LiveReport:
     t0_us = last_us = chain.start_us
+    timeline = ScenarioTimeline(chain.setup, t0_us)
     frames = sent = 0
     stalled = False
     next_progress_us = t0_us
@@ -275,6 +277,8 @@ def _fly(
             if log is not None:
                 log.write(frame, time_us)
         if bus is not None:
+            for event in timeline.due(truth.time_us, chain.fault_log):
+                bus.publish_event(*event)
             bus.publish_truth(truth)
             for s in samples:
                 if not isinstance(s, ActuatorSample | RpmSample):  # no Zenoh topic yet (#18)

@@ -291,6 +291,10 @@ def fusion(
         typer.Option(help="Shadow vehicle for ground stations, e.g. udpout:127.0.0.1:14550."),
     ] = None,
     shadow_sysid: Annotated[int, typer.Option(help="Shadow vehicle's MAVLink system id.")] = 1,
+    gcs_tlog: Annotated[
+        Path | None,
+        typer.Option(help="Record the shadow vehicle's stream to this .tlog (needs --gcs)."),
+    ] = None,
     companion: Annotated[
         str | None, typer.Option(help="Flight controller link for GPS_INPUT / ODOMETRY.")
     ] = None,
@@ -316,6 +320,8 @@ def fusion(
     """Live fusion service: MAVLink sensors in; shadow vehicle, companion and Zenoh out."""
     if out is not None:
         _out_dir(out)
+    if gcs_tlog is not None and gcs is None:
+        raise ValueError("--gcs-tlog needs --gcs")
     from hil.pipeline import build_filter, filter_config
     from hil.service import FusionOptions, parse_source
     from scenarios.cli.live import serve_fusion
@@ -329,7 +335,7 @@ def fusion(
     options = FusionOptions(
         mavlink=mavlink, source=source, zenoh=zenoh, vehicle=vehicle, imu=imu, gnss=gnss,
         bridge=bridge,
-        altitude=altitude, airspeed=airspeed, gcs=gcs,
+        altitude=altitude, airspeed=airspeed, gcs=gcs, gcs_tlog=gcs_tlog,
         shadow_system_id=shadow_sysid, companion=companion,
         companion_kind=companion_kind,  # type: ignore[arg-type]  # pydantic checks the literal
         companion_system_id=companion_sysid, duration_s=duration, idle_exit_s=idle_exit, out=out,

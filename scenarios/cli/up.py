@@ -186,7 +186,7 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
         if options.duration_s is not None:
             fusion_args += ["--idle-exit", str(_FUSION_IDLE_EXIT_S)]
         if options.gcs is not None:
-            fusion_args += ["--gcs", options.gcs]
+            fusion_args += ["--gcs", options.gcs, "--gcs-tlog", str(out / "shadow.tlog")]
         fusion = Child("fusion", hilnav_argv(*fusion_args), out / "fusion.log")
         children.append(fusion)
         log(f"fusion        pid {fusion.pid}: MAVLink in udpin:127.0.0.1:{port}"

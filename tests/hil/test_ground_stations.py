@@ -1,0 +1,186 @@
+"""The shadow vehicle seen by real ground-station software over real UDP sockets on loopback:
+MAVSDK (its C++ core through the ``mavsdk`` wheel), MAVProxy's own SYS_STATUS / fence logic,
+and pymavlink's log tools on the recorded shadow tlog."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from hil.codec import mavlink2
+from hil.link import LinkRole, MavlinkLink
+from scenarios.cli.up import free_udp_port, stop_process
+from tests.helpers.processes import hilnav_process
+
+SHADOW_SYS = 7
+BIN = Path(sys.executable).parent
+
+
+def _start_chain(tmp_path: Path, gcs_url: str, *, speed: str, duration: str,
+                 gnss_off: str) -> tuple[Any, Any]:
+    port = free_udp_port()
+    fusion = hilnav_process(
+        "fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--gcs", gcs_url, "--shadow-sysid",
+        str(SHADOW_SYS), "--gcs-tlog", str(tmp_path / "shadow.tlog"), "--idle-exit", "3",
+        log=tmp_path / "fusion.log")
+    sim = hilnav_process(
+        "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", speed, "--duration", duration,
+        "--seed", "3", "--gnss-off", gnss_off, "--wait-peer", "30", log=tmp_path / "sim.log")
+    return fusion, sim
+
+
+def test_mavsdk_sees_a_complete_vehicle(tmp_path: Path) -> None:
+    """GIVEN a live run (GNSS off 40-60 s sim time) shown to MAVSDK WHEN MAVSDK watches THEN it
+    discovers the vehicle with all health ok, a 3-D fix with satellites, home, in air and
+    turning rates; during the outage the fix is lost and STATUSTEXTs arrive. (MAVSDK 4.1's
+    Health has no GNSS flag: its ``is_global_position_ok`` stays true through the outage, so
+    the SYS_STATUS GNSS bit is checked in the raw test below.)"""
+    mavsdk = pytest.importorskip("mavsdk")
+    from mavsdk.plugins.telemetry import Telemetry
+
+    gcs_port = free_udp_port()
+    sdk = mavsdk.Mavsdk(mavsdk.Configuration.create_with_component_type(
+        mavsdk.ComponentType.GROUND_STATION))
+    assert sdk.add_any_connection(f"udpin://127.0.0.1:{gcs_port}") == (
+        mavsdk.ConnectionResult.SUCCESS)
+    fusion, sim = _start_chain(tmp_path, f"udpout:127.0.0.1:{gcs_port}", speed="4",
+                               duration="90", gnss_off="40:20")
+    texts: list[str] = []
+    lock = threading.Lock()
+    seen: list[dict[str, Any]] = []
+    try:
+        system = sdk.first_autopilot(30.0)
+        assert system is not None, (tmp_path / "fusion.log").read_text()
+        tel = Telemetry(system)
+
+        def on_text(st: Any, _ud: Any) -> None:
+            with lock:
+                texts.append(st.text)
+
+        tel.subscribe_status_text(on_text)
+        deadline = time.monotonic() + 40.0
+        while sim.poll() is None and time.monotonic() < deadline:
+            h = tel.health()
+            gps = tel.gps_info()
+            w = tel.attitude_angular_velocity_body()
+            seen.append({
+                "all_ok": tel.health_all_ok(), "global_ok": h.is_global_position_ok,
+                "home_ok": h.is_home_position_ok, "fix": int(gps.fix_type),
+                "sats": gps.num_satellites, "in_air": tel.in_air(),
+                "mode": tel.flight_mode().name, "rate_rps": math.sqrt(
+                    w.roll_rad_s ** 2 + w.pitch_rad_s ** 2 + w.yaw_rad_s ** 2),
+                "voltage_v": tel.battery().voltage_v,
+            })
+            time.sleep(0.25)
+        assert sim.wait(30) == 0, (tmp_path / "sim.log").read_text()
+        assert fusion.wait(30) == 0, (tmp_path / "fusion.log").read_text()
+    finally:
+        for p in (sim, fusion):
+            stop_process(p)
+        sdk.destroy()
+    (tmp_path / "mavsdk_seen.txt").write_text("\n".join(map(str, seen)) + "\n" + str(texts))
+    ok = [s for s in seen if s["all_ok"] and s["fix"] >= 3]
+    assert len(ok) > 10, seen[-5:]
+    assert all(s["sats"] > 0 and s["home_ok"] and s["in_air"] for s in ok)
+    # the outage: the fix is lost (GPS_RAW_INT NO_FIX, 0 satellites) after a 3-D fix
+    first_ok = seen.index(ok[0])
+    assert any(s["fix"] == 1 and s["sats"] == 0 for s in seen[first_ok:]), seen
+    assert any("GNSS lost" in t for t in texts) and any("GNSS regained" in t for t in texts), texts
+    assert max(s["rate_rps"] for s in ok) > 0.02  # racetrack turns: ~0.1 rad/s yaw rate
+
+    # pymavlink's log tools read the shadow tlog
+    log = str(tmp_path / "shadow.tlog")
+    summ = subprocess.run([sys.executable, str(BIN / "mavsummarize.py"), log],
+                          capture_output=True, text=True, timeout=60)
+    assert summ.returncode == 0, summ.stderr
+    (tmp_path / "mavsummarize.txt").write_text(summ.stdout)
+    gpx = subprocess.run([sys.executable, str(BIN / "mavtogpx.py"), log],
+                         capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert gpx.returncode == 0, gpx.stderr
+    assert (tmp_path / "shadow.tlog.gpx").read_text().count("<trkpt") > 100
+    ft = subprocess.run([sys.executable, str(BIN / "mavflighttime.py"), log],
+                        capture_output=True, text=True, timeout=60)
+    assert ft.returncode == 0, ft.stderr
+    (tmp_path / "mavflighttime.txt").write_text(ft.stdout)
+    assert "Flight time" in ft.stdout, ft.stdout
+
+
+def _gcs_role() -> LinkRole:
+    return LinkRole(system_id=255, component_id=190, mav_type=mavlink2.MAV_TYPE_GCS,
+                    autopilot=mavlink2.MAV_AUTOPILOT_INVALID)
+
+
+def test_mavproxy_fence_logic_and_home_polling(tmp_path: Path) -> None:
+    """GIVEN a live run WHEN a ground station polls GET_HOME_POSITION as MAVProxy does and
+    feeds every SYS_STATUS to MAVProxy's own fence module logic THEN home is answered, no
+    "fence breach" is said, the mode names come from AVAILABLE_MODES, and CURRENT_MODE and
+    the HEARTBEAT's custom mode agree."""
+    fence_mod = pytest.importorskip("MAVProxy.modules.mavproxy_fence")
+    said: list[str] = []
+
+    class _Fence:  # MAVProxy's handle_sys_status, run unbound on a minimal module state
+        present, enabled, healthy = False, False, True
+        console = type("C", (), {"set_status": staticmethod(lambda *a, **k: None)})()
+
+        def say(self, text: str) -> None:
+            said.append(text)
+
+    fence = _Fence()
+    acks: dict[int, int] = {}
+    got: dict[str, Any] = {"modes": {}, "current": [], "custom": [], "home": 0,
+                           "gps_health": [], "battery": []}
+    gps = int(mavlink2.MAV_SYS_STATUS_SENSOR_GPS)
+    with MavlinkLink("udpin:127.0.0.1:0", _gcs_role()) as gcs:
+        fusion, sim = _start_chain(tmp_path, f"udpout:127.0.0.1:{gcs.local_address[1]}",
+                                   speed="4", duration="40", gnss_off="20:10")
+        try:
+            next_poll = 0.0
+            deadline = time.monotonic() + 40.0
+            while sim.poll() is None and time.monotonic() < deadline:
+                for m in gcs.recv(0.05):
+                    t = m.get_type()
+                    if t == "SYS_STATUS":
+                        fence_mod.FenceModule.handle_sys_status(fence, m)
+                        got["gps_health"].append(bool(m.onboard_control_sensors_health & gps))
+                        got["battery"].append((m.voltage_battery, m.current_battery,
+                                               m.battery_remaining))
+                    elif t == "COMMAND_ACK":
+                        acks[int(m.command)] = int(m.result)
+                    elif t == "HOME_POSITION":
+                        got["home"] += 1
+                    elif t == "AVAILABLE_MODES":
+                        got["modes"][int(m.custom_mode)] = m.mode_name
+                    elif t == "CURRENT_MODE":
+                        got["current"].append(int(m.custom_mode))
+                    elif t == "HEARTBEAT" and m.get_srcSystem() == SHADOW_SYS:
+                        got["custom"].append(int(m.custom_mode))
+                now = time.monotonic()
+                if now >= next_poll and got["custom"]:
+                    for cmd, p1 in ((mavlink2.MAV_CMD_GET_HOME_POSITION, 0),
+                                    (mavlink2.MAV_CMD_REQUEST_MESSAGE, 435)):
+                        gcs.send_message(mavlink2.MAVLink_command_long_message(
+                            SHADOW_SYS, 1, cmd, 0, p1, 0, 0, 0, 0, 0, 0))
+                    next_poll = now + 2.0
+            assert sim.wait(30) == 0, (tmp_path / "sim.log").read_text()
+        finally:
+            for p in (sim, fusion):
+                stop_process(p)
+    assert "fence breach" not in said, said
+    # the GNSS health bit: set, cleared in the outage (20-30 s sim = 5-7.5 s wall), set again
+    h = got["gps_health"]
+    assert True in h and False in h[h.index(True):], h
+    assert True in h[h.index(False, h.index(True)):], h
+    assert set(got["battery"]) == {(65535, -1, -1)}
+    assert acks.get(int(mavlink2.MAV_CMD_GET_HOME_POSITION)) == mavlink2.MAV_RESULT_ACCEPTED
+    assert got["home"] > 0
+    assert got["modes"] == {101: "ALIGNING", 102: "GNSS", 103: "BRIDGING",
+                            104: "DEAD-RECKONING", 105: "FREE-INERTIAL"}
+    assert {102}.issubset(set(got["current"])) and {102}.issubset(set(got["custom"]))
+    assert set(got["current"]) - {101} <= set(got["modes"])
