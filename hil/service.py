@@ -81,8 +81,8 @@ from hil.link import (
     LinkRole,
     MavlinkLink,
 )
-from hil.pipeline import FusionRun, filter_config
 from hil.nav_events import NavEvent, NavEventDetector
+from hil.pipeline import FusionRun, filter_config
 from hil.shadow import CUSTOM_MODES, CompanionEncoder, ShadowEncoder, heartbeat_state
 from hil.shadow_vehicle import ShadowVehicle
 from hil.signing import Signer

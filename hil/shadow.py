@@ -41,15 +41,14 @@ from typing import Any, Final
 import numpy as np
 
 from fusion.earth import ned_offset_m
-from fusion.estimate import NavEstimate
-from fusion.estimate import Mode
+from fusion.estimate import Mode, NavEstimate
 from hil.codec.wire import (
     DEGE7_PER_RAD,
-    STANDARD_MODES_DIALECT,
     INT16_MAX,
     INT16_MIN,
     INT32_MAX,
     INT32_MIN,
+    STANDARD_MODES_DIALECT,
     UINT16_MAX,
     mavlink2,
 )

@@ -87,7 +87,7 @@ class ShadowVehicle:
         """Note a decoded sensor sample (other objects are ignored)."""
         for cls, kind in _KINDS:
             if isinstance(sample, cls):
-                self._last_us[kind] = int(sample.time_us)  # type: ignore[attr-defined]
+                self._last_us[kind] = int(sample.time_us)
                 if isinstance(sample, GnssFix):
                     self.last_fix = sample
                 return
