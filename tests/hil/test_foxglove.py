@@ -209,3 +209,25 @@ def test_up_serves_foxglove_and_records_sim_time(tmp_path: Path) -> None:
         elif schema not in _FOX and "time_us" in decoded:
             assert log_time == sim_time_ns(decoded["time_us"]), topic
     assert n > 100
+
+
+def test_shipped_layout_names_channels_and_fields_that_exist() -> None:
+    from hil.bus import SCHEMAS
+
+    layout = json.loads(
+        (Path(__file__).parents[2] / "docs/foxglove/hilnav_layout.json").read_text()
+    )
+    panels = set(layout["configById"])
+    assert {p.split("!")[0] for p in panels} >= {"map", "Plot", "RosOut", "3D", "StateTransitions"}
+    text = json.dumps(layout["layout"])
+    assert all(p in text for p in panels)  # every configured panel is placed
+    fox_topics = {*FIX_TOPICS.values(), LOG_TOPIC, TF_TOPIC}
+    conf = layout["configById"]
+    assert set(conf["map!hilnav"]["topicColors"]) <= fox_topics
+    assert conf["RosOut!hilnav-log"]["topicToRender"] in fox_topics
+    for pid, c in conf.items():
+        for path in c.get("paths", []):
+            # '"hilnav/sim1/<topic>".<field>[i]': the topic is ours and its schema has the field
+            quoted, field = path["value"][1:].split('".', 1)
+            topic = Topic(quoted.split("/", 2)[2])
+            assert field.split("[")[0] in SCHEMAS[topic]["properties"], (pid, path)
