@@ -53,10 +53,10 @@ from hil.bus import Message, Topic
 __all__ = [
     "EVENT_TOPICS",
     "FIX_TOPICS",
-    "FoxgloveConverter",
     "LOG_TOPIC",
     "SIM_EPOCH_NS",
     "TF_TOPIC",
+    "FoxgloveConverter",
     "foxglove_schema",
     "sim_time_ns",
 ]
@@ -187,7 +187,10 @@ class FoxgloveConverter:
 
     def _transform(self, topic: Topic, p: Mapping[str, Any], t_ns: int) -> FrameTransform | None:
         q = p.get("q_nb")
-        if not isinstance(q, list) or len(q) != 4 or None in (qs := [_finite(c) for c in q]):
+        if not isinstance(q, list) or len(q) != 4:
+            return None
+        qs = [f for f in (_finite(c) for c in q) if f is not None]
+        if len(qs) != 4 or not sum(c * c for c in qs) > 0.5:
             return None
         lat, lon, alt = (float(p[k]) for k in ("lat_deg", "lon_deg", "alt_msl_m"))
         here = (math.radians(lat), math.radians(lon), alt)

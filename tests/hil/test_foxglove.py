@@ -103,7 +103,8 @@ def test_mcap_has_foxglove_channels_decoded_with_the_official_schemas(tmp_path: 
     assert set(tfs) == {"base_link", "truth_base_link"}
     # attitude roll 0, pitch 2 deg, yaw 90 deg (east): the FLU x axis points along ENU +x
     q = tfs["base_link"].rotation
-    r = np.array([1 - 2 * (q.y**2 + q.z**2), 2 * (q.x * q.y + q.w * q.z), 2 * (q.x * q.z - q.w * q.y)])
+    r = np.array([1 - 2 * (q.y**2 + q.z**2), 2 * (q.x * q.y + q.w * q.z),
+                  2 * (q.x * q.z - q.w * q.y)])
     assert np.allclose(r, [math.cos(math.radians(2.0)), 0.0, math.sin(math.radians(2.0))],
                        atol=1e-9)
     # the estimate is 12 m north of the truth (the world origin): ENU y = +12 m
