@@ -357,8 +357,8 @@ def fusion(
 
 # ----------------------------------------------------------------------------------- monitor
 FoxgloveOption = Annotated[int | None, typer.Option(
-    "--foxglove", is_flag=False, flag_value=8765, metavar="[PORT]",
-    help="Serve a Foxglove WebSocket on 127.0.0.1:PORT (default 8765).")]
+    "--foxglove", metavar="PORT",
+    help="Serve a Foxglove WebSocket on 127.0.0.1:PORT (Foxglove's usual port: 8765).")]
 
 
 @app.command()
