@@ -1,7 +1,8 @@
 """``hilnav monitor``: subscribe to one vehicle's topics, show them, optionally record them.
 
 Without a terminal (``headless``, containers, CI) the dashboard prints one line per second;
-``record`` writes every sample of the vehicle's subtree to MCAP (:mod:`hil.monitor.recorder`).
+``record`` writes every sample of the vehicle's subtree to MCAP (:mod:`hil.monitor.recorder`);
+``foxglove_port`` streams them live to Foxglove (:mod:`hil.monitor.foxglove_server`).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from rich.live import Live
 
 from hil.bus import Bus, Message, validate_vehicle
 from hil.monitor.dashboard import MonitorState
+from hil.monitor.foxglove_server import FoxgloveLive
 from hil.monitor.recorder import McapRecorder
 
 __all__ = ["monitor_main"]
@@ -30,6 +32,7 @@ def monitor_main(
     record: Path | None,
     duration_s: float | None,
     headless: bool,
+    foxglove_port: int | None = None,
 ) -> int:
     """Subscribe to ``hilnav/<vehicle>/**`` and show it; optionally record it to MCAP.
 
@@ -47,6 +50,9 @@ def monitor_main(
     headless : bool
         One text line per second instead of the live table (also used when stdout is not a
         terminal).
+    foxglove_port : int, optional
+        Serve a Foxglove WebSocket on ``127.0.0.1:<port>`` (0: a free port) streaming the same
+        channels as the recording; the URL is printed.
 
     Returns
     -------
@@ -54,6 +60,8 @@ def monitor_main(
         0 after a clean stop. Bad input raises ``ValueError``.
     """
     validate_vehicle(vehicle)
+    if foxglove_port is not None and not 0 <= foxglove_port <= 65535:
+        raise ValueError(f"foxglove port must be 0..65535, got {foxglove_port}")
     if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0.0):
         raise ValueError(f"duration must be > 0 s, got {duration_s}")
     if record is not None and Path(record).suffix.lower() != ".mcap":
@@ -71,11 +79,22 @@ def monitor_main(
         if record is not None
         else None
     )
+    live_fox = None
+    if foxglove_port is not None:
+        try:
+            live_fox = FoxgloveLive(foxglove_port)
+        except Exception as exc:  # the SDK raises its own error types for a busy port
+            if recorder is not None:
+                recorder.close()
+            raise ValueError(f"foxglove: cannot serve on port {foxglove_port}: {exc}") from None
+        print(f"foxglove: open connection -> Foxglove WebSocket {live_fox.url}", flush=True)
 
     def on_message(msg: Message) -> None:
         state.ingest(msg)
         if recorder is not None:
             recorder.write(msg)
+        if live_fox is not None:
+            live_fox.write(msg)
 
     deadline = None if duration_s is None else time.monotonic() + duration_s
     try:
@@ -96,6 +115,8 @@ def monitor_main(
     finally:
         if recorder is not None:
             recorder.close()
+        if live_fox is not None:
+            live_fox.close()
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
     total = sum(state.counts.values())

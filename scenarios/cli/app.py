@@ -362,6 +362,11 @@ def fusion(
 
 
 # ----------------------------------------------------------------------------------- monitor
+FoxgloveOption = Annotated[int | None, typer.Option(
+    "--foxglove", metavar="PORT",
+    help="Serve a Foxglove WebSocket on 127.0.0.1:PORT (Foxglove's usual port: 8765).")]
+
+
 @app.command()
 @cli_errors
 def monitor(
@@ -370,6 +375,7 @@ def monitor(
     record: Annotated[Path | None, typer.Option(help="Record everything to this .mcap.")] = None,
     duration: Annotated[float | None, typer.Option(help="Stop after S wall seconds.")] = None,
     headless: Annotated[bool, typer.Option(help="One text line per second.")] = False,
+    foxglove: FoxgloveOption = None,
 ) -> None:
     """Show (and optionally record) what the fusion service publishes."""
     if record is not None:
@@ -379,7 +385,7 @@ def monitor(
 
     validate_endpoint(connect)
     code = monitor_main(connect=connect, vehicle=vehicle, record=record, duration_s=duration,
-                        headless=headless)
+                        headless=headless, foxglove_port=foxglove)
     if code:
         raise typer.Exit(code)
 
@@ -452,6 +458,7 @@ def up(
     lockstep: Annotated[bool, typer.Option(
         help="The sim never runs ahead of the fusion's acknowledgements (no loss at any speed)."
     )] = False,
+    foxglove: FoxgloveOption = None,
 ) -> None:
     """Run router + fusion + sim (+ monitor) on loopback; Ctrl-C stops everything."""
     _out_dir(out)
@@ -461,7 +468,7 @@ def up(
                         seed=seed, gnss_off=tuple(gnss_off or ()), imu=imu, gnss=gnss,
                         bridge=bridge, altitude=altitude, airspeed=airspeed, gcs=gcs,
                         monitor=monitor,
-                        lockstep=lockstep)
+                        lockstep=lockstep, foxglove_port=foxglove)
     summary = run_up(options, log=lambda text: console.print(text, highlight=False))
     if summary is not None:
         console.print("[bold]scorecard of the live run[/]")

@@ -68,6 +68,8 @@ class UpOptions(BaseModel):
     lockstep: bool = False
     """Run the sim with ``--lockstep``: it never runs ahead of the fusion (no loss at any
     speed; the run goes as fast as the slower of the two)."""
+    foxglove_port: int | None = Field(default=None, ge=0, le=65535)
+    """The monitor also serves a Foxglove WebSocket on ``127.0.0.1:<port>`` (needs monitor)."""
     settle_s: float | None = Field(default=None, ge=0.0)
     """Scorecard settling time; None: 60 s, at most a quarter of the duration."""
 
@@ -162,6 +164,8 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
         The fusion's live scorecard (``<out>/summary.json``), None if it wrote none.
     """
     validate_vehicle(options.vehicle)
+    if options.foxglove_port is not None and not options.monitor:
+        raise ValueError("--foxglove needs the monitor (drop --no-monitor)")
     # validate the flight and the filter here: a typo must fail before anything starts
     SimSetup.build(plan=options.plan, seed=options.seed, gnss_off=list(options.gnss_off),
                    imu=options.imu, gnss=options.gnss,
@@ -193,11 +197,16 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
             + (f", shadow vehicle -> {options.gcs}" if options.gcs else "")
             + f"; log {fusion.log_path}")
         if options.monitor:
-            mon = Child("monitor", hilnav_argv(
-                "monitor", "--connect", endpoint, "--vehicle", options.vehicle, "--headless",
-                "--record", str(out / "live.mcap")), out / "monitor.log")
+            mon_args = ["monitor", "--connect", endpoint, "--vehicle", options.vehicle,
+                        "--headless", "--record", str(out / "live.mcap")]
+            if options.foxglove_port is not None:
+                mon_args += ["--foxglove", str(options.foxglove_port)]
+            mon = Child("monitor", hilnav_argv(*mon_args), out / "monitor.log")
             children.append(mon)
             log(f"monitor       pid {mon.pid}: recording {out / 'live.mcap'}; log {mon.log_path}")
+            if options.foxglove_port is not None:
+                log(f"foxglove      open connection -> Foxglove WebSocket "
+                    f"ws://127.0.0.1:{options.foxglove_port}")
         sim_args = ["sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", str(options.speed),
                     "--zenoh", endpoint, "--vehicle", options.vehicle, "--plan", options.plan,
                     "--seed", str(options.seed), "--imu", options.imu, "--gnss", options.gnss,
