@@ -358,6 +358,37 @@ def airspeed_tuning(mode: str, base: AirspeedTuning | None = None) -> AirspeedTu
     })  # fmt: skip
 
 
+class ZeroMotionTuning(_Frozen):
+    """Rest detection and zero-velocity updates (:mod:`fusion.aiding.zero_motion`).
+
+    A block of ``window_s`` is still when every specific-force and angular-rate standard
+    deviation is below ``max(floor, noise_factor * N * sqrt(f / 2))`` (``N`` the IMU tuning's
+    noise density, ``f`` the IMU rate), the mean rate is below ``max_rate_rps`` and the INS
+    speed below ``max_speed_mps``."""
+
+    enabled: bool = True
+    window_s: PositiveFloat = 1.0
+    """Detection block, s (a verdict per block; the first update comes one block after rest
+    begins)."""
+    max_speed_mps: PositiveFloat = 2.0
+    """INS speed above which nothing is accumulated: an IMU cannot tell rest from unaccelerated
+    straight flight, the speed can (a walking pace; a taxiing aircraft is faster)."""
+    max_rate_rps: PositiveFloat = 0.05
+    """Mean angular rate bound, rad/s (3 deg/s: above the Earth rate and a consumer MEMS gyro's
+    turn-on bias, below any manoeuvre)."""
+    noise_factor: PositiveFloat = 3.0
+    """Multiple of the per-sample white-noise sigma a standard deviation may reach."""
+    accel_std_floor_mps2: PositiveFloat = 0.1
+    """Lower bound of the specific-force bound, m/s^2 (quantisation and the micro-vibration of a
+    vehicle on the ground; a running engine or spinning propellers are well above it)."""
+    gyro_std_floor_rps: PositiveFloat = 0.01
+    """Lower bound of the angular-rate bound, rad/s."""
+    velocity_sigma_mps: PositiveFloat = 0.1
+    """1-sigma per axis of the velocity of a vehicle at rest (sway in wind), m/s."""
+    fuse_rate_hz: PositiveFloat = 5.0
+    gate_probability: Probability = Field(default=0.999, gt=0.5, lt=1.0)
+
+
 class InitConfig(_Frozen):
     """Alignment and initial uncertainties."""
 
@@ -580,3 +611,4 @@ class FilterConfig(_Frozen):
     bridge: BridgeConfig = BridgeConfig()
     altitude: AltitudeConfig = AltitudeConfig()
     airspeed: AirspeedTuning = AirspeedTuning()
+    zero_motion: ZeroMotionTuning = ZeroMotionTuning()

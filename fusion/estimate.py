@@ -49,6 +49,8 @@ class AidSource(StrEnum):
     """True airspeed, from the pitot or synthetic (:mod:`fusion.aiding.airspeed`)."""
     SIDESLIP = "sideslip"
     """Synthetic sideslip (zero) of a fixed-wing aircraft."""
+    ZERO_VEL = "zero_vel"
+    """Zero velocity while the vehicle is at rest (:mod:`fusion.aiding.zero_motion`)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -158,6 +160,10 @@ class Health:
     wind_resets: int = 0
     """Starts of the wind states (from the first airspeed batch, or at zero for sideslip-only
     wind learning without a pitot)."""
+    zupt_fused: int = 0
+    """Zero-velocity updates fused (vehicle at rest, :mod:`fusion.aiding.zero_motion`)."""
+    zupt_rejected: int = 0
+    """Zero-velocity updates refused by the gate (the vehicle moved within a still block)."""
 
 
 HEALTH_FIELDS = tuple(f.name for f in fields(Health))
@@ -215,6 +221,8 @@ class HealthCounters:
     learned_airspeed_rejected: int
     learned_wind_updates: int
     wind_resets: int
+    zupt_fused: int
+    zupt_rejected: int
 
     def __init__(self) -> None:
         for name in HEALTH_FIELDS:
@@ -399,6 +407,7 @@ class AidingStatus:
     bridge_vel: AidSourceStatus = AidSourceStatus(AidSource.BRIDGE_VEL)
     airspeed: AidSourceStatus = AidSourceStatus(AidSource.AIRSPEED)
     sideslip: AidSourceStatus = AidSourceStatus(AidSource.SIDESLIP)
+    zero_vel: AidSourceStatus = AidSourceStatus(AidSource.ZERO_VEL)
 
     def __getitem__(self, source: AidSource) -> AidSourceStatus:
         status: AidSourceStatus = getattr(self, source.value)

@@ -60,6 +60,7 @@ from fusion.aiding.baro import BaroAiding, height_to_pressure, pressure_to_heigh
 from fusion.aiding.gnss import GnssAiding, fix_sigmas
 from fusion.aiding.mag import MagAiding
 from fusion.aiding.pseudo_gnss import PseudoGnssAiding
+from fusion.aiding.zero_motion import ZeroMotionAiding
 from fusion.airspeed_model import AirspeedInputs
 from fusion.alignment import (
     AlignmentResult,
@@ -234,6 +235,10 @@ class NavFilter:
         self._gnss_ctl = self._gnss.control
         self._baro = BaroAiding(cfg.baro, lay, self._c, self._correct, self._init_baro_bias)
         self._mag = MagAiding(cfg.mag, lay, self._c, self._correct)
+        self._zero: ZeroMotionAiding | None = (
+            ZeroMotionAiding(cfg.zero_motion, cfg.imu, lay, self._c, self._correct)
+            if cfg.zero_motion.enabled else None
+        )  # fmt: skip
         self._pseudo = PseudoGnssAiding(cfg.gnss, lay, self._correct)
         self._air: AirspeedAiding | None = (
             AirspeedAiding(cfg.airspeed, lay, self._c, self._correct, self._current_covariance,
@@ -516,6 +521,9 @@ class NavFilter:
             # integrated from the last good sample: the sensors did not see this interval
             cov.add_unknown_motion(dt)
         self._history_push(t, ins)
+        zero = self._zero
+        if zero is not None and good:
+            zero.on_imu(t, fw, dt, ins)
         if self._loop_alt:
             self._alt.on_imu(t, dt, ins0.v_ned_mps[2], ins)
         if self._pending and self._pending[0].time_us <= t:

@@ -226,7 +226,7 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
         {
             "time_us": _TIME,
             "source": _d(_S, "aiding source: gnss_pos, gnss_vel, baro_hgt, mag_hdg, "
-                         "bridge_pos, bridge_vel, airspeed, sideslip"),
+                         "bridge_pos, bridge_vel, airspeed, sideslip, zero_vel"),
             "innovation": _d(
                 _arr(None),
                 "innovation of the error-state filter: INS-predicted minus measured, SI units "

@@ -41,7 +41,7 @@ def test_mode_is_a_string_for_every_consumer() -> None:
 def test_aid_sources_are_named_as_on_the_innovations_topic() -> None:
     assert [str(s) for s in AidSource] == [
         "gnss_pos", "gnss_vel", "baro_hgt", "mag_hdg", "bridge_pos", "bridge_vel", "airspeed",
-        "sideslip",
+        "sideslip", "zero_vel",
     ]  # fmt: skip
     # the status record has one field per source, in the same order
     assert [f.name for f in dataclasses.fields(AidingStatus)] == [s.value for s in AidSource]

@@ -23,7 +23,14 @@ from fusion.bridging.interface import (
     OutputCorrection,
     PseudoGnss,
 )
-from fusion.config import FilterConfig, GnssTuning, InitConfig, MagTuning, RatesConfig
+from fusion.config import (
+    FilterConfig,
+    GnssTuning,
+    InitConfig,
+    MagTuning,
+    RatesConfig,
+    ZeroMotionTuning,
+)
 from fusion.estimate import NavEstimate
 from fusion.filter import NavFilter
 from fusion.rotations import quat_multiply, rotvec_to_quat
@@ -825,3 +832,61 @@ def test_resets_are_bounded_by_what_the_ins_knows(racetrack: Prepared) -> None:
     # THEN no velocity reset: the fixes contradict themselves (position vs velocity)
     assert nav.health.gnss_resets == 0 and nav.health.gnss_resets_refused > 0
     assert np.linalg.norm(errors_at(sc, est[-1])[1]) < 2.0
+
+
+# --------------------------------------------------------------------------- at rest
+@pytest.fixture(scope="module")
+def parked() -> Prepared:
+    """65 s at rest (pitch 3 deg, heading 57 deg)."""
+    return prepare(Flight(duration_s=65.0, speed_mps=0.0, heading0_rad=1.0, aoa_rad=0.05))
+
+
+def _parked_drift_m(parked: Prepared, seed: int, zero_motion: bool) -> tuple[float, NavFilter]:
+    cfg = FilterConfig(init=InitConfig(mode="static"),
+                       mag=MagTuning(reference_field_n_tesla=tuple(FIELD_N_T)),
+                       zero_motion=ZeroMotionTuning(enabled=zero_motion))
+    sc = make_scenario(parked, np.random.default_rng(seed), SensorErrors.from_config(cfg),
+                       mag_rate_hz=10.0, gnss_outages=[(3.0, 66.0)])
+    nav = NavFilter(cfg)
+    est = run(nav, sc.samples)
+    e0 = next(e for e in est if e.time_us >= 3_000_000)
+    e1 = next(e for e in est if e.time_us >= 63_000_000)
+    return float(np.linalg.norm(errors_at(sc, e1)[0] - errors_at(sc, e0)[0])), nav
+
+
+def test_a_parked_vehicle_without_gnss_stays_put(parked: Prepared) -> None:
+    # GIVEN a vehicle aligned at rest that loses GNSS one second after alignment, so its
+    # accelerometer biases are barely estimated
+    drift_m, nav = _parked_drift_m(parked, 11, zero_motion=True)
+    # WHEN it stays parked for 60 s
+    # THEN zero-velocity updates hold the position within the issue's 1 m (free inertial drift
+    # from a 1e-3 g bias alone is 0.5 * 0.0098 * 60^2 = 18 m)
+    assert drift_m < 1.0
+    assert nav.health.zupt_fused >= 0.8 * 5.0 * 60.0
+    assert nav.health.zupt_rejected == 0
+    # AND without them the same data drifts by more than the bias bound above
+    drift_free_m, _ = _parked_drift_m(parked, 11, zero_motion=False)
+    assert drift_free_m > 10.0
+
+
+def test_a_flying_aircraft_never_takes_zero_velocity_updates(racetrack: Prepared) -> None:
+    # GIVEN a flight whose straight legs read like rest to an IMU (-g, zero rate)
+    sc = make_scenario(racetrack, np.random.default_rng(12), ERRORS)
+    nav = NavFilter(CFG)
+    # WHEN it is flown, THEN the speed gate keeps the rest detector out of it
+    run(nav, sc.samples)
+    assert nav.health.zupt_fused == 0 and nav.health.zupt_rejected == 0
+
+
+def test_stillness_detector_refuses_a_slow_rotation() -> None:
+    from fusion.aiding.zero_motion import StillnessDetector
+    from fusion.config import ImuTuning
+
+    det = StillnessDetector(ZeroMotionTuning(), ImuTuning())
+    still = [(0.0, 0.0, -9.81, 0.0, 0.0, 0.0)] * 150
+    turning = [(0.0, 0.0, -9.81, 0.0, 0.0, 0.1)] * 150  # 5.7 deg/s yaw at rest: a turntable
+    assert not any(det.add(s, 0.01, (0.0, 0.0, 0.0)) for s in still[:99])
+    assert all(det.add(s, 0.01, (0.0, 0.0, 0.0)) for s in still[100:])
+    assert not all(det.add(s, 0.01, (0.0, 0.0, 0.0)) for s in turning)
+    assert not det.add(still[0], 0.01, (0.0, 0.0, 0.0))  # the turning block's verdict holds
+    assert not det.add(still[0], 0.01, (3.0, 0.0, 0.0))  # too fast: cleared at once
