@@ -319,21 +319,18 @@ class FusionRun:
         Keep the estimate, truth and fix tracks for scoring (:attr:`collector`).
     nav : NavFilter, optional
         A filter already built from ``config`` and ``bridge`` (for callers that own it).
-    keep_objects : bool
-        The collector also keeps every estimate, truth and fix object (tests, tools); by
-        default it keeps only their compact rows (:class:`hil.tracks.Collector`).
 
     A FusionRun is also a frame sink (``run(time_us, frame)``), so a lockstep flight can be
     fused while it flies; :attr:`fuse_s` accumulates the wall time spent decoding and fusing.
     """
 
     def __init__(self, config: FilterConfig, bridge: str = "none", *, collect: bool = True,
-                 nav: NavFilter | None = None, keep_objects: bool = False) -> None:
+                 nav: NavFilter | None = None) -> None:
         self.config = config
         self.bridge = bridge
         self.nav = nav if nav is not None else build_filter(config, bridge)
         self.decoder = Decoder()
-        self.collector: Collector | None = Collector(keep_objects=keep_objects) if collect else None
+        self.collector: Collector | None = Collector() if collect else None
         self.samples = 0
         self.fuse_s = 0.0
 
@@ -341,7 +338,9 @@ class FusionRun:
         """Step the filter with decoded samples (truth is only collected); new estimates."""
         col = self.collector
         if col is not None:
-            return col.feed(self.nav, items)
+            n = len(col.estimates)
+            col.feed(self.nav, items)
+            return col.estimates[n:]
         out: list[NavEstimate] = []
         for item in items:
             if not isinstance(item, Truth):
@@ -365,10 +364,10 @@ class FusionRun:
         return 1e6 * self.fuse_s / max(self.samples, 1)
 
 
-def fuse_frames(frames: Iterable[Frame], config: FilterConfig, bridge: str = "none", *,
-                keep_objects: bool = False) -> FusionRun:
+def fuse_frames(frames: Iterable[Frame], config: FilterConfig, bridge: str = "none"
+                ) -> FusionRun:
     """Decode and fuse a whole frame stream (e.g. a recording kept in memory)."""
-    run = FusionRun(config, bridge, keep_objects=keep_objects)
+    run = FusionRun(config, bridge)
     t0 = time.perf_counter()
     for _t, frame in frames:
         run.feed_frame(frame)

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -126,251 +125,88 @@ def _check_shapes(obj: object, names: tuple[str, ...], shape: tuple[int, ...]) -
                 f"{type(obj).__name__}.{name} has shape {np.shape(a)}, time_s has {shape}")
 
 
-#: Mode codes of the compact estimate rows (index into this tuple).
-_MODES = ("initializing", "gnss", "free-inertial", "dead-reckoning", "bridging")
-_MODE_CODE = {m: i for i, m in enumerate(_MODES)}
-
-# Column layout of the compact rows (named once, as the error-state layout is).
-_E_LAT, _E_LON, _E_ALT = 0, 1, 2
-_E_V = slice(3, 6)
-_E_EUL = slice(6, 9)
-_E_SIG = slice(9, 18)
-_E_COV = slice(18, 99)
-_E_RAT = slice(99, 103)
-EST_FLOAT_WIDTH = 103
-"""float64 columns of one estimate row: lat, lon, alt, v_ned (3), euler (3), sigma (9),
-cov (81, NaN when not reported), test ratios (4)."""
-_I_TIME, _I_MODE, _I_HASCOV = 0, 1, 2
-_I_CNT = slice(3, 3 + len(_COUNTERS))
-EST_INT_WIDTH = 3 + len(_COUNTERS)
-"""int64 columns of one estimate row: time_us, mode code, has-cov flag, counters (10)."""
-TRUTH_WIDTH = 10
-"""float64 columns of one truth row: lat, lon, alt, v_ned (3), q_nb (4)."""
-FIX_WIDTH = 3
-"""float64 columns of one fix row: lat, lon, alt."""
-
-
-class RowStore:
-    """A growing 2-D array of fixed-size rows, kept in preallocated chunks.
-
-    Appending never copies what is stored (a full chunk is kept as is and a new one
-    allocated), so memory grows by ``width * itemsize`` bytes per row plus at most one
-    chunk of slack: the compact form of a recorded track, not one Python object per sample.
-
-    Parameters
-    ----------
-    width : int
-        Columns per row.
-    dtype : numpy dtype
-    chunk_rows : int
-        Rows per chunk.
-    """
-
-    def __init__(self, width: int, dtype: type[np.generic], chunk_rows: int = 4096) -> None:
-        if width < 1 or chunk_rows < 1:
-            raise ValueError("width and chunk_rows must be >= 1")
-        self.width = width
-        self.dtype = np.dtype(dtype)
-        self.chunk_rows = chunk_rows
-        self._full: list[NDArray[Any]] = []
-        self._cur: NDArray[Any] = np.empty((chunk_rows, width), dtype=self.dtype)
-        self._n = 0
-
-    def __len__(self) -> int:
-        return len(self._full) * self.chunk_rows + self._n
-
-    def next_row(self) -> NDArray[Any]:
-        """A view of the next row, to be filled in place by the caller."""
-        if self._n == self.chunk_rows:
-            self._full.append(self._cur)
-            self._cur = np.empty((self.chunk_rows, self.width), dtype=self.dtype)
-            self._n = 0
-        row = self._cur[self._n]
-        self._n += 1
-        return row
-
-    def array(self) -> NDArray[Any]:
-        """Every row, shape (len, width) (a copy)."""
-        return np.concatenate([*self._full, self._cur[: self._n]], axis=0)
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes allocated for rows (stored and preallocated)."""
-        return (len(self._full) + 1) * self.chunk_rows * self.width * self.dtype.itemsize
-
-
 @dataclass
 class Collector:
-    """Accumulates estimates, truth and GNSS fixes as the filter runs, in compact form.
+    """Accumulates estimates, truth and GNSS fixes as the filter runs.
 
-    Each estimate, truth sample and 3-D fix becomes one fixed-size row of numpy chunks
-    (:class:`RowStore`: ``EST_FLOAT_WIDTH`` float64 + ``EST_INT_WIDTH`` int64 columns per
-    estimate, ``TRUTH_WIDTH`` float64 + one int64 per truth sample, ``FIX_WIDTH`` float64 + one
-    int64 per fix) holding exactly what the tracks and :meth:`series` are built from, so a
-    long live run grows by those bytes per sample, not by Python objects. ``keep_objects``
-    also keeps the objects themselves (:attr:`estimates`, :attr:`truths`, :attr:`fixes`) for
-    tests and tools that want them.
+    Nothing is computed while feeding (it runs at the sensor rates): the estimates already
+    carry the mode, test ratios and counters, and :meth:`series` turns them into arrays once.
     """
 
-    keep_objects: bool = False
     estimates: list[NavEstimate] = field(default_factory=list)
-    """The estimates (only with ``keep_objects``)."""
     truths: list[Truth] = field(default_factory=list)
-    """The truth samples (only with ``keep_objects``)."""
+    fix_times_us: list[int] = field(default_factory=list)
     fixes: list[GnssFix] = field(default_factory=list)
-    """The 3-D fixes received (only with ``keep_objects``)."""
+    """The 3-D fixes received (same order as ``fix_times_us``)."""
     last_time_us: int = 0
-    chunk_rows: int = 4096
-    _est_f: RowStore = field(init=False, repr=False)
-    _est_i: RowStore = field(init=False, repr=False)
-    _tru_f: RowStore = field(init=False, repr=False)
-    _tru_t: RowStore = field(init=False, repr=False)
-    _fix_f: RowStore = field(init=False, repr=False)
-    _fix_t: RowStore = field(init=False, repr=False)
 
-    def __post_init__(self) -> None:
-        c = self.chunk_rows
-        self._est_f = RowStore(EST_FLOAT_WIDTH, np.float64, c)
-        self._est_i = RowStore(EST_INT_WIDTH, np.int64, c)
-        self._tru_f = RowStore(TRUTH_WIDTH, np.float64, c)
-        self._tru_t = RowStore(1, np.int64, c)
-        self._fix_f = RowStore(FIX_WIDTH, np.float64, max(1, c // 16))
-        self._fix_t = RowStore(1, np.int64, max(1, c // 16))
-
-    def feed(self, nav: NavFilter, items: Iterable[Sample | Truth]) -> list[NavEstimate]:
-        """Step ``nav`` with the samples (truth is only collected); the new estimates."""
-        out: list[NavEstimate] = []
+    def feed(self, nav: NavFilter, items: Iterable[Sample | Truth]) -> None:
         for item in items:
             self.last_time_us = max(self.last_time_us, item.time_us)
             if isinstance(item, Truth):
-                self._add_truth(item)
+                self.truths.append(item)
                 continue
             if isinstance(item, GnssFix) and item.fix_type >= 3:
-                self._fix_t.next_row()[0] = item.time_us
-                r = self._fix_f.next_row()
-                r[0], r[1], r[2] = item.lat_rad, item.lon_rad, item.alt_msl_m
-                if self.keep_objects:
-                    self.fixes.append(item)
-            new = nav.step(item)
-            for e in new:
-                self._add_estimate(e)
-            out.extend(new)
-        if self.keep_objects:
-            self.estimates.extend(out)
-        return out
+                self.fix_times_us.append(item.time_us)
+                self.fixes.append(item)
+            self.estimates.extend(nav.step(item))
 
-    def _add_truth(self, s: Truth) -> None:
-        self._tru_t.next_row()[0] = s.time_us
-        r = self._tru_f.next_row()
-        r[0], r[1], r[2] = s.lat_rad, s.lon_rad, s.alt_msl_m
-        r[3:6] = s.v_ned_mps
-        r[6:10] = s.q_nb
-        if self.keep_objects:
-            self.truths.append(s)
-
-    def _add_estimate(self, e: NavEstimate) -> None:
-        f = self._est_f.next_row()
-        f[_E_LAT], f[_E_LON], f[_E_ALT] = e.lat_rad, e.lon_rad, e.alt_msl_m
-        f[_E_V] = e.v_ned_mps
-        f[_E_EUL] = e.euler_rad
-        f[_E_SIG] = np.sqrt(np.maximum(e.P_diag[:9], 0.0))
-        r = e.test_ratios
-        f[_E_RAT] = (r.gnss_pos, r.gnss_vel, r.baro_hgt, r.mag_hdg)
-        i = self._est_i.next_row()
-        i[_I_TIME] = e.time_us
-        i[_I_MODE] = _MODE_CODE[e.mode]
-        if e.P_nav is None:
-            f[_E_COV] = np.nan
-            i[_I_HASCOV] = 0
-        else:
-            f[_E_COV] = np.ravel(e.P_nav)
-            i[_I_HASCOV] = 1
-        h = e.health
-        i[_I_CNT] = (h.gnss_fused, h.gnss_rejected, h.gnss_resets,
-                     h.gnss_no_fix + h.gnss_invalid + h.gnss_inaccurate,
-                     h.baro_fused, h.baro_rejected, h.baro_resets, h.mag_fused, h.mag_rejected,
-                     h.airspeed_blockages)  # fmt: skip
-
-    @property
-    def n_estimates(self) -> int:
-        """Estimates collected (initialising ones included)."""
-        return len(self._est_i)
-
-    @property
-    def n_truths(self) -> int:
-        return len(self._tru_t)
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes allocated for the compact rows (the objects of ``keep_objects`` excluded)."""
-        return sum(s.nbytes for s in (self._est_f, self._est_i, self._tru_f, self._tru_t,
-                                      self._fix_f, self._fix_t))
-
-    @property
-    def fix_times_us(self) -> NDArray[np.int64]:
-        """Times of validity of the 3-D fixes received, in arrival order, us."""
-        return self._fix_t.array()[:, 0]
-
-    def _navigating(self) -> tuple[FloatArray, NDArray[np.int64]]:
-        f, i = self._est_f.array(), self._est_i.array()
-        keep = i[:, _I_MODE] != _MODE_CODE["initializing"]
-        if not np.any(keep):
+    def _navigating(self) -> list[NavEstimate]:
+        est = [e for e in self.estimates if e.mode != "initializing"]
+        if not est:
             raise ValueError("the filter produced no navigation estimate (no valid GNSS fix?)")
-        return f[keep], i[keep]
-
-    def _truth_rows(self) -> tuple[FloatArray, NDArray[np.int64]]:
-        if self.n_truths < 2:
-            raise ValueError("the log holds no truth (HIL_STATE_QUATERNION) to score against")
-        t = self._tru_t.array()[:, 0]
-        order = np.argsort(t, kind="stable")  # as sorted(): equal times keep arrival order
-        return self._tru_f.array()[order], t[order]
+        return est
 
     def end_s(self) -> float:
         """Where scoring ends: the earlier of the last navigation estimate and the last truth
         sample, s (the last times of :meth:`estimate_track` and :meth:`truth_track`)."""
-        _, i = self._navigating()
-        if self.n_truths < 2:
+        est = self._navigating()
+        if len(self.truths) < 2:
             raise ValueError("the log holds no truth (HIL_STATE_QUATERNION) to score against")
-        last_truth_us = int(self._tru_t.array()[:, 0].max())
-        return min(float(i[-1, _I_TIME]) * 1e-6, float(last_truth_us) * 1e-6)
+        last_truth_us = max(s.time_us for s in self.truths)
+        return min(float(est[-1].time_us) * 1e-6, float(last_truth_us) * 1e-6)
 
     def estimate_track(self) -> Track:
-        f, i = self._navigating()
-        has_cov = bool(np.all(i[:, _I_HASCOV] == 1))
+        est = self._navigating()
+        sig = np.array([np.sqrt(np.maximum(e.P_diag[:9], 0.0)) for e in est])
+        covs = [e.P_nav for e in est]
+        cov = None if any(c is None for c in covs) else np.array(covs)
         return Track(
-            time_s=i[:, _I_TIME].astype(float) * 1e-6,
-            lat_rad=f[:, _E_LAT].copy(),
-            lon_rad=f[:, _E_LON].copy(),
-            alt_m=f[:, _E_ALT].copy(),
-            v_ned_mps=f[:, _E_V].copy(),
-            euler_rad=f[:, _E_EUL].copy(),
-            sigma=f[:, _E_SIG].copy(),
-            cov=f[:, _E_COV].reshape(-1, 9, 9).copy() if has_cov else None,
+            time_s=np.array([e.time_us for e in est], dtype=float) * 1e-6,
+            lat_rad=np.array([e.lat_rad for e in est]),
+            lon_rad=np.array([e.lon_rad for e in est]),
+            alt_m=np.array([e.alt_msl_m for e in est]),
+            v_ned_mps=np.array([e.v_ned_mps for e in est]),
+            euler_rad=np.array([e.euler_rad for e in est]),
+            sigma=sig,
+            cov=cov,
         )
 
     def truth_track(self) -> Track:
-        f, t = self._truth_rows()
+        if len(self.truths) < 2:
+            raise ValueError("the log holds no truth (HIL_STATE_QUATERNION) to score against")
+        tr = sorted(self.truths, key=lambda s: s.time_us)
         return Track(
-            time_s=t.astype(float) * 1e-6,
-            lat_rad=f[:, 0].copy(),
-            lon_rad=f[:, 1].copy(),
-            alt_m=f[:, 2].copy(),
-            v_ned_mps=f[:, 3:6].copy(),
+            time_s=np.array([s.time_us for s in tr], dtype=float) * 1e-6,
+            lat_rad=np.array([s.lat_rad for s in tr]),
+            lon_rad=np.array([s.lon_rad for s in tr]),
+            alt_m=np.array([s.alt_msl_m for s in tr]),
+            v_ned_mps=np.array([s.v_ned_mps for s in tr]),
             # one vectorised call: per-sample calls cost ~0.1 ms each
-            euler_rad=rotations.quat_to_euler(np.ascontiguousarray(f[:, 6:10])),
+            euler_rad=rotations.quat_to_euler(np.array([s.q_nb for s in tr], dtype=float)),
         )
 
     def modes(self) -> list[str]:
-        return [_MODES[c] for c in self._est_i.array()[:, _I_MODE]]
+        return [e.mode for e in self.estimates]
 
     def fix_track(self) -> Fixes:
         """The received 3-D fixes as arrays (time of validity, position)."""
-        f = self._fix_f.array()
+        fx = self.fixes
         return Fixes(
-            time_s=self._fix_t.array()[:, 0].astype(float) * 1e-6,
-            lat_rad=f[:, 0].copy(),
-            lon_rad=f[:, 1].copy(),
-            alt_m=f[:, 2].copy(),
+            time_s=np.array([f.time_us for f in fx], dtype=float) * 1e-6,
+            lat_rad=np.array([f.lat_rad for f in fx], dtype=float),
+            lon_rad=np.array([f.lon_rad for f in fx], dtype=float),
+            alt_m=np.array([f.alt_msl_m for f in fx], dtype=float),
         )
 
     def series(self) -> HealthSeries:
@@ -381,28 +217,35 @@ class Collector:
         ValueError
             When the filter produced no navigation estimate.
         """
-        f, i = self._navigating()
-        ratios = f[:, _E_RAT]
-        counts = i[:, _I_CNT]
+        est = self._navigating()
+        ratios = np.array(
+            [(r.gnss_pos, r.gnss_vel, r.baro_hgt, r.mag_hdg)
+             for r in (e.test_ratios for e in est)], dtype=float)  # fmt: skip
+        counts = np.array(
+            [(h.gnss_fused, h.gnss_rejected, h.gnss_resets,
+              h.gnss_no_fix + h.gnss_invalid + h.gnss_inaccurate,
+              h.baro_fused, h.baro_rejected, h.baro_resets, h.mag_fused, h.mag_rejected,
+              h.airspeed_blockages)
+             for h in (e.health for e in est)], dtype=np.int64)  # fmt: skip
         fixes = self.fix_track()
         order = np.argsort(fixes.time_s, kind="stable")  # fixes arrive in time order, mostly
         return HealthSeries(
-            time_s=i[:, _I_TIME].astype(float) * 1e-6,
-            mode=np.array([_MODES[c] for c in i[:, _I_MODE]], dtype=np.str_),
-            ratio_gnss_pos=ratios[:, 0].copy(),
-            ratio_gnss_vel=ratios[:, 1].copy(),
-            ratio_baro=ratios[:, 2].copy(),
-            ratio_mag=ratios[:, 3].copy(),
-            gnss_fused=counts[:, 0].copy(),
-            gnss_rejected=counts[:, 1].copy(),
-            gnss_resets=counts[:, 2].copy(),
-            gnss_quality_rejected=counts[:, 3].copy(),
-            baro_fused=counts[:, 4].copy(),
-            baro_rejected=counts[:, 5].copy(),
-            baro_resets=counts[:, 6].copy(),
-            mag_fused=counts[:, 7].copy(),
-            mag_rejected=counts[:, 8].copy(),
-            airspeed_blockages=counts[:, 9].copy(),
+            time_s=np.array([e.time_us for e in est], dtype=float) * 1e-6,
+            mode=np.array([e.mode for e in est], dtype=np.str_),
+            ratio_gnss_pos=ratios[:, 0],
+            ratio_gnss_vel=ratios[:, 1],
+            ratio_baro=ratios[:, 2],
+            ratio_mag=ratios[:, 3],
+            gnss_fused=counts[:, 0],
+            gnss_rejected=counts[:, 1],
+            gnss_resets=counts[:, 2],
+            gnss_quality_rejected=counts[:, 3],
+            baro_fused=counts[:, 4],
+            baro_rejected=counts[:, 5],
+            baro_resets=counts[:, 6],
+            mag_fused=counts[:, 7],
+            mag_rejected=counts[:, 8],
+            airspeed_blockages=counts[:, 9],
             fixes=Fixes(fixes.time_s[order], fixes.lat_rad[order], fixes.lon_rad[order],
                         fixes.alt_m[order]),
         )

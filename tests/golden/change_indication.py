@@ -46,8 +46,7 @@ def _estimates() -> list[Any]:
     scenario = load_scenario(SCENARIO)
     frames: list[tuple[int, bytes]] = []
     simulate(scenario, lambda t, f: frames.append((t, f)))
-    fused = fuse_frames(frames, filter_config(scenario), scenario.fusion.bridge,
-                        keep_objects=True)
+    fused = fuse_frames(frames, filter_config(scenario), scenario.fusion.bridge)
     assert fused.collector is not None
     return fused.collector.estimates
 
