@@ -320,7 +320,13 @@ def test_a_second_sender_flooding_the_fusion_costs_the_legitimate_stream_nothing
         fix = GnssFix(time_us=0, lat_rad=0.83, lon_rad=0.15, alt_msl_m=500.0,
                       v_ned_mps=np.zeros(3), eph_m=1.0, epv_m=1.0, speed_accuracy_mps=0.1)
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-            time.sleep(3.0)  # after the fusion bound to the simulator
+            # after the fusion bound to the simulator: the sim's recording grows only while
+            # lockstep steps are acknowledged (a fixed sleep raced the fusion's start-up)
+            rec = tmp_path / "run.tlog"
+            deadline = time.monotonic() + 120.0
+            while not stop.is_set() and time.monotonic() < deadline and (
+                    not rec.exists() or rec.stat().st_size < 200_000):
+                time.sleep(0.05)
             k = 0
             while not stop.is_set():
                 t = 1_000_000 + 5000 * k
