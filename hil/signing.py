@@ -60,6 +60,8 @@ from enum import Enum
 from pathlib import Path
 from typing import Final
 
+from fastcrc import crc16
+
 from hil.codec.wire import mavlink2
 
 __all__ = [
@@ -103,12 +105,17 @@ TIMESTAMP_MAX: Final = (1 << 48) - 1
 DEFAULT_KEY_ENV: Final = "HILNAV_MAVLINK_KEY"
 
 _SEQ_OFFSET: Final = 4
+_mcrf4xx = crc16.mcrf4xx  # MAVLink's X.25 CRC (CRC-16/MCRF4XX), as pymavlink uses it
+
+
+_CRC_EXTRA: Final = {
+    int(msg_id): int(msg_type.crc_extra) for msg_id, msg_type in mavlink2.mavlink_map.items()
+}
 
 
 def crc_extra(msg_id: int) -> int | None:
     """CRC_EXTRA seed of a message id in hilnav's dialect; None for an unknown id."""
-    msg_type = mavlink2.mavlink_map.get(msg_id)
-    return None if msg_type is None else int(msg_type.crc_extra)
+    return _CRC_EXTRA.get(msg_id)
 
 
 def frame_crc(frame: bytes | bytearray | memoryview, payload_len: int, extra: int) -> int:
@@ -128,9 +135,7 @@ def frame_crc(frame: bytes | bytearray | memoryview, payload_len: int, extra: in
     int
         The 16-bit CRC as it must appear (little endian) after the payload.
     """
-    crc = mavlink2.x25crc(bytes(frame[1 : HEADER_LEN + payload_len]))
-    crc.accumulate(bytes((extra,)))
-    return int(crc.crc)
+    return _mcrf4xx(bytes((extra,)), _mcrf4xx(frame[1 : HEADER_LEN + payload_len]))
 
 
 def mavlink_timestamp(unix_s: float) -> int:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from hil.codec.counters import DecoderCounters
+from hil.codec.fast_frames import unpack_fields
 from hil.codec.fc_messages import (
     SCALED_IMU_IDS,
     SCALED_PRESSURE_IDS,
@@ -44,6 +45,7 @@ from hil.codec.vehicle_messages import (
     decode_servo_output_raw,
 )
 from hil.codec.wire import mavlink2
+from hil.signing import MAGIC_V2
 from sim.samples import Sample, Truth
 
 __all__ = ["Decoded", "Decoder"]
@@ -128,19 +130,23 @@ class Decoder:
         list of pymavlink MAVLink_message
         """
         out = []
-        c = self.counters
         for frame in self._framer.feed(data, final=final):
-            try:
-                msg = self.mav.decode(bytearray(frame))
-            except mavlink2.MAVError as err:  # signature (or a length pymavlink refuses)
-                if "signature" in str(err):
-                    c.bad_signature += 1
-                else:
-                    c.bad_frames += 1
-                continue
-            if self._accept(msg):
+            msg = self._decode_frame(frame)
+            if msg is not None:
                 out.append(msg)
         return out
+
+    def _decode_frame(self, frame: bytes) -> Any | None:
+        """One framed message through pymavlink (signature checked), or None (counted)."""
+        try:
+            msg = self.mav.decode(bytearray(frame))
+        except mavlink2.MAVError as err:  # signature (or a length pymavlink refuses)
+            if "signature" in str(err):
+                self.counters.bad_signature += 1
+            else:
+                self.counters.bad_frames += 1
+            return None
+        return msg if self._accept(msg) else None
 
     def _accept(self, msg: Any) -> bool:
         msg_id = msg.get_msgId()
@@ -164,6 +170,11 @@ class Decoder:
     def feed(self, data: bytes) -> list[Decoded]:
         """Parse bytes and decode every sensor / truth message in them.
 
+        Unsigned HIL_SENSOR and HIL_GPS frames, while no signing key is configured, take
+        :mod:`hil.codec.fast_frames` (the same field values as pymavlink's decode, without its
+        second CRC check and message object); every other frame goes through :meth:`parse`'s
+        pymavlink path. Counters and samples are the same either way.
+
         Parameters
         ----------
         data : bytes
@@ -175,8 +186,18 @@ class Decoder:
             In stream order; one message may give several samples (HIL_SENSOR: IMU, mag, baro).
         """
         out: list[Decoded] = []
-        for msg in self.parse(data):
-            out.extend(self._decode(msg))
+        fast = self.mav.signing.secret_key is None
+        for frame in self._framer.feed(data):
+            if fast and frame[0] == MAGIC_V2 and frame[2] == 0:
+                msg_id = frame[7] | (frame[8] << 8) | (frame[9] << 16)
+                fields = unpack_fields(frame, msg_id)
+                if fields is not None:
+                    self.counters.frames_ok += 1
+                    out.extend(self._decode_fields(msg_id, frame[5], frame[6], fields))
+                    continue
+            msg = self._decode_frame(frame)
+            if msg is not None:
+                out.extend(self._decode(msg))
         return out
 
     def decode_message(self, msg: Any) -> list[Decoded]:
@@ -198,9 +219,13 @@ class Decoder:
 
     # -- messages -> samples --
     def _decode(self, msg: Any) -> list[Decoded]:
-        msg_id = msg.get_msgId()
-        sys_id = msg.get_srcSystem()
-        comp_id = msg.get_srcComponent()
+        return self._decode_fields(
+            msg.get_msgId(), msg.get_srcSystem(), msg.get_srcComponent(), msg
+        )
+
+    def _decode_fields(self, msg_id: int, sys_id: int, comp_id: int, msg: Any) -> list[Decoded]:
+        """Samples of one message given as anything with its fields as attributes (a
+        pymavlink message or a :mod:`hil.codec.fast_frames` named tuple)."""
         samples: list[Sample | Truth]
         if msg_id in (mavlink2.MAVLINK_MSG_ID_HIL_SENSOR, mavlink2.MAVLINK_MSG_ID_HIGHRES_IMU):
             key = (sys_id, comp_id, msg_id, int(msg.id))

@@ -67,6 +67,13 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike
 
+from hil.codec.fast_frames import (
+    HIL_GPS_ID,
+    HIL_SENSOR_ID,
+    gps_payload,
+    pack_frame,
+    sensor_payload,
+)
 from hil.codec.wire import (
     AUTOPILOT_COMPONENT_ID,
     DEGE7_PER_RAD,
@@ -125,7 +132,8 @@ def _vec(value: ArrayLike, name: str, n: int = 3) -> list[float]:
     if v.shape != (n,):
         raise ValueError(f"{name} must have shape ({n},), got {v.shape}")
     xs: list[float] = v.tolist()
-    if not all(math.isfinite(x) for x in xs):
+    # One sum is finite iff every term is, unless finite terms overflow it: check those singly.
+    if not math.isfinite(sum(xs)) and not all(map(math.isfinite, xs)):
         raise ValueError(f"{name} must be finite, got {xs}")
     return xs
 
@@ -237,7 +245,7 @@ class Encoder:
         return value
 
     def _f32_vec(self, xs: list[float], names: tuple[str, ...], msg: str) -> list[float]:
-        if all(-FLOAT32_MAX <= x <= FLOAT32_MAX for x in xs):
+        if -FLOAT32_MAX <= min(xs) and max(xs) <= FLOAT32_MAX:
             return xs
         return [self._f32(x, f"{msg}.{n}") for x, n in zip(xs, names, strict=True)]
 
@@ -254,6 +262,14 @@ class Encoder:
     def _pack(msg: Any, mav: Any) -> bytes:
         frame: bytes = msg.pack(mav)
         # MAVLink.send() would advance the sequence; pack() alone does not.
+        mav.seq = (mav.seq + 1) % 256
+        return frame
+
+    @staticmethod
+    def _pack_fast(msg_id: int, payload: bytes, mav: Any) -> bytes:
+        """HIL_SENSOR / HIL_GPS through :mod:`hil.codec.fast_frames` (the same bytes as
+        pymavlink's pack), advancing the component's sequence like :meth:`_pack`."""
+        frame = pack_frame(msg_id, payload, mav.seq, mav.srcSystem, mav.srcComponent)
         mav.seq = (mav.seq + 1) % 256
         return frame
 
@@ -363,10 +379,10 @@ class Encoder:
                 "HIL_SENSOR.diff_pressure",
             )
             bits |= HilSensorField.DIFF_PRESSURE
-        msg = mavlink2.MAVLink_hil_sensor_message(
+        payload = sensor_payload(
             t, *acc, *gyro, *mag_g, abs_hpa, diff_hpa, alt_m, temp_c, bits, sensor_id
         )
-        return self._pack(msg, self._sensor_mav)
+        return self._pack_fast(HIL_SENSOR_ID, payload, self._sensor_mav)
 
     def gnss(self, fix: GnssFix) -> bytes:
         """One HIL_GPS frame (``time_usec`` = the fix's time of validity).
@@ -401,9 +417,8 @@ class Encoder:
             cog = UINT16_MAX
         eph = self._accuracy_cm(fix.eph_m, "fix.eph_m", "HIL_GPS.eph")
         epv = self._accuracy_cm(fix.epv_m, "fix.epv_m", "HIL_GPS.epv")
-        msg = mavlink2.MAVLink_hil_gps_message(
+        payload = gps_payload(  # wire order (HilGpsFields)
             t,
-            _uint8(fix.fix_type, "fix.fix_type"),
             lat_e7,
             lon_e7,
             alt_mm,
@@ -414,11 +429,12 @@ class Encoder:
             ve,
             vd,
             cog,
+            _uint8(fix.fix_type, "fix.fix_type"),
             _uint8(fix.satellites_visible, "fix.satellites_visible"),
             _uint8(fix.sensor_id, "fix.sensor_id"),
             0,  # yaw: 0 = unknown (no dual-antenna heading in GnssFix)
         )
-        return self._pack(msg, self._sensor_mav)
+        return self._pack_fast(HIL_GPS_ID, payload, self._sensor_mav)
 
     def truth(self, truth: Truth) -> bytes:
         """One HIL_STATE_QUATERNION frame from the truth component.
