@@ -84,6 +84,7 @@ __all__ = [
     "key_from_passphrase",
     "load_key",
     "mavlink_timestamp",
+    "mcrf4xx",
     "parse_key",
     "reframe",
 ]
@@ -105,7 +106,9 @@ TIMESTAMP_MAX: Final = (1 << 48) - 1
 DEFAULT_KEY_ENV: Final = "HILNAV_MAVLINK_KEY"
 
 _SEQ_OFFSET: Final = 4
-_mcrf4xx = crc16.mcrf4xx  # MAVLink's X.25 CRC (CRC-16/MCRF4XX), as pymavlink uses it
+mcrf4xx: Final = crc16.mcrf4xx
+"""MAVLink's X.25 CRC (CRC-16/MCRF4XX) of bytes, optionally continuing from ``initial``
+(what pymavlink uses when ``fastcrc`` is installed)."""
 
 
 _CRC_EXTRA: Final = {
@@ -135,7 +138,7 @@ def frame_crc(frame: bytes | bytearray | memoryview, payload_len: int, extra: in
     int
         The 16-bit CRC as it must appear (little endian) after the payload.
     """
-    return _mcrf4xx(bytes((extra,)), _mcrf4xx(frame[1 : HEADER_LEN + payload_len]))
+    return mcrf4xx(bytes((extra,)), mcrf4xx(frame[1 : HEADER_LEN + payload_len]))
 
 
 def mavlink_timestamp(unix_s: float) -> int:

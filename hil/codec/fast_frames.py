@@ -25,9 +25,8 @@ import struct
 from collections.abc import Callable, Iterable
 from typing import Any, Final, NamedTuple
 
-from fastcrc import crc16
-
 from hil.codec.wire import mavlink2
+from hil.signing import mcrf4xx as _mcrf4xx
 
 __all__ = [
     "HIL_GPS_ID",
@@ -43,7 +42,6 @@ __all__ = [
 _MAGIC_V2: Final = 0xFD
 _HEADER: Final = struct.Struct("<BBBBBBBHB")
 _HEADER_LEN: Final = 10
-_mcrf4xx = crc16.mcrf4xx
 
 HIL_SENSOR_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HIL_SENSOR)
 HIL_GPS_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HIL_GPS)

@@ -19,8 +19,7 @@ from hil.signing import (
     MAGIC_V2,
     SIGNATURE_BLOCK_LEN,
     crc_extra,
-    frame_crc,
-    frame_msg_id,
+    mcrf4xx,
 )
 
 __all__ = ["MAGIC_V1", "FrameParser", "FramingCounters"]
@@ -28,6 +27,7 @@ __all__ = ["MAGIC_V1", "FrameParser", "FramingCounters"]
 MAGIC_V1: Final = 0xFE
 _HEADER_LEN_V1: Final = 6
 _MAGIC_RE: Final = re.compile(b"[\xfd\xfe]")
+_EXTRA_BYTE: Final = tuple(bytes((x,)) for x in range(256))
 
 
 class _Scan(Enum):
@@ -135,7 +135,7 @@ class FrameParser:
         size = HEADER_LEN + payload_len + CRC_LEN
         if buf[i + 2] & IFLAG_SIGNED:
             size += SIGNATURE_BLOCK_LEN
-        extra = crc_extra(frame_msg_id(buf[i : i + HEADER_LEN]))
+        extra = crc_extra(buf[i + 7] | (buf[i + 8] << 8) | (buf[i + 9] << 16))
         if extra is None:
             # No CRC check possible: believe the header only if a frame (or the end of the
             # datagram) follows exactly where it says the frame ends.
@@ -152,7 +152,7 @@ class FrameParser:
             return self._incomplete(final)
         crc_at = i + HEADER_LEN + payload_len
         got = buf[crc_at] | (buf[crc_at + 1] << 8)
-        if got != frame_crc(buf[i:crc_at], payload_len, extra):
+        if got != mcrf4xx(_EXTRA_BYTE[extra], mcrf4xx(buf[i + 1 : crc_at])):
             self._c.bad_crc += 1
             return _Scan.NOT_A_FRAME, 0
         return _Scan.FRAME, size
