@@ -68,11 +68,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hil.codec.fast_frames import (
-    HIL_GPS_ID,
-    HIL_SENSOR_ID,
-    gps_payload,
+    HIL_ACTUATOR_CONTROLS,
+    HIL_GPS,
+    HIL_SENSOR,
+    HIL_STATE_QUATERNION,
+    RAW_RPM,
+    FastLayout,
     pack_frame,
-    sensor_payload,
 )
 from hil.codec.wire import (
     AUTOPILOT_COMPONENT_ID,
@@ -259,17 +261,12 @@ class Encoder:
         return round(value)
 
     @staticmethod
-    def _pack(msg: Any, mav: Any) -> bytes:
-        frame: bytes = msg.pack(mav)
-        # MAVLink.send() would advance the sequence; pack() alone does not.
-        mav.seq = (mav.seq + 1) % 256
-        return frame
-
-    @staticmethod
-    def _pack_fast(msg_id: int, payload: bytes, mav: Any) -> bytes:
-        """HIL_SENSOR / HIL_GPS through :mod:`hil.codec.fast_frames` (the same bytes as
-        pymavlink's pack), advancing the component's sequence like :meth:`_pack`."""
-        frame = pack_frame(msg_id, payload, mav.seq, mav.srcSystem, mav.srcComponent)
+    def _pack(layout: FastLayout, mav: Any, *values: Any) -> bytes:
+        """One frame of ``values`` (pymavlink's constructor order) through
+        :mod:`hil.codec.fast_frames`: the bytes pymavlink's ``pack`` makes; advances the
+        component's sequence as ``MAVLink.send`` would."""
+        frame = pack_frame(layout, layout.payload(*values), mav.seq, mav.srcSystem,
+                           mav.srcComponent)
         mav.seq = (mav.seq + 1) % 256
         return frame
 
@@ -379,10 +376,10 @@ class Encoder:
                 "HIL_SENSOR.diff_pressure",
             )
             bits |= HilSensorField.DIFF_PRESSURE
-        payload = sensor_payload(
-            t, *acc, *gyro, *mag_g, abs_hpa, diff_hpa, alt_m, temp_c, bits, sensor_id
+        return self._pack(
+            HIL_SENSOR, self._sensor_mav,
+            t, *acc, *gyro, *mag_g, abs_hpa, diff_hpa, alt_m, temp_c, bits, sensor_id,
         )
-        return self._pack_fast(HIL_SENSOR_ID, payload, self._sensor_mav)
 
     def gnss(self, fix: GnssFix) -> bytes:
         """One HIL_GPS frame (``time_usec`` = the fix's time of validity).
@@ -417,8 +414,11 @@ class Encoder:
             cog = UINT16_MAX
         eph = self._accuracy_cm(fix.eph_m, "fix.eph_m", "HIL_GPS.eph")
         epv = self._accuracy_cm(fix.epv_m, "fix.epv_m", "HIL_GPS.epv")
-        payload = gps_payload(  # wire order (HilGpsFields)
+        return self._pack(
+            HIL_GPS,
+            self._sensor_mav,
             t,
+            _uint8(fix.fix_type, "fix.fix_type"),
             lat_e7,
             lon_e7,
             alt_mm,
@@ -429,12 +429,10 @@ class Encoder:
             ve,
             vd,
             cog,
-            _uint8(fix.fix_type, "fix.fix_type"),
             _uint8(fix.satellites_visible, "fix.satellites_visible"),
             _uint8(fix.sensor_id, "fix.sensor_id"),
             0,  # yaw: 0 = unknown (no dual-antenna heading in GnssFix)
         )
-        return self._pack_fast(HIL_GPS_ID, payload, self._sensor_mav)
 
     def truth(self, truth: Truth) -> bytes:
         """One HIL_STATE_QUATERNION frame from the truth component.
@@ -480,7 +478,9 @@ class Encoder:
             self._int(x, INT16_MIN, INT16_MAX, f"{m}.{n}")
             for x, n in zip(f_mg, ("xacc", "yacc", "zacc"), strict=True)
         )
-        msg = mavlink2.MAVLink_hil_state_quaternion_message(
+        return self._pack(
+            HIL_STATE_QUATERNION,
+            self._truth_mav,
             t,
             self._f32_vec(q, ("attitude_quaternion",) * 4, m),
             *self._f32_vec(w, ("rollspeed", "pitchspeed", "yawspeed"), m),
@@ -496,7 +496,6 @@ class Encoder:
             yacc,
             zacc,
         )
-        return self._pack(msg, self._truth_mav)
 
     def actuators(self, sample: ActuatorSample) -> bytes:
         """One HIL_ACTUATOR_CONTROLS frame from the autopilot component.
@@ -525,8 +524,9 @@ class Encoder:
             raise ValueError(f"actuators.controls must be finite, got {xs}")
         xs.extend([0.0] * (_N_CONTROLS - len(xs)))
         controls = self._f32_vec(xs, ("controls",) * _N_CONTROLS, "HIL_ACTUATOR_CONTROLS")
-        msg = mavlink2.MAVLink_hil_actuator_controls_message(t, controls, _HIL_ARMED_MODE, 0)
-        return self._pack(msg, self._autopilot_mav)
+        return self._pack(
+            HIL_ACTUATOR_CONTROLS, self._autopilot_mav, t, controls, _HIL_ARMED_MODE, 0
+        )
 
     def rpm(self, sample: RpmSample) -> bytes:
         """One RAW_RPM frame from the autopilot component (no timestamp on the wire).
@@ -544,10 +544,10 @@ class Encoder:
         rpm = _finite(sample.rpm, "rpm.rpm")
         if rpm < 0.0:
             raise ValueError(f"rpm.rpm must be >= 0, got {rpm!r}")
-        msg = mavlink2.MAVLink_raw_rpm_message(
-            _uint8(sample.index, "rpm.index"), self._f32(rpm, "RAW_RPM.frequency")
+        return self._pack(
+            RAW_RPM, self._autopilot_mav,
+            _uint8(sample.index, "rpm.index"), self._f32(rpm, "RAW_RPM.frequency"),
         )
-        return self._pack(msg, self._autopilot_mav)
 
     @staticmethod
     def _lat_lon_e7(lat_rad: float, lon_rad: float, owner: str) -> tuple[int, int]:

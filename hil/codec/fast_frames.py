@@ -1,41 +1,46 @@
-"""Fast MAVLink 2 framing of the two high-rate messages, HIL_SENSOR (107) and HIL_GPS (113).
+"""Fast MAVLink 2 framing of the simulator's high-rate messages: HIL_SENSOR (107), HIL_GPS
+(113), HIL_STATE_QUATERNION (115), HIL_ACTUATOR_CONTROLS (93) and RAW_RPM (339).
 
-pymavlink stays the reference and the path for every other message. For these two, which
-carry every IMU sample and GNSS fix, building a message object to pack it, and decoding a
-frame through :meth:`MAVLink.decode` (which checks the CRC the framing parser already
-checked), cost most of the codec's time. This module does the same work with one
-``struct`` call and one CRC:
+pymavlink stays the reference and the path for every other message. For these five, which
+carry every IMU sample, GNSS fix, truth sample and control output of a lockstep run, building
+a message object to pack it, and decoding a frame through :meth:`MAVLink.decode` (which
+checks again the CRC the framing parser already checked, and builds a message object with
+a dozen bookkeeping attributes), cost most of the codec's time. :class:`FastLayout` does the
+same work from pymavlink's own description of the message (its ``struct`` format, field order
+and array lengths), with one ``struct`` call and one CRC:
 
-- :func:`pack_frame`: payload bytes -> an unsigned MAVLink 2 frame, as pymavlink's
+- :meth:`FastLayout.payload` + :func:`pack_frame`: field values (in the order of pymavlink's
+  constructor, arrays as sequences) -> an unsigned MAVLink 2 frame, as pymavlink's
   ``MAVLink_message._pack`` builds it (trailing zero bytes of the payload cut, at least one
   kept; header ``FD len 0 0 seq sys comp id``; X.25/MCRF4XX CRC over header, payload and
   CRC_EXTRA), so the bytes are identical.
-- :func:`unpack_fields`: the payload of a CRC-checked, unsigned MAVLink 2 frame of one of the
-  two ids -> a named tuple with pymavlink's field names and values (the truncated payload is
-  zero-padded to the message length, extra bytes beyond it ignored, as pymavlink does).
+- :func:`unpack_fields`: a CRC-checked, unsigned MAVLink 2 frame -> a named tuple with
+  pymavlink's field names and values (arrays as lists; the truncated payload zero-padded to
+  the message length, bytes beyond it ignored, as pymavlink does).
 
-Bit-exactness against pymavlink, for every field, signed and unsigned frames, is a property
-test (``tests/hil/test_fast_frames.py``). Signed frames are not handled here: the decoder
-gives them to pymavlink, which checks the signature.
+Bit-exactness against pymavlink, for every field of the five messages, is a property test
+(``tests/hil/test_fast_frames.py``). Signed frames are not handled here: the decoder gives
+them to pymavlink, which checks the signature.
 """
 
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable, Iterable
-from typing import Any, Final, NamedTuple
+from collections import namedtuple
+from collections.abc import Sequence
+from typing import Any, Final
 
 from hil.codec.wire import mavlink2
 from hil.signing import mcrf4xx as _mcrf4xx
 
 __all__ = [
-    "HIL_GPS_ID",
-    "HIL_SENSOR_ID",
-    "HilGpsFields",
-    "HilSensorFields",
-    "gps_payload",
+    "HIL_ACTUATOR_CONTROLS",
+    "HIL_GPS",
+    "HIL_SENSOR",
+    "HIL_STATE_QUATERNION",
+    "RAW_RPM",
+    "FastLayout",
     "pack_frame",
-    "sensor_payload",
     "unpack_fields",
 ]
 
@@ -43,89 +48,95 @@ _MAGIC_V2: Final = 0xFD
 _HEADER: Final = struct.Struct("<BBBBBBBHB")
 _HEADER_LEN: Final = 10
 
-HIL_SENSOR_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HIL_SENSOR)
-HIL_GPS_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HIL_GPS)
-_SENSOR_CLS: Final = mavlink2.MAVLink_hil_sensor_message
-_GPS_CLS: Final = mavlink2.MAVLink_hil_gps_message
-_SENSOR_STRUCT: Final[struct.Struct] = _SENSOR_CLS.unpacker
-_GPS_STRUCT: Final[struct.Struct] = _GPS_CLS.unpacker
 
-
-class HilSensorFields(NamedTuple):
-    """HIL_SENSOR's fields in wire order (pymavlink's names and units)."""
-
-    time_usec: int
-    xacc: float
-    yacc: float
-    zacc: float
-    xgyro: float
-    ygyro: float
-    zgyro: float
-    xmag: float
-    ymag: float
-    zmag: float
-    abs_pressure: float
-    diff_pressure: float
-    pressure_alt: float
-    temperature: float
-    fields_updated: int
-    id: int
-
-
-class HilGpsFields(NamedTuple):
-    """HIL_GPS's fields in wire order (pymavlink's names and units)."""
-
-    time_usec: int
-    lat: int
-    lon: int
-    alt: int
-    eph: int
-    epv: int
-    vel: int
-    vn: int
-    ve: int
-    vd: int
-    cog: int
-    fix_type: int
-    satellites_visible: int
-    id: int
-    yaw: int
-
-
-# The wire order above must be pymavlink's (a dialect update that reorders fields fails here).
-assert HilSensorFields._fields == tuple(_SENSOR_CLS.ordered_fieldnames)
-assert HilGpsFields._fields == tuple(_GPS_CLS.ordered_fieldnames)
-
-# msg id -> (payload struct, its size, the named tuple's constructor from a value sequence)
-_FIELDS: Final[dict[int, tuple[struct.Struct, int, Callable[[Iterable[Any]], Any]]]] = {
-    HIL_SENSOR_ID: (_SENSOR_STRUCT, _SENSOR_STRUCT.size, HilSensorFields._make),
-    HIL_GPS_ID: (_GPS_STRUCT, _GPS_STRUCT.size, HilGpsFields._make),
-}
-_CRC_EXTRA: Final = {
-    HIL_SENSOR_ID: bytes((_SENSOR_CLS.crc_extra,)),
-    HIL_GPS_ID: bytes((_GPS_CLS.crc_extra,)),
-}
-
-
-def sensor_payload(*fields: float | int) -> bytes:
-    """HIL_SENSOR payload (untruncated) of its 16 fields in wire order."""
-    return _SENSOR_STRUCT.pack(*fields)
-
-
-def gps_payload(*fields: float | int) -> bytes:
-    """HIL_GPS payload (untruncated) of its 15 fields in wire order (:class:`HilGpsFields`)."""
-    return _GPS_STRUCT.pack(*fields)
-
-
-def pack_frame(msg_id: int, payload: bytes, seq: int, system_id: int, component_id: int) -> bytes:
-    """An unsigned MAVLink 2 frame of HIL_SENSOR or HIL_GPS, byte for byte as pymavlink packs it.
+class FastLayout:
+    """The wire layout of one fixed-size MAVLink message, read off its pymavlink class.
 
     Parameters
     ----------
+    cls : pymavlink message class
+        Without string (char array) fields.
+
+    Attributes
+    ----------
     msg_id : int
-        :data:`HIL_SENSOR_ID` or :data:`HIL_GPS_ID`.
+    fields : type
+        Named tuple (a ``collections.namedtuple``) of the message's fields in pymavlink's
+        constructor order.
+    """
+
+    def __init__(self, cls: Any) -> None:
+        if "s" in cls.unpacker.format or "c" in cls.unpacker.format:
+            raise ValueError(f"{cls.msgname} has string fields: not a fast-path message")
+        self.msg_id: int = int(cls.id)
+        self.crc_extra_byte = bytes((int(cls.crc_extra),))
+        self._struct: struct.Struct = cls.unpacker
+        self._size: int = cls.unpacker.size
+        self.fields: Any = namedtuple(  # type: ignore[misc]  # a layout read at run time
+            cls.msgname.title().replace("_", "") + "Fields", cls.fieldnames
+        )
+        lengths: list[int] = list(cls.lengths)
+        # constructor field i sits at wire position orders[i], its values at flat index tip
+        self._plan = tuple(
+            (sum(lengths[: cls.orders[i]]), lengths[cls.orders[i]])
+            for i in range(len(cls.fieldnames))
+        )
+        self._wire_order = tuple(cls.fieldnames.index(n) for n in cls.ordered_fieldnames)
+        self._arrays = any(n > 1 for _, n in self._plan)
+        self._identity = not self._arrays and self._wire_order == tuple(range(len(lengths)))
+
+    def payload(self, *values: Any) -> bytes:
+        """The untruncated payload of the fields in constructor order (arrays as sequences of
+        exactly their length)."""
+        if self._identity:
+            return self._struct.pack(*values)
+        if not self._arrays:
+            return self._struct.pack(*[values[j] for j in self._wire_order])
+        flat: list[Any] = []
+        for j in self._wire_order:
+            v = values[j]
+            if self._plan[j][1] > 1:
+                flat.extend(v)
+            else:
+                flat.append(v)
+        return self._struct.pack(*flat)
+
+    def unpack(self, frame: bytes) -> Any:
+        """The fields of a whole frame (header to CRC) of this message."""
+        end = _HEADER_LEN + frame[1]
+        if end - _HEADER_LEN >= self._size:
+            t = self._struct.unpack_from(frame, _HEADER_LEN)
+        else:
+            t = self._struct.unpack(frame[_HEADER_LEN:end] + bytes(self._size - frame[1]))
+        if self._identity:
+            return self.fields._make(t)
+        return self.fields._make(
+            [t[tip] if n == 1 else list(t[tip : tip + n]) for tip, n in self._plan]
+        )
+
+
+HIL_SENSOR: Final = FastLayout(mavlink2.MAVLink_hil_sensor_message)
+HIL_GPS: Final = FastLayout(mavlink2.MAVLink_hil_gps_message)
+HIL_STATE_QUATERNION: Final = FastLayout(mavlink2.MAVLink_hil_state_quaternion_message)
+HIL_ACTUATOR_CONTROLS: Final = FastLayout(mavlink2.MAVLink_hil_actuator_controls_message)
+RAW_RPM: Final = FastLayout(mavlink2.MAVLink_raw_rpm_message)
+_LAYOUTS: Final = {
+    x.msg_id: x for x in (HIL_SENSOR, HIL_GPS, HIL_STATE_QUATERNION, HIL_ACTUATOR_CONTROLS,
+                          RAW_RPM)
+}
+
+
+def pack_frame(
+    layout: FastLayout, payload: bytes, seq: int, system_id: int, component_id: int
+) -> bytes:
+    """An unsigned MAVLink 2 frame, byte for byte as pymavlink packs it.
+
+    Parameters
+    ----------
+    layout : FastLayout
+        The message (e.g. :data:`HIL_SENSOR`).
     payload : bytes
-        The untruncated payload (:func:`sensor_payload`, :func:`gps_payload`).
+        Its untruncated payload (:meth:`FastLayout.payload`).
     seq, system_id, component_id : int
         Header fields, 0..255.
 
@@ -134,16 +145,17 @@ def pack_frame(msg_id: int, payload: bytes, seq: int, system_id: int, component_
     bytes
     """
     body = payload.rstrip(b"\x00") or payload[:1]
+    msg_id = layout.msg_id
     header = _HEADER.pack(
         _MAGIC_V2, len(body), 0, 0, seq, system_id, component_id, msg_id & 0xFFFF, msg_id >> 16
     )
-    crc = _mcrf4xx(_CRC_EXTRA[msg_id], _mcrf4xx(body, _mcrf4xx(header[1:])))
+    crc = _mcrf4xx(layout.crc_extra_byte, _mcrf4xx(body, _mcrf4xx(header[1:])))
     return b"".join((header, body, crc.to_bytes(2, "little")))
 
 
-def unpack_fields(frame: bytes, msg_id: int) -> HilSensorFields | HilGpsFields | None:
-    """The fields of a CRC-checked unsigned MAVLink 2 frame, or None when ``msg_id`` is not one
-    of the two fast messages.
+def unpack_fields(frame: bytes, msg_id: int) -> Sequence[Any] | None:
+    """The fields of a CRC-checked unsigned MAVLink 2 frame as a named tuple, or None when
+    ``msg_id`` is not a fast-path message.
 
     Parameters
     ----------
@@ -152,14 +164,5 @@ def unpack_fields(frame: bytes, msg_id: int) -> HilSensorFields | HilGpsFields |
     msg_id : int
         Its message id.
     """
-    spec = _FIELDS.get(msg_id)
-    if spec is None:
-        return None
-    unpacker, size, make = spec
-    end = _HEADER_LEN + frame[1]
-    if end - _HEADER_LEN >= size:
-        values = unpacker.unpack_from(frame, _HEADER_LEN)
-    else:
-        values = unpacker.unpack(frame[_HEADER_LEN:end] + bytes(size - (end - _HEADER_LEN)))
-    fields: HilSensorFields | HilGpsFields = make(values)
-    return fields
+    layout = _LAYOUTS.get(msg_id)
+    return None if layout is None else layout.unpack(frame)

@@ -1,7 +1,9 @@
-"""The HIL_SENSOR / HIL_GPS fast path is bit-exact against pymavlink (the reference).
+"""The codec's fast path (HIL_SENSOR, HIL_GPS, HIL_STATE_QUATERNION, HIL_ACTUATOR_CONTROLS,
+RAW_RPM) is bit-exact against pymavlink (the reference).
 
-- Encoding: every field of both messages, any value the wire can carry (NaN and infinities in
-  the float fields included), any header: the same bytes as pymavlink's ``pack``.
+- Encoding: every field of the five messages, any value the wire can carry (NaN and
+  infinities in the float fields included), any header: the same bytes as pymavlink's
+  ``pack``.
 - Decoding: the same field values as pymavlink's ``decode`` for truncated, full-length and
   over-long payloads.
 - The decoder: ``Decoder.feed`` (fast path) gives the same samples and counters as
@@ -24,17 +26,26 @@ from hypothesis import strategies as st
 
 from hil.codec import Decoder, Encoder
 from hil.codec.fast_frames import (
-    HIL_GPS_ID,
-    HIL_SENSOR_ID,
-    HilGpsFields,
-    HilSensorFields,
-    gps_payload,
+    HIL_ACTUATOR_CONTROLS,
+    HIL_GPS,
+    HIL_SENSOR,
+    HIL_STATE_QUATERNION,
+    RAW_RPM,
+    FastLayout,
     pack_frame,
-    sensor_payload,
     unpack_fields,
 )
 from hil.codec.wire import mavlink2
-from sim.samples import BaroSample, GnssFix, ImuSample, MagSample
+from hil.signing import frame_crc
+from sim.samples import (
+    ActuatorSample,
+    BaroSample,
+    GnssFix,
+    ImuSample,
+    MagSample,
+    RpmSample,
+    Truth,
+)
 
 f32 = st.floats(width=32, allow_nan=True, allow_infinity=True)
 u8 = st.integers(0, 0xFF)
@@ -45,70 +56,82 @@ u32 = st.integers(0, 0xFFFF_FFFF)
 u64 = st.integers(0, 0xFFFF_FFFF_FFFF_FFFF)
 # Zero-heavy values too, so that payload truncation (trailing zero bytes) is exercised.
 sparse_f32 = st.one_of(st.just(0.0), f32)
-sparse_u64 = st.one_of(st.just(0), u64)
 
-sensor_fields = st.tuples(sparse_u64, *([sparse_f32] * 13), st.one_of(st.just(0), u32), u8)
-gps_fields = st.tuples(sparse_u64, i32, i32, i32, u16, u16, u16, i16, i16, i16, u16, u8, u8,
-                       st.one_of(st.just(0), u8), st.one_of(st.just(0), u16))
+
+def sparse(s: st.SearchStrategy[Any]) -> st.SearchStrategy[Any]:
+    return st.one_of(st.just(0), s)
+
+
+# Field values in pymavlink's constructor order (MAVLink_<msg>_message.fieldnames).
+FIELDS: dict[str, tuple[FastLayout, Any, st.SearchStrategy[tuple[Any, ...]]]] = {
+    "HIL_SENSOR": (HIL_SENSOR, mavlink2.MAVLink_hil_sensor_message,
+                   st.tuples(sparse(u64), *([sparse_f32] * 13), sparse(u32), u8)),
+    "HIL_GPS": (HIL_GPS, mavlink2.MAVLink_hil_gps_message,
+                st.tuples(sparse(u64), u8, i32, i32, i32, u16, u16, u16, i16, i16, i16, u16, u8,
+                          sparse(u8), sparse(u16))),
+    "HIL_STATE_QUATERNION": (HIL_STATE_QUATERNION, mavlink2.MAVLink_hil_state_quaternion_message,
+                             st.tuples(sparse(u64), st.lists(sparse_f32, min_size=4, max_size=4),
+                                       sparse_f32, sparse_f32, sparse_f32, i32, i32, i32, i16,
+                                       i16, i16, u16, u16, i16, i16, sparse(i16))),
+    "HIL_ACTUATOR_CONTROLS": (HIL_ACTUATOR_CONTROLS,
+                              mavlink2.MAVLink_hil_actuator_controls_message,
+                              st.tuples(sparse(u64), st.lists(sparse_f32, min_size=16,
+                                                              max_size=16), sparse(u8),
+                                        sparse(u64))),
+    "RAW_RPM": (RAW_RPM, mavlink2.MAVLink_raw_rpm_message, st.tuples(u8, sparse_f32)),
+}
 header = st.tuples(u8, u8, u8)  # seq, system, component
 
 
-def _bits(values: tuple[Any, ...]) -> tuple[Any, ...]:
+def _bits(values: Any) -> Any:
     """Values with floats as their bit patterns (NaN compares equal to itself)."""
-    return tuple(struct.pack("<d", v) if isinstance(v, float) else v for v in values)
+    if isinstance(values, list | tuple):
+        return tuple(_bits(v) for v in values)
+    return struct.pack("<d", values) if isinstance(values, float) else values
 
 
-def _pymavlink_frame(cls: Any, wire_values: tuple[Any, ...], hdr: tuple[int, int, int]) -> bytes:
-    by_name = dict(zip(cls.ordered_fieldnames, wire_values, strict=True))
-    msg = cls(*(by_name[n] for n in cls.fieldnames))
+def _pymavlink_frame(cls: Any, values: tuple[Any, ...], hdr: tuple[int, int, int]) -> bytes:
     mav = mavlink2.MAVLink(None, srcSystem=hdr[1], srcComponent=hdr[2])
     mav.seq = hdr[0]
-    frame: bytes = msg.pack(mav)
+    frame: bytes = cls(*values).pack(mav)
     return frame
 
 
-@settings(max_examples=400, deadline=None)
-@given(values=sensor_fields, hdr=header)
-def test_hil_sensor_frames_are_pymavlinks_bytes(values: tuple[Any, ...],
+@pytest.mark.parametrize("name", sorted(FIELDS))
+@settings(max_examples=300, deadline=None)
+@given(data=st.data(), hdr=header)
+def test_frames_are_pymavlinks_bytes_and_fields(name: str, data: st.DataObject,
                                                 hdr: tuple[int, int, int]) -> None:
-    ref = _pymavlink_frame(mavlink2.MAVLink_hil_sensor_message, values, hdr)
-    assert pack_frame(HIL_SENSOR_ID, sensor_payload(*values), *hdr) == ref
-    fields = unpack_fields(ref, HIL_SENSOR_ID)
-    assert isinstance(fields, HilSensorFields)
+    """Encode: the same bytes as pymavlink's pack; decode: the same values as its decode."""
+    layout, cls, strategy = FIELDS[name]
+    values = data.draw(strategy)
+    ref = _pymavlink_frame(cls, values, hdr)
+    assert pack_frame(layout, layout.payload(*values), *hdr) == ref
+    fields = unpack_fields(ref, layout.msg_id)
+    assert fields is not None
     msg = mavlink2.MAVLink(None).decode(bytearray(ref))
-    assert _bits(fields) == _bits(tuple(getattr(msg, n) for n in fields._fields))
-
-
-@settings(max_examples=400, deadline=None)
-@given(values=gps_fields, hdr=header)
-def test_hil_gps_frames_are_pymavlinks_bytes(values: tuple[Any, ...],
-                                             hdr: tuple[int, int, int]) -> None:
-    ref = _pymavlink_frame(mavlink2.MAVLink_hil_gps_message, values, hdr)
-    assert pack_frame(HIL_GPS_ID, gps_payload(*values), *hdr) == ref
-    fields = unpack_fields(ref, HIL_GPS_ID)
-    assert isinstance(fields, HilGpsFields)
-    msg = mavlink2.MAVLink(None).decode(bytearray(ref))
-    assert fields == tuple(getattr(msg, n) for n in fields._fields)
+    assert tuple(fields._fields) == tuple(cls.fieldnames)
+    assert _bits(fields) == _bits(tuple(getattr(msg, n) for n in cls.fieldnames))
 
 
 def test_an_over_long_payload_is_read_as_pymavlink_reads_it() -> None:
     """A sender with a newer dialect may append extension fields: both ignore the extra bytes."""
     values = (123, *[float(i) for i in range(1, 14)], 0x1FFF, 7)
-    frame = bytearray(_pymavlink_frame(mavlink2.MAVLink_hil_sensor_message, values, (1, 2, 3)))
-    body = bytes(frame[10:-2]) + b"\x55\x66"  # two extra payload bytes, CRC redone
-    from hil.signing import frame_crc
-
+    frame = _pymavlink_frame(mavlink2.MAVLink_hil_sensor_message, values, (1, 2, 3))
+    body = frame[10:-2] + b"\x55\x66"  # two extra payload bytes, CRC redone
     longer = bytearray(frame[:10]) + body
     longer[1] = len(body)
-    longer += frame_crc(longer, len(body), 108).to_bytes(2, "little")
+    longer += frame_crc(longer, len(body), HIL_SENSOR.crc_extra_byte[0]).to_bytes(2, "little")
     msg = mavlink2.MAVLink(None).decode(bytearray(longer))
-    fields = unpack_fields(bytes(longer), HIL_SENSOR_ID)
+    fields = unpack_fields(bytes(longer), HIL_SENSOR.msg_id)
     assert fields is not None
     assert _bits(fields) == _bits(tuple(getattr(msg, n) for n in fields._fields))
 
 
 def test_other_messages_are_left_to_pymavlink() -> None:
     assert unpack_fields(b"\xfd" + bytes(20), int(mavlink2.MAVLINK_MSG_ID_HEARTBEAT)) is None
+    with pytest.raises(ValueError, match="string fields"):
+        FastLayout(mavlink2.MAVLink_statustext_message)
 
 
 # -- the decoder: fast path == pymavlink path --
@@ -145,6 +168,16 @@ def _flight_frames(rng: random.Random, n: int) -> list[bytes]:
         mag = MagSample(t, np.array([2e-5, 1e-6, 4e-5])) if i % 2 == 0 else None
         frames.append(enc.sensors(imu, baro, mag,
                                   diff_pressure_pa=600.0 + i if i % 5 == 0 else None))
+        if i % 4 == 0:
+            frames.append(enc.actuators(ActuatorSample(t, (rng.uniform(-1, 1), 0.1, 0.0, 0.7))))
+            frames.append(enc.rpm(RpmSample(t, 2400.0 + i)))
+        if i % 4 == 2:
+            q = np.array([rng.uniform(-1, 1) for _ in range(4)])
+            frames.append(enc.truth(Truth(
+                t, math.radians(47.0), math.radians(8.0 + 1e-6 * i), 1000.0 + rng.gauss(0, 5),
+                np.array([50.0, rng.gauss(0, 3), 0.5]), q / np.linalg.norm(q),
+                np.array([0.01, -0.02, 0.1]), np.array([0.3, 0.1, -9.7]), 90_000.0, 280.0,
+                50.0 + i * 0.01, 48.0)))
         if i % 40 == 0:
             frames.append(enc.gnss(GnssFix(
                 t - 2_000, math.radians(47.0 + 1e-5 * i), math.radians(8.0), 500.0 + 0.1 * i,
