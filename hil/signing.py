@@ -60,43 +60,31 @@ from enum import Enum
 from pathlib import Path
 from typing import Final
 
-from fastcrc import crc16
-
-from hil.codec.wire import mavlink2
+from hil.codec.wire import (
+    HEADER_LEN,
+    IFLAG_SIGNED,
+    SIGNATURE_BLOCK_LEN,
+    check_frame,
+    crc_extra,
+    frame_crc,
+    frame_msg_id,
+)
 
 __all__ = [
-    "CRC_LEN",
     "DEFAULT_KEY_ENV",
-    "HEADER_LEN",
-    "IFLAG_SIGNED",
     "KEY_LEN",
-    "MAGIC_V2",
     "MAVLINK_EPOCH_UNIX_S",
-    "SIGNATURE_BLOCK_LEN",
     "TICKS_PER_S",
     "TIMESTAMP_MAX",
     "Signer",
     "Verdict",
-    "check_frame",
-    "crc_extra",
-    "frame_crc",
-    "frame_msg_id",
     "key_from_passphrase",
     "load_key",
     "mavlink_timestamp",
-    "mcrf4xx",
     "parse_key",
     "reframe",
 ]
 
-# --- MAVLink 2 frame layout (shared with hil.link) ------------------------------------------
-MAGIC_V2: Final = 0xFD
-HEADER_LEN: Final = 10
-"""magic, len, incompat_flags, compat_flags, seq, sysid, compid, msgid (3 bytes)."""
-CRC_LEN: Final = 2
-SIGNATURE_BLOCK_LEN: Final = 13
-"""link_id (1) + timestamp (6) + signature (6)."""
-IFLAG_SIGNED: Final = 0x01
 KEY_LEN: Final = 32
 MAVLINK_EPOCH_UNIX_S: Final = 1_420_070_400
 """2015-01-01T00:00:00Z as a Unix time."""
@@ -106,41 +94,6 @@ TIMESTAMP_MAX: Final = (1 << 48) - 1
 DEFAULT_KEY_ENV: Final = "HILNAV_MAVLINK_KEY"
 
 _SEQ_OFFSET: Final = 4
-mcrf4xx: Final = crc16.mcrf4xx
-"""MAVLink's X.25 CRC (CRC-16/MCRF4XX) of bytes, optionally continuing from ``initial``
-(what pymavlink uses when ``fastcrc`` is installed)."""
-
-
-_CRC_EXTRA: Final = {
-    int(msg_id): int(msg_type.crc_extra) for msg_id, msg_type in mavlink2.mavlink_map.items()
-}
-
-
-def crc_extra(msg_id: int) -> int | None:
-    """CRC_EXTRA seed of a message id in hilnav's dialect; None for an unknown id."""
-    return _CRC_EXTRA.get(msg_id)
-
-
-def frame_crc(frame: bytes | bytearray | memoryview, payload_len: int, extra: int) -> int:
-    """X.25 CRC of a MAVLink 2 frame: header (without magic) and payload, then CRC_EXTRA.
-
-    Parameters
-    ----------
-    frame : bytes-like
-        The frame from its magic byte on (at least ``HEADER_LEN + payload_len`` bytes).
-    payload_len : int
-        Payload length, bytes (the header's ``len``).
-    extra : int
-        The message's CRC_EXTRA (:func:`crc_extra`).
-
-    Returns
-    -------
-    int
-        The 16-bit CRC as it must appear (little endian) after the payload.
-    """
-    return mcrf4xx(bytes((extra,)), mcrf4xx(frame[1 : HEADER_LEN + payload_len]))
-
-
 def mavlink_timestamp(unix_s: float) -> int:
     """Signing timestamp (10 µs ticks since 2015-01-01) of a Unix time in seconds."""
     ticks = math.floor((unix_s - MAVLINK_EPOCH_UNIX_S) * TICKS_PER_S)
@@ -263,34 +216,6 @@ StreamKey = tuple[int, int, int]
 """(link_id, system_id, component_id): one signing stream."""
 
 _TIMESTAMP_STRUCT: Final = struct.Struct("<Q")
-
-
-def check_frame(frame: bytes | bytearray) -> tuple[int, bool]:
-    """Validate the layout of one whole MAVLink 2 frame (not its CRC).
-
-    Returns
-    -------
-    tuple of (int, bool)
-        Payload length in bytes, and whether the frame is signed.
-
-    Raises
-    ------
-    ValueError
-        Wrong magic, or a length that disagrees with the header.
-    """
-    if len(frame) < HEADER_LEN + CRC_LEN or frame[0] != MAGIC_V2:
-        raise ValueError("not a MAVLink 2 frame (magic 0xFD, at least 12 bytes)")
-    payload_len = frame[1]
-    signed = bool(frame[2] & IFLAG_SIGNED)
-    want = HEADER_LEN + payload_len + CRC_LEN + (SIGNATURE_BLOCK_LEN if signed else 0)
-    if len(frame) != want:
-        raise ValueError(f"MAVLink 2 frame of {len(frame)} bytes, its header says {want}")
-    return payload_len, signed
-
-
-def frame_msg_id(frame: bytes | bytearray) -> int:
-    """Message id of a MAVLink 2 frame (24 bits, little endian in header bytes 7..9)."""
-    return int(frame[7]) | (int(frame[8]) << 8) | (int(frame[9]) << 16)
 
 
 def reframe(frame: bytes | bytearray, *, seq: int | None = None) -> bytes:

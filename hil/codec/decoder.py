@@ -44,8 +44,7 @@ from hil.codec.vehicle_messages import (
     decode_raw_rpm,
     decode_servo_output_raw,
 )
-from hil.codec.wire import mavlink2
-from hil.signing import MAGIC_V2
+from hil.codec.wire import MAGIC_V2, mavlink2
 from sim.samples import Sample, Truth
 
 __all__ = ["Decoded", "Decoder"]

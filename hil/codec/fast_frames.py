@@ -31,7 +31,7 @@ from collections.abc import Sequence
 from typing import Any, Final
 
 from hil.codec.wire import mavlink2
-from hil.signing import mcrf4xx as _mcrf4xx
+from hil.codec.wire import mcrf4xx as _mcrf4xx
 
 __all__ = [
     "HIL_ACTUATOR_CONTROLS",

@@ -11,14 +11,14 @@ from collections.abc import Callable
 from enum import Enum
 from typing import Final, Protocol
 
-from hil.codec.wire import mavlink2
-from hil.signing import (
+from hil.codec.wire import (
     CRC_LEN,
     HEADER_LEN,
     IFLAG_SIGNED,
     MAGIC_V2,
     SIGNATURE_BLOCK_LEN,
     crc_extra,
+    mavlink2,
     mcrf4xx,
 )
 

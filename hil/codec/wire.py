@@ -35,20 +35,26 @@ import math
 from typing import Final
 
 import numpy as np
+from fastcrc import crc16
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from pymavlink.dialects.v20 import development as STANDARD_MODES_DIALECT
 
 __all__ = [
     "AUTOPILOT_COMPONENT_ID",
+    "CRC_LEN",
     "DEGE7_PER_RAD",
     "FLOAT32_MAX",
+    "HEADER_LEN",
+    "IFLAG_SIGNED",
     "INT16_MAX",
     "INT16_MIN",
     "INT32_MAX",
     "INT32_MIN",
     "KELVIN_AT_0_CELSIUS",
+    "MAGIC_V2",
     "PA_PER_HPA",
     "SENSOR_COMPONENT_ID",
+    "SIGNATURE_BLOCK_LEN",
     "STANDARD_MODES_DIALECT",
     "STANDARD_MODE_MSG_IDS",
     "TESLA_PER_GAUSS",
@@ -57,7 +63,12 @@ __all__ = [
     "UINT16_MAX",
     "UINT64_MAX",
     "HilSensorField",
+    "check_frame",
+    "crc_extra",
+    "frame_crc",
+    "frame_msg_id",
     "mavlink2",
+    "mcrf4xx",
 ]
 
 STANDARD_MODE_MSG_IDS: Final = (
@@ -108,3 +119,75 @@ class HilSensorField:
     IMU: Final = ACCEL | GYRO
     MAG: Final = XMAG | YMAG | ZMAG
     BARO: Final = ABS_PRESSURE | PRESSURE_ALT | TEMPERATURE
+
+
+# --- MAVLink 2 frame layout (framing, signing, links) ---------------------------------------
+MAGIC_V2: Final = 0xFD
+HEADER_LEN: Final = 10
+"""magic, len, incompat_flags, compat_flags, seq, sysid, compid, msgid (3 bytes)."""
+CRC_LEN: Final = 2
+SIGNATURE_BLOCK_LEN: Final = 13
+"""link_id (1) + timestamp (6) + signature (6)."""
+IFLAG_SIGNED: Final = 0x01
+
+mcrf4xx: Final = crc16.mcrf4xx
+"""MAVLink's X.25 CRC (CRC-16/MCRF4XX) of bytes, optionally continuing from ``initial``
+(what pymavlink uses when ``fastcrc`` is installed)."""
+
+
+_CRC_EXTRA: Final = {
+    int(msg_id): int(msg_type.crc_extra) for msg_id, msg_type in mavlink2.mavlink_map.items()
+}
+
+
+def crc_extra(msg_id: int) -> int | None:
+    """CRC_EXTRA seed of a message id in hilnav's dialect; None for an unknown id."""
+    return _CRC_EXTRA.get(msg_id)
+
+
+def frame_crc(frame: bytes | bytearray | memoryview, payload_len: int, extra: int) -> int:
+    """X.25 CRC of a MAVLink 2 frame: header (without magic) and payload, then CRC_EXTRA.
+
+    Parameters
+    ----------
+    frame : bytes-like
+        The frame from its magic byte on (at least ``HEADER_LEN + payload_len`` bytes).
+    payload_len : int
+        Payload length, bytes (the header's ``len``).
+    extra : int
+        The message's CRC_EXTRA (:func:`crc_extra`).
+
+    Returns
+    -------
+    int
+        The 16-bit CRC as it must appear (little endian) after the payload.
+    """
+    return mcrf4xx(bytes((extra,)), mcrf4xx(frame[1 : HEADER_LEN + payload_len]))
+
+
+def check_frame(frame: bytes | bytearray) -> tuple[int, bool]:
+    """Validate the layout of one whole MAVLink 2 frame (not its CRC).
+
+    Returns
+    -------
+    tuple of (int, bool)
+        Payload length in bytes, and whether the frame is signed.
+
+    Raises
+    ------
+    ValueError
+        Wrong magic, or a length that disagrees with the header.
+    """
+    if len(frame) < HEADER_LEN + CRC_LEN or frame[0] != MAGIC_V2:
+        raise ValueError("not a MAVLink 2 frame (magic 0xFD, at least 12 bytes)")
+    payload_len = frame[1]
+    signed = bool(frame[2] & IFLAG_SIGNED)
+    want = HEADER_LEN + payload_len + CRC_LEN + (SIGNATURE_BLOCK_LEN if signed else 0)
+    if len(frame) != want:
+        raise ValueError(f"MAVLink 2 frame of {len(frame)} bytes, its header says {want}")
+    return payload_len, signed
+
+
+def frame_msg_id(frame: bytes | bytearray) -> int:
+    """Message id of a MAVLink 2 frame (24 bits, little endian in header bytes 7..9)."""
+    return int(frame[7]) | (int(frame[8]) << 8) | (int(frame[9]) << 16)

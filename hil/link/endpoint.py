@@ -10,10 +10,11 @@ from typing import Any, Final
 
 from hil.codec import mavlink2
 from hil.codec.framing import FrameParser
+from hil.codec.wire import check_frame, crc_extra, frame_msg_id
 from hil.link.counters import LinkCounters
 from hil.link.roles import HEARTBEAT_ID, LinkRole
 from hil.link.transport import Handler, LinkUrl, Transport, open_transport
-from hil.signing import Signer, Verdict, check_frame, crc_extra, frame_msg_id, reframe
+from hil.signing import Signer, Verdict, reframe
 
 __all__ = ["MavlinkLink"]
 

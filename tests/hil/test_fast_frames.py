@@ -35,8 +35,7 @@ from hil.codec.fast_frames import (
     pack_frame,
     unpack_fields,
 )
-from hil.codec.wire import mavlink2
-from hil.signing import frame_crc
+from hil.codec.wire import frame_crc, mavlink2
 from sim.samples import (
     ActuatorSample,
     BaroSample,

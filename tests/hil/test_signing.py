@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import base64
 import hashlib
+import subprocess
+import sys
 from importlib.metadata import version
 from pathlib import Path
 from typing import Any
@@ -12,12 +14,12 @@ from typing import Any
 import pytest
 
 from hil.codec import mavlink2
+from hil.codec.wire import check_frame
 from hil.signing import (
     MAVLINK_EPOCH_UNIX_S,
     TICKS_PER_S,
     Signer,
     Verdict,
-    check_frame,
     key_from_passphrase,
     load_key,
     mavlink_timestamp,
@@ -281,3 +283,12 @@ def test_timestamp_epoch() -> None:
     assert mavlink_timestamp(MAVLINK_EPOCH_UNIX_S) == 0
     assert mavlink_timestamp(MAVLINK_EPOCH_UNIX_S + 1.0) == TICKS_PER_S
     assert mavlink_timestamp(0.0) == 0  # before 2015: clamped, never negative
+
+
+@pytest.mark.parametrize("first", ["hil.signing", "hil.link", "hil.codec"])
+def test_each_module_imports_on_its_own(first: str) -> None:
+    """No import cycle between hil.codec and hil.signing: a process that loads either first
+    starts (hilnav monitor loading the key once crashed on ``import hil.signing``)."""
+    done = subprocess.run([sys.executable, "-c", f"import {first}"], capture_output=True,
+                          text=True, timeout=120, cwd=Path(__file__).resolve().parents[2])
+    assert done.returncode == 0, done.stderr
