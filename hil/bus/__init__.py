@@ -44,7 +44,7 @@ from hil.bus.payloads import (
     truth_payload,
 )
 from hil.bus.schemas import SCHEMA_VERSION, SCHEMAS
-from hil.bus.security import PASSWORD_ENV, ClientSecurity, RouterSecurity
+from hil.bus.security import PASSWORD_ENV, BusAccess, ClientSecurity, RouterSecurity
 from hil.bus.session import Bus, Declaration
 from hil.bus.stats import BusStats
 
@@ -56,6 +56,7 @@ __all__ = [
     "SCHEMAS",
     "SCHEMA_VERSION",
     "Bus",
+    "BusAccess",
     "BusConfig",
     "BusStats",
     "ClientSecurity",

@@ -28,6 +28,7 @@ Nothing else is allowed (default deny): not the admin space ``@/**``, not any ot
 
 from __future__ import annotations
 
+import dataclasses
 import ipaddress
 import os
 from collections.abc import Mapping, Sequence
@@ -38,6 +39,7 @@ import pydantic
 
 __all__ = [
     "PASSWORD_ENV",
+    "BusAccess",
     "ClientSecurity",
     "RouterSecurity",
     "endpoint_host",
@@ -328,3 +330,19 @@ class RouterSecurity(pydantic.BaseModel):
         return {"enabled": True, "default_permission": "deny",
                 "rules": [*_READ_RULE, *_FUSION_RULE, *_SIM_RULE],
                 "subjects": subjects, "policies": policies}
+
+
+@dataclasses.dataclass(frozen=True)
+class BusAccess:
+    """How one hilnav process joins the bus: its transport identity and the shared payload key.
+
+    Attributes
+    ----------
+    security : ClientSecurity
+        usrpwd / TLS / mTLS (empty: an open client).
+    auth_key : bytes, optional
+        Shared payload key (``HILNAV_ZENOH_KEY``); None: samples are neither tagged nor checked.
+    """
+
+    security: ClientSecurity = dataclasses.field(default_factory=ClientSecurity)
+    auth_key: bytes | None = dataclasses.field(default=None, repr=False)

@@ -144,7 +144,15 @@ class MonitorState:
             f"v={_f(err.get('vertical_error_m'), '.2f')} m | {outage} | "
             f"est {self.rate_hz(Topic.ESTIMATE):.1f} Hz | fusion alive={alive} "
             f"router={'up' if self.connected else 'DOWN'}{self._link_summary()}"
+            f"{self._rejected_summary()}"
         )
+
+    def _rejected_summary(self) -> str:
+        """Samples the bus dropped for a missing / wrong HMAC tag or a replay (shared key)."""
+        stats = self.bus_stats
+        if stats is None or not (stats.unauthenticated or stats.replayed):
+            return ""
+        return f" | REJECTED forged {stats.unauthenticated} replayed {stats.replayed}"
 
     def _link_summary(self) -> str:
         """MAVLink frames lost / dropped and Zenoh drops reported in the last status."""
@@ -173,6 +181,7 @@ class MonitorState:
         head = Text.from_markup(
             f"[bold]hilnav monitor[/]  vehicle [bold]{self.vehicle}[/]  router {router}  "
             f"fusion {alive}  up {self._clock() - self.started:.0f} s"
+            + self._rejected_summary().replace("REJECTED", "[red]REJECTED[/]")
         )
 
         nav = Table(title="navigation", show_header=False, expand=True)

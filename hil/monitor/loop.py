@@ -17,7 +17,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.live import Live
 
-from hil.bus import Bus, Message, validate_vehicle
+from hil.bus import Bus, BusAccess, Message, validate_vehicle
 from hil.monitor.dashboard import MonitorState
 from hil.monitor.foxglove_server import FoxgloveLive
 from hil.monitor.recorder import McapRecorder
@@ -33,6 +33,7 @@ def monitor_main(
     duration_s: float | None,
     headless: bool,
     foxglove_port: int | None = None,
+    bus_access: BusAccess | None = None,
 ) -> int:
     """Subscribe to ``hilnav/<vehicle>/**`` and show it; optionally record it to MCAP.
 
@@ -98,7 +99,9 @@ def monitor_main(
 
     deadline = None if duration_s is None else time.monotonic() + duration_s
     try:
-        with Bus(connect, vehicle=vehicle) as bus:
+        access = bus_access or BusAccess()
+        with Bus(connect, vehicle=vehicle, security=access.security,
+                 auth_key=access.auth_key) as bus:
             bus.subscribe("**", on_message)
             bus.subscribe_liveliness(state.set_alive)
             if live_table:
