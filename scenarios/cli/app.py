@@ -267,6 +267,7 @@ def _signing_key(path: Path | None) -> bytes | None:
 def _bus_access(user: str | None, password_file: Path | None, tls_ca: Path | None,
                 tls_cert: Path | None, tls_key: Path | None, key_file: Path | None) -> Any:
     """The :class:`hil.bus.BusAccess` of the Zenoh security options (exit 2 on bad input)."""
+    import hil.codec  # noqa: F401  # hil.signing and hil.codec import each other: codec first
     from hil.bus.auth import KEY_ENV
     from hil.bus.security import BusAccess, ClientSecurity
     from hil.signing import load_key
@@ -567,6 +568,17 @@ def up(
         help="The sim never runs ahead of the fusion's acknowledgements (no loss at any speed)."
     )] = False,
     foxglove: FoxgloveOption = None,
+    zenoh_host: Annotated[str, typer.Option(
+        help="Where the in-process Zenoh router listens; beyond loopback only with "
+             "--users-file (or --insecure).", rich_help_panel="Zenoh security")] = "127.0.0.1",
+    users_file: Annotated[Path | None, typer.Option(
+        help="Outside clients (user:password lines), admitted read-only; turns on usrpwd and "
+             "access control (up's own processes get random passwords).",
+        rich_help_panel="Zenoh security")] = None,
+    insecure: Annotated[bool, typer.Option(
+        help="Allow --zenoh-host beyond loopback without authentication.",
+        rich_help_panel="Zenoh security")] = False,
+    zenoh_key_file: ZenohKeyFileOption = None,
 ) -> None:
     """Run router + fusion + sim (+ monitor) on loopback; Ctrl-C stops everything."""
     _out_dir(out)
@@ -576,7 +588,8 @@ def up(
                         seed=seed, gnss_off=tuple(gnss_off or ()), imu=imu, gnss=gnss,
                         bridge=bridge, altitude=altitude, airspeed=airspeed, gcs=gcs,
                         monitor=monitor,
-                        lockstep=lockstep, foxglove_port=foxglove)
+                        lockstep=lockstep, foxglove_port=foxglove, zenoh_host=zenoh_host,
+                        users_file=users_file, insecure=insecure, zenoh_key_file=zenoh_key_file)
     summary = run_up(options, log=lambda text: console.print(text, highlight=False))
     if summary is not None:
         console.print("[bold]scorecard of the live run[/]")

@@ -9,6 +9,10 @@ instead THEN ``check`` without the key is fooled and ``check`` with the key exit
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -114,3 +118,31 @@ def test_bad_security_options_exit_2_with_one_line(tmp_path: Path) -> None:
         assert needle in result.output and "Traceback" not in result.output, (args, result.output)
         assert len(result.output.strip().splitlines()) == 1, result.output
 
+
+
+def test_up_with_users_runs_every_child_logged_in_under_access_control(tmp_path: Path) -> None:
+    """GIVEN `up --users-file` and the shared key WHEN it flies 20 s THEN the fusion, sim and
+    monitor log in with up's generated passwords, the ACL lets each do its job (the monitor
+    records tagged estimates, nothing is rejected) and no password is on a command line."""
+    users = tmp_path / "users.txt"
+    users.write_text("viewer:viewer-pw\n")
+    out = tmp_path / "up"
+    proc = subprocess.run(
+        [sys.executable, "-m", "scenarios.cli", "up", "--duration", "20", "--speed", "20",
+         "--out", str(out), "--users-file", str(users)],
+        capture_output=True, text=True, timeout=150, check=False,
+        env={**os.environ, "PYTHONUNBUFFERED": "1", "COLUMNS": "200", KEY_ENV: KEY_HEX},
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "usrpwd + access control" in proc.stdout
+    assert "--zenoh-password-file" not in proc.stdout  # the children's secrets stay private
+    monitor_log = (out / "monitor.log").read_text()
+    assert "REJECTED" not in monitor_log and "mode=gnss" in monitor_log, monitor_log[-2000:]
+    assert json.loads((out / "summary.json").read_text())["live"]["lost_frames"] == 0
+
+
+def test_up_refuses_an_exposed_router_without_users(tmp_path: Path) -> None:
+    result = CliRunner().invoke(app, ["up", "--duration", "5", "--out", str(tmp_path / "o"),
+                                      "--zenoh-host", "0.0.0.0"])
+    assert result.exit_code == 2 and "beyond loopback" in result.output
+    assert len(result.output.strip().splitlines()) == 1
