@@ -240,8 +240,8 @@ def sim(
     if lockstep and live is None:
         raise ValueError("--lockstep paces against a fusion service: it needs --live URL")
     if live is not None:
-        access = _bus_access(zenoh_user, zenoh_password_file, tls_ca, tls_cert, tls_key,
-                             zenoh_key_file)
+        access = _bus_access(zenoh, zenoh_user, zenoh_password_file, tls_ca, tls_cert,
+                             tls_key, zenoh_key_file)
         _sim_live(request, live, speed=speed, record=record, zenoh=zenoh, vehicle=vehicle,
                   wait_peer=wait_peer, signing_key_file=signing_key_file, lockstep=lockstep,
                   lockstep_window=lockstep_window, bus_access=access)
@@ -264,9 +264,17 @@ def _signing_key(path: Path | None) -> bytes | None:
     return load_key(path)
 
 
-def _bus_access(user: str | None, password_file: Path | None, tls_ca: Path | None,
-                tls_cert: Path | None, tls_key: Path | None, key_file: Path | None) -> Any:
-    """The :class:`hil.bus.BusAccess` of the Zenoh security options (exit 2 on bad input)."""
+def _bus_access(endpoint: str | None, user: str | None, password_file: Path | None,
+                tls_ca: Path | None, tls_cert: Path | None, tls_key: Path | None,
+                key_file: Path | None) -> Any:
+    """The :class:`hil.bus.BusAccess` of the Zenoh security options for ``endpoint`` (None:
+    the command does not use Zenoh, and the options must not be given; exit 2 on bad input)."""
+    given = [o for o, v in (("--zenoh-user", user), ("--zenoh-password-file", password_file),
+                            ("--tls-ca", tls_ca), ("--tls-cert", tls_cert),
+                            ("--tls-key", tls_key), ("--zenoh-key-file", key_file))
+             if v is not None]
+    if endpoint is None and given:
+        raise ValueError(f"{given[0]} is a Zenoh option: it needs --zenoh ENDPOINT")
     import hil.codec  # noqa: F401  # hil.signing and hil.codec import each other: codec first
     from hil.bus.auth import KEY_ENV
     from hil.bus.security import BusAccess, ClientSecurity
@@ -274,6 +282,8 @@ def _bus_access(user: str | None, password_file: Path | None, tls_ca: Path | Non
 
     security = ClientSecurity.from_options(user=user, password_file=password_file,
                                            tls_ca=tls_ca, tls_cert=tls_cert, tls_key=tls_key)
+    if endpoint is not None:
+        security.check_endpoints([endpoint])
     return BusAccess(security=security, auth_key=load_key(key_file, env=KEY_ENV))
 
 
@@ -288,8 +298,6 @@ def _sim_live(request: Any, url: str, *, speed: float, record: Path | None, zeno
 
         validate_endpoint(zenoh)
         validate_vehicle(vehicle)
-        if bus_access is not None:
-            bus_access.security.check_endpoints([zenoh])
     key = _signing_key(signing_key_file)
     err_console.print(f"sim: streaming to {url} at {speed:g}x real time"
                       + (" (lockstep)" if lockstep else ""), highlight=False)
@@ -377,14 +385,13 @@ def fusion(
     from scenarios.cli.live import serve_fusion
     from sim.presets import gnss_preset
 
-    access = _bus_access(zenoh_user, zenoh_password_file, tls_ca, tls_cert, tls_key,
+    access = _bus_access(zenoh, zenoh_user, zenoh_password_file, tls_ca, tls_cert, tls_key,
                          zenoh_key_file)
     if zenoh is not None:
         from hil.bus import validate_endpoint, validate_vehicle
 
         validate_endpoint(zenoh)
         validate_vehicle(vehicle)
-        access.security.check_endpoints([zenoh])
     options = FusionOptions(
         mavlink=mavlink, source=source, zenoh=zenoh, vehicle=vehicle, imu=imu, gnss=gnss,
         bridge=bridge,
@@ -443,9 +450,8 @@ def monitor(
     from hil.monitor import monitor_main
 
     validate_endpoint(connect)
-    access = _bus_access(zenoh_user, zenoh_password_file, tls_ca, tls_cert, tls_key,
+    access = _bus_access(connect, zenoh_user, zenoh_password_file, tls_ca, tls_cert, tls_key,
                          zenoh_key_file)
-    access.security.check_endpoints([connect])
     code = monitor_main(connect=connect, vehicle=vehicle, record=record, duration_s=duration,
                         headless=headless, foxglove_port=foxglove, bus_access=access)
     if code:
@@ -527,7 +533,7 @@ def check(
     """
     from hil.bus import check_bus
 
-    access = _bus_access(zenoh_user, zenoh_password_file, tls_ca, tls_cert, tls_key,
+    access = _bus_access(connect, zenoh_user, zenoh_password_file, tls_ca, tls_cert, tls_key,
                          zenoh_key_file)
     code = check_bus(connect, vehicle, alive=alive, keys=tuple(key or ()), timeout_s=timeout,
                      report=lambda line: err_console.print(line, highlight=False),

@@ -111,6 +111,7 @@ def test_bad_security_options_exit_2_with_one_line(tmp_path: Path) -> None:
         (["check", "--tls-ca", str(users)], "tls/ endpoints"),
         (["monitor", "--tls-cert", str(users), "--tls-key", str(users)], "--tls-ca"),
         (["fusion", "--zenoh", "tcp/127.0.0.1:1", "--zenoh-key-file", str(users)], "key"),
+        (["fusion", "--zenoh-user", "fusion"], "needs --zenoh ENDPOINT"),
     ]
     for args, needle in cases:
         result = CliRunner().invoke(app, args, env={PASSWORD_ENV: "", KEY_ENV: ""})
