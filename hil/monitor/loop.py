@@ -24,6 +24,8 @@ from hil.monitor.recorder import McapRecorder
 
 __all__ = ["monitor_main"]
 
+_CHALLENGE_PERIOD_S = 2.0
+
 
 def monitor_main(
     *,
@@ -104,15 +106,25 @@ def monitor_main(
                  auth_key=access.auth_key) as bus:
             bus.subscribe("**", on_message)
             bus.subscribe_liveliness(state.set_alive)
-            if live_table:
-                with Live(state.render(), console=console, refresh_per_second=4) as live:
-                    while _wait(stop, deadline, 0.25):
+            done = threading.Event()
+            challenger = threading.Thread(target=_challenge_fusion, args=(bus, state, done),
+                                          name="hilnav-monitor-challenge", daemon=True)
+            if bus.authenticated:
+                challenger.start()
+            try:
+                if live_table:
+                    with Live(state.render(), console=console, refresh_per_second=4) as live:
+                        while _wait(stop, deadline, 0.25):
+                            state.set_bus(bus.stats())
+                            live.update(state.render())
+                else:
+                    while _wait(stop, deadline, 1.0):
                         state.set_bus(bus.stats())
-                        live.update(state.render())
-            else:
-                while _wait(stop, deadline, 1.0):
-                    state.set_bus(bus.stats())
-                    print(state.summary_line(), flush=True)
+                        print(state.summary_line(), flush=True)
+            finally:
+                done.set()
+                if challenger.is_alive():
+                    challenger.join(timeout=5.0)
     except KeyboardInterrupt:
         pass
     finally:
@@ -131,6 +143,20 @@ def monitor_main(
             file=sys.stderr,
         )
     return 0
+
+
+def _challenge_fusion(bus: Bus, state: MonitorState, stop: threading.Event) -> None:
+    """With the shared key: every few seconds, ask the token's owner to answer a challenge, so
+    a token declared by anyone else shows as UNVERIFIED."""
+    while not stop.is_set():
+        if state.alive:
+            try:
+                state.set_verified(bus.verify_fusion(timeout_s=1.0))
+            except Exception:  # the bus closing under us at shutdown
+                return
+        else:
+            state.set_verified(None)
+        stop.wait(_CHALLENGE_PERIOD_S)
 
 
 def _wait(stop: threading.Event, deadline: float | None, period_s: float) -> bool:

@@ -323,3 +323,42 @@ def test_check_alive_flags_a_fake_token_only_with_the_key(router: str) -> None:
         del token, answer
     finally:
         mallory.close()
+
+
+def test_monitor_flags_a_fake_token_and_forged_estimates(
+    router: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from hil.bus import BusAccess
+    from hil.monitor import monitor_main
+
+    access = BusAccess(auth_key=KEY)
+    mallory = raw_client(router)
+    stop = threading.Event()
+
+    def forge() -> None:
+        while not stop.is_set():
+            mallory.put(key("mv", Topic.ESTIMATE), _estimate_bytes("forged"))
+            stop.wait(0.05)
+
+    token = mallory.liveliness().declare_token(key("mv", Topic.ALIVE))
+    thread = threading.Thread(target=forge)
+    thread.start()
+    try:
+        assert monitor_main(connect=router, vehicle="mv", record=None, duration_s=3.5,
+                            headless=True, bus_access=access) == 0
+    finally:
+        stop.set()
+        thread.join()
+        del token
+        mallory.close()
+    line = [ln for ln in capsys.readouterr().out.splitlines() if " mv " in ln][-1]
+    assert "alive=yes UNVERIFIED" in line and "REJECTED forged" in line, line
+    assert "mode=gnss" not in line and "mode=forged" not in line  # nothing forged was shown
+    # the real fusion, holding the key, is verified
+    with Bus(router, vehicle="mv", auth_key=KEY) as fusion:
+        fusion.declare_liveliness()
+        fusion.declare_config_queryable(lambda: {"tuning": 1})
+        assert monitor_main(connect=router, vehicle="mv", record=None, duration_s=2.5,
+                            headless=True, bus_access=access) == 0
+    line = [ln for ln in capsys.readouterr().out.splitlines() if " mv " in ln][-1]
+    assert "alive=yes verified" in line and "REJECTED" not in line, line
