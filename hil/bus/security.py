@@ -202,18 +202,6 @@ class ClientSecurity(pydantic.BaseModel):
             out["link"] = {"tls": tls}
         return out
 
-    def cli_args(self) -> list[str]:
-        """The ``hilnav`` options giving a child process the same identity (the password
-        travels in the environment, see :data:`PASSWORD_ENV`)."""
-        args: list[str] = []
-        if self.user is not None:
-            args += ["--zenoh-user", self.user]
-        for flag, path in (("--tls-ca", self.tls_ca), ("--tls-cert", self.tls_cert),
-                           ("--tls-key", self.tls_key)):
-            if path is not None:
-                args += [flag, str(path)]
-        return args
-
 
 class RouterSecurity(pydantic.BaseModel):
     """How the router authenticates clients and what they may do.
