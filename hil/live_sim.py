@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from hil.bus.security import BusAccess
 from hil.pipeline import SimChain, SimSetup
 from hil.scenario_events import ScenarioTimeline
 from sim.flight import FlightEnded
@@ -109,6 +110,7 @@ def live_sim(
     zenoh: str | None = None,
     vehicle: str = "sim1",
     signing_key: bytes | None = None,
+    bus_access: BusAccess | None = None,
     wait_peer_s: float = 0.0,
     lockstep: bool = False,
     lockstep_window_s: float = 0.25,
@@ -134,6 +136,8 @@ def live_sim(
         Zenoh vehicle key chunk.
     signing_key : bytes, optional
         32-byte MAVLink 2 signing key.
+    bus_access : BusAccess, optional
+        Zenoh login / TLS and the shared payload key for ``zenoh``.
     wait_peer_s : float
         Before flying, wait up to this long (wall s) for a heartbeat from the receiver, so
         no sample is sent before it listens (0: start at once; with ``lockstep``, 0 means
@@ -184,7 +188,9 @@ def live_sim(
         if zenoh is not None:
             from hil.bus import Bus
 
-            bus = stack.enter_context(Bus(zenoh, vehicle=vehicle))
+            access = bus_access or BusAccess()
+            bus = stack.enter_context(Bus(zenoh, vehicle=vehicle, security=access.security,
+                                          auth_key=access.auth_key))
         stack.enter_context(chain)
         if lockstep and wait_peer_s == 0.0:
             wait_peer_s = lockstep_timeout_s

@@ -71,7 +71,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from fusion.config import DEFAULT_AIRSPEED_MODE
 from fusion.estimate import Mode, NavEstimate
-from hil.bus import Topic
+from hil.bus import BusAccess, Topic
 from hil.codec import TRUTH_COMPONENT_ID, mavlink2
 from hil.codec.wire import STANDARD_MODES_DIALECT
 from hil.link import (
@@ -284,10 +284,15 @@ class FusionService:
     options : FusionOptions
     signing_key : bytes, optional
         32-byte MAVLink 2 signing key for every MAVLink link of the service.
+    bus_access : BusAccess, optional
+        Zenoh login / TLS and the shared payload key (kept out of ``options``: the
+        ``fusion/config`` queryable answers with the options).
     """
 
-    def __init__(self, options: FusionOptions, *, signing_key: bytes | None = None) -> None:
+    def __init__(self, options: FusionOptions, *, signing_key: bytes | None = None,
+                 bus_access: BusAccess | None = None) -> None:
         self.options = options
+        self.bus_access = bus_access or BusAccess()
         self.config = filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
                                     options.airspeed)
         self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None)
@@ -346,7 +351,9 @@ class FusionService:
         if o.zenoh is not None:
             from hil.bus import Bus
 
-            self._bus = stack.enter_context(Bus(o.zenoh, vehicle=o.vehicle))
+            self._bus = stack.enter_context(Bus(
+                o.zenoh, vehicle=o.vehicle, security=self.bus_access.security,
+                auth_key=self.bus_access.auth_key))
             self._bus.declare_config_queryable(self.config_snapshot)
             self._bus.declare_liveliness()
 

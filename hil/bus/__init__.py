@@ -10,11 +10,14 @@
 :mod:`hil.bus.rate`        :class:`~hil.bus.rate.RateLimiter`: per-topic decimation
 :mod:`hil.bus.session`     :class:`Bus`: the non-blocking Zenoh session of one process
 :mod:`hil.bus.health`      :func:`check_bus`: the health check of a deployment
+:mod:`hil.bus.security`    :class:`ClientSecurity`, :class:`RouterSecurity`: usrpwd, TLS/mTLS, ACL
+:mod:`hil.bus.auth`        :class:`PayloadAuth`: HMAC-tagged samples, challenge of the fusion
 =========================  ==============================================================
 """
 
 from __future__ import annotations
 
+from hil.bus.auth import KEY_ENV, PayloadAuth
 from hil.bus.config import BusConfig
 from hil.bus.health import check_bus
 from hil.bus.keys import (
@@ -41,19 +44,26 @@ from hil.bus.payloads import (
     truth_payload,
 )
 from hil.bus.schemas import SCHEMA_VERSION, SCHEMAS
+from hil.bus.security import PASSWORD_ENV, BusAccess, ClientSecurity, RouterSecurity
 from hil.bus.session import Bus, Declaration
 from hil.bus.stats import BusStats
 
 __all__ = [
+    "KEY_ENV",
+    "PASSWORD_ENV",
     "PUBLISHED_TOPICS",
     "ROOT",
     "SCHEMAS",
     "SCHEMA_VERSION",
     "Bus",
+    "BusAccess",
     "BusConfig",
     "BusStats",
+    "ClientSecurity",
     "Declaration",
     "Message",
+    "PayloadAuth",
+    "RouterSecurity",
     "Topic",
     "check_bus",
     "config_reply_payload",

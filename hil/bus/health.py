@@ -12,6 +12,7 @@ import zenoh
 from hil.bus.config import BusConfig
 from hil.bus.keys import Topic
 from hil.bus.message import Message
+from hil.bus.security import ClientSecurity
 from hil.bus.session import Bus
 
 __all__ = ["check_bus"]
@@ -25,6 +26,8 @@ def check_bus(
     keys: Sequence[str] = (),
     timeout_s: float = 5.0,
     report: Callable[[str], object] | None = None,
+    security: ClientSecurity | None = None,
+    auth_key: bytes | None = None,
 ) -> int:
     """Check a running deployment through its Zenoh router; return the exit code.
 
@@ -42,6 +45,12 @@ def check_bus(
         Overall time budget, s.
     report : callable, optional
         Receives one line saying why the check failed (nothing is printed here).
+    security : ClientSecurity, optional
+        usrpwd / TLS / mTLS identity for the router.
+    auth_key : bytes, optional
+        Shared payload key: then ``alive`` also needs the fusion to answer a challenge (a
+        token declared by anyone else is reported as unverified), and only correctly tagged
+        samples count on ``keys``.
 
     Returns
     -------
@@ -51,7 +60,8 @@ def check_bus(
     """
     say = report if report is not None else _silent
     try:
-        return _check(connect, vehicle, alive=alive, keys=keys, timeout_s=timeout_s, say=say)
+        return _check(connect, vehicle, alive=alive, keys=keys, timeout_s=timeout_s, say=say,
+                      security=security, auth_key=auth_key)
     except (ValueError, pydantic.ValidationError) as exc:
         say(f"error: {exc}")
         return 2
@@ -72,11 +82,14 @@ def _check(
     keys: Sequence[str],
     timeout_s: float,
     say: Callable[[str], object],
+    security: ClientSecurity | None,
+    auth_key: bytes | None,
 ) -> int:
     deadline = time.monotonic() + timeout_s
     seen: dict[str, threading.Event] = {k: threading.Event() for k in keys}
     config = BusConfig(connect_timeout_s=min(max(timeout_s, 0.1), 60.0))
-    with Bus(connect, vehicle=vehicle, config=config) as bus:
+    with Bus(connect, vehicle=vehicle, config=config, security=security,
+             auth_key=auth_key) as bus:
         for k, ev in seen.items():
 
             def on_sample(_msg: Message, ev: threading.Event = ev) -> None:
@@ -89,8 +102,16 @@ def _check(
         if alive and not bus.fusion_alive(timeout_s=max(deadline - time.monotonic(), 0.1)):
             say(f"no {bus.key(Topic.ALIVE)} token")
             return 1
+        if (alive and bus.authenticated
+                and not bus.verify_fusion(timeout_s=max(deadline - time.monotonic(), 0.1))):
+            say(f"{bus.key(Topic.ALIVE)} token present but no fusion holding the key answered "
+                "the challenge on fusion/config: forged token?")
+            return 1
         for k, ev in seen.items():
             if not ev.wait(max(deadline - time.monotonic(), 0.0)):
-                say(f"nothing on {k} within {timeout_s} s")
+                rejected = bus.stats().unauthenticated + bus.stats().replayed
+                say(f"nothing on {k} within {timeout_s} s"
+                    + (f" ({rejected} unauthenticated samples dropped: {bus.last_rejected})"
+                       if rejected else ""))
                 return 1
     return 0

@@ -15,6 +15,11 @@ fails. So the bus opens its session in the publisher thread, one attempt of
 in the queue (bounded, oldest dropped) and subscriptions, queryables and liveliness tokens are
 declared as soon as the session exists. Once open, the Zenoh client reconnects by itself when the
 router goes away and comes back, and re-declares everything.
+
+Security (see :mod:`hil.bus.security` and :mod:`hil.bus.auth`): ``security`` logs the session in
+(usrpwd) and sets up TLS / mTLS; ``auth_key`` tags every published sample with an HMAC and makes
+subscriptions drop samples whose tag is missing, wrong or replayed (counted in
+``unauthenticated`` / ``replayed``), so a forged estimate never reaches a callback.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from typing import Any, Literal, Self
 import numpy as np
 import zenoh
 
+from hil.bus.auth import PayloadAuth, Verdict
 from hil.bus.config import BusConfig
 from hil.bus.keys import PUBLISHED_TOPICS, Topic, key, validate_endpoint, validate_vehicle
 from hil.bus.message import Message, message_from_sample
@@ -47,6 +53,7 @@ from hil.bus.payloads import (
 )
 from hil.bus.rate import RateLimiter
 from hil.bus.schemas import SCHEMAS
+from hil.bus.security import ClientSecurity
 from hil.bus.stats import COUNTER_NAMES, BusStats
 
 __all__ = ["Bus", "Declaration"]
@@ -114,6 +121,12 @@ class Bus:
         Peer mode only: endpoint(s) to listen on, comma separated.
     config : BusConfig, optional
         Rates, queue size, connect timeout.
+    security : ClientSecurity, optional
+        usrpwd login and TLS / mTLS material (default: an open client).
+    auth_key : bytes, optional
+        Shared payload key (``HILNAV_ZENOH_KEY``): published samples carry an HMAC tag;
+        received samples without a valid tag are dropped and counted; the ``fusion/config``
+        queryable answers challenges (see :meth:`verify_fusion`).
 
     Notes
     -----
@@ -130,6 +143,8 @@ class Bus:
         mode: _Mode = "client",
         listen: str | None = None,
         config: BusConfig | None = None,
+        security: ClientSecurity | None = None,
+        auth_key: bytes | None = None,
     ) -> None:
         if mode not in ("client", "peer"):
             raise ValueError(f"mode must be 'client' or 'peer', got {mode!r}")
@@ -142,6 +157,9 @@ class Bus:
         if mode == "client" and self.listen:
             raise ValueError("listen endpoints are for peer mode only")
         self.config = config or BusConfig()
+        self.security = security or ClientSecurity()
+        self.security.check_endpoints(self.connect + self.listen)
+        self._auth = PayloadAuth(auth_key) if auth_key is not None else None
         self._keys = {t: key(self.vehicle, t) for t in Topic}
         self._lock = threading.RLock()
         self._cond = threading.Condition(self._lock)
@@ -157,6 +175,8 @@ class Bus:
         self._connected = False
         self._ever_connected = False
         self.last_error: str | None = None
+        self.last_rejected: str | None = None
+        """Why the last sample was dropped as unauthenticated or replayed (None: none was)."""
         self._c = dict.fromkeys(COUNTER_NAMES, 0)
         self._dropped_by_topic: dict[str, int] = {}
 
@@ -213,6 +233,11 @@ class Bus:
         self._publishers.clear()
         if self._session is not None:
             self._session.close()
+
+    @property
+    def authenticated(self) -> bool:
+        """Whether samples are tagged and checked with a shared key."""
+        return self._auth is not None
 
     @property
     def session(self) -> zenoh.Session | None:
@@ -399,11 +424,24 @@ class Bus:
         return d
 
     def _wrap(self, callback: Callable[[Message], object]) -> Callable[[zenoh.Sample], None]:
+        auth = self._auth
+
         def on_sample(sample: zenoh.Sample) -> None:
+            key_expr = str(sample.key_expr)
+            raw = sample.payload.to_bytes()
+            if auth is not None:
+                att = sample.attachment
+                verdict = auth.verify(key_expr, raw, None if att is None else att.to_bytes())
+                if verdict is not Verdict.OK:
+                    with self._lock:
+                        name = "replayed" if verdict is Verdict.REPLAYED else "unauthenticated"
+                        self._c[name] += 1
+                        self.last_rejected = f"{verdict.value} sample on {key_expr}"
+                    return
             with self._lock:
                 self._c["received"] += 1
             try:
-                callback(message_from_sample(str(sample.key_expr), sample.payload.to_bytes()))
+                callback(message_from_sample(key_expr, raw))
             except Exception:  # a bad callback must not kill Zenoh's receive thread
                 with self._lock:
                     self._c["callback_errors"] += 1
@@ -468,10 +506,12 @@ class Bus:
         """Answer queries on ``fusion/config`` with ``getter()`` (mapping or pydantic model).
 
         The reply is :func:`config_reply_payload`; an exception in ``getter`` becomes a Zenoh
-        error reply with its message.
+        error reply with its message. With ``auth_key``, a query whose payload is a challenge
+        nonce gets a reply tagged for it (see :meth:`verify_fusion`).
         """
         key_expr = self.key(Topic.CONFIG)
         encoding = zenoh.Encoding.APPLICATION_JSON.with_schema(SCHEMAS[Topic.CONFIG]["title"])
+        auth = self._auth
 
         def on_query(query: zenoh.Query) -> None:
             try:
@@ -479,23 +519,53 @@ class Bus:
             except Exception as exc:
                 query.reply_err(f"{type(exc).__name__}: {exc}")
                 return
-            query.reply(key_expr, data, encoding=encoding)
+            tag = None
+            if auth is not None and query.payload is not None:
+                tag = auth.reply_tag(query.payload.to_bytes(), key_expr, data)
+            query.reply(key_expr, data, encoding=encoding, attachment=tag)
 
         return self._declare(
             "queryable", key_expr, lambda s: s.declare_queryable(key_expr, on_query)
         )
 
     def query_config(self, *, vehicle: str | None = None, timeout_s: float = 2.0) -> dict | None:
-        """Ask ``fusion/config`` of ``vehicle``; the decoded reply, or None (no answer)."""
+        """Ask ``fusion/config`` of ``vehicle``; the decoded reply, or None (no answer).
+
+        With ``auth_key`` only a reply tagged for this query's fresh nonce counts (a forged
+        answer from a client without the key is ignored).
+        """
         session = self._session
         if session is None:
             return None
-        for reply in session.get(key(vehicle or self.vehicle, Topic.CONFIG), timeout=timeout_s):
-            if reply.ok is not None:
-                decoded = json.loads(reply.ok.payload.to_bytes())
-                if isinstance(decoded, dict):
-                    return decoded
+        key_expr = key(vehicle or self.vehicle, Topic.CONFIG)
+        nonce = PayloadAuth.nonce() if self._auth is not None else None
+        for reply in session.get(key_expr, payload=nonce, timeout=timeout_s):
+            if reply.ok is None:
+                continue
+            raw = reply.ok.payload.to_bytes()
+            if self._auth is not None and nonce is not None:
+                att = reply.ok.attachment
+                if not self._auth.verify_reply(nonce, str(reply.ok.key_expr), raw,
+                                               None if att is None else att.to_bytes()):
+                    with self._lock:
+                        self._c["unauthenticated"] += 1
+                        self.last_rejected = f"untagged reply on {key_expr}"
+                    continue
+            decoded = json.loads(raw)
+            if isinstance(decoded, dict):
+                return decoded
         return None
+
+    def verify_fusion(self, *, vehicle: str | None = None, timeout_s: float = 2.0) -> bool:
+        """Whether a holder of the shared key answers ``fusion/config`` of ``vehicle`` now.
+
+        A liveliness token carries no payload and anyone admitted by the router can declare
+        one; a challenge (fresh nonce, tagged reply) proves the fusion itself is there.
+        Raises ``RuntimeError`` without ``auth_key``.
+        """
+        if self._auth is None:
+            raise RuntimeError("verify_fusion needs the shared key (auth_key)")
+        return self.query_config(vehicle=vehicle, timeout_s=timeout_s) is not None
 
     def fusion_alive(self, *, vehicle: str | None = None, timeout_s: float = 1.0) -> bool:
         """Whether a ``fusion/alive`` token of ``vehicle`` exists now."""
@@ -521,7 +591,11 @@ class Bus:
             },
             # explicit endpoints only: no multicast discovery on the LAN
             "scouting": {"multicast": {"enabled": False}},
+            "adminspace": {"enabled": False},
         }
+        transport = self.security.transport()
+        if transport:
+            cfg["transport"] = transport
         if self.mode == "peer":
             cfg["listen"] = {"endpoints": self.listen}
             cfg["scouting"]["delay"] = 50 if self.connect else 0
@@ -599,7 +673,8 @@ class Bus:
         sent = errors = 0
         for topic, key_expr, data in batch:
             try:
-                self._publisher(session, topic, key_expr).put(data)
+                tag = None if self._auth is None else self._auth.tag(key_expr, data)
+                self._publisher(session, topic, key_expr).put(data, attachment=tag)
                 sent += 1
             except zenoh.ZError as exc:
                 errors += 1

@@ -26,6 +26,9 @@ class BusStats:
     put_errors : Zenoh put failures.
     received : samples delivered to subscription callbacks.
     callback_errors : exceptions raised by subscription callbacks (swallowed, counted).
+    unauthenticated : samples (and config replies) dropped for a missing or wrong HMAC tag
+        (only with a shared key: forged or foreign publishers).
+    replayed : correctly tagged samples dropped because their counter was already seen.
     connect_attempts : failed session-open attempts.
     reconnects : times the router was seen back after being seen lost.
     dropped_by_topic : ``dropped_queue_full`` split by topic suffix.
@@ -41,6 +44,8 @@ class BusStats:
     put_errors: int = 0
     received: int = 0
     callback_errors: int = 0
+    unauthenticated: int = 0
+    replayed: int = 0
     connect_attempts: int = 0
     reconnects: int = 0
     dropped_by_topic: dict[str, int] = dataclasses.field(default_factory=dict)
@@ -48,6 +53,7 @@ class BusStats:
 
 COUNTER_NAMES: Final = (
     "enqueued", "decimated", "published", "dropped_queue_full", "unrouted", "put_errors",
-    "received", "callback_errors", "connect_attempts", "reconnects",
+    "received", "callback_errors", "unauthenticated", "replayed", "connect_attempts",
+    "reconnects",
 )  # fmt: skip
 """The integer counters of :class:`BusStats`, in field order."""

@@ -63,6 +63,9 @@ class MonitorState:
         self.last_seen: dict[Topic, float] = {}
         self._arrivals: dict[Topic, deque[float]] = {}
         self.alive: bool | None = None
+        self.verified: bool | None = None
+        """With the shared key: whether the token's owner answered the challenge (None: not
+        checked)."""
         self.connected = False
         self.bus_stats: BusStats | None = None
         self.unknown = 0
@@ -90,6 +93,14 @@ class MonitorState:
         """Liveliness callback of the fusion service's token."""
         with self._lock:
             self.alive = alive
+
+    def set_verified(self, verified: bool | None) -> None:
+        """Result of the last challenge of the fusion (:meth:`hil.bus.Bus.verify_fusion`)."""
+        with self._lock:
+            self.verified = verified
+
+    def _verified_text(self) -> str:
+        return {None: "", True: " verified", False: " UNVERIFIED"}[self.verified]
 
     def set_bus(self, stats: BusStats) -> None:
         """The monitor's own bus counters (router connection)."""
@@ -142,9 +153,18 @@ class MonitorState:
             f"alt={_f(est.get('alt_msl_m'), '.1f', ' m')} | "
             f"err h={_f(err.get('horizontal_error_m'), '.2f')} "
             f"v={_f(err.get('vertical_error_m'), '.2f')} m | {outage} | "
-            f"est {self.rate_hz(Topic.ESTIMATE):.1f} Hz | fusion alive={alive} "
+            f"est {self.rate_hz(Topic.ESTIMATE):.1f} Hz | fusion alive={alive}"
+            f"{self._verified_text()} "
             f"router={'up' if self.connected else 'DOWN'}{self._link_summary()}"
+            f"{self._rejected_summary()}"
         )
+
+    def _rejected_summary(self) -> str:
+        """Samples the bus dropped for a missing / wrong HMAC tag or a replay (shared key)."""
+        stats = self.bus_stats
+        if stats is None or not (stats.unauthenticated or stats.replayed):
+            return ""
+        return f" | REJECTED forged {stats.unauthenticated} replayed {stats.replayed}"
 
     def _link_summary(self) -> str:
         """MAVLink frames lost / dropped and Zenoh drops reported in the last status."""
@@ -172,7 +192,9 @@ class MonitorState:
         router = "[green]connected[/]" if self.connected else "[red]no router[/]"
         head = Text.from_markup(
             f"[bold]hilnav monitor[/]  vehicle [bold]{self.vehicle}[/]  router {router}  "
-            f"fusion {alive}  up {self._clock() - self.started:.0f} s"
+            f"fusion {alive}{self._verified_text().replace('UNVERIFIED', '[red]UNVERIFIED[/]')}"
+            f"  up {self._clock() - self.started:.0f} s"
+            + self._rejected_summary().replace("REJECTED", "[red]REJECTED[/]")
         )
 
         nav = Table(title="navigation", show_header=False, expand=True)

@@ -17,12 +17,14 @@ from pathlib import Path
 from rich.console import Console
 from rich.live import Live
 
-from hil.bus import Bus, Message, validate_vehicle
+from hil.bus import Bus, BusAccess, Message, validate_vehicle
 from hil.monitor.dashboard import MonitorState
 from hil.monitor.foxglove_server import FoxgloveLive
 from hil.monitor.recorder import McapRecorder
 
 __all__ = ["monitor_main"]
+
+_CHALLENGE_PERIOD_S = 2.0
 
 
 def monitor_main(
@@ -33,6 +35,7 @@ def monitor_main(
     duration_s: float | None,
     headless: bool,
     foxglove_port: int | None = None,
+    bus_access: BusAccess | None = None,
 ) -> int:
     """Subscribe to ``hilnav/<vehicle>/**`` and show it; optionally record it to MCAP.
 
@@ -98,18 +101,30 @@ def monitor_main(
 
     deadline = None if duration_s is None else time.monotonic() + duration_s
     try:
-        with Bus(connect, vehicle=vehicle) as bus:
+        access = bus_access or BusAccess()
+        with Bus(connect, vehicle=vehicle, security=access.security,
+                 auth_key=access.auth_key) as bus:
             bus.subscribe("**", on_message)
             bus.subscribe_liveliness(state.set_alive)
-            if live_table:
-                with Live(state.render(), console=console, refresh_per_second=4) as live:
-                    while _wait(stop, deadline, 0.25):
+            done = threading.Event()
+            challenger = threading.Thread(target=_challenge_fusion, args=(bus, state, done),
+                                          name="hilnav-monitor-challenge", daemon=True)
+            if bus.authenticated:
+                challenger.start()
+            try:
+                if live_table:
+                    with Live(state.render(), console=console, refresh_per_second=4) as live:
+                        while _wait(stop, deadline, 0.25):
+                            state.set_bus(bus.stats())
+                            live.update(state.render())
+                else:
+                    while _wait(stop, deadline, 1.0):
                         state.set_bus(bus.stats())
-                        live.update(state.render())
-            else:
-                while _wait(stop, deadline, 1.0):
-                    state.set_bus(bus.stats())
-                    print(state.summary_line(), flush=True)
+                        print(state.summary_line(), flush=True)
+            finally:
+                done.set()
+                if challenger.is_alive():
+                    challenger.join(timeout=5.0)
     except KeyboardInterrupt:
         pass
     finally:
@@ -128,6 +143,20 @@ def monitor_main(
             file=sys.stderr,
         )
     return 0
+
+
+def _challenge_fusion(bus: Bus, state: MonitorState, stop: threading.Event) -> None:
+    """With the shared key: every few seconds, ask the token's owner to answer a challenge, so
+    a token declared by anyone else shows as UNVERIFIED."""
+    while not stop.is_set():
+        if state.alive:
+            try:
+                state.set_verified(bus.verify_fusion(timeout_s=1.0))
+            except Exception:  # the bus closing under us at shutdown
+                return
+        else:
+            state.set_verified(None)
+        stop.wait(_CHALLENGE_PERIOD_S)
 
 
 def _wait(stop: threading.Event, deadline: float | None, period_s: float) -> bool:

@@ -54,6 +54,25 @@ AirspeedOverride = Annotated[str | None, typer.Option(
 SettleOption = Annotated[
     float, typer.Option(help="Scorecard: seconds excluded after the start and each outage.")]
 
+# How a bus client (fusion, sim, monitor, check) joins a secured Zenoh router; see the README's
+# "Securing the Zenoh bus". Secrets never go on the command line: files or the environment.
+ZenohUserOption = Annotated[str | None, typer.Option(
+    help="Zenoh usrpwd user (password from --zenoh-password-file or env HILNAV_ZENOH_PASSWORD).",
+    rich_help_panel="Zenoh security")]
+ZenohPasswordFileOption = Annotated[Path | None, typer.Option(
+    help="File whose first line is the Zenoh usrpwd password.", rich_help_panel="Zenoh security")]
+TlsCaOption = Annotated[Path | None, typer.Option(
+    help="CA certificate (PEM) that signed the router's certificate (tls/ endpoints).",
+    rich_help_panel="Zenoh security")]
+TlsCertOption = Annotated[Path | None, typer.Option(
+    help="This client's certificate (PEM) for mTLS; its common name is its access-control name.",
+    rich_help_panel="Zenoh security")]
+TlsKeyOption = Annotated[Path | None, typer.Option(
+    help="Private key (PEM) of --tls-cert.", rich_help_panel="Zenoh security")]
+ZenohKeyFileOption = Annotated[Path | None, typer.Option(
+    help="Shared key (32 bytes, hex or base64) that tags every Zenoh sample and checks "
+         "received ones (default: env HILNAV_ZENOH_KEY).", rich_help_panel="Zenoh security")]
+
 
 class RunFailed(Exception):
     """The run happened but did not succeed (exit code 1)."""
@@ -199,6 +218,12 @@ def sim(
         Path | None,
         typer.Option(help="MAVLink 2 signing key file (default: env HILNAV_MAVLINK_KEY)."),
     ] = None,
+    zenoh_user: ZenohUserOption = None,
+    zenoh_password_file: ZenohPasswordFileOption = None,
+    tls_ca: TlsCaOption = None,
+    tls_cert: TlsCertOption = None,
+    tls_key: TlsKeyOption = None,
+    zenoh_key_file: ZenohKeyFileOption = None,
 ) -> None:
     """Fly a plan and record it (lockstep, as fast as possible) or stream it live (--live)."""
     if record is not None:
@@ -215,9 +240,11 @@ def sim(
     if lockstep and live is None:
         raise ValueError("--lockstep paces against a fusion service: it needs --live URL")
     if live is not None:
+        access = _bus_access(zenoh, zenoh_user, zenoh_password_file, tls_ca, tls_cert,
+                             tls_key, zenoh_key_file)
         _sim_live(request, live, speed=speed, record=record, zenoh=zenoh, vehicle=vehicle,
                   wait_peer=wait_peer, signing_key_file=signing_key_file, lockstep=lockstep,
-                  lockstep_window=lockstep_window)
+                  lockstep_window=lockstep_window, bus_access=access)
         return
     if record is None:
         raise ValueError("--record is required (or stream live with --live URL)")
@@ -237,9 +264,33 @@ def _signing_key(path: Path | None) -> bytes | None:
     return load_key(path)
 
 
+def _bus_access(endpoint: str | None, user: str | None, password_file: Path | None,
+                tls_ca: Path | None, tls_cert: Path | None, tls_key: Path | None,
+                key_file: Path | None) -> Any:
+    """The :class:`hil.bus.BusAccess` of the Zenoh security options for ``endpoint`` (None:
+    the command does not use Zenoh, and the options must not be given; exit 2 on bad input)."""
+    given = [o for o, v in (("--zenoh-user", user), ("--zenoh-password-file", password_file),
+                            ("--tls-ca", tls_ca), ("--tls-cert", tls_cert),
+                            ("--tls-key", tls_key), ("--zenoh-key-file", key_file))
+             if v is not None]
+    if endpoint is None and given:
+        raise ValueError(f"{given[0]} is a Zenoh option: it needs --zenoh ENDPOINT")
+    import hil.codec  # noqa: F401  # hil.signing and hil.codec import each other: codec first
+    from hil.bus.auth import KEY_ENV
+    from hil.bus.security import BusAccess, ClientSecurity
+    from hil.signing import load_key
+
+    security = ClientSecurity.from_options(user=user, password_file=password_file,
+                                           tls_ca=tls_ca, tls_cert=tls_cert, tls_key=tls_key)
+    if endpoint is not None:
+        security.check_endpoints([endpoint])
+    return BusAccess(security=security, auth_key=load_key(key_file, env=KEY_ENV))
+
+
 def _sim_live(request: Any, url: str, *, speed: float, record: Path | None, zenoh: str | None,
               vehicle: str, wait_peer: float, signing_key_file: Path | None,
-              lockstep: bool = False, lockstep_window: float = 0.25) -> None:
+              lockstep: bool = False, lockstep_window: float = 0.25,
+              bus_access: Any = None) -> None:
     from hil.live_sim import live_sim, stop_on_signals
 
     if zenoh is not None:
@@ -252,7 +303,8 @@ def _sim_live(request: Any, url: str, *, speed: float, record: Path | None, zeno
                       + (" (lockstep)" if lockstep else ""), highlight=False)
     with stop_on_signals() as stop, _progress(request.duration_s, "flying") as progress:
         report = live_sim(request, url, speed=speed, record=record, zenoh=zenoh,
-                          vehicle=vehicle, signing_key=key, wait_peer_s=wait_peer,
+                          vehicle=vehicle, signing_key=key, bus_access=bus_access,
+                          wait_peer_s=wait_peer,
                           lockstep=lockstep, lockstep_window_s=lockstep_window,
                           progress=progress, stop=stop)
     console.print(
@@ -316,6 +368,12 @@ def fusion(
         Path | None,
         typer.Option(help="MAVLink 2 signing key file (default: env HILNAV_MAVLINK_KEY)."),
     ] = None,
+    zenoh_user: ZenohUserOption = None,
+    zenoh_password_file: ZenohPasswordFileOption = None,
+    tls_ca: TlsCaOption = None,
+    tls_cert: TlsCertOption = None,
+    tls_key: TlsKeyOption = None,
+    zenoh_key_file: ZenohKeyFileOption = None,
 ) -> None:
     """Live fusion service: MAVLink sensors in; shadow vehicle, companion and Zenoh out."""
     if out is not None:
@@ -327,6 +385,8 @@ def fusion(
     from scenarios.cli.live import serve_fusion
     from sim.presets import gnss_preset
 
+    access = _bus_access(zenoh, zenoh_user, zenoh_password_file, tls_ca, tls_cert, tls_key,
+                         zenoh_key_file)
     if zenoh is not None:
         from hil.bus import validate_endpoint, validate_vehicle
 
@@ -351,7 +411,7 @@ def fusion(
         where = ", ".join(f"{n}={link.url}" for n, link in service._links.items())
         err_console.print(f"fusion: listening ({where})", highlight=False)
 
-    summary = serve_fusion(options, signing_key=key, on_ready=ready)
+    summary = serve_fusion(options, signing_key=key, bus_access=access, on_ready=ready)
     if summary is not None:
         _print_summary(summary)
         live = summary.get("live", {})
@@ -376,6 +436,12 @@ def monitor(
     duration: Annotated[float | None, typer.Option(help="Stop after S wall seconds.")] = None,
     headless: Annotated[bool, typer.Option(help="One text line per second.")] = False,
     foxglove: FoxgloveOption = None,
+    zenoh_user: ZenohUserOption = None,
+    zenoh_password_file: ZenohPasswordFileOption = None,
+    tls_ca: TlsCaOption = None,
+    tls_cert: TlsCertOption = None,
+    tls_key: TlsKeyOption = None,
+    zenoh_key_file: ZenohKeyFileOption = None,
 ) -> None:
     """Show (and optionally record) what the fusion service publishes."""
     if record is not None:
@@ -384,8 +450,10 @@ def monitor(
     from hil.monitor import monitor_main
 
     validate_endpoint(connect)
+    access = _bus_access(connect, zenoh_user, zenoh_password_file, tls_ca, tls_cert, tls_key,
+                         zenoh_key_file)
     code = monitor_main(connect=connect, vehicle=vehicle, record=record, duration_s=duration,
-                        headless=headless, foxglove_port=foxglove)
+                        headless=headless, foxglove_port=foxglove, bus_access=access)
     if code:
         raise typer.Exit(code)
 
@@ -394,13 +462,47 @@ def monitor(
 @app.command()
 @cli_errors
 def router(
-    listen: Annotated[str, typer.Option(help="Endpoint(s) to listen on.")] = "tcp/127.0.0.1:7447",
+    listen: Annotated[str, typer.Option(
+        help="Endpoint(s) to listen on; beyond loopback only with --users-file or --mtls "
+             "(or --insecure).")] = "tcp/127.0.0.1:7447",
     duration: Annotated[float | None, typer.Option(help="Stop after S wall seconds.")] = None,
+    users_file: Annotated[Path | None, typer.Option(
+        help="usrpwd dictionary (one user:password per line): clients must log in.",
+        rich_help_panel="Zenoh security")] = None,
+    tls_cert: Annotated[Path | None, typer.Option(
+        help="The router's certificate (PEM) for tls/ endpoints.",
+        rich_help_panel="Zenoh security")] = None,
+    tls_key: Annotated[Path | None, typer.Option(
+        help="Private key (PEM) of --tls-cert.", rich_help_panel="Zenoh security")] = None,
+    tls_ca: Annotated[Path | None, typer.Option(
+        help="With --mtls: the CA (PEM) that must have signed every client's certificate.",
+        rich_help_panel="Zenoh security")] = None,
+    mtls: Annotated[bool, typer.Option(
+        help="Clients must present a certificate signed by --tls-ca.",
+        rich_help_panel="Zenoh security")] = False,
+    acl: Annotated[bool, typer.Option(
+        help="Access control: default deny; everyone authenticated reads hilnav/**; only the "
+             "--acl-fusion names publish fusion/**, only the --acl-sim names sim/sensors/scenario.",
+        rich_help_panel="Zenoh security")] = False,
+    acl_fusion: Annotated[list[str] | None, typer.Option(
+        help="User name or certificate common name of the fusion role (repeatable; default "
+             "fusion).", rich_help_panel="Zenoh security")] = None,
+    acl_sim: Annotated[list[str] | None, typer.Option(
+        help="User name or certificate common name of the sim role (repeatable; default sim).",
+        rich_help_panel="Zenoh security")] = None,
+    insecure: Annotated[bool, typer.Option(
+        help="Allow listening beyond loopback without client authentication.",
+        rich_help_panel="Zenoh security")] = False,
 ) -> None:
     """Run a Zenoh router in this process."""
+    from hil.bus.security import RouterSecurity
     from hil.router import router_main
 
-    code = router_main(listen=listen, duration_s=duration)
+    security = RouterSecurity(
+        users_file=users_file, tls_cert=tls_cert, tls_key=tls_key, tls_ca=tls_ca, mtls=mtls,
+        acl=acl, fusion=tuple(acl_fusion or ("fusion",)), sim=tuple(acl_sim or ("sim",)),
+        insecure=insecure)
+    code = router_main(listen=listen, duration_s=duration, security=security)
     if code:
         raise typer.Exit(code)
 
@@ -417,12 +519,25 @@ def check(
     key: Annotated[list[str] | None, typer.Option(
         "--key", help="A sample must arrive on this key expression (repeatable).")] = None,
     timeout: Annotated[float, typer.Option(help="Overall time budget, s.")] = 5.0,
+    zenoh_user: ZenohUserOption = None,
+    zenoh_password_file: ZenohPasswordFileOption = None,
+    tls_ca: TlsCaOption = None,
+    tls_cert: TlsCertOption = None,
+    tls_key: TlsKeyOption = None,
+    zenoh_key_file: ZenohKeyFileOption = None,
 ) -> None:
-    """Health check of a running deployment (container health checks): exit 0 healthy, 1 not."""
+    """Health check of a running deployment (container health checks): exit 0 healthy, 1 not.
+
+    With the shared key (HILNAV_ZENOH_KEY / --zenoh-key-file), --alive also challenges the
+    fusion (a token declared by anyone else fails) and only tagged samples count for --key.
+    """
     from hil.bus import check_bus
 
+    access = _bus_access(connect, zenoh_user, zenoh_password_file, tls_ca, tls_cert, tls_key,
+                         zenoh_key_file)
     code = check_bus(connect, vehicle, alive=alive, keys=tuple(key or ()), timeout_s=timeout,
-                     report=lambda line: err_console.print(line, highlight=False))
+                     report=lambda line: err_console.print(line, highlight=False),
+                     security=access.security, auth_key=access.auth_key)
     if code:
         raise typer.Exit(code)
 
@@ -459,6 +574,17 @@ def up(
         help="The sim never runs ahead of the fusion's acknowledgements (no loss at any speed)."
     )] = False,
     foxglove: FoxgloveOption = None,
+    zenoh_host: Annotated[str, typer.Option(
+        help="Where the in-process Zenoh router listens; beyond loopback only with "
+             "--users-file (or --insecure).", rich_help_panel="Zenoh security")] = "127.0.0.1",
+    users_file: Annotated[Path | None, typer.Option(
+        help="Outside clients (user:password lines), admitted read-only; turns on usrpwd and "
+             "access control (up's own processes get random passwords).",
+        rich_help_panel="Zenoh security")] = None,
+    insecure: Annotated[bool, typer.Option(
+        help="Allow --zenoh-host beyond loopback without authentication.",
+        rich_help_panel="Zenoh security")] = False,
+    zenoh_key_file: ZenohKeyFileOption = None,
 ) -> None:
     """Run router + fusion + sim (+ monitor) on loopback; Ctrl-C stops everything."""
     _out_dir(out)
@@ -468,7 +594,8 @@ def up(
                         seed=seed, gnss_off=tuple(gnss_off or ()), imu=imu, gnss=gnss,
                         bridge=bridge, altitude=altitude, airspeed=airspeed, gcs=gcs,
                         monitor=monitor,
-                        lockstep=lockstep, foxglove_port=foxglove)
+                        lockstep=lockstep, foxglove_port=foxglove, zenoh_host=zenoh_host,
+                        users_file=users_file, insecure=insecure, zenoh_key_file=zenoh_key_file)
     summary = run_up(options, log=lambda text: console.print(text, highlight=False))
     if summary is not None:
         console.print("[bold]scorecard of the live run[/]")

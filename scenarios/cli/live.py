@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from hil.bus.security import BusAccess
 from hil.live_sim import stop_on_signals
 from hil.service import FusionOptions, FusionService
 from scenarios.summary import RunInfo, score_run, write_summary
@@ -39,6 +40,7 @@ def serve_fusion(
     options: FusionOptions,
     *,
     signing_key: bytes | None = None,
+    bus_access: BusAccess | None = None,
     stop: threading.Event | None = None,
     on_ready: Callable[[FusionService], None] | None = None,
 ) -> dict[str, Any] | None:
@@ -49,7 +51,7 @@ def serve_fusion(
     dict or None
         The live run's summary (None without ``out`` or without estimate + truth).
     """
-    service = FusionService(options, signing_key=signing_key)
+    service = FusionService(options, signing_key=signing_key, bus_access=bus_access)
     with contextlib.ExitStack() as stack:
         if stop is None:
             stop = stack.enter_context(stop_on_signals())

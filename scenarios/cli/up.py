@@ -10,6 +10,13 @@ Children are started in their own sessions and stopped by PID only (terminate, w
 on a normal end, on Ctrl-C / SIGTERM, and from an ``atexit`` hook, so no orphan survives
 ``up``. With a duration the run ends by itself: the sim finishes, the fusion exits after its
 input went idle and writes the scorecard, the monitor is stopped.
+
+Zenoh security: the router listens on loopback unless ``zenoh_host`` says otherwise, and then
+only with ``users_file`` (or ``insecure``). With a users file ``up`` turns on usrpwd and access
+control, makes a random password for each of its own children (``fusion``, ``sim``,
+``monitor``, in a private temporary folder removed at exit) and admits the file's users as
+read-only clients. ``HILNAV_ZENOH_KEY`` (or ``zenoh_key_file``) makes every child tag and check
+its samples.
 """
 
 from __future__ import annotations
@@ -17,10 +24,13 @@ from __future__ import annotations
 import atexit
 import contextlib
 import json
+import os
+import secrets
 import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -30,6 +40,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from fusion.config import DEFAULT_AIRSPEED_MODE
 from hil.bus import validate_vehicle
+from hil.bus.security import RouterSecurity, endpoint_host
 from hil.pipeline import SimSetup, build_filter, filter_config
 from hil.router import zenoh_router
 from sim.presets import gnss_preset
@@ -72,6 +83,16 @@ class UpOptions(BaseModel):
     """The monitor also serves a Foxglove WebSocket on ``127.0.0.1:<port>`` (needs monitor)."""
     settle_s: float | None = Field(default=None, ge=0.0)
     """Scorecard settling time; None: 60 s, at most a quarter of the duration."""
+    zenoh_host: str = "127.0.0.1"
+    """Where the in-process router listens (beyond loopback only with ``users_file`` or
+    ``insecure``)."""
+    users_file: Path | None = None
+    """usrpwd dictionary (``user:password`` lines) of outside clients, admitted read-only;
+    turns on authentication and access control for the children too."""
+    insecure: bool = False
+    """Allow ``zenoh_host`` beyond loopback without authentication."""
+    zenoh_key_file: Path | None = None
+    """Shared payload key for every child (default: ``HILNAV_ZENOH_KEY``, inherited)."""
 
 
 def free_udp_port(host: str = "127.0.0.1") -> int:
@@ -80,6 +101,40 @@ def free_udp_port(host: str = "127.0.0.1") -> int:
         s.bind((host, 0))
         port: int = s.getsockname()[1]
         return port
+
+
+_CHILD_USERS = ("fusion", "sim", "monitor")
+
+
+def _bus_security(options: UpOptions, folder: Path) -> tuple[RouterSecurity, dict[str, list[str]]]:
+    """The router's security and each child's Zenoh options (login, key file)."""
+    key_args = [] if options.zenoh_key_file is None else [
+        "--zenoh-key-file", str(options.zenoh_key_file)]
+    if options.users_file is None:
+        return RouterSecurity(insecure=options.insecure), dict.fromkeys(_CHILD_USERS, key_args)
+    try:
+        outside = [line.strip() for line in options.users_file.read_text().splitlines()
+                   if line.strip()]
+    except OSError as exc:
+        raise ValueError(f"--users-file {options.users_file}: {exc.strerror}") from None
+    for line in outside:
+        name = line.split(":", 1)[0]
+        if ":" not in line or name in _CHILD_USERS:
+            raise ValueError(f"--users-file line {line.split(':', 1)[0]!r}: expected user:password"
+                             f" with a user other than {', '.join(_CHILD_USERS)} (up's own)")
+    args: dict[str, list[str]] = {}
+    lines = []
+    for name in _CHILD_USERS:
+        password = secrets.token_urlsafe(24)
+        pw_file = folder / f"{name}.pw"
+        pw_file.write_text(password + "\n")
+        lines.append(f"{name}:{password}")
+        args[name] = ["--zenoh-user", name, "--zenoh-password-file", str(pw_file), *key_args]
+    users = folder / "users.txt"
+    users.write_text("\n".join(lines + outside) + "\n")
+    security = RouterSecurity(users_file=users, acl=True, fusion=("fusion",), sim=("sim",),
+                              insecure=options.insecure)
+    return security, args
 
 
 def hilnav_argv(*args: str) -> list[str]:
@@ -177,63 +232,86 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
     summary_path = out / "summary.json"
     summary_path.unlink(missing_ok=True)
     port = free_udp_port()
-    with zenoh_router() as endpoint, _children() as children:
-        log(f"zenoh router  {endpoint} (in process)")
-        fusion_args = ["fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
-                       "--vehicle", options.vehicle, "--out", str(out), "--imu", options.imu,
-                       "--gnss", options.gnss, "--bridge", options.bridge,
-                       "--altitude", options.altitude, "--airspeed", options.airspeed]
-        settle = options.settle_s
-        if settle is None:
-            settle = min(60.0, 0.25 * (options.duration_s or _DEFAULT_DURATION_S))
-        fusion_args += ["--settle", str(settle)]
-        if options.duration_s is not None:
-            fusion_args += ["--idle-exit", str(_FUSION_IDLE_EXIT_S)]
-        if options.gcs is not None:
-            fusion_args += ["--gcs", options.gcs, "--gcs-tlog", str(out / "shadow.tlog")]
-        fusion = Child("fusion", hilnav_argv(*fusion_args), out / "fusion.log")
-        children.append(fusion)
-        log(f"fusion        pid {fusion.pid}: MAVLink in udpin:127.0.0.1:{port}"
-            + (f", shadow vehicle -> {options.gcs}" if options.gcs else "")
-            + f"; log {fusion.log_path}")
-        if options.monitor:
-            mon_args = ["monitor", "--connect", endpoint, "--vehicle", options.vehicle,
-                        "--headless", "--record", str(out / "live.mcap")]
-            if options.foxglove_port is not None:
-                mon_args += ["--foxglove", str(options.foxglove_port)]
-            mon = Child("monitor", hilnav_argv(*mon_args), out / "monitor.log")
-            children.append(mon)
-            log(f"monitor       pid {mon.pid}: recording {out / 'live.mcap'}; log {mon.log_path}")
-            if options.foxglove_port is not None:
-                log(f"foxglove      open connection -> Foxglove WebSocket "
-                    f"ws://127.0.0.1:{options.foxglove_port}")
-        sim_args = ["sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", str(options.speed),
-                    "--zenoh", endpoint, "--vehicle", options.vehicle, "--plan", options.plan,
-                    "--seed", str(options.seed), "--imu", options.imu, "--gnss", options.gnss,
-                    "--duration", str(options.duration_s or _DEFAULT_DURATION_S),
-                    "--record", str(out / "run.tlog"), "--wait-peer", "30"]
-        for w in options.gnss_off:
-            sim_args += ["--gnss-off", w]
-        if options.lockstep:
-            sim_args.append("--lockstep")
-        sim = Child("sim", hilnav_argv(*sim_args), out / "sim.log")
-        children.append(sim)
-        log(f"sim           pid {sim.pid}: -> udpout:127.0.0.1:{port} at {options.speed:g}x"
-            + (" (lockstep)" if options.lockstep else "") + ", "
-            f"recording {out / 'run.tlog'}; log {sim.log_path}")
-        log(f"subscribe:    hilnav monitor --connect {endpoint} --vehicle {options.vehicle}")
+    with tempfile.TemporaryDirectory(prefix="hilnav-up-") as private, \
+            contextlib.ExitStack() as stack:
+        os.chmod(private, 0o700)  # the children's passwords live here until up exits
+        security, zenoh_args = _bus_security(options, Path(private))
+        listen = stack.enter_context(zenoh_router(host=options.zenoh_host, security=security))
+        children = stack.enter_context(_children())
+        return _run_children(options, listen, security, zenoh_args, port, children, log,
+                             summary_path)
+
+
+def _run_children(options: UpOptions, listen: str, security: RouterSecurity,
+                  zenoh_args: dict[str, list[str]], port: int, children: list[Child],
+                  log: Callable[[str], None], summary_path: Path) -> dict[str, Any] | None:
+    out = options.out
+    host = endpoint_host(listen)
+    # the children are on this machine: an every-interface router is reached on loopback
+    endpoint = listen.replace(f"/{host}:", "/127.0.0.1:") if host in ("0.0.0.0", "::") \
+        else listen
+    log(f"zenoh router  {listen} (in process"
+        + ("; usrpwd + access control" if security.users_file is not None else "") + ")")
+    fusion_args = ["fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
+                   *zenoh_args["fusion"],
+                   "--vehicle", options.vehicle, "--out", str(out), "--imu", options.imu,
+                   "--gnss", options.gnss, "--bridge", options.bridge,
+                   "--altitude", options.altitude, "--airspeed", options.airspeed]
+    settle = options.settle_s
+    if settle is None:
+        settle = min(60.0, 0.25 * (options.duration_s or _DEFAULT_DURATION_S))
+    fusion_args += ["--settle", str(settle)]
+    if options.duration_s is not None:
+        fusion_args += ["--idle-exit", str(_FUSION_IDLE_EXIT_S)]
+    if options.gcs is not None:
+        fusion_args += ["--gcs", options.gcs, "--gcs-tlog", str(out / "shadow.tlog")]
+    fusion = Child("fusion", hilnav_argv(*fusion_args), out / "fusion.log")
+    children.append(fusion)
+    log(f"fusion        pid {fusion.pid}: MAVLink in udpin:127.0.0.1:{port}"
+        + (f", shadow vehicle -> {options.gcs}" if options.gcs else "")
+        + f"; log {fusion.log_path}")
+    if options.monitor:
+        mon_args = ["monitor", "--connect", endpoint, "--vehicle", options.vehicle,
+                    "--headless", "--record", str(out / "live.mcap"),
+                    *zenoh_args["monitor"]]
+        if options.foxglove_port is not None:
+            mon_args += ["--foxglove", str(options.foxglove_port)]
+        mon = Child("monitor", hilnav_argv(*mon_args), out / "monitor.log")
+        children.append(mon)
+        log(f"monitor       pid {mon.pid}: recording {out / 'live.mcap'}; log {mon.log_path}")
+        if options.foxglove_port is not None:
+            log(f"foxglove      open connection -> Foxglove WebSocket "
+                f"ws://127.0.0.1:{options.foxglove_port}")
+    sim_args = ["sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", str(options.speed),
+                "--zenoh", endpoint, *zenoh_args["sim"], "--vehicle", options.vehicle,
+                "--plan", options.plan,
+                "--seed", str(options.seed), "--imu", options.imu, "--gnss", options.gnss,
+                "--duration", str(options.duration_s or _DEFAULT_DURATION_S),
+                "--record", str(out / "run.tlog"), "--wait-peer", "30"]
+    for w in options.gnss_off:
+        sim_args += ["--gnss-off", w]
+    if options.lockstep:
+        sim_args.append("--lockstep")
+    sim = Child("sim", hilnav_argv(*sim_args), out / "sim.log")
+    children.append(sim)
+    log(f"sim           pid {sim.pid}: -> udpout:127.0.0.1:{port} at {options.speed:g}x"
+        + (" (lockstep)" if options.lockstep else "") + ", "
+        f"recording {out / 'run.tlog'}; log {sim.log_path}")
+    log(f"subscribe:    hilnav monitor --connect {endpoint} --vehicle {options.vehicle}"
+        + (" --zenoh-user USER (password: HILNAV_ZENOH_PASSWORD)"
+           if security.users_file is not None else ""))
+    try:
+        sim_code = sim.proc.wait()
+        log(f"sim finished (exit {sim_code})")
         try:
-            sim_code = sim.proc.wait()
-            log(f"sim finished (exit {sim_code})")
-            try:
-                fusion.proc.wait(timeout=_FUSION_IDLE_EXIT_S + 30.0)
-            except subprocess.TimeoutExpired:
-                log("fusion did not stop by itself; stopping it")
-        except KeyboardInterrupt:
-            log("stopping ...")
-        for child in reversed(children):
-            code = child.stop()
-            log(f"{child.name:<13} pid {child.pid} stopped (exit {code})")
+            fusion.proc.wait(timeout=_FUSION_IDLE_EXIT_S + 30.0)
+        except subprocess.TimeoutExpired:
+            log("fusion did not stop by itself; stopping it")
+    except KeyboardInterrupt:
+        log("stopping ...")
+    for child in reversed(children):
+        code = child.stop()
+        log(f"{child.name:<13} pid {child.pid} stopped (exit {code})")
     if summary_path.is_file():
         loaded: dict[str, Any] = json.loads(summary_path.read_text())
         log(f"summary -> {summary_path}")
