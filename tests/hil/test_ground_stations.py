@@ -1,6 +1,8 @@
 """The shadow vehicle seen by real ground-station software over real UDP sockets on loopback:
-MAVSDK (its C++ core through the ``mavsdk`` wheel), MAVProxy's own SYS_STATUS / fence logic,
-and pymavlink's log tools on the recorded shadow tlog."""
+MAVSDK (its C++ core through the ``mavsdk`` wheel), MAVProxy (the ``mavproxy.py`` program, run
+non-interactively, and its fence module's SYS_STATUS logic), QGroundControl's initial connection
+sequence played with pymavlink (QGC itself cannot run here), and pymavlink's log tools on the
+recorded shadow tlog."""
 
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ import pytest
 
 from hil.codec import mavlink2
 from hil.link import LinkRole, MavlinkLink
+from hil.tlog import iter_messages
 from scenarios.cli.up import free_udp_port, stop_process
 from tests.helpers.processes import hilnav_process
 
@@ -184,3 +187,54 @@ def test_mavproxy_fence_logic_and_home_polling(tmp_path: Path) -> None:
                             104: "DEAD-RECKONING", 105: "FREE-INERTIAL"}
     assert {102}.issubset(set(got["current"])) and {102}.issubset(set(got["custom"]))
     assert set(got["current"]) - {101} <= set(got["modes"])
+
+
+def test_mavproxy_program_shows_the_vehicle_its_mode_and_warnings(tmp_path: Path) -> None:
+    """GIVEN ``mavproxy.py`` 1.8.75 run non-interactively on the shadow vehicle's UDP stream
+    (GNSS off 20-30 s sim time) WHEN the run ends THEN MAVProxy detected the vehicle, said no
+    "fence breach", showed the STATUSTEXT warnings and a GPS lock, stopped polling
+    GET_HOME_POSITION once a HOME_POSITION came (the shadow tlog holds every answer), and showed
+    the mode as the custom-mode number: MAVProxy names ``custom_mode`` only from ArduPilot's
+    and PX4's tables and does not read AVAILABLE_MODES (modules/mavproxy_link.py,
+    pymavlink ``mode_string_v10``)."""
+    mavproxy = BIN / "mavproxy.py"
+    if not mavproxy.exists():
+        pytest.skip("MAVProxy is not installed (test extra)")
+    gcs_port = free_udp_port()
+    mp_log = tmp_path / "mavproxy.log"
+    mp = subprocess.Popen(
+        [sys.executable, str(mavproxy), f"--master=udpin:127.0.0.1:{gcs_port}",
+         "--non-interactive", "--nowait", "--state-basedir", str(tmp_path)],
+        stdout=mp_log.open("wb"), stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+        start_new_session=True, cwd=tmp_path)
+    fusion, sim = _start_chain(tmp_path, f"udpout:127.0.0.1:{gcs_port}", speed="4",
+                               duration="40", gnss_off="20:10")
+    try:
+        assert sim.wait(120) == 0, (tmp_path / "sim.log").read_text()
+        assert fusion.wait(30) == 0, (tmp_path / "fusion.log").read_text()
+        time.sleep(1.0)  # MAVProxy prints what it has received
+    finally:
+        for p in (sim, fusion, mp):
+            stop_process(p)
+    out = mp_log.read_text(errors="replace")
+    assert f"online system {SHADOW_SYS}" in out, out
+    assert "fence breach" not in out, out
+    assert "AP: GNSS lost" in out and "AP: GNSS regained" in out, out
+    assert "GPS lock" in out, out
+    shown = {int(n) for n in __import__("re").findall(r"Mode Mode\((\d+)\)", out)}
+    assert 102 in shown and shown <= {101, 102, 103, 104, 105}, out
+    # the vehicle's side: every GET_HOME_POSITION MAVProxy sent was answered (acks are in the
+    # shadow tlog), and once a HOME_POSITION had gone out at most one more was in flight
+    get_home = int(mavlink2.MAV_CMD_GET_HOME_POSITION)
+    sent: list[tuple[str, int]] = []
+    for _t, m in iter_messages(tmp_path / "shadow.tlog"):
+        if m.get_type() == "HOME_POSITION":
+            sent.append(("home", 0))
+        elif m.get_type() == "COMMAND_ACK" and int(m.command) == get_home:
+            sent.append(("ack", int(m.result)))
+    acks = [r for kind, r in sent if kind == "ack"]
+    assert acks, sent  # MAVProxy asked at least once
+    assert set(acks) <= {int(mavlink2.MAV_RESULT_ACCEPTED),
+                         int(mavlink2.MAV_RESULT_TEMPORARILY_REJECTED)}, acks
+    first_home = [kind for kind, _r in sent].index("home")
+    assert sum(kind == "ack" for kind, _r in sent[first_home:]) <= 1, sent
