@@ -102,6 +102,7 @@ _GCS_MSG_IDS: Final = frozenset({
     int(mavlink2.MAVLINK_MSG_ID_PARAM_REQUEST_READ),
     int(mavlink2.MAVLINK_MSG_ID_COMMAND_LONG),
     int(mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST_LIST),
+    int(mavlink2.MAVLINK_MSG_ID_MISSION_ACK),  # a ground station's ack of our empty list
 })
 _HOME_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HOME_POSITION)
 _AVAILABLE_MODES_ID: Final = int(STANDARD_MODES_DIALECT.MAVLINK_MSG_ID_AVAILABLE_MODES)

@@ -7,6 +7,7 @@ recorded shadow tlog."""
 from __future__ import annotations
 
 import math
+import re
 import subprocess
 import sys
 import threading
@@ -221,7 +222,7 @@ def test_mavproxy_program_shows_the_vehicle_its_mode_and_warnings(tmp_path: Path
     assert "fence breach" not in out, out
     assert "AP: GNSS lost" in out and "AP: GNSS regained" in out, out
     assert "GPS lock" in out, out
-    shown = {int(n) for n in __import__("re").findall(r"Mode Mode\((\d+)\)", out)}
+    shown = {int(n) for n in re.findall(r"Mode Mode\((\d+)\)", out)}
     assert 102 in shown and shown <= {101, 102, 103, 104, 105}, out
     # the vehicle's side: every GET_HOME_POSITION MAVProxy sent was answered (acks are in the
     # shadow tlog), and once a HOME_POSITION had gone out at most one more was in flight
@@ -238,3 +239,127 @@ def test_mavproxy_program_shows_the_vehicle_its_mode_and_warnings(tmp_path: Path
                          int(mavlink2.MAV_RESULT_TEMPORARILY_REJECTED)}, acks
     first_home = [kind for kind, _r in sent].index("home")
     assert sum(kind == "ack" for kind, _r in sent[first_home:]) <= 1, sent
+
+
+def _exchange(gcs: MavlinkLink, send: Any, done: Any, timeout_s: float = 3.0) -> list[Any]:
+    """Send ``send`` once and collect the shadow vehicle's frames until ``done(frames)``; the
+    answer must come within ``timeout_s`` (QGC's own command timeout is about 3 s; it retries
+    then, which is what an answering vehicle spares it)."""
+    gcs.send_message(send)
+    got: list[Any] = []
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        got += [m for m in gcs.recv(0.05) if m.get_srcSystem() == SHADOW_SYS]
+        if done(got):
+            return got
+    raise AssertionError(f"no answer to {send.get_type()} within {timeout_s} s: "
+                         f"{sorted({m.get_type() for m in got})}")
+
+
+def _acked(command: int) -> Any:
+    return lambda got: any(m.get_type() == "COMMAND_ACK" and int(m.command) == command
+                           for m in got)
+
+
+def _ack_of(got: list[Any], command: int) -> Any:
+    return next(m for m in got if m.get_type() == "COMMAND_ACK" and int(m.command) == command)
+
+
+def test_qgc_initial_connection_sequence_is_answered(tmp_path: Path) -> None:
+    """GIVEN a live run WHEN a ground station plays QGroundControl's initial connection sequence
+    over UDP (src/Vehicle/InitialConnectStateMachine: AUTOPILOT_VERSION, PROTOCOL_VERSION,
+    standard modes, component metadata, parameters, mission; then the home position) THEN
+    every step gets its final answer at the first try, so QGC completes its connection
+    without waiting out a timeout: the requested messages, or an immediate
+    MAV_RESULT_UNSUPPORTED for what the vehicle does not have (PROTOCOL_VERSION: not in
+    pymavlink's dialects; component metadata: none), one complete parameter list, an empty
+    mission; no geofence / rally capability claimed, so QGC skips those two steps; and the
+    mode name QGC derives (custom_mode -> AVAILABLE_MODES name) is the navigation mode."""
+    req = int(mavlink2.MAV_CMD_REQUEST_MESSAGE)
+
+    def request_message(msg_id: int, param2: float = 0.0) -> Any:
+        return mavlink2.MAVLink_command_long_message(
+            SHADOW_SYS, 1, req, 0, msg_id, param2, 0, 0, 0, 0, 0)
+
+    with MavlinkLink("udpin:127.0.0.1:0", _gcs_role()) as gcs:
+        fusion, sim = _start_chain(tmp_path, f"udpout:127.0.0.1:{gcs.local_address[1]}",
+                                   speed="4", duration="60", gnss_off="100:10")
+        try:
+            deadline = time.monotonic() + 30.0
+            heartbeat = None
+            while heartbeat is None and time.monotonic() < deadline:
+                heartbeat = next((m for m in gcs.recv(0.1) if m.get_type() == "HEARTBEAT"
+                                  and m.get_srcSystem() == SHADOW_SYS), None)
+            assert heartbeat is not None, (tmp_path / "fusion.log").read_text()
+            assert heartbeat.autopilot == mavlink2.MAV_AUTOPILOT_GENERIC  # QGC: generic plugin
+
+            # 1. AUTOPILOT_VERSION: capabilities decide QGC's later steps
+            got = _exchange(gcs, request_message(148),
+                            lambda g: any(m.get_type() == "AUTOPILOT_VERSION" for m in g))
+            assert _ack_of(got, req).result == mavlink2.MAV_RESULT_ACCEPTED
+            caps = next(m for m in got if m.get_type() == "AUTOPILOT_VERSION").capabilities
+            assert caps & mavlink2.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+            assert not caps & (mavlink2.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+                               | mavlink2.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY)
+            # 2. PROTOCOL_VERSION (QGC 4.x; also the older MAV_CMD_REQUEST_PROTOCOL_VERSION)
+            got = _exchange(gcs, request_message(300), _acked(req))
+            assert _ack_of(got, req).result == mavlink2.MAV_RESULT_UNSUPPORTED
+            old = int(mavlink2.MAV_CMD_REQUEST_PROTOCOL_VERSION)
+            got = _exchange(gcs, mavlink2.MAVLink_command_long_message(
+                SHADOW_SYS, 1, old, 0, 1, 0, 0, 0, 0, 0, 0), _acked(old))
+            assert _ack_of(got, old).result == mavlink2.MAV_RESULT_UNSUPPORTED
+            # 3. standard modes: all at once (param2 = 0), done at mode_index == number_modes
+            got = _exchange(gcs, request_message(435), lambda g: any(
+                m.get_type() == "AVAILABLE_MODES" and m.mode_index == m.number_modes
+                for m in g))
+            assert _ack_of(got, req).result == mavlink2.MAV_RESULT_ACCEPTED
+            names = {int(m.custom_mode): m.mode_name for m in got
+                     if m.get_type() == "AVAILABLE_MODES"}
+            assert names == {101: "ALIGNING", 102: "GNSS", 103: "BRIDGING",
+                             104: "DEAD-RECKONING", 105: "FREE-INERTIAL"}
+            # 4. component metadata, then the older component information: none
+            for msg_id in (397, 395):
+                got = _exchange(gcs, request_message(msg_id), _acked(req))
+                assert _ack_of(got, req).result == mavlink2.MAV_RESULT_UNSUPPORTED
+            # 5. parameters: one complete list (QGC asks every component)
+            got = _exchange(gcs, mavlink2.MAVLink_param_request_list_message(SHADOW_SYS, 0),
+                            lambda g: (vals := [m for m in g if m.get_type() == "PARAM_VALUE"])
+                            != [] and len({m.param_index for m in vals}) == vals[0].param_count)
+            vals = [m for m in got if m.get_type() == "PARAM_VALUE"]
+            assert {m.param_index for m in vals} == set(range(vals[0].param_count))
+            # 6. mission: zero items; QGC acknowledges the empty list
+            got = _exchange(gcs, mavlink2.MAVLink_mission_request_list_message(
+                SHADOW_SYS, 1, 0), lambda g: any(m.get_type() == "MISSION_COUNT" for m in g))
+            count = next(m for m in got if m.get_type() == "MISSION_COUNT")
+            assert (count.count, count.mission_type) == (0, 0)
+            assert (count.target_system, count.target_component) == (255, 190)
+            gcs.send_message(mavlink2.MAVLink_mission_ack_message(SHADOW_SYS, 1, 0, 0))
+            # a command the vehicle does not implement is refused at once, not ignored
+            interval = int(mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL)
+            got = _exchange(gcs, mavlink2.MAVLink_command_long_message(
+                SHADOW_SYS, 1, interval, 0, 33, 100000, 0, 0, 0, 0, 0), _acked(interval))
+            assert _ack_of(got, interval).result == mavlink2.MAV_RESULT_UNSUPPORTED
+            # then the home position (QGC asks until it has one: refused while aligning)
+            home = None
+            results = []
+            while home is None and time.monotonic() < deadline + 30.0:
+                got = _exchange(gcs, request_message(242), _acked(req))
+                results.append(int(_ack_of(got, req).result))
+                got += [m for m in gcs.recv(0.2) if m.get_srcSystem() == SHADOW_SYS]
+                home = next((m for m in got if m.get_type() == "HOME_POSITION"), None)
+            assert home is not None, results
+            assert set(results) <= {int(mavlink2.MAV_RESULT_ACCEPTED),
+                                    int(mavlink2.MAV_RESULT_TEMPORARILY_REJECTED)}
+            assert results[-1] == mavlink2.MAV_RESULT_ACCEPTED and home.latitude != 0
+            # the flight mode QGC shows: FirmwarePlugin::flightMode's custom_mode -> name
+            shown = set()
+            end = time.monotonic() + 3.0
+            while time.monotonic() < end:
+                shown |= {names.get(int(m.custom_mode), f"Custom:0x{int(m.custom_mode):x}")
+                          for m in gcs.recv(0.1) if m.get_type() == "HEARTBEAT"
+                          and m.get_srcSystem() == SHADOW_SYS}
+            assert shown == {"GNSS"}, shown
+            assert sim.wait(60) == 0, (tmp_path / "sim.log").read_text()
+        finally:
+            for p in (sim, fusion):
+                stop_process(p)
