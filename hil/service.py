@@ -16,8 +16,9 @@ Outputs (all optional; none of them can block the filter)
       :mod:`hil.shadow_vehicle`), a STATUSTEXT per navigation event; answers to
       PARAM_REQUEST_LIST / PARAM_REQUEST_READ (one parameter), COMMAND_LONG
       REQUEST_AUTOPILOT_CAPABILITIES, GET_HOME_POSITION, REQUEST_MESSAGE of AUTOPILOT_VERSION,
-      HOME_POSITION, AVAILABLE_MODES and CURRENT_MODE, and MISSION_REQUEST_LIST (zero items)
-      so QGC / MAVProxy / MAVSDK connect without retries; the simulator's scenario events
+      HOME_POSITION, AVAILABLE_MODES and CURRENT_MODE, MISSION_REQUEST_LIST (zero items) and
+      MAVLink FTP (an empty, read-only file system) so QGC / MAVProxy / MAVSDK connect without
+      retries; the simulator's scenario events
       (STATUSTEXT ``SIM: ...`` from its truth component, :mod:`hil.live_sim`) are relayed as
       the shadow vehicle's STATUSTEXT. ``--gcs-tlog PATH`` records every
       frame the shadow vehicle sends (and its heartbeats) as a .tlog stamped with estimate
@@ -106,6 +107,7 @@ _GCS_MSG_IDS: Final = frozenset({
     int(mavlink2.MAVLINK_MSG_ID_COMMAND_LONG),
     int(mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST_LIST),
     int(mavlink2.MAVLINK_MSG_ID_MISSION_ACK),  # a ground station's ack of our empty list
+    int(mavlink2.MAVLINK_MSG_ID_FILE_TRANSFER_PROTOCOL),
 })
 _HOME_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HOME_POSITION)
 _AVAILABLE_MODES_ID: Final = int(STANDARD_MODES_DIALECT.MAVLINK_MSG_ID_AVAILABLE_MODES)
@@ -196,7 +198,8 @@ class GcsResponder:
     MAV_CMD_GET_HOME_POSITION and REQUEST_MESSAGE(242) (TEMPORARILY_REJECTED before
     alignment); AVAILABLE_MODES to REQUEST_MESSAGE(435, index; index 0 = every mode) and
     CURRENT_MODE to REQUEST_MESSAGE(436); any other command gets MAV_RESULT_UNSUPPORTED;
-    mission lists have zero items.
+    mission lists have zero items; MAVLink FTP requests get the answers of an empty, read-only
+    file system (:meth:`hil.shadow.ShadowEncoder.ftp_reply`).
 
     Parameters
     ----------
@@ -237,6 +240,10 @@ class GcsResponder:
                                            int(getattr(msg, "mission_type", 0)))]
         if msg_id == mavlink2.MAVLINK_MSG_ID_COMMAND_LONG:
             return self._command(msg)
+        if msg_id == mavlink2.MAVLINK_MSG_ID_FILE_TRANSFER_PROTOCOL and int(
+                msg.target_component) in (0, int(mavlink2.MAV_COMP_ID_AUTOPILOT1)):
+            return [self.enc.ftp_reply(msg.get_srcSystem(), msg.get_srcComponent(),
+                                       bytes(msg.payload))]
         return []
 
     def _command(self, msg: Any) -> list[bytes]:

@@ -251,10 +251,10 @@ def test_mavproxy_program_shows_the_vehicle_its_mode_and_warnings(tmp_path: Path
     """GIVEN ``mavproxy.py`` 1.8.75 run non-interactively on the shadow vehicle's UDP stream
     (GNSS off 20-30 s sim time) WHEN the run ends THEN MAVProxy detected the vehicle, said no
     "fence breach", showed the STATUSTEXT warnings (the filter's and the scenario's, relayed
-    from the simulator) and a GPS lock, stopped polling
-    GET_HOME_POSITION once a HOME_POSITION came (the shadow tlog holds every answer), and showed
-    the mode as the custom-mode number: MAVProxy names ``custom_mode`` only from ArduPilot's
-    and PX4's tables and does not read AVAILABLE_MODES (modules/mavproxy_link.py,
+    from the simulator) and a GPS lock, fetched the parameters without an FTP timeout, stopped
+    polling GET_HOME_POSITION once a HOME_POSITION came (the shadow tlog holds every answer),
+    and showed the mode as the custom-mode number: MAVProxy names ``custom_mode`` only from
+    ArduPilot's and PX4's tables and does not read AVAILABLE_MODES (modules/mavproxy_link.py,
     pymavlink ``mode_string_v10``)."""
     mavproxy = BIN / "mavproxy.py"
     if not mavproxy.exists():
@@ -282,6 +282,8 @@ def test_mavproxy_program_shows_the_vehicle_its_mode_and_warnings(tmp_path: Path
     # the scenario's own events, relayed from the simulator
     assert "AP: SIM: GNSS off for 10 s" in out and "AP: SIM: GNSS on" in out, out
     assert "GPS lock" in out, out
+    # parameters: its FTP download is refused at once (no timeout), the list then arrives
+    assert "FTP: request timed out" not in out and "Received 1 parameters" in out, out
     shown = {int(n) for n in re.findall(r"Mode Mode\((\d+)\)", out)}
     assert 102 in shown and shown <= {101, 102, 103, 104, 105}, out
     # the vehicle's side: every GET_HOME_POSITION MAVProxy sent was answered (acks are in the

@@ -143,6 +143,35 @@ def test_gcs_answers_params_version_and_missions() -> None:
     assert r.handle(_request(mavlink2.MAVLink_param_request_list_message(7, 1))) == []
 
 
+def test_gcs_ftp_answers_of_an_empty_read_only_file_system() -> None:
+    """MAVLink FTP: every request gets its reply at once (seq + 1, same session, req_opcode),
+    so MAVProxy's parameter download over FTP falls back to PARAM_REQUEST_LIST instead of
+    timing out."""
+    r = GcsResponder(ShadowEncoder(SHADOW_SYS))
+
+    def ftp(opcode: int, seq: int = 41, session: int = 3) -> tuple[int, int, int, int, int, int]:
+        req = bytearray(251)
+        req[0:2], req[2], req[3] = seq.to_bytes(2, "little"), session, opcode
+        path = b"@PARAM/param.pck"
+        req[4], req[12:12 + len(path)] = len(path), path
+        (m,) = [_decode(f) for f in r.handle(_request(
+            mavlink2.MAVLink_file_transfer_protocol_message(0, SHADOW_SYS, 1, list(req))))]
+        assert (m.get_srcSystem(), m.target_system, m.target_component) == (SHADOW_SYS, 255, 190)
+        p = bytes(m.payload)
+        return int.from_bytes(p[0:2], "little"), p[2], p[3], p[4], p[5], p[12]
+
+    # (seq, session, opcode ACK 128 / NAK 129, size, req_opcode, first data byte)
+    assert ftp(4) == (42, 3, 129, 1, 4, 10)  # OpenFileRO: FileNotFound
+    assert ftp(3) == (42, 3, 129, 1, 3, 10)  # ListDirectory: FileNotFound
+    assert ftp(15) == (42, 3, 129, 1, 15, 4)  # BurstReadFile: InvalidSession
+    assert ftp(6) == (42, 3, 129, 1, 6, 9)  # CreateFile: FileProtected
+    assert ftp(1)[2:5] == (128, 0, 1)  # TerminateSession: ACK
+    assert ftp(2, seq=0xFFFF)[:3] == (0, 3, 128)  # ResetSessions: ACK; seq wraps
+    # for another vehicle or another component: not ours to answer
+    other = mavlink2.MAVLink_file_transfer_protocol_message(0, SHADOW_SYS, 100, [0] * 251)
+    assert r.handle(_request(other)) == []
+
+
 # ------------------------------------------------------------------------- bad input
 @pytest.mark.parametrize(
     ("args", "needle"),
