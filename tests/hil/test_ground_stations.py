@@ -290,7 +290,10 @@ def test_mavproxy_program_shows_the_vehicle_its_mode_and_warnings(tmp_path: Path
     # shadow tlog), and once a HOME_POSITION had gone out at most one more was in flight
     get_home = int(mavlink2.MAV_CMD_GET_HOME_POSITION)
     sent: list[tuple[str, int]] = []
+    boot_ms: list[int] = []
     for _t, m in iter_messages(tmp_path / "shadow.tlog"):
+        if m.get_type() == "GLOBAL_POSITION_INT":
+            boot_ms.append(int(m.time_boot_ms))
         if m.get_type() == "HOME_POSITION":
             sent.append(("home", 0))
         elif m.get_type() == "COMMAND_ACK" and int(m.command) == get_home:
@@ -301,6 +304,9 @@ def test_mavproxy_program_shows_the_vehicle_its_mode_and_warnings(tmp_path: Path
                          int(mavlink2.MAV_RESULT_TEMPORARILY_REJECTED)}, acks
     first_home = [kind for kind, _r in sent].index("home")
     assert sum(kind == "ack" for kind, _r in sent[first_home:]) <= 1, sent
+    # time_boot_ms is simulated time: it ends near the 40 s flown, never beyond (at --speed 4
+    # the wall clock since the fusion started stays well below)
+    assert boot_ms == sorted(boot_ms) and 30_000 <= boot_ms[-1] <= 40_000, boot_ms[-5:]
 
 
 def _exchange(gcs: MavlinkLink, send: Any, done: Any, timeout_s: float = 3.0) -> list[Any]:

@@ -29,6 +29,7 @@ from hil.tuning import filter_config_for_presets
 from scenarios.cli.app import app
 from scenarios.cli.up import free_udp_port, stop_process
 from scenarios.replay import replay
+from sim.samples import GnssFix
 from tests.helpers.processes import hilnav_process
 
 SHADOW_SYS = 42
@@ -94,6 +95,26 @@ def test_attitude_vfr_hud_estimator_status() -> None:
     hud_dr = _decode(enc.vfr_hud(dr))
     assert hud_dr.airspeed == pytest.approx(math.hypot(40.0, 2.0), rel=1e-6)
     assert hud_dr.groundspeed == pytest.approx(math.hypot(1.0, 50.0), rel=1e-6)
+
+
+def test_every_shadow_time_field_is_the_estimate_time() -> None:
+    """One time base: the estimate's time (simulated time in a simulation) in every
+    ``time_boot_ms`` / ``time_usec``; only SYSTEM_TIME's ``time_unix_usec`` is UTC, and
+    GPS_RAW_INT carries the fix's own time of validity."""
+    enc = ShadowEncoder(SHADOW_SYS)
+    for t_us in (12_345_678, 4_000_123_456):  # the second past uint32 ms: time_boot_ms wraps
+        est = dataclasses.replace(_estimate(), time_us=t_us)
+        boot_ms = (t_us // 1000) & 0xFFFF_FFFF
+        for frame in (enc.global_position_int(est), enc.attitude(est),
+                      enc.attitude_quaternion(est)):
+            assert _decode(frame).time_boot_ms == boot_ms
+        assert _decode(enc.estimator_status(est)).time_usec == t_us
+        home = enc.home_position()
+        assert home is not None and _decode(home).time_usec == t_us
+        st = _decode(enc.system_time(unix_s=1_700_000_000.25))
+        assert (st.time_boot_ms, st.time_unix_usec) == (boot_ms, 1_700_000_000_250_000)
+        fix = GnssFix(t_us - 150_000, 0.8, 0.1, 1000.0, np.zeros(3), 1.0, 2.0, 0.1)
+        assert _decode(enc.gps_raw_int(fix, fix_lost=False)).time_usec == t_us - 150_000
 
 
 def test_companion_gps_input_and_odometry() -> None:
