@@ -18,11 +18,10 @@ Outputs (all optional; none of them can block the filter)
       REQUEST_AUTOPILOT_CAPABILITIES, GET_HOME_POSITION, REQUEST_MESSAGE of AUTOPILOT_VERSION,
       HOME_POSITION, AVAILABLE_MODES and CURRENT_MODE, MISSION_REQUEST_LIST (zero items) and
       MAVLink FTP (an empty, read-only file system) so QGC / MAVProxy / MAVSDK connect without
-      retries; the simulator's scenario events
-      (STATUSTEXT ``SIM: ...`` from its truth component, :mod:`hil.live_sim`) are relayed as
-      the shadow vehicle's STATUSTEXT. ``--gcs-tlog PATH`` records every
-      frame the shadow vehicle sends (and its heartbeats) as a .tlog stamped with estimate
-      time, for pymavlink's log tools.
+      retries. The simulator's scenario events (STATUSTEXT ``SIM: ...`` from its truth
+      component, :mod:`hil.live_sim`) are relayed as the shadow vehicle's STATUSTEXT.
+      ``--gcs-tlog PATH`` records every frame the shadow vehicle sends (and its heartbeats) as
+      a .tlog stamped with estimate time, for pymavlink's log tools.
     * ``fusion/events`` on Zenoh: every :class:`hil.nav_events.NavEvent` (mode changes and
       detected faults), with or without a ground station.
     * ``--companion URL --companion-kind gps_input|odometry``: GPS_INPUT (ArduPilot, 5 Hz)
