@@ -22,8 +22,14 @@ Lockstep pacing against the fusion service (``--lockstep``)
     acknowledgement progress for ``lockstep_timeout_s`` wall seconds (fusion stopped, wrong
     URL) ends the run with ``LiveReport.stalled``.
 
-Optionally the frames are recorded to a .tlog (``--record``) and truth and sensor samples are
-published on Zenoh (``--zenoh``) through :class:`hil.bus.Bus` (never blocks).
+Scenario events (:class:`hil.scenario_events.ScenarioTimeline`: GNSS windows, fault
+boundaries) also go out as STATUSTEXT from the truth component, text ``SIM: <event>``, severity
+NOTICE, when they happen; the fusion service relays them to its ground stations (its shadow
+vehicle). They are the live stream's only frames a lockstep recording does not have.
+
+Optionally the frames are recorded to a .tlog (``--record``) and truth, sensor samples and the
+scenario events are published on Zenoh (``--zenoh``) through :class:`hil.bus.Bus` (never
+blocks).
 """
 
 from __future__ import annotations
@@ -39,6 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from hil.bus.security import BusAccess
+from hil.codec import mavlink2
 from hil.pipeline import SimChain, SimSetup
 from hil.scenario_events import ScenarioTimeline
 from sim.flight import FlightEnded
@@ -47,6 +54,7 @@ from sim.samples import ActuatorSample, RpmSample
 __all__ = ["LiveReport", "live_sim"]
 
 _MIN_SLEEP_S = 0.002  # sleeping less than this costs more than it paces
+_EVENT_SEVERITY = int(mavlink2.MAV_SEVERITY_NOTICE)  # scenario events' STATUSTEXT
 
 
 @dataclass(frozen=True)
@@ -265,6 +273,8 @@ def _fly(
 ) -> LiveReport:
     t0_us = last_us = chain.start_us
     timeline = ScenarioTimeline(chain.setup, t0_us)
+    assert chain.streamer is not None  # the chain is open
+    encoder = chain.streamer.encoder
     frames = sent = 0
     stalled = False
     next_progress_us = t0_us
@@ -282,9 +292,15 @@ def _fly(
             sent += link.send(frame)
             if log is not None:
                 log.write(frame, time_us)
-        if bus is not None:
-            for event in timeline.due(truth.time_us, chain.fault_log):
+        for event in timeline.due(truth.time_us, chain.fault_log):
+            frame = encoder.statustext(_EVENT_SEVERITY, f"SIM: {event[2]}")
+            frames += 1
+            sent += link.send(frame)
+            if log is not None:
+                log.write(frame, truth.time_us)
+            if bus is not None:
                 bus.publish_event(*event)
+        if bus is not None:
             bus.publish_truth(truth)
             for s in samples:
                 if not isinstance(s, ActuatorSample | RpmSample):  # no Zenoh topic yet (#18)

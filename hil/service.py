@@ -16,10 +16,12 @@ Outputs (all optional; none of them can block the filter)
       :mod:`hil.shadow_vehicle`), a STATUSTEXT per navigation event; answers to
       PARAM_REQUEST_LIST / PARAM_REQUEST_READ (one parameter), COMMAND_LONG
       REQUEST_AUTOPILOT_CAPABILITIES, GET_HOME_POSITION, REQUEST_MESSAGE of AUTOPILOT_VERSION,
-      HOME_POSITION, AVAILABLE_MODES and CURRENT_MODE, and MISSION_REQUEST_LIST (zero items)
-      so QGC / MAVProxy / MAVSDK connect without retries. ``--gcs-tlog PATH`` records every
-      frame the shadow vehicle sends (and its heartbeats) as a .tlog stamped with estimate
-      time, for pymavlink's log tools.
+      HOME_POSITION, AVAILABLE_MODES and CURRENT_MODE, MISSION_REQUEST_LIST (zero items) and
+      MAVLink FTP (an empty, read-only file system) so QGC / MAVProxy / MAVSDK connect without
+      retries. The simulator's scenario events (STATUSTEXT ``SIM: ...`` from its truth
+      component, :mod:`hil.live_sim`) are relayed as the shadow vehicle's STATUSTEXT.
+      ``--gcs-tlog PATH`` records every frame the shadow vehicle sends (and its heartbeats) as
+      a .tlog stamped with estimate time, for pymavlink's log tools.
     * ``fusion/events`` on Zenoh: every :class:`hil.nav_events.NavEvent` (mode changes and
       detected faults), with or without a ground station.
     * ``--companion URL --companion-kind gps_input|odometry``: GPS_INPUT (ArduPilot, 5 Hz)
@@ -97,11 +99,14 @@ __all__ = [
 
 _TRUTH_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HIL_STATE_QUATERNION)
 _HEARTBEAT_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HEARTBEAT)
+_STATUSTEXT_ID: Final = int(mavlink2.MAVLINK_MSG_ID_STATUSTEXT)
 _GCS_MSG_IDS: Final = frozenset({
     int(mavlink2.MAVLINK_MSG_ID_PARAM_REQUEST_LIST),
     int(mavlink2.MAVLINK_MSG_ID_PARAM_REQUEST_READ),
     int(mavlink2.MAVLINK_MSG_ID_COMMAND_LONG),
     int(mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST_LIST),
+    int(mavlink2.MAVLINK_MSG_ID_MISSION_ACK),  # a ground station's ack of our empty list
+    int(mavlink2.MAVLINK_MSG_ID_FILE_TRANSFER_PROTOCOL),
 })
 _HOME_ID: Final = int(mavlink2.MAVLINK_MSG_ID_HOME_POSITION)
 _AVAILABLE_MODES_ID: Final = int(STANDARD_MODES_DIALECT.MAVLINK_MSG_ID_AVAILABLE_MODES)
@@ -140,6 +145,12 @@ class FusionOptions(BaseModel):
     settle_s: float = Field(default=60.0, ge=0.0)
 
 
+def _text(value: str | bytes) -> str:
+    """A MAVLink char[] field as text (pymavlink gives str or bytes), NULs stripped."""
+    raw = value if isinstance(value, str) else value.decode("ascii", "replace")
+    return raw.rstrip("\x00")
+
+
 def parse_source(text: str) -> tuple[int, int | None]:
     """``"SYSID"`` or ``"SYSID:COMPID"`` -> ``(sysid, compid or None)`` (ValueError, one line)."""
     parts = text.split(":")
@@ -167,7 +178,7 @@ def input_role(source: tuple[int, int | None] | None = None) -> LinkRole:
         mav_type=int(mavlink2.MAV_TYPE_ONBOARD_CONTROLLER),
         autopilot=int(mavlink2.MAV_AUTOPILOT_INVALID),
         accept_sources=None if source is None else frozenset({source}),
-        accept_msg_ids=HIL_MSG_IDS | FC_SENSOR_MSG_IDS,
+        accept_msg_ids=HIL_MSG_IDS | FC_SENSOR_MSG_IDS | {_STATUSTEXT_ID},
         lock_to_first_source=source is None,
     )
 
@@ -186,7 +197,8 @@ class GcsResponder:
     MAV_CMD_GET_HOME_POSITION and REQUEST_MESSAGE(242) (TEMPORARILY_REJECTED before
     alignment); AVAILABLE_MODES to REQUEST_MESSAGE(435, index; index 0 = every mode) and
     CURRENT_MODE to REQUEST_MESSAGE(436); any other command gets MAV_RESULT_UNSUPPORTED;
-    mission lists have zero items.
+    mission lists have zero items; MAVLink FTP requests get the answers of an empty, read-only
+    file system (:meth:`hil.shadow.ShadowEncoder.ftp_reply`).
 
     Parameters
     ----------
@@ -227,6 +239,10 @@ class GcsResponder:
                                            int(getattr(msg, "mission_type", 0)))]
         if msg_id == mavlink2.MAVLINK_MSG_ID_COMMAND_LONG:
             return self._command(msg)
+        if msg_id == mavlink2.MAVLINK_MSG_ID_FILE_TRANSFER_PROTOCOL and int(
+                msg.target_component) in (0, int(mavlink2.MAV_COMP_ID_AUTOPILOT1)):
+            return [self.enc.ftp_reply(msg.get_srcSystem(), msg.get_srcComponent(),
+                                       bytes(msg.payload))]
         return []
 
     def _command(self, msg: Any) -> list[bytes]:
@@ -310,6 +326,7 @@ class FusionService:
         self.responder: GcsResponder | None = None
         self.events = NavEventDetector()
         self._pending_text: deque[NavEvent] = deque(maxlen=64)
+        self._relay_text: deque[tuple[int, str]] = deque(maxlen=64)  # the simulator's events
         self._gcs_tlog: TlogWriter | None = None
         self.companion: CompanionEncoder | None = None
         self._next_companion_us = 0
@@ -382,6 +399,9 @@ class FusionService:
     def _handle(self, msg: Any) -> list[NavEstimate]:
         self.stats.last_processed_wall = time.monotonic()
         new: list[NavEstimate] = []
+        if (msg.get_msgId() == _STATUSTEXT_ID and self.vehicle is not None
+                and msg.get_srcComponent() == TRUTH_COMPONENT_ID):
+            self._relay_text.append((int(msg.severity), _text(msg.text)))
         for d in self.decoder.decode_message(msg):
             item = d.sample
             if self.vehicle is not None:
@@ -477,6 +497,10 @@ class FusionService:
             for frame in vehicle.statustexts([ev]):
                 self._gcs_send(link, frame)
                 self.stats.statustexts += 1
+        while self._relay_text:
+            severity, text = self._relay_text.popleft()
+            self._gcs_send(link, self.shadow.statustext(severity, text))
+            self.stats.statustexts += 1
         if est is not None and est.mode != "initializing" and now >= schedule["fast"]:
             for frame in vehicle.fast(est):
                 self._gcs_send(link, frame)

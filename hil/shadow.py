@@ -11,7 +11,7 @@ Shadow vehicle (towards ground stations; own system id, component 1)
     ESTIMATOR_STATUS, SYSTEM_TIME, GPS_RAW_INT, HOME_POSITION, EXTENDED_SYS_STATE, STATUSTEXT,
     the standard-modes messages (AVAILABLE_MODES, CURRENT_MODE, AVAILABLE_MODES_MONITOR) and
     the minimal answers ground stations wait for: PARAM_VALUE, AUTOPILOT_VERSION, COMMAND_ACK,
-    MISSION_COUNT (0 items).
+    MISSION_COUNT (0 items), FILE_TRANSFER_PROTOCOL (an empty, read-only file system).
 
     One time base: every ``time_boot_ms`` / ``time_usec`` is the estimate's time (simulated
     time in a simulation, the IMU's clock on a real flight controller), never the wall clock;
@@ -73,6 +73,23 @@ _GPS_LEAP_S: Final = 18  # GPS - UTC since 2017
 _WEEK_S: Final = 7 * 86_400
 
 _GEOFENCE: Final = int(mavlink2.MAV_SYS_STATUS_GEOFENCE)
+# MAVLink FTP (https://mavlink.io/en/services/ftp.html): opcodes and error codes used here
+_FTP_ACK: Final = 128
+_FTP_NAK_OP: Final = 129
+_FTP_ACK_OPS: Final = frozenset({1, 2})  # TerminateSession, ResetSessions
+_FTP_ERR_INVALID_SESSION: Final = 4
+_FTP_ERR_FILE_PROTECTED: Final = 9
+_FTP_ERR_FILE_NOT_FOUND: Final = 10
+_FTP_NAK: Final = {
+    3: _FTP_ERR_FILE_NOT_FOUND,  # ListDirectory
+    4: _FTP_ERR_FILE_NOT_FOUND,  # OpenFileRO
+    14: _FTP_ERR_FILE_NOT_FOUND,  # CalcFileCRC32
+    16: _FTP_ERR_FILE_NOT_FOUND,  # ListDirectoryWithTime
+    5: _FTP_ERR_INVALID_SESSION,  # ReadFile
+    7: _FTP_ERR_INVALID_SESSION,  # WriteFile
+    15: _FTP_ERR_INVALID_SESSION,  # BurstReadFile
+}
+"""Error byte of the NAK per request opcode; any other (writing) opcode: FileProtected."""
 _STD = STANDARD_MODES_DIALECT
 
 
@@ -359,6 +376,31 @@ class ShadowEncoder:
         """COMMAND_ACK of ``command`` with ``MAV_RESULT`` ``result``."""
         return self._p.pack(mavlink2.MAVLink_command_ack_message(
             command, result, 0, 0, target_system, target_component))
+
+    def ftp_reply(self, target_system: int, target_component: int, request: bytes) -> bytes:
+        """FILE_TRANSFER_PROTOCOL answer of a vehicle with an empty, read-only file system.
+
+        ``request`` is the request's 251-byte payload (MAVLink FTP header: seq uint16, session,
+        opcode, size, req_opcode, burst_complete, padding, offset uint32, data). The reply has
+        seq + 1 and the request's session and opcode (as ``req_opcode``): ACK to
+        TerminateSession / ResetSessions, NAK otherwise with one error byte (:data:`_FTP_NAK`):
+        FileNotFound for what reads a path, InvalidSession for what uses a session (none is
+        ever opened), FileProtected for what would write. So a client that tries FTP first
+        (MAVProxy fetches parameters as ``@PARAM/param.pck``) falls back at once instead of
+        timing out."""
+        seq, session, opcode = int.from_bytes(request[0:2], "little"), request[2], request[3]
+        head = bytearray(12)
+        head[0:2] = ((seq + 1) % 0x10000).to_bytes(2, "little")
+        head[2], head[5] = session, opcode
+        if opcode in _FTP_ACK_OPS:
+            head[3] = _FTP_ACK
+            body = b""
+        else:
+            head[3], head[4] = _FTP_NAK_OP, 1
+            body = bytes([_FTP_NAK.get(opcode, _FTP_ERR_FILE_PROTECTED)])
+        payload = list(bytes(head) + body) + [0] * (251 - len(head) - len(body))
+        return self._p.pack(mavlink2.MAVLink_file_transfer_protocol_message(
+            0, target_system, target_component, payload))
 
     def mission_count(self, target_system: int, target_component: int, mission_type: int
                       ) -> bytes:

@@ -182,7 +182,7 @@ def _isa_pressure_altitude_m(pressure_pa: float) -> float:
 
 class Encoder:
     """Encode SI samples into MAVLink 2 frames (HIL_SENSOR, HIL_GPS, HIL_STATE_QUATERNION,
-    HIL_ACTUATOR_CONTROLS, RAW_RPM).
+    HIL_ACTUATOR_CONTROLS, RAW_RPM; STATUSTEXT for the scenario's events).
 
     Parameters
     ----------
@@ -548,6 +548,28 @@ class Encoder:
             RAW_RPM, self._autopilot_mav,
             _uint8(sample.index, "rpm.index"), self._f32(rpm, "RAW_RPM.frequency"),
         )
+
+    def statustext(self, severity: int, text: str) -> bytes:
+        """One STATUSTEXT frame from the truth component: a scenario event, which (like the
+        truth) only the simulator knows.
+
+        Parameters
+        ----------
+        severity : int
+            ``MAV_SEVERITY`` 0 (emergency) .. 7 (debug).
+        text : str
+            Cut to the message's 50 characters; non-ASCII characters become ``?``.
+
+        Returns
+        -------
+        bytes
+            One MAVLink 2 frame.
+        """
+        if not 0 <= severity <= 7:
+            raise ValueError(f"STATUSTEXT severity must be 0..7, got {severity!r}")
+        raw = text.encode("ascii", "replace")[:50]
+        return self._pack(mavlink2.MAVLink_statustext_message(severity, raw, 0, 0),
+                          self._truth_mav)
 
     @staticmethod
     def _lat_lon_e7(lat_rad: float, lon_rad: float, owner: str) -> tuple[int, int]:

@@ -480,6 +480,19 @@ def _key(items: list[Decoded]) -> list[str]:
     return [repr(d) for d in items]
 
 
+def test_scenario_statustext_comes_from_the_truth_component_and_gives_no_sample() -> None:
+    enc = Encoder(system_id=3)
+    frame = enc.statustext(int(mavlink2.MAV_SEVERITY_NOTICE), "SIM: GNSS off for 20 s " + "x" * 40)
+    m = parse_raw(frame)
+    assert (m.get_srcSystem(), m.get_srcComponent()) == (3, TRUTH_COMPONENT_ID)
+    assert m.severity == mavlink2.MAV_SEVERITY_NOTICE
+    assert m.text == ("SIM: GNSS off for 20 s " + "x" * 40)[:50]  # the message's 50 chars
+    dec = Decoder()
+    assert dec.feed(frame) == [] and dec.counters.ignored_msgs == 1  # no sample from it
+    with pytest.raises(ValueError, match="severity"):
+        enc.statustext(8, "x")
+
+
 def test_unknown_message_id_is_counted_and_dropped() -> None:
     frames, n = _frames()
     # A well-formed MAVLink 2 frame with an id no dialect defines (pymavlink cannot CRC it).

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import foxglove.messages
 import numpy as np
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from mcap.reader import make_reader
@@ -51,6 +52,9 @@ def read_mcap(path: Path) -> tuple[dict[str, str], list[tuple[str, str, int, Any
             if channel.message_encoding == "protobuf":
                 assert schema is not None
                 assert schema.encoding == "protobuf"
+                # Foxglove's own definition, as the foxglove-sdk package ships it
+                official = getattr(foxglove.messages, schema.name.removeprefix("foxglove."))
+                assert bytes(schema.data) == bytes(official.get_schema().data), schema.name
                 cls = classes.setdefault(schema.name, decoder(schema.name, schema.data))
                 out.append((channel.topic, schema.name, m.log_time, cls.FromString(m.data)))
             else:

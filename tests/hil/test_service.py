@@ -29,6 +29,7 @@ from hil.tuning import filter_config_for_presets
 from scenarios.cli.app import app
 from scenarios.cli.up import free_udp_port, stop_process
 from scenarios.replay import replay
+from sim.samples import GnssFix
 from tests.helpers.processes import hilnav_process
 
 SHADOW_SYS = 42
@@ -96,6 +97,26 @@ def test_attitude_vfr_hud_estimator_status() -> None:
     assert hud_dr.groundspeed == pytest.approx(math.hypot(1.0, 50.0), rel=1e-6)
 
 
+def test_every_shadow_time_field_is_the_estimate_time() -> None:
+    """One time base: the estimate's time (simulated time in a simulation) in every
+    ``time_boot_ms`` / ``time_usec``; only SYSTEM_TIME's ``time_unix_usec`` is UTC, and
+    GPS_RAW_INT carries the fix's own time of validity."""
+    enc = ShadowEncoder(SHADOW_SYS)
+    for t_us in (12_345_678, 4_000_123_456):  # the second past uint32 ms: time_boot_ms wraps
+        est = dataclasses.replace(_estimate(), time_us=t_us)
+        boot_ms = (t_us // 1000) & 0xFFFF_FFFF
+        for frame in (enc.global_position_int(est), enc.attitude(est),
+                      enc.attitude_quaternion(est)):
+            assert _decode(frame).time_boot_ms == boot_ms
+        assert _decode(enc.estimator_status(est)).time_usec == t_us
+        home = enc.home_position()
+        assert home is not None and _decode(home).time_usec == t_us
+        st = _decode(enc.system_time(unix_s=1_700_000_000.25))
+        assert (st.time_boot_ms, st.time_unix_usec) == (boot_ms, 1_700_000_000_250_000)
+        fix = GnssFix(t_us - 150_000, 0.8, 0.1, 1000.0, np.zeros(3), 1.0, 2.0, 0.1)
+        assert _decode(enc.gps_raw_int(fix, fix_lost=False)).time_usec == t_us - 150_000
+
+
 def test_companion_gps_input_and_odometry() -> None:
     enc = CompanionEncoder(1, 197)
     g = _decode(enc.gps_input(_estimate(), unix_s=1_700_000_000.0))
@@ -141,6 +162,35 @@ def test_gcs_answers_params_version_and_missions() -> None:
         mavlink2.MAVLink_mission_request_list_message(SHADOW_SYS, 1, 0)))]
     assert count.count == 0
     assert r.handle(_request(mavlink2.MAVLink_param_request_list_message(7, 1))) == []
+
+
+def test_gcs_ftp_answers_of_an_empty_read_only_file_system() -> None:
+    """MAVLink FTP: every request gets its reply at once (seq + 1, same session, req_opcode),
+    so MAVProxy's parameter download over FTP falls back to PARAM_REQUEST_LIST instead of
+    timing out."""
+    r = GcsResponder(ShadowEncoder(SHADOW_SYS))
+
+    def ftp(opcode: int, seq: int = 41, session: int = 3) -> tuple[int, int, int, int, int, int]:
+        req = bytearray(251)
+        req[0:2], req[2], req[3] = seq.to_bytes(2, "little"), session, opcode
+        path = b"@PARAM/param.pck"
+        req[4], req[12:12 + len(path)] = len(path), path
+        (m,) = [_decode(f) for f in r.handle(_request(
+            mavlink2.MAVLink_file_transfer_protocol_message(0, SHADOW_SYS, 1, list(req))))]
+        assert (m.get_srcSystem(), m.target_system, m.target_component) == (SHADOW_SYS, 255, 190)
+        p = bytes(m.payload)
+        return int.from_bytes(p[0:2], "little"), p[2], p[3], p[4], p[5], p[12]
+
+    # (seq, session, opcode ACK 128 / NAK 129, size, req_opcode, first data byte)
+    assert ftp(4) == (42, 3, 129, 1, 4, 10)  # OpenFileRO: FileNotFound
+    assert ftp(3) == (42, 3, 129, 1, 3, 10)  # ListDirectory: FileNotFound
+    assert ftp(15) == (42, 3, 129, 1, 15, 4)  # BurstReadFile: InvalidSession
+    assert ftp(6) == (42, 3, 129, 1, 6, 9)  # CreateFile: FileProtected
+    assert ftp(1)[2:5] == (128, 0, 1)  # TerminateSession: ACK
+    assert ftp(2, seq=0xFFFF)[:3] == (0, 3, 128)  # ResetSessions: ACK; seq wraps
+    # for another vehicle or another component: not ours to answer
+    other = mavlink2.MAVLink_file_transfer_protocol_message(0, SHADOW_SYS, 100, [0] * 251)
+    assert r.handle(_request(other)) == []
 
 
 # ------------------------------------------------------------------------- bad input
