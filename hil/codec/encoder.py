@@ -568,8 +568,10 @@ class Encoder:
         if not 0 <= severity <= 7:
             raise ValueError(f"STATUSTEXT severity must be 0..7, got {severity!r}")
         raw = text.encode("ascii", "replace")[:50]
-        return self._pack(mavlink2.MAVLink_statustext_message(severity, raw, 0, 0),
-                          self._truth_mav)
+        msg = mavlink2.MAVLink_statustext_message(severity, raw, 0, 0)
+        frame: bytes = msg.pack(self._truth_mav)  # pymavlink: a message with a string field
+        self._truth_mav.seq = (self._truth_mav.seq + 1) % 256  # as MAVLink.send() would
+        return frame
 
     @staticmethod
     def _lat_lon_e7(lat_rad: float, lon_rad: float, owner: str) -> tuple[int, int]:
