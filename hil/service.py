@@ -290,7 +290,8 @@ class FusionService:
         self.options = options
         self.config = filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
                                     options.airspeed)
-        self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None)
+        self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None,
+                                spill_dir=options.out)
         self.nav = self.fusion.nav
         self.decoder = self.fusion.decoder
         self.stats = _Stats()
@@ -594,7 +595,7 @@ class FusionService:
             "signed": link is not None and link.signed,
             "links": counters,
             "lost_frames": counters["mavlink"].get("lost_seq", 0),
-            "fixes": 0 if col is None else len(col.fix_times_us),
+            "fixes": 0 if col is None else col.n_fixes,
             "errors_published": self.stats.errors_published,
             "gcs_answers": self.stats.gcs_answers,
             "nav_events": self.stats.events,
