@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from fusion import rotations
 from fusion.estimate import Mode, NavEstimate
 from fusion.filter import NavFilter
+from hil.sample_clock import SampleClock
 from sim.samples import GnssFix, Sample, Truth
 
 FloatArray = NDArray[np.float64]
@@ -302,12 +303,12 @@ class Collector:
     keep_objects: bool = False
     spill_dir: Path | None = None
     chunk_rows: int = CHUNK_ROWS
-    last_time_us: int = 0
     _est: _Stream = field(init=False, repr=False)
     _tru: _Stream = field(init=False, repr=False)
     _fix: _Stream = field(init=False, repr=False)
     _kept: tuple[list[NavEstimate], list[Truth], list[GnssFix]] = field(
         init=False, repr=False, default_factory=lambda: ([], [], []))
+    _clock: SampleClock | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
         if self.chunk_rows < 1:
@@ -320,10 +321,12 @@ class Collector:
         """Step ``nav`` with the samples (truth is only collected); the new estimates."""
         out: list[NavEstimate] = []
         keep = self.keep_objects
+        clock = self._clock
+        if clock is None:
+            clock = self._clock = SampleClock(round(nav.config.imu.time_jump_s * 1e6))
         for item in items:
-            if item.time_us > self.last_time_us:
-                self.last_time_us = item.time_us
             if isinstance(item, Truth):
+                clock.offer(item.time_us, nav.time_us)
                 self._tru.add(item)
                 if keep:
                     self._kept[1].append(item)
@@ -335,6 +338,7 @@ class Collector:
             for e in nav.step(item):
                 self._est.add(e)
                 out.append(e)
+            clock.offer(item.time_us, nav.time_us)
         if keep:
             self._kept[0].extend(out)
         return out
@@ -359,6 +363,12 @@ class Collector:
     def fixes(self) -> list[GnssFix]:
         """The 3-D fixes received, in arrival order (needs ``keep_objects``)."""
         return self._objects(2)
+
+    @property
+    def last_time_us(self) -> int:
+        """The newest sample time of the run, us, not counting stamps the filter's clock
+        refused (:class:`hil.sample_clock.SampleClock`); 0 before any sample."""
+        return max(0, self._clock.latest_us) if self._clock is not None else 0
 
     @property
     def n_estimates(self) -> int:

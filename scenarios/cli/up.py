@@ -30,6 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from fusion.config import DEFAULT_AIRSPEED_MODE
 from hil.bus import validate_vehicle
+from hil.codec import SIM_SYSTEM_ID
 from hil.pipeline import SimSetup, build_filter, filter_config
 from hil.router import zenoh_router
 from sim.presets import gnss_preset
@@ -179,7 +180,10 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
     port = free_udp_port()
     with zenoh_router() as endpoint, _children() as children:
         log(f"zenoh router  {endpoint} (in process)")
-        fusion_args = ["fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
+        # bound to the simulator's system from the first frame: a sender that speaks first
+        # can neither become the fusion's source nor its reply address
+        fusion_args = ["fusion", "--mavlink", f"udpin:127.0.0.1:{port}",
+                       "--source", str(SIM_SYSTEM_ID), "--zenoh", endpoint,
                        "--vehicle", options.vehicle, "--out", str(out), "--imu", options.imu,
                        "--gnss", options.gnss, "--bridge", options.bridge,
                        "--altitude", options.altitude, "--airspeed", options.airspeed]
