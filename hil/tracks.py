@@ -9,6 +9,7 @@ service's scorecard and the benches.
 from __future__ import annotations
 
 import io
+import itertools
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
@@ -195,14 +196,21 @@ class ColumnChunks:
             self._file.seek(0, io.SEEK_END)
 
     def columns(self, tail: dict[str, NDArray[Any]] | None = None) -> dict[str, NDArray[Any]]:
-        """Every column, the chunks concatenated in order (then ``tail``, a last chunk not
-        appended); empty dict when there is nothing."""
-        parts = list(self._chunks())
-        if tail is not None:
-            parts.append(tail)
-        if not parts:
-            return {}
-        return {k: np.concatenate([c[k] for c in parts], axis=0) for k in parts[0]}
+        """Every column, the chunks in order (then ``tail``, a last chunk not appended); empty
+        dict when there is nothing. Each column is allocated once at its full length and
+        filled chunk by chunk, so reading back a spilled hour needs the columns' size, not
+        twice that."""
+        rows = self.rows + (0 if tail is None else len(next(iter(tail.values()))))
+        out: dict[str, NDArray[Any]] = {}
+        start = 0
+        for chunk in itertools.chain(self._chunks(), [] if tail is None else [tail]):
+            n = len(next(iter(chunk.values())))
+            for k, a in chunk.items():
+                if k not in out:
+                    out[k] = np.empty((rows, *a.shape[1:]), dtype=a.dtype)
+                out[k][start:start + n] = a
+            start += n
+        return out
 
     def close(self) -> None:
         if self._file is not None:
@@ -282,7 +290,10 @@ class _Stream:
         n = len(self)
         if self._cache is None or self._cache[0] != n:
             tail = self._compact(self.pending) if self.pending else None
-            self._cache = (n, self.chunks.columns(tail))
+            cols = self.chunks.columns(tail)
+            for a in cols.values():
+                a.flags.writeable = False  # shared by every track built from them
+            self._cache = (n, cols)
         return self._cache[1]
 
 
@@ -405,6 +416,8 @@ class Collector:
         keep = c["mode"] != _INITIALIZING if c else np.zeros(0, dtype=bool)
         if not np.any(keep):
             raise ValueError("the filter produced no navigation estimate (no valid GNSS fix?)")
+        if np.all(keep):
+            return c  # the usual case: no copy of an hour's columns
         return {k: v[keep] for k, v in c.items()}
 
     def _truth_sorted(self) -> dict[str, NDArray[Any]]:
