@@ -30,7 +30,9 @@ Outputs (all optional; none of them can block the filter)
       (:class:`hil.bus.Bus`: bounded queue, never blocks).
     * ``--out DIR``: at exit, ``summary.json`` of everything received (estimate vs truth,
       GNSS outages from fix gaps), computed exactly as ``hilnav replay`` does, plus a
-      ``live`` section with the link counters (sample loss).
+      ``live`` section with the link counters (sample loss). While running, what it will be
+      scored from is kept compact and spilled to an anonymous file in ``DIR``
+      (:class:`hil.tracks.Collector`), so memory stays flat however long the flight.
 
 Innovations (``fusion/innovations``)
     Every gated Kalman update of the filter is published: ``source`` (``gnss_pos``,
