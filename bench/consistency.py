@@ -119,7 +119,7 @@ def run_one(job: tuple[str, int, float, str, tuple[str, ...], tuple[str, ...]]
                 "horizontal_rmse_m": scored.summary["gnss_on"]["horizontal_rmse_m"],
                 # no fault is flown: every fix is within the receiver's error model, so a
                 # rejection is a good fix lost (the 0.995 gate alone rejects ~0.5 %)
-                "fixes": len(run.collector.fixes) if run.collector else 0,
+                "fixes": run.collector.n_fixes if run.collector else 0,
                 "gnss_rejected": run.nav.health.gnss_rejected,
             })
     return rows

@@ -116,7 +116,7 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
         base = "ins22" if cfg.state_layout.startswith("ins22") else "ins16"
         cfg = cfg.model_copy(
             update={"state_layout": f"{base}+gnss" if gnss_bias == "on" else base})
-    run = FusionRun(cfg)
+    run = FusionRun(cfg, keep_objects=True)
     report = fly(setup, run)
     nav, col = run.nav, run.collector
     assert col is not None

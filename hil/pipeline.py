@@ -319,18 +319,26 @@ class FusionRun:
         Keep the estimate, truth and fix tracks for scoring (:attr:`collector`).
     nav : NavFilter, optional
         A filter already built from ``config`` and ``bridge`` (for callers that own it).
+    keep_objects : bool
+        The collector also keeps every estimate, truth and fix object (tests, tools); by
+        default it keeps their compact columns only (:class:`hil.tracks.Collector`).
+    spill_dir : Path, optional
+        The collector writes its compact columns to an anonymous file in this folder as they
+        fill, so memory stays flat however long the run (the live service's ``--out``).
 
     A FusionRun is also a frame sink (``run(time_us, frame)``), so a lockstep flight can be
     fused while it flies; :attr:`fuse_s` accumulates the wall time spent decoding and fusing.
     """
 
     def __init__(self, config: FilterConfig, bridge: str = "none", *, collect: bool = True,
-                 nav: NavFilter | None = None) -> None:
+                 nav: NavFilter | None = None, keep_objects: bool = False,
+                 spill_dir: Path | None = None) -> None:
         self.config = config
         self.bridge = bridge
         self.nav = nav if nav is not None else build_filter(config, bridge)
         self.decoder = Decoder()
-        self.collector: Collector | None = Collector() if collect else None
+        self.collector: Collector | None = (
+            Collector(keep_objects=keep_objects, spill_dir=spill_dir) if collect else None)
         self.samples = 0
         self.fuse_s = 0.0
 
@@ -338,9 +346,7 @@ class FusionRun:
         """Step the filter with decoded samples (truth is only collected); new estimates."""
         col = self.collector
         if col is not None:
-            n = len(col.estimates)
-            col.feed(self.nav, items)
-            return col.estimates[n:]
+            return col.feed(self.nav, items)
         out: list[NavEstimate] = []
         for item in items:
             if not isinstance(item, Truth):
@@ -364,10 +370,10 @@ class FusionRun:
         return 1e6 * self.fuse_s / max(self.samples, 1)
 
 
-def fuse_frames(frames: Iterable[Frame], config: FilterConfig, bridge: str = "none"
-                ) -> FusionRun:
+def fuse_frames(frames: Iterable[Frame], config: FilterConfig, bridge: str = "none", *,
+                keep_objects: bool = False) -> FusionRun:
     """Decode and fuse a whole frame stream (e.g. a recording kept in memory)."""
-    run = FusionRun(config, bridge)
+    run = FusionRun(config, bridge, keep_objects=keep_objects)
     t0 = time.perf_counter()
     for _t, frame in frames:
         run.feed_frame(frame)

@@ -32,7 +32,9 @@ Outputs (all optional; none of them can block the filter)
       (:class:`hil.bus.Bus`: bounded queue, never blocks).
     * ``--out DIR``: at exit, ``summary.json`` of everything received (estimate vs truth,
       GNSS outages from fix gaps), computed exactly as ``hilnav replay`` does, plus a
-      ``live`` section with the link counters (sample loss).
+      ``live`` section with the link counters (sample loss). While running, what it will be
+      scored from is kept compact and spilled to an anonymous file in ``DIR``
+      (:class:`hil.tracks.Collector`), so memory stays flat however long the flight.
 
 Innovations (``fusion/innovations``)
     Every gated Kalman update of the filter is published: ``source`` (``gnss_pos``,
@@ -48,9 +50,10 @@ Lockstep acknowledgements (``hilnav sim --live URL --lockstep``)
     A simulator that asks for lockstep (HEARTBEAT with ``custom_mode`` =
     :data:`hil.link.LOCKSTEP_CUSTOM_MODE`) gets a TIMESYNC on the input link after every
     batch the filter has processed: ``ts1`` = ``tc1`` = simulated time in ns of the newest
-    sample processed so far. The reader thread owns the link, so the filter thread wakes it
-    through a socket pair to send the acknowledgement at once. Nothing is sent to other peers
-    (a flight controller never sees a TIMESYNC from us).
+    sample processed so far (never a stamp the filter's clock refused:
+    :class:`hil.sample_clock.SampleClock`). The reader thread owns the link, so the
+    filter thread wakes it through a socket pair to send the acknowledgement at once. Nothing
+    is sent to other peers (a flight controller never sees a TIMESYNC from us).
 
 Wire units of the outputs live in :mod:`hil.shadow` (codec-adjacent).
 """
@@ -85,6 +88,7 @@ from hil.link import (
 )
 from hil.nav_events import NavEvent, NavEventDetector
 from hil.pipeline import FusionRun, filter_config
+from hil.sample_clock import SampleClock
 from hil.shadow import CUSTOM_MODES, CompanionEncoder, ShadowEncoder, heartbeat_state
 from hil.shadow_vehicle import ShadowVehicle
 from hil.signing import Signer
@@ -311,7 +315,8 @@ class FusionService:
         self.bus_access = bus_access or BusAccess()
         self.config = filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
                                     options.airspeed)
-        self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None)
+        self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None,
+                                spill_dir=options.out)
         self.nav = self.fusion.nav
         self.decoder = self.fusion.decoder
         self.stats = _Stats()
@@ -337,6 +342,7 @@ class FusionService:
         # written by the filter thread, read by the reader thread), and the reader's wake-up
         self._lockstep_sources: set[tuple[int, int]] = set()
         self._processed_us = -1
+        self._ack_clock = SampleClock(round(self.config.imu.time_jump_s * 1e6))
         self._wake_rx: socket.socket | None = None
         self._wake_tx: socket.socket | None = None
 
@@ -406,22 +412,30 @@ class FusionService:
             item = d.sample
             if self.vehicle is not None:
                 self.vehicle.on_sample(item)
-            if item.time_us > self._processed_us:
-                self._processed_us = item.time_us
             if isinstance(item, Truth):
                 if d.component_id != TRUTH_COMPONENT_ID or d.msg_id != _TRUTH_ID:
                     self.stats.truth_other_component += 1
                     continue
                 self.fusion.feed([item])
+                self._advance_processed(item.time_us)
                 self._on_truth(item)
                 continue
             ests = self.fusion.feed([item])
+            self._advance_processed(item.time_us)
             if self.nav.innovations:
                 self._on_innovations()
             for est in ests:
                 self._on_estimate(est)
             new.extend(ests)
         return new
+
+    def _advance_processed(self, time_us: int) -> None:
+        """Move the acknowledged time (lockstep) to a processed sample's time, unless the
+        filter's clock did not take that stamp (:class:`hil.sample_clock.SampleClock`): the
+        simulator keeps the largest acknowledgement it saw, so one stamp an hour ahead would
+        end its pacing for good, and 2^64 - 1 us does not fit TIMESYNC's int64 ns."""
+        if self._ack_clock.offer(time_us, self.nav.time_us):
+            self._processed_us = time_us
 
     def _on_innovations(self) -> None:
         """Publish the updates the last filter step made on ``fusion/innovations``."""
@@ -621,19 +635,27 @@ class FusionService:
         col = self.fusion.collector
         link = self._links.get("mavlink")
         return {
-            "source_system": None if link is None else link.locked_system,
+            "source_system": self._source_system(link),
             "signed": link is not None and link.signed,
             "links": counters,
             "lost_frames": counters["mavlink"].get("lost_seq", 0),
-            "fixes": 0 if col is None else len(col.fix_times_us),
+            "fixes": 0 if col is None else col.n_fixes,
             "errors_published": self.stats.errors_published,
             "gcs_answers": self.stats.gcs_answers,
             "nav_events": self.stats.events,
             "statustexts_sent": self.stats.statustexts,
             "innovations_published": self.stats.innovations,
             "lockstep_acks": self.stats.lockstep_acks,
+            "lockstep_acks_withheld": self._ack_clock.refused,
             "truth_from_other_components": self.stats.truth_other_component,
         }
+
+    def _source_system(self, link: MavlinkLink | None) -> int | None:
+        """The system the input is bound to: ``--source``, else the one the link locked onto
+        (None: no sensor frame yet)."""
+        if self.options.source is not None:
+            return parse_source(self.options.source)[0]
+        return None if link is None else link.locked_system
 
     def wall_s(self, fallback_s: float) -> float:
         """Wall time from the first frame in to the last frame fused (``fallback_s`` before

@@ -8,15 +8,21 @@ service's scorecard and the benches.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import io
+import itertools
+import tempfile
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from fusion import rotations
-from fusion.estimate import NavEstimate
+from fusion.estimate import Mode, NavEstimate
 from fusion.filter import NavFilter
+from hil.sample_clock import SampleClock
 from sim.samples import GnssFix, Sample, Truth
 
 FloatArray = NDArray[np.float64]
@@ -125,88 +131,351 @@ def _check_shapes(obj: object, names: tuple[str, ...], shape: tuple[int, ...]) -
                 f"{type(obj).__name__}.{name} has shape {np.shape(a)}, time_s has {shape}")
 
 
-@dataclass
-class Collector:
-    """Accumulates estimates, truth and GNSS fixes as the filter runs.
+#: Objects held before they are compacted into one chunk of column arrays (~8 MB of
+#: estimate objects at most; a chunk is ~2 MB of columns).
+CHUNK_ROWS = 2048
 
-    Nothing is computed while feeding (it runs at the sensor rates): the estimates already
-    carry the mode, test ratios and counters, and :meth:`series` turns them into arrays once.
+_MODES = tuple(Mode)
+_MODE_CODE = {m: i for i, m in enumerate(_MODES)}
+_INITIALIZING = _MODE_CODE[Mode.INITIALIZING]
+
+
+class ColumnChunks:
+    """Named column arrays, appended a chunk at a time, kept in memory or spilled to a file.
+
+    A chunk is a dict of arrays with the same first dimension (rows) and the same keys, in the
+    same order, every time. With ``spill_dir`` every chunk is written at once to an anonymous
+    temporary file in that folder (unlinked at creation: nothing is left behind, even after a
+    crash), so what stays in memory is constant however long the run; otherwise the chunks
+    stay in memory in their compact form.
+
+    Parameters
+    ----------
+    spill_dir : Path, optional
     """
 
-    estimates: list[NavEstimate] = field(default_factory=list)
-    truths: list[Truth] = field(default_factory=list)
-    fix_times_us: list[int] = field(default_factory=list)
-    fixes: list[GnssFix] = field(default_factory=list)
-    """The 3-D fixes received (same order as ``fix_times_us``)."""
-    last_time_us: int = 0
+    def __init__(self, spill_dir: Path | None = None) -> None:
+        self.spill_dir = spill_dir
+        self._keys: tuple[str, ...] | None = None
+        self._kept: list[dict[str, NDArray[Any]]] = []
+        self._file: IO[bytes] | None = None
+        self._n_chunks = 0
+        self.rows = 0
+        self.nbytes = 0
+        """Bytes of the column arrays appended (in memory or on disk)."""
 
-    def feed(self, nav: NavFilter, items: Iterable[Sample | Truth]) -> None:
+    def append(self, chunk: dict[str, NDArray[Any]]) -> None:
+        keys = tuple(chunk)
+        if self._keys is None:
+            self._keys = keys
+        elif keys != self._keys:
+            raise ValueError(f"chunk columns {keys} differ from the first chunk's {self._keys}")
+        self.rows += len(chunk[keys[0]])
+        self.nbytes += sum(a.nbytes for a in chunk.values())
+        self._n_chunks += 1
+        if self.spill_dir is None:
+            self._kept.append(chunk)
+            return
+        if self._file is None:
+            self.spill_dir.mkdir(parents=True, exist_ok=True)
+            self._file = tempfile.TemporaryFile(dir=self.spill_dir, prefix=".hilnav-tracks-")
+        for key in keys:
+            np.save(self._file, chunk[key], allow_pickle=False)
+
+    def _chunks(self) -> Iterator[dict[str, NDArray[Any]]]:
+        if self._file is None:
+            yield from self._kept
+            return
+        assert self._keys is not None
+        self._file.flush()
+        self._file.seek(0)
+        try:
+            for _ in range(self._n_chunks):
+                yield {k: np.load(self._file, allow_pickle=False) for k in self._keys}
+        finally:
+            self._file.seek(0, io.SEEK_END)
+
+    def columns(self, tail: dict[str, NDArray[Any]] | None = None) -> dict[str, NDArray[Any]]:
+        """Every column, the chunks in order (then ``tail``, a last chunk not appended); empty
+        dict when there is nothing. Each column is allocated once at its full length and
+        filled chunk by chunk, so reading back a spilled hour needs the columns' size, not
+        twice that."""
+        rows = self.rows + (0 if tail is None else len(next(iter(tail.values()))))
+        out: dict[str, NDArray[Any]] = {}
+        start = 0
+        for chunk in itertools.chain(self._chunks(), [] if tail is None else [tail]):
+            n = len(next(iter(chunk.values())))
+            for k, a in chunk.items():
+                if k not in out:
+                    out[k] = np.empty((rows, *a.shape[1:]), dtype=a.dtype)
+                out[k][start:start + n] = a
+            start += n
+        return out
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+
+def _estimate_columns(est: list[NavEstimate]) -> dict[str, NDArray[Any]]:
+    """The compact form of estimates: what the tracks and the health series are built from."""
+    ratios = [e.test_ratios for e in est]
+    counts = [(h.gnss_fused, h.gnss_rejected, h.gnss_resets,
+               h.gnss_no_fix + h.gnss_invalid + h.gnss_inaccurate,
+               h.baro_fused, h.baro_rejected, h.baro_resets, h.mag_fused, h.mag_rejected,
+               h.airspeed_blockages) for h in (e.health for e in est)]  # fmt: skip
+    nan9 = np.full((9, 9), np.nan)
+    return {
+        "time_us": np.array([e.time_us for e in est], dtype=np.int64),
+        "mode": np.array([_MODE_CODE[e.mode] for e in est], dtype=np.uint8),
+        "lat_rad": np.array([e.lat_rad for e in est], dtype=float),
+        "lon_rad": np.array([e.lon_rad for e in est], dtype=float),
+        "alt_m": np.array([e.alt_msl_m for e in est], dtype=float),
+        "v_ned_mps": np.array([e.v_ned_mps for e in est], dtype=float).reshape(-1, 3),
+        "euler_rad": np.array([e.euler_rad for e in est], dtype=float).reshape(-1, 3),
+        "sigma": np.sqrt(np.maximum(
+            np.array([e.P_diag[:9] for e in est], dtype=float).reshape(-1, 9), 0.0)),
+        "has_cov": np.array([e.P_nav is not None for e in est], dtype=bool),
+        "cov": np.array([nan9 if e.P_nav is None else e.P_nav for e in est],
+                        dtype=float).reshape(-1, 9, 9),
+        "ratios": np.array([(r.gnss_pos, r.gnss_vel, r.baro_hgt, r.mag_hdg) for r in ratios],
+                           dtype=float).reshape(-1, 4),
+        "counts": np.array(counts, dtype=np.int64).reshape(-1, len(_COUNTERS)),
+    }
+
+
+def _truth_columns(truths: list[Truth]) -> dict[str, NDArray[Any]]:
+    return {
+        "time_us": np.array([s.time_us for s in truths], dtype=np.int64),
+        "lat_rad": np.array([s.lat_rad for s in truths], dtype=float),
+        "lon_rad": np.array([s.lon_rad for s in truths], dtype=float),
+        "alt_m": np.array([s.alt_msl_m for s in truths], dtype=float),
+        "v_ned_mps": np.array([s.v_ned_mps for s in truths], dtype=float).reshape(-1, 3),
+        "q_nb": np.array([s.q_nb for s in truths], dtype=float).reshape(-1, 4),
+    }
+
+
+def _fix_columns(fixes: list[GnssFix]) -> dict[str, NDArray[Any]]:
+    return {
+        "time_us": np.array([f.time_us for f in fixes], dtype=np.int64),
+        "lat_rad": np.array([f.lat_rad for f in fixes], dtype=float),
+        "lon_rad": np.array([f.lon_rad for f in fixes], dtype=float),
+        "alt_m": np.array([f.alt_msl_m for f in fixes], dtype=float),
+    }
+
+
+class _Stream:
+    """One kind of collected object: held as objects until a chunk is full, then compacted."""
+
+    def __init__(self, compact: Callable[[list[Any]], dict[str, NDArray[Any]]],
+                 spill_dir: Path | None, chunk_rows: int) -> None:
+        self._compact = compact
+        self._chunk_rows = chunk_rows
+        self.chunks = ColumnChunks(spill_dir)
+        self.pending: list[Any] = []
+        self._cache: tuple[int, dict[str, NDArray[Any]]] | None = None
+
+    def __len__(self) -> int:
+        return self.chunks.rows + len(self.pending)
+
+    def add(self, obj: object) -> None:
+        self.pending.append(obj)
+        if len(self.pending) >= self._chunk_rows:
+            self.chunks.append(self._compact(self.pending))
+            self.pending = []
+
+    def columns(self) -> dict[str, NDArray[Any]]:
+        """Every column (cached until the next object arrives); {} when empty."""
+        n = len(self)
+        if self._cache is None or self._cache[0] != n:
+            tail = self._compact(self.pending) if self.pending else None
+            cols = self.chunks.columns(tail)
+            for a in cols.values():
+                a.flags.writeable = False  # shared by every track built from them
+            self._cache = (n, cols)
+        return self._cache[1]
+
+
+@dataclass
+class Collector:
+    """Accumulates estimates, truth and GNSS fixes as the filter runs, in compact form.
+
+    Feeding only appends each new object to a list (it runs at the sensor rates); every
+    ``chunk_rows`` objects the list is turned into column arrays at once
+    (:class:`ColumnChunks`: per estimate its time, mode, position, velocity, attitude, the
+    1-sigma and full 9x9 covariance of the navigation errors, test ratios and counters, ~0.9 kB;
+    per truth sample 88 bytes; per fix 32 bytes) and the objects are dropped. With
+    ``spill_dir`` those chunks go to an anonymous file there, so a live run of any length holds
+    at most one chunk of objects in memory. ``keep_objects`` also keeps every object
+    (:attr:`estimates`, :attr:`truths`, :attr:`fixes`) for tests and tools that want them.
+    """
+
+    keep_objects: bool = False
+    spill_dir: Path | None = None
+    chunk_rows: int = CHUNK_ROWS
+    _est: _Stream = field(init=False, repr=False)
+    _tru: _Stream = field(init=False, repr=False)
+    _fix: _Stream = field(init=False, repr=False)
+    _kept: tuple[list[NavEstimate], list[Truth], list[GnssFix]] = field(
+        init=False, repr=False, default_factory=lambda: ([], [], []))
+    _clock: SampleClock | None = field(init=False, repr=False, default=None)
+
+    def __post_init__(self) -> None:
+        if self.chunk_rows < 1:
+            raise ValueError("chunk_rows must be >= 1")
+        self._est = _Stream(_estimate_columns, self.spill_dir, self.chunk_rows)
+        self._tru = _Stream(_truth_columns, self.spill_dir, self.chunk_rows)
+        self._fix = _Stream(_fix_columns, self.spill_dir, self.chunk_rows)
+
+    def feed(self, nav: NavFilter, items: Iterable[Sample | Truth]) -> list[NavEstimate]:
+        """Step ``nav`` with the samples (truth is only collected); the new estimates."""
+        out: list[NavEstimate] = []
+        keep = self.keep_objects
+        clock = self._clock
+        if clock is None:
+            clock = self._clock = SampleClock(round(nav.config.imu.time_jump_s * 1e6))
         for item in items:
-            self.last_time_us = max(self.last_time_us, item.time_us)
             if isinstance(item, Truth):
-                self.truths.append(item)
+                clock.offer(item.time_us, nav.time_us)
+                self._tru.add(item)
+                if keep:
+                    self._kept[1].append(item)
                 continue
             if isinstance(item, GnssFix) and item.fix_type >= 3:
-                self.fix_times_us.append(item.time_us)
-                self.fixes.append(item)
-            self.estimates.extend(nav.step(item))
+                self._fix.add(item)
+                if keep:
+                    self._kept[2].append(item)
+            for e in nav.step(item):
+                self._est.add(e)
+                out.append(e)
+            clock.offer(item.time_us, nav.time_us)
+        if keep:
+            self._kept[0].extend(out)
+        return out
 
-    def _navigating(self) -> list[NavEstimate]:
-        est = [e for e in self.estimates if e.mode != "initializing"]
-        if not est:
+    def _objects(self, which: int) -> list[Any]:
+        if not self.keep_objects:
+            raise ValueError("this collector keeps only the compact tracks; build it with "
+                             "keep_objects=True to keep the objects")
+        return self._kept[which]
+
+    @property
+    def estimates(self) -> list[NavEstimate]:
+        """Every estimate (needs ``keep_objects``)."""
+        return self._objects(0)
+
+    @property
+    def truths(self) -> list[Truth]:
+        """Every truth sample, in arrival order (needs ``keep_objects``)."""
+        return self._objects(1)
+
+    @property
+    def fixes(self) -> list[GnssFix]:
+        """The 3-D fixes received, in arrival order (needs ``keep_objects``)."""
+        return self._objects(2)
+
+    @property
+    def last_time_us(self) -> int:
+        """The newest sample time of the run, us, not counting stamps the filter's clock
+        refused (:class:`hil.sample_clock.SampleClock`); 0 before any sample."""
+        return max(0, self._clock.latest_us) if self._clock is not None else 0
+
+    @property
+    def n_estimates(self) -> int:
+        """Estimates collected (initialising ones included)."""
+        return len(self._est)
+
+    @property
+    def n_truths(self) -> int:
+        return len(self._tru)
+
+    @property
+    def n_fixes(self) -> int:
+        """3-D fixes received."""
+        return len(self._fix)
+
+    @property
+    def compact_nbytes(self) -> int:
+        """Bytes of the compacted columns (in memory, or on disk with ``spill_dir``)."""
+        return sum(s.chunks.nbytes for s in (self._est, self._tru, self._fix))
+
+    @property
+    def fix_times_us(self) -> NDArray[np.int64]:
+        """Times of validity of the 3-D fixes received, in arrival order, us."""
+        c = self._fix.columns()
+        return c["time_us"] if c else np.zeros(0, dtype=np.int64)
+
+    def close(self) -> None:
+        """Close the spill files (their space is freed; the collector is empty afterwards)."""
+        for s in (self._est, self._tru, self._fix):
+            s.chunks.close()
+
+    def _navigating(self) -> dict[str, NDArray[Any]]:
+        c = self._est.columns()
+        keep = c["mode"] != _INITIALIZING if c else np.zeros(0, dtype=bool)
+        if not np.any(keep):
             raise ValueError("the filter produced no navigation estimate (no valid GNSS fix?)")
-        return est
+        if np.all(keep):
+            return c  # the usual case: no copy of an hour's columns
+        return {k: v[keep] for k, v in c.items()}
+
+    def _truth_sorted(self) -> dict[str, NDArray[Any]]:
+        if self.n_truths < 2:
+            raise ValueError("the log holds no truth (HIL_STATE_QUATERNION) to score against")
+        c = self._tru.columns()
+        order = np.argsort(c["time_us"], kind="stable")  # as sorted(): ties keep arrival order
+        return {k: v[order] for k, v in c.items()}
 
     def end_s(self) -> float:
         """Where scoring ends: the earlier of the last navigation estimate and the last truth
         sample, s (the last times of :meth:`estimate_track` and :meth:`truth_track`)."""
         est = self._navigating()
-        if len(self.truths) < 2:
+        if self.n_truths < 2:
             raise ValueError("the log holds no truth (HIL_STATE_QUATERNION) to score against")
-        last_truth_us = max(s.time_us for s in self.truths)
-        return min(float(est[-1].time_us) * 1e-6, float(last_truth_us) * 1e-6)
+        last_truth_us = int(self._tru.columns()["time_us"].max())
+        return min(float(est["time_us"][-1]) * 1e-6, float(last_truth_us) * 1e-6)
 
     def estimate_track(self) -> Track:
-        est = self._navigating()
-        sig = np.array([np.sqrt(np.maximum(e.P_diag[:9], 0.0)) for e in est])
-        covs = [e.P_nav for e in est]
-        cov = None if any(c is None for c in covs) else np.array(covs)
+        c = self._navigating()
         return Track(
-            time_s=np.array([e.time_us for e in est], dtype=float) * 1e-6,
-            lat_rad=np.array([e.lat_rad for e in est]),
-            lon_rad=np.array([e.lon_rad for e in est]),
-            alt_m=np.array([e.alt_msl_m for e in est]),
-            v_ned_mps=np.array([e.v_ned_mps for e in est]),
-            euler_rad=np.array([e.euler_rad for e in est]),
-            sigma=sig,
-            cov=cov,
+            time_s=c["time_us"].astype(float) * 1e-6,
+            lat_rad=c["lat_rad"],
+            lon_rad=c["lon_rad"],
+            alt_m=c["alt_m"],
+            v_ned_mps=c["v_ned_mps"],
+            euler_rad=c["euler_rad"],
+            sigma=c["sigma"],
+            cov=c["cov"] if bool(np.all(c["has_cov"])) else None,
         )
 
     def truth_track(self) -> Track:
-        if len(self.truths) < 2:
-            raise ValueError("the log holds no truth (HIL_STATE_QUATERNION) to score against")
-        tr = sorted(self.truths, key=lambda s: s.time_us)
+        c = self._truth_sorted()
         return Track(
-            time_s=np.array([s.time_us for s in tr], dtype=float) * 1e-6,
-            lat_rad=np.array([s.lat_rad for s in tr]),
-            lon_rad=np.array([s.lon_rad for s in tr]),
-            alt_m=np.array([s.alt_msl_m for s in tr]),
-            v_ned_mps=np.array([s.v_ned_mps for s in tr]),
+            time_s=c["time_us"].astype(float) * 1e-6,
+            lat_rad=c["lat_rad"],
+            lon_rad=c["lon_rad"],
+            alt_m=c["alt_m"],
+            v_ned_mps=c["v_ned_mps"],
             # one vectorised call: per-sample calls cost ~0.1 ms each
-            euler_rad=rotations.quat_to_euler(np.array([s.q_nb for s in tr], dtype=float)),
+            euler_rad=rotations.quat_to_euler(c["q_nb"]),
         )
 
     def modes(self) -> list[str]:
-        return [e.mode for e in self.estimates]
+        """The mode of every estimate (initialising ones included), in order."""
+        c = self._est.columns()
+        return [] if not c else [str(_MODES[k]) for k in c["mode"]]
 
     def fix_track(self) -> Fixes:
         """The received 3-D fixes as arrays (time of validity, position)."""
-        fx = self.fixes
+        c = self._fix.columns()
+        if not c:
+            c = _fix_columns([])
         return Fixes(
-            time_s=np.array([f.time_us for f in fx], dtype=float) * 1e-6,
-            lat_rad=np.array([f.lat_rad for f in fx], dtype=float),
-            lon_rad=np.array([f.lon_rad for f in fx], dtype=float),
-            alt_m=np.array([f.alt_msl_m for f in fx], dtype=float),
+            time_s=c["time_us"].astype(float) * 1e-6,
+            lat_rad=c["lat_rad"],
+            lon_rad=c["lon_rad"],
+            alt_m=c["alt_m"],
         )
 
     def series(self) -> HealthSeries:
@@ -217,21 +486,13 @@ class Collector:
         ValueError
             When the filter produced no navigation estimate.
         """
-        est = self._navigating()
-        ratios = np.array(
-            [(r.gnss_pos, r.gnss_vel, r.baro_hgt, r.mag_hdg)
-             for r in (e.test_ratios for e in est)], dtype=float)  # fmt: skip
-        counts = np.array(
-            [(h.gnss_fused, h.gnss_rejected, h.gnss_resets,
-              h.gnss_no_fix + h.gnss_invalid + h.gnss_inaccurate,
-              h.baro_fused, h.baro_rejected, h.baro_resets, h.mag_fused, h.mag_rejected,
-              h.airspeed_blockages)
-             for h in (e.health for e in est)], dtype=np.int64)  # fmt: skip
+        c = self._navigating()
+        ratios, counts = c["ratios"], c["counts"]
         fixes = self.fix_track()
         order = np.argsort(fixes.time_s, kind="stable")  # fixes arrive in time order, mostly
         return HealthSeries(
-            time_s=np.array([e.time_us for e in est], dtype=float) * 1e-6,
-            mode=np.array([e.mode for e in est], dtype=np.str_),
+            time_s=c["time_us"].astype(float) * 1e-6,
+            mode=np.array([str(_MODES[k]) for k in c["mode"]], dtype=np.str_),
             ratio_gnss_pos=ratios[:, 0],
             ratio_gnss_vel=ratios[:, 1],
             ratio_baro=ratios[:, 2],

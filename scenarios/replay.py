@@ -99,6 +99,6 @@ def _check_content(log: Path, run: FusionRun) -> None:
         raise ValueError(f"{log}: no IMU messages (HIL_SENSOR, HIGHRES_IMU, SCALED_IMU or "
                          "RAW_IMU)")
     col = run.collector
-    if col is not None and not col.fix_times_us:
+    if col is not None and col.n_fixes == 0:
         raise ValueError(f"{log}: no GNSS fix with a 3-D fix type (HIL_GPS or GPS_RAW_INT): "
                          "nothing to align the filter with")

@@ -87,6 +87,7 @@ from hil.codec.wire import (
     KELVIN_AT_0_CELSIUS,
     PA_PER_HPA,
     SENSOR_COMPONENT_ID,
+    SIM_SYSTEM_ID,
     TESLA_PER_GAUSS,
     TRUTH_COMPONENT_ID,
     UINT8_MAX,
@@ -206,7 +207,7 @@ class Encoder:
     def __init__(
         self,
         *,
-        system_id: int = 1,
+        system_id: int = SIM_SYSTEM_ID,
         sensor_component_id: int = SENSOR_COMPONENT_ID,
         truth_component_id: int = TRUTH_COMPONENT_ID,
         autopilot_component_id: int = AUTOPILOT_COMPONENT_ID,

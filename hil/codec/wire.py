@@ -92,6 +92,7 @@ INT32_MAX: Final = 0x7FFF_FFFF
 UINT64_MAX: Final = 0xFFFF_FFFF_FFFF_FFFF
 FLOAT32_MAX: Final = float(np.finfo(np.float32).max)
 
+SIM_SYSTEM_ID: Final = 1  # the simulated vehicle's system id (hilnav sim's frames)
 SENSOR_COMPONENT_ID: Final = int(mavlink2.MAV_COMP_ID_IMU)  # 200
 TRUTH_COMPONENT_ID: Final = int(mavlink2.MAV_COMP_ID_USER1)  # 25
 AUTOPILOT_COMPONENT_ID: Final = int(mavlink2.MAV_COMP_ID_AUTOPILOT1)  # 1

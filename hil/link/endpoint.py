@@ -23,6 +23,9 @@ _IDLE_WAKE_S: Final = 0.05  # longest real-time sleep inside recv() between hous
 
 #: Sequence numbers this far behind the last one count as reordered, not lost.
 _REORDER_WINDOW = 16
+#: Heartbeat periods a ``udpin`` reply address must have been silent before another sender's
+#: address replaces it (one period of slack over the peer's own heartbeat).
+PEER_HOLD_HEARTBEATS: Final = 2
 
 class MavlinkLink:
     """One MAVLink 2 link: a transport, a role, optional signing, heartbeats and counters.
@@ -91,6 +94,8 @@ class MavlinkLink:
         self._last_heartbeat: dict[tuple[int, int], float] = {}
         self._alive: set[tuple[int, int]] = set()
         self._locked_system: int | None = None
+        self._reply_address: Any = None  # udpin: the sender replies go to (see _learn_peer)
+        self._reply_heard = 0.0
         self._heartbeat_state = (0, 0, int(mavlink2.MAV_STATE_ACTIVE))
         self._next_heartbeat = clock()
         self._closed = False
@@ -304,8 +309,23 @@ class MavlinkLink:
             msg = self._accept(frame)
             if msg is not None:
                 if address is not None:
-                    self._transport.learn_peer(address)
+                    self._learn_peer(address)
                 out.append(msg)
+
+    def _learn_peer(self, address: Any) -> None:
+        """Reply to the sender of accepted frames, but keep the current one while it talks: a
+        new address takes over only after the current one has been silent for
+        :data:`PEER_HOLD_HEARTBEATS` heartbeat periods (a restarted simulator on a new port),
+        so a second sender that forges an accepted source address cannot pull the replies
+        (heartbeats, lockstep acknowledgements) away from a live peer by interleaving."""
+        now = self._clock()
+        if address == self._reply_address:
+            self._reply_heard = now
+            return
+        hold_s = PEER_HOLD_HEARTBEATS * self.role.heartbeat_period_s
+        if self._reply_address is None or now - self._reply_heard >= hold_s:
+            self._reply_address, self._reply_heard = address, now
+            self._transport.learn_peer(address)
 
     def _accept(self, frame: bytes) -> Any:
         c = self._counters

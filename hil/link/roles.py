@@ -6,7 +6,13 @@ from typing import Final
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from hil.codec import AUTOPILOT_COMPONENT_ID, SENSOR_COMPONENT_ID, TRUTH_COMPONENT_ID, mavlink2
+from hil.codec import (
+    AUTOPILOT_COMPONENT_ID,
+    SENSOR_COMPONENT_ID,
+    SIM_SYSTEM_ID,
+    TRUTH_COMPONENT_ID,
+    mavlink2,
+)
 
 __all__ = [
     "FC_SENSOR_MSG_IDS", "HEARTBEAT_ID", "HIL_MSG_IDS", "LOCKSTEP_CUSTOM_MODE", "TIMESYNC_ID",
@@ -129,7 +135,7 @@ class LinkRole(BaseModel):
 
     # -- the roles of hilnav's processes --
     @classmethod
-    def simulator(cls, *, system_id: int = 1) -> LinkRole:
+    def simulator(cls, *, system_id: int = SIM_SYSTEM_ID) -> LinkRole:
         """The simulator: a sensor component (200) of the simulated vehicle, neither a vehicle
         nor an autopilot (``MAV_TYPE_GENERIC``, ``MAV_AUTOPILOT_INVALID``); listens only to
         heartbeats and lockstep acknowledgements (TIMESYNC), from anyone."""
@@ -147,7 +153,7 @@ class LinkRole(BaseModel):
         *,
         system_id: int = 1,
         component_id: int = int(mavlink2.MAV_COMP_ID_ONBOARD_COMPUTER),
-        sim_system_id: int = 1,
+        sim_system_id: int = SIM_SYSTEM_ID,
         sim_components: tuple[int, ...] = (
             SENSOR_COMPONENT_ID, TRUTH_COMPONENT_ID, AUTOPILOT_COMPONENT_ID,
         ),

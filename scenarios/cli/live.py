@@ -61,7 +61,11 @@ def serve_fusion(
         t0 = time.monotonic()
         service.run(stop)
         wall = service.wall_s(time.monotonic() - t0)
-    summary = live_summary(service, wall)
+    try:
+        summary = live_summary(service, wall)
+    finally:
+        if service.fusion.collector is not None:
+            service.fusion.collector.close()  # frees the spilled tracks' disk space
     if summary is not None and options.out is not None:
         options.out.mkdir(parents=True, exist_ok=True)
         write_summary(summary, options.out / "summary.json")

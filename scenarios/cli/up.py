@@ -41,6 +41,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from fusion.config import DEFAULT_AIRSPEED_MODE
 from hil.bus import validate_vehicle
 from hil.bus.security import RouterSecurity, endpoint_host
+from hil.codec import SIM_SYSTEM_ID
 from hil.pipeline import SimSetup, build_filter, filter_config
 from hil.router import zenoh_router
 from sim.presets import gnss_preset
@@ -252,7 +253,10 @@ def _run_children(options: UpOptions, listen: str, security: RouterSecurity,
         else listen
     log(f"zenoh router  {listen} (in process"
         + ("; usrpwd + access control" if security.users_file is not None else "") + ")")
-    fusion_args = ["fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
+    # bound to the simulator's system from the first frame: a sender that speaks first
+    # can neither become the fusion's source nor its reply address
+    fusion_args = ["fusion", "--mavlink", f"udpin:127.0.0.1:{port}",
+                   "--source", str(SIM_SYSTEM_ID), "--zenoh", endpoint,
                    *zenoh_args["fusion"],
                    "--vehicle", options.vehicle, "--out", str(out), "--imu", options.imu,
                    "--gnss", options.gnss, "--bridge", options.bridge,

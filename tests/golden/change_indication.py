@@ -46,7 +46,8 @@ def _estimates() -> list[Any]:
     scenario = load_scenario(SCENARIO)
     frames: list[tuple[int, bytes]] = []
     simulate(scenario, lambda t, f: frames.append((t, f)))
-    fused = fuse_frames(frames, filter_config(scenario), scenario.fusion.bridge)
+    fused = fuse_frames(frames, filter_config(scenario), scenario.fusion.bridge,
+                        keep_objects=True)
     assert fused.collector is not None
     return fused.collector.estimates
 

@@ -40,6 +40,7 @@ from hil.link import (
     LinkUrl,
     MavlinkLink,
 )
+from hil.link.endpoint import PEER_HOLD_HEARTBEATS
 from hil.signing import Signer, Verdict
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample, Truth
 
@@ -677,8 +678,33 @@ def test_udp_peer_learning_follows_a_sender_that_comes_back(fusion_udp: Peer) ->
             pump(lambda: len(sim.heartbeats()) >= 1, sim)  # the reply found it
 
     restart_and_talk(0)
+    # the old port falls silent for more than the hold (a restart takes seconds); a new
+    # address cannot take the replies from a peer that is still talking (next test)
+    quiet_until = time.monotonic() + PEER_HOLD_HEARTBEATS * LinkRole.fusion().heartbeat_period_s
+    pump(lambda: time.monotonic() > quiet_until + 0.2, fusion_udp)  # read on, as a service does
     restart_and_talk(1)
     assert fusion_udp.link.counters()["udp_peer_changes"] == 2
+
+
+def test_a_second_address_of_the_same_source_cannot_take_the_replies_of_a_talking_peer(
+    fusion_udp: Peer, raw_udp: socket.socket,
+) -> None:
+    """GIVEN the fusion replying to the simulator WHEN another socket sends valid frames with
+    the simulator's own source address (unsigned: they are accepted) while the simulator keeps
+    talking THEN the replies stay with the simulator; once it has been silent for the hold
+    the other address takes over (what a restarted simulator needs)."""
+    address = fusion_udp.link.local_address
+    with MavlinkLink(f"udpout:127.0.0.1:{address[1]}", LinkRole.simulator()) as sim_link:
+        sim = Peer(sim_link)
+        sim.link.send(sensor_frames(1)[0])
+        pump(lambda: len(fusion_udp.data()) == 1, fusion_udp)
+        for k in range(5):
+            raw_udp.sendto(Encoder().sensors(imu=imu(2 + k)), address)  # forged source 1:200
+            sim.link.send(sensor_frames(1, 5000 * (k + 2))[0])
+            pump(lambda k=k: len(fusion_udp.data()) == 3 + 2 * k, fusion_udp)
+        assert fusion_udp.link.counters()["udp_peer_changes"] == 1
+        fusion_udp.link.send_message(mavlink2.MAVLink_heartbeat_message(18, 8, 0, 0, 4, 3))
+        pump(lambda: len(sim.heartbeats()) >= 1, sim)
 
 
 def test_garbage_cannot_redirect_udp_replies(fusion_udp: Peer, raw_udp: socket.socket) -> None:

@@ -67,7 +67,7 @@ def flown(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[tuple[int, byt
     setup = SimSetup.build(duration_s=40.0, seed=5, gnss_off=["25:5"])
     config = filter_config("industrial-mems", gnss_preset("modern"), "loop")
     frames: list[tuple[int, bytes]] = []
-    live = FusionRun(config, "none")
+    live = FusionRun(config, "none", keep_objects=True)
     report = fly(setup, tee(lambda t, f: frames.append((t, f)), live, None))
     assert report.ended is None and report.frames == len(frames) > 10_000
     assert report.sim_duration_s == pytest.approx(40.0, abs=0.01)
@@ -80,7 +80,7 @@ def test_fused_while_flying_equals_fused_afterwards_and_from_the_recording(flown
     """GIVEN one flight WHEN fused as it flies, from the frames kept in memory, and from its
     .tlog THEN the three give bit-identical estimates (the same seed flies the same bytes)."""
     frames, live, log = flown
-    after = fuse_frames(frames, live.config, "none")
+    after = fuse_frames(frames, live.config, "none", keep_objects=True)
     recorded = [(t, f) for t, f in read_tlog(log)]
     assert [f for _, f in recorded] == [f for _, f in frames]
     assert live.collector is not None and after.collector is not None
@@ -139,7 +139,7 @@ def test_the_stream_carries_the_vehicle_state_without_changing_the_fusion(flown)
     autopilot = [f for _, f in frames if f[6] == AUTOPILOT_COMPONENT_ID]
     assert len(autopilot) == 4000
     assert [f for _, f in frames if f[6] != AUTOPILOT_COMPONENT_ID] == [f for _, f in without]
-    other = fuse_frames(without, live.config, "none")
+    other = fuse_frames(without, live.config, "none", keep_objects=True)
     assert live.collector is not None and other.collector is not None
     a, b = live.collector.estimates, other.collector.estimates
     assert len(a) == len(b) > 1000

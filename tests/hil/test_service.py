@@ -284,7 +284,7 @@ def test_live_chain_matches_replay_of_the_same_frames(tmp_path: Path) -> None:
     assert live["nees"] == ref["nees"]
 
     # errors on Zenoh equal the replayed filter's error at the same times
-    nav_col = Collector()
+    nav_col = Collector(keep_objects=True)
     from fusion.filter import NavFilter
 
     nav = NavFilter(filter_config_for_presets("industrial-mems", "modern"))

@@ -545,7 +545,7 @@ def test_lockstep_loses_nothing_when_the_fusion_freezes_and_innovations_match_re
 
     # the same filter on the recording, tapped the same way
     nav = NavFilter(filter_config_for_presets("industrial-mems", "modern"))
-    col = Collector()
+    col = Collector(keep_objects=True)
     dec = Decoder()
     want: list[tuple[int, str, list[float], float]] = []
     for _t, frame in read_tlog(tmp_path / "run.tlog"):

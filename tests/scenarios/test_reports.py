@@ -262,8 +262,8 @@ def test_replay_writes_what_it_wrote_before_and_the_series_match_the_filter(
     seen: list[Collector] = []
 
     class Spy(Collector):
-        def __init__(self) -> None:
-            super().__init__()
+        def __init__(self, **kwargs: Any) -> None:
+            super().__init__(**kwargs)
             seen.append(self)
 
     monkeypatch.setattr(pipeline_mod, "Collector", Spy)  # the replay's FusionRun collects
