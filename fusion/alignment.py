@@ -19,9 +19,11 @@ magnetometer. The attitude found is that of the interval's middle; it is carried
 time with the buffered gyro increments.
 
 Static: mean specific force over ``static_duration_s`` (levelling), heading from the
-tilt-compensated mean magnetometer field against the configured reference field, or, without
-one, gyrocompassing (horizontal Earth rate; only meaningful for gyros far better than the
-Earth rate, its yaw sigma is derived from the gyro bias).
+tilt-compensated mean magnetometer field against the reference field
+(:func:`fusion.aiding.mag.reference_field_n`: the World Magnetic Model at the fix and the
+configured date by default), or, without a magnetometer or a reference, gyrocompassing
+(horizontal Earth rate; only meaningful for gyros far better than the Earth rate, its yaw
+sigma is derived from the gyro bias).
 
 The filter starts from an alignment with the error covariance of :func:`aligned_covariance`
 (the default initial variances of :func:`initial_variances` with the alignment's sigmas).
@@ -37,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion import earth
+from fusion.aiding.mag import reference_field_n
 from fusion.config import FilterConfig, GnssTuning, ImuTuning, InitConfig, MagTuning
 from fusion.error_model import StateLayout
 from fusion.rotations import dcm_to_quat, euler_to_dcm, quat_multiply, rotvec_to_quat, wrap_pi
@@ -379,7 +382,7 @@ class StaticAlignment:
         roll, pitch = level_from_specific_force(f_b)
         c_lev = euler_to_dcm(np.array([roll, pitch, 0.0]))
         fix = self._fix
-        ref = self.mag.reference_field_n_tesla
+        ref = reference_field_n(self.mag, fix.lat, fix.lon, fix.alt)
         if ref is not None and self._n_m > 0:
             m_lev = c_lev @ (self._sum_m / self._n_m)
             yaw = math.atan2(ref[1], ref[0]) - math.atan2(float(m_lev[1]), float(m_lev[0]))

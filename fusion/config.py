@@ -24,6 +24,7 @@ from pydantic import (
 
 from fusion.altitude.channel import AltitudeChannelConfig
 from fusion.error_model import LayoutName
+from physconst.geomag import DEFAULT_DECIMAL_YEAR
 
 Probability = float
 
@@ -185,9 +186,19 @@ class MagTuning(_Frozen):
     learn_rate_hz: PositiveFloat = 5.0
     """Rate at which samples feed the reference-field learning and the hard-iron calibration,
     Hz (their samples are averaged, not fused: their rate is not the heading update's)."""
+    reference: Literal["wmm", "learned"] = "wmm"
+    """Where the Earth field that heading is measured against comes from. ``wmm``: the World
+    Magnetic Model (:mod:`physconst.geomag`) at the filter's position and ``decimal_year``
+    (declination, inclination and strength), re-evaluated every 500 m travelled; usable from
+    the first moment a position is known (static alignment, heading at hover). ``learned``:
+    from the body field and the filter attitude once the yaw sigma is below
+    ``learn_yaw_sigma_rad`` (no mag heading fusion before that), as before the WMM was wired
+    in. ``reference_field_n_tesla`` overrides both."""
+    decimal_year: float = Field(default=DEFAULT_DECIMAL_YEAR, ge=1900.0, le=2100.0)
+    """Date of the data, e.g. 2026.5 (:func:`physconst.geomag.decimal_year`): the date the WMM
+    field is evaluated at (secular variation: ~0.15 deg/yr of declination in Europe)."""
     reference_field_n_tesla: tuple[float, float, float] | None = None
-    """Earth field in NED (T). ``None``: learned from the body field and the filter attitude once
-    the yaw sigma is below ``learn_yaw_sigma_rad`` (no mag heading fusion before that)."""
+    """A fixed Earth field in NED (T) that replaces ``reference`` (e.g. a local survey)."""
     learn_yaw_sigma_rad: PositiveFloat = math.radians(2.0)
     min_horizontal_field_tesla: PositiveFloat = 5e-6
     """Samples whose horizontal field (after tilt) is weaker than this are not used."""

@@ -48,7 +48,7 @@ REEVALUATE_DISTANCE_M: Final = 500.0
 re-evaluates it after moving this far, horizontally or vertically, m. The main field's
 gradient is about 0.1 deg of declination per 10 km at mid latitudes (a few nT per km), so
 500 m keeps the field used within ~0.01 deg of the model's at the vehicle for one evaluation
-(~1 ms of pure Python) per 500 m travelled."""
+(~0.2 ms of pure Python) per 500 m travelled."""
 _EARTH_RADIUS_M: Final = 6_371_000.0  # only to measure how far something moved
 
 _MODELS: Final = (WMM_2010, WMM_2015v2, WMM_2020, WMM_2025)

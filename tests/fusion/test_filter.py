@@ -34,6 +34,7 @@ from fusion.config import (
 from fusion.estimate import NavEstimate
 from fusion.filter import NavFilter
 from fusion.rotations import quat_multiply, rotvec_to_quat
+from physconst.geomag import magnetic_field_ned_t
 from sim.samples import BaroSample, GnssFix, ImuSample, MagSample
 from tests.helpers.nav_synth import (
     FIELD_N_T,
@@ -87,6 +88,11 @@ def errors_at(sc: Scenario, est: NavEstimate) -> tuple[np.ndarray, np.ndarray, f
     yaw_true = quat_to_euler(kin.q_nb[0])[2]
     dyaw = (est.euler_rad[2] - yaw_true + math.pi) % (2 * math.pi) - math.pi
     return pos, vel, float(dyaw)
+
+
+def earth_distance_m(lat0: float, lon0: float, lat1: float, lon1: float) -> float:
+    n, e, _ = earth.ned_offset_m(lat1, lon1, 0.0, lat0, lon0, 0.0)
+    return math.hypot(n, e)
 
 
 # --------------------------------------------------------------------------- consistency
@@ -293,10 +299,16 @@ def test_in_flight_alignment_converges_from_a_10_deg_heading_error_in_turns(
     assert all(e.mode == "gnss" for e in est)
 
 
-def test_magnetometer_makes_heading_observable_in_straight_flight(straight: Prepared) -> None:
-    # GIVEN straight flight, 10 deg of crab, a magnetometer and the local reference field
+@pytest.mark.parametrize("reference", ["configured", "wmm"])
+def test_magnetometer_makes_heading_observable_in_straight_flight(
+    straight: Prepared, reference: str
+) -> None:
+    # GIVEN straight flight, 10 deg of crab, a magnetometer and the local reference field,
+    # configured or (the default) the World Magnetic Model's at the filter's position
     sc = make_scenario(straight, np.random.default_rng(2), ERRORS, mag_rate_hz=10.0)
-    cfg = CFG.model_copy(update={"mag": MagTuning(reference_field_n_tesla=tuple(FIELD_N_T))})
+    mag = MagTuning(reference_field_n_tesla=tuple(FIELD_N_T)) if reference == "configured" \
+        else MagTuning()
+    cfg = CFG.model_copy(update={"mag": mag})
     nav = NavFilter(cfg)
     # WHEN it flies 30 s
     est = run(nav, sc.samples)
@@ -310,9 +322,9 @@ def test_magnetometer_makes_heading_observable_in_straight_flight(straight: Prep
 
 
 def test_learned_magnetometer_reference_after_the_heading_converged(racetrack: Prepared) -> None:
-    # GIVEN no configured reference field: it is learned once a turn made heading observable
+    # GIVEN a reference field to be learned once a turn made heading observable
     sc = make_scenario(racetrack, np.random.default_rng(3), ERRORS, mag_rate_hz=10.0)
-    nav = NavFilter(CFG)
+    nav = NavFilter(CFG.model_copy(update={"mag": MagTuning(reference="learned")}))
     run(nav, sc.samples)
     assert nav._mag.control.learned
     ref = nav._mag.control.reference_n
@@ -321,6 +333,24 @@ def test_learned_magnetometer_reference_after_the_heading_converged(racetrack: P
     assert abs(decl) < 1.0
     # fused at the configured rate after the first turn (26 s) of the 45 s flight
     assert nav.health.mag_fused >= 0.5 * CFG.mag.fuse_rate_hz * (45.0 - 26.0)
+
+
+def test_wmm_reference_follows_the_filter_position(racetrack: Prepared) -> None:
+    # GIVEN the default reference (World Magnetic Model at the filter's position and date)
+    sc = make_scenario(racetrack, np.random.default_rng(3), ERRORS, mag_rate_hz=10.0)
+    nav = NavFilter(CFG)
+    run(nav, sc.samples)
+    ctl = nav._mag.control
+    # THEN it is the model's field where the filter last evaluated it (< 500 m from the end
+    # of the 1.8 km flight), never a learned one
+    assert not ctl.learned and ctl.follows_model and ctl.reference_n is not None
+    lat, lon, alt = ctl._at
+    ins = nav.ins_state
+    assert ins is not None
+    assert earth_distance_m(lat, lon, ins.lat_rad, ins.lon_rad) < 500.0
+    want = magnetic_field_ned_t(lat, lon, alt, CFG.mag.decimal_year).ned_t
+    np.testing.assert_allclose(ctl.reference_n, want, rtol=1e-12)
+    assert nav.health.mag_fused > 0
 
 
 def test_static_alignment_levelling_and_mag_heading() -> None:

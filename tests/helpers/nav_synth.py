@@ -21,11 +21,16 @@ from fusion.filter import NavFilter
 from fusion.rotations import dcm_to_rotvec, euler_to_quat, quat_to_dcm
 from fusion.trajectory import SplineTrajectory, ideal_increments, imu_rates
 from physconst.airdata import impact_pressure_pa
+from physconst.geomag import DEFAULT_DECIMAL_YEAR, magnetic_field_ned_t
 from sim.samples import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample
 
 FloatArray = NDArray[np.float64]
-#: Earth field near 47 N 8 E, NED, tesla (declination ~3 deg, inclination ~63 deg).
-FIELD_N_T = np.array([21.5e-6, 1.2e-6, 42.5e-6])
+#: Earth field at the flights' start (47.4 N 8.5 E, 600 m) on the default date, NED, tesla: the
+#: World Magnetic Model's, the filter's default reference (declination 3.5 deg, inclination
+#: 63.5 deg). Held constant: over the few km of a test flight the model changes by < 0.02 deg.
+FIELD_N_T = np.array(
+    magnetic_field_ned_t(math.radians(47.4), math.radians(8.5), 600.0, DEFAULT_DECIMAL_YEAR).ned_t
+)
 
 
 def smooth_pulse(t: FloatArray, t0: float, t1: float, ramp: float) -> FloatArray:
