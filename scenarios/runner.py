@@ -66,10 +66,10 @@ def sim_setup(scenario: Scenario) -> SimSetup:
 def filter_config(scenario: Scenario, altitude: str | None = None) -> FilterConfig:
     """The filter tuned from the scenario's IMU datasheet preset and its GNSS receiver's error
     model (position-bias states for a time-correlated receiver), with its altitude method
-    and its air-data choice (``fusion.airspeed``)."""
+    its air-data choice (``fusion.airspeed``) and its alignment (``fusion.align``)."""
     return pipeline_filter_config(scenario.imu_preset, scenario.sensor_config().gnss,
                                   altitude or scenario.fusion.altitude,
-                                  scenario.fusion.airspeed)
+                                  scenario.fusion.airspeed, scenario.fusion.align)
 
 
 def simulate(scenario: Scenario, sink: Callable[[int, bytes], None], *,

@@ -330,6 +330,7 @@ class Scenario(Strict):
         altitude: str | None = None,
         duration_s: float | None = None,
         airspeed: str | None = None,
+        align: str | None = None,
     ) -> Scenario:
         """A re-validated copy with command-line overrides applied.
 
@@ -344,7 +345,7 @@ class Scenario(Strict):
             data["seed"] = seed
         if duration_s is not None:
             data["duration_s"] = duration_s
-        if bridge is not None or altitude is not None or airspeed is not None:
+        if any(v is not None for v in (bridge, altitude, airspeed, align)):
             fusion = dict(data.get("fusion", {}))
             if bridge is not None:
                 fusion["bridge"] = bridge
@@ -352,6 +353,8 @@ class Scenario(Strict):
                 fusion["altitude"] = altitude
             if airspeed is not None:
                 fusion["airspeed"] = airspeed
+            if align is not None:
+                fusion["align"] = align
             data["fusion"] = fusion
         try:
             return Scenario.model_validate(data, context={"base_dir": self._base_dir})

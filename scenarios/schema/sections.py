@@ -20,7 +20,13 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 
 from fusion.bridging.registry import BRIDGE_METHODS
-from fusion.config import AIRSPEED_MODES, ALTITUDE_METHODS, DEFAULT_AIRSPEED_MODE
+from fusion.config import (
+    AIRSPEED_MODES,
+    ALIGN_MODES,
+    ALTITUDE_METHODS,
+    DEFAULT_AIRSPEED_MODE,
+    DEFAULT_ALIGN_MODE,
+)
 from scenarios.schema.base import Strict, first_error, key_error, listing, unknown_name
 from sim import presets
 from sim.baro import BaroConfig
@@ -282,6 +288,12 @@ class FusionSection(Strict):
         "synthetic (on, plus synthetic airspeed for a fixed-wing without a pitot).",
         json_schema_extra=listing("enum", list(AIRSPEED_MODES)),
     )
+    align: str = Field(
+        default=DEFAULT_ALIGN_MODE,
+        description="Alignment: auto (static at rest, GNSS track when moving, magnetometer "
+        "heading when slow), static, in-flight.",
+        json_schema_extra=listing("enum", list(ALIGN_MODES)),
+    )
 
     @field_validator("bridge")
     @classmethod
@@ -302,4 +314,11 @@ class FusionSection(Strict):
     def _known_airspeed(cls, value: str) -> str:
         if value not in AIRSPEED_MODES:
             raise ValueError(unknown_name("airspeed mode", value, AIRSPEED_MODES))
+        return value
+
+    @field_validator("align")
+    @classmethod
+    def _known_align(cls, value: str) -> str:
+        if value not in ALIGN_MODES:
+            raise ValueError(unknown_name("alignment", value, ALIGN_MODES))
         return value
