@@ -13,6 +13,7 @@ from pydantic import (
     BaseModel,
     Field,
     ValidationError,
+    ValidationInfo,
     create_model,
     field_validator,
     model_validator,
@@ -271,6 +272,15 @@ class Sensors(Strict):
 
 
 # -------------------------------------------------------------------------------- fusion
+_FUSION_CHOICES: dict[str, tuple[str, tuple[str, ...]]] = {
+    "bridge": ("bridging method", tuple(BRIDGE_METHODS)),
+    "altitude": ("altitude method", tuple(ALTITUDE_METHODS)),
+    "airspeed": ("airspeed mode", tuple(AIRSPEED_MODES)),
+    "align": ("alignment", tuple(ALIGN_MODES)),
+}
+"""The fusion section's named choices: what the error calls them, and the valid ones."""
+
+
 class FusionSection(Strict):
     """Fusion settings: outage-bridging and vertical-channel methods."""
 
@@ -295,30 +305,10 @@ class FusionSection(Strict):
         json_schema_extra=listing("enum", list(ALIGN_MODES)),
     )
 
-    @field_validator("bridge")
+    @field_validator("bridge", "altitude", "airspeed", "align")
     @classmethod
-    def _known_bridge(cls, value: str) -> str:
-        if value not in BRIDGE_METHODS:
-            raise ValueError(unknown_name("bridging method", value, BRIDGE_METHODS))
-        return value
-
-    @field_validator("altitude")
-    @classmethod
-    def _known_altitude(cls, value: str) -> str:
-        if value not in ALTITUDE_METHODS:
-            raise ValueError(unknown_name("altitude method", value, ALTITUDE_METHODS))
-        return value
-
-    @field_validator("airspeed")
-    @classmethod
-    def _known_airspeed(cls, value: str) -> str:
-        if value not in AIRSPEED_MODES:
-            raise ValueError(unknown_name("airspeed mode", value, AIRSPEED_MODES))
-        return value
-
-    @field_validator("align")
-    @classmethod
-    def _known_align(cls, value: str) -> str:
-        if value not in ALIGN_MODES:
-            raise ValueError(unknown_name("alignment", value, ALIGN_MODES))
+    def _known_choice(cls, value: str, info: ValidationInfo) -> str:
+        what, valid = _FUSION_CHOICES[str(info.field_name)]
+        if value not in valid:
+            raise ValueError(unknown_name(what, value, valid))
         return value

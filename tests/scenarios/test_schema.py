@@ -334,6 +334,7 @@ def test_missing_duration(tmp_path: Path) -> None:
         ("fusion: {bridge: gmhd}\n", "fusion.bridge", "did you mean 'gmdh'"),
         ("fusion: {altitude: mpc}\n", "fusion.altitude", "unknown altitude method"),
         ("fusion: {airspeed: maybe}\n", "fusion.airspeed", "unknown airspeed mode"),
+        ("fusion: {align: statc}\n", "fusion.align", "did you mean 'static'"),
         ("plan: nowhere.yaml\n", "plan", "unknown flight plan"),
         ("turbulence: stormy\n", "turbulence", "unknown turbulence level"),
         ("sensors: {imu: {rate_hz: 70}}\n", "sensors.imu.rate_hz", "must divide"),
