@@ -74,7 +74,7 @@ from typing import Any, Final, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from fusion.config import DEFAULT_AIRSPEED_MODE
+from fusion.config import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
 from fusion.estimate import Mode, NavEstimate
 from hil.bus import BusAccess, Topic
 from hil.codec import TRUTH_COMPONENT_ID, mavlink2
@@ -135,6 +135,8 @@ class FusionOptions(BaseModel):
     altitude: str = "ekf"
     airspeed: str = DEFAULT_AIRSPEED_MODE
     """Air data: ``on``, ``off`` or ``synthetic`` (:data:`fusion.config.AIRSPEED_MODES`)."""
+    align: str = DEFAULT_ALIGN_MODE
+    """Alignment: ``auto``, ``static`` or ``in-flight`` (:data:`fusion.config.ALIGN_MODES`)."""
     gcs: str | None = None
     gcs_tlog: Path | None = None
     """Record the shadow vehicle's stream here (.tlog, estimate-time stamps); needs ``gcs``."""
@@ -314,7 +316,7 @@ class FusionService:
         self.options = options
         self.bus_access = bus_access or BusAccess()
         self.config = filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
-                                    options.airspeed)
+                                    options.airspeed, options.align)
         self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None,
                                 spill_dir=options.out)
         self.nav = self.fusion.nav
