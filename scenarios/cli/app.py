@@ -484,7 +484,9 @@ def up(
 @app.command()
 @cli_errors
 def replay(
-    log: Annotated[Path, typer.Argument(help="MAVLink log (.tlog) with HIL_SENSOR/HIL_GPS.")],
+    log: Annotated[Path, typer.Argument(
+        help="Flight log: a MAVLink .tlog (HIL_SENSOR/HIL_GPS, truth as HIL_STATE_QUATERNION) "
+             "or a PX4 ULog .ulg (scored against the autopilot's own estimate).")],
     out: Annotated[Path, typer.Option(help="Output folder for summary.json and plots.")],
     bridge: BridgeOption = "none",
     altitude: AltitudeOption = "ekf",
@@ -492,27 +494,49 @@ def replay(
     settle: SettleOption = 60.0,
     imu: ImuOption = "industrial-mems",
     gnss: GnssOption = "modern",
+    gnss_off: Annotated[
+        list[str] | None,
+        typer.Option("--gnss-off", help="Cut GNSS START:DURATION s, from the log's first "
+                                        "sample (repeatable)."),
+    ] = None,
 ) -> None:
-    """Run the navigation filter on a recorded log and score it against the logged truth."""
+    """Run the navigation filter on a recorded log and score it against the log's truth
+    (.tlog) or the autopilot's estimate (.ulg)."""
     _out_dir(out)
     from hil.pipeline import filter_config
+    from hil.streamer import GnssWindow
     from scenarios.replay import replay as run_replay
     from sim.presets import gnss_preset
 
     _choice("bridging method", bridge, BRIDGE_METHODS)
     _choice("altitude method", altitude, ALTITUDE_METHODS)
     _choice("airspeed mode", airspeed, AIRSPEED_MODES)
+    windows = list(gnss_off or [])
+    for w in windows:  # a malformed window -> exit 2 before the log is read
+        GnssWindow.parse(w)
+    if not settle >= 0.0:
+        raise ValueError(f"--settle must be >= 0 s (got {settle:g})")
     result = run_replay(log, out,
                         config=filter_config(imu, gnss_preset(gnss), altitude, airspeed),
-                        bridge=bridge, altitude=altitude, settle_s=settle)
+                        bridge=bridge, altitude=altitude, settle_s=settle, gnss_off=windows)
+    console.print(f"scored against: {result.summary['reference']['source']}")
     _print_summary(result.summary)
     _warn_input(result.summary)
     console.print(f"summary -> {result.summary_path}")
 
 
 def _warn_input(s: dict[str, Any]) -> None:
-    """Say on stderr when the log was damaged or cut (the scorecard has it in ``input``)."""
+    """Say on stderr when the log was damaged or cut (the scorecard has it in ``input``), when
+    the settling time was shortened to fit the log (``settling``) and what the reference
+    lacks (``reference``)."""
+    for section in ("settling", "reference", "alignment"):
+        warning = s.get(section, {}).get("warning")
+        if warning:
+            err_console.print(f"[yellow]warning:[/] {warning}", highlight=False)
     inp = s.get("input", {})
+    if inp.get("corrupt"):
+        err_console.print("[yellow]warning:[/] the ULog is damaged: pyulog skipped a corrupt "
+                          "stretch; scored what was readable", highlight=False)
     if inp.get("truncated") or inp.get("bad_frames") or inp.get("skipped_bytes"):
         err_console.print(
             f"[yellow]warning:[/] the log is damaged: {inp.get('bad_frames', 0)} bad frames, "
@@ -522,7 +546,7 @@ def _warn_input(s: dict[str, Any]) -> None:
 
 
 def _fmt(v: Any, spec: str = ".2f") -> str:
-    return "n/a" if v is None else format(v, spec)
+    return "n/a" if v is None or (isinstance(v, float) and v != v) else format(v, spec)
 
 
 def _print_summary(s: dict[str, Any]) -> None:
