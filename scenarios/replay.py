@@ -406,10 +406,14 @@ def _score(
 
 def _not_aligned(log: Path, run: FusionRun, alignment: dict[str, Any]) -> str:
     """Why the filter never navigated, in one line with what the user can do."""
+    fixes = run.collector.fix_times_us if run.collector is not None else []
+    span = (f"3-D fixes from {fixes[0] * 1e-6:.1f} to {fixes[-1] * 1e-6:.1f} s" if fixes
+            else "no 3-D fix")
     if alignment.get("mode") == "static":
         return (f"{log}: alignment not reached: the vehicle never stayed still for "
                 f"{run.config.init.static_duration_s:g} s (gyro rates above "
                 f"{math.degrees(run.config.init.static_max_rate_rps):.1f} deg/s) with a usable "
-                "GNSS fix; replay a log that starts at rest or includes flight")
+                f"GNSS fix ({span}); replay a log that starts at rest or includes flight")
     return (f"{log}: alignment not reached: in-flight alignment needs a GNSS ground speed of "
-            f"{run.config.init.min_speed_mps:g} m/s over good fixes; the log never gave it")
+            f"{run.config.init.min_speed_mps:g} m/s over good fixes ({span}); the log never "
+            "gave it")
