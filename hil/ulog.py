@@ -59,6 +59,7 @@ from numpy.typing import NDArray
 from pyulog import ULog
 from pyulog.core import ULogException
 
+from hil.codec import KELVIN_AT_0_CELSIUS, TESLA_PER_GAUSS
 from physconst import ISA_P0_PA, ISA_R_AIR_JPKGK, ISA_T0_K
 from sim.samples import (
     ActuatorSample,
@@ -76,8 +77,6 @@ __all__ = ["REFERENCE_LABEL", "UlogLog", "read_ulog"]
 REFERENCE_LABEL: Final = "PX4 EKF2"
 """How summaries and plots name the reference of a ULog replay (never "truth")."""
 
-_GAUSS_TO_TESLA: Final = 1e-4
-_KELVIN_OFFSET: Final = 273.15
 _RHO0_KGPM3: Final = ISA_P0_PA / (ISA_R_AIR_JPKGK * ISA_T0_K)  # 1.225, PX4's sea-level density
 _PX4_EARTH_RADIUS_M: Final = 6371000.0  # CONSTANTS_RADIUS_OF_EARTH of PX4's map projection
 _N_CONTROLS: Final = 16
@@ -288,8 +287,8 @@ def _baro(d: Any, t0: int, out: UlogLog) -> list[Sample]:
     p = np.asarray(d.data["baro_pressure_pa"], dtype=float)
     temp_c = _col(d, "baro_temp_celcius")
     temp_k = (temp_c.astype(float) if temp_c is not None else np.full(len(t), ISA_T0_K
-                                                                      - _KELVIN_OFFSET))
-    temp_k = temp_k + _KELVIN_OFFSET
+                                                                      - KELVIN_AT_0_CELSIUS))
+    temp_k = temp_k + KELVIN_AT_0_CELSIUS
     ok = np.isfinite(p) & (p > 0.0) & np.isfinite(temp_k)
     _drop(out, "vehicle_air_data", ok)
     return [BaroSample(int(t[i]), float(p[i]), float(temp_k[i])) for i in np.flatnonzero(ok)]
@@ -297,7 +296,7 @@ def _baro(d: Any, t0: int, out: UlogLog) -> list[Sample]:
 
 def _mag(d: Any, t0: int, out: UlogLog) -> list[Sample]:
     t = _times_us(d, t0)
-    m = _vec(d, "magnetometer_ga") * _GAUSS_TO_TESLA
+    m = _vec(d, "magnetometer_ga") * TESLA_PER_GAUSS
     ok = np.asarray(np.isfinite(m).all(axis=1), dtype=bool)
     _drop(out, "vehicle_magnetometer", ok)
     return [MagSample(int(t[i]), m[i]) for i in np.flatnonzero(ok)]
@@ -307,7 +306,7 @@ def _airspeed(d: Any, t0: int, out: UlogLog) -> list[Sample]:
     t = _times_us(d, t0)
     ias = np.asarray(d.data["indicated_airspeed_m_s"], dtype=float)
     temp = _col(d, "air_temperature_celsius")
-    temp_k = (temp.astype(float) + _KELVIN_OFFSET if temp is not None
+    temp_k = (temp.astype(float) + KELVIN_AT_0_CELSIUS if temp is not None
               else np.full(len(t), ISA_T0_K))  # fmt: skip
     ok = np.isfinite(ias) & np.isfinite(temp_k)
     _drop(out, "airspeed", ok)

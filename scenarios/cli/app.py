@@ -354,6 +354,7 @@ def fusion(
     summary = serve_fusion(options, signing_key=key, on_ready=ready)
     if summary is not None:
         _print_summary(summary)
+        _warn_input(summary)
         live = summary.get("live", {})
         console.print(f"live: lost frames {live.get('lost_frames')}, "
                       f"realtime factor {_fmt(summary.get('realtime_factor'))}")
