@@ -127,6 +127,9 @@ class UlogLog:
         pyulog met a damaged stretch and skipped it.
     notes : str
         What pyulog said while reading (e.g. "File corruption detected ...").
+    dropouts, dropout_ms : int
+        Logger dropouts (messages the logger could not write: data lost on the vehicle) and
+        their total duration, ms.
     """
 
     samples: list[Sample] = field(default_factory=list)
@@ -143,6 +146,8 @@ class UlogLog:
     dropped: dict[str, int] = field(default_factory=dict)
     corrupt: bool = False
     notes: str = ""
+    dropouts: int = 0
+    dropout_ms: int = 0
 
     def count(self, kind: type) -> int:
         """Samples of type ``kind`` (e.g. ``ImuSample``)."""
@@ -166,7 +171,8 @@ def read_ulog(path: str | os.PathLike[str]) -> UlogLog:
         raise ValueError(f"{p}: not a readable PX4 ULog file ({exc})") from None
     notes = " ".join(ln.strip() for ln in said.getvalue().splitlines() if ln.strip())
     out = UlogLog(corrupt=bool(getattr(ulog, "file_corruption", False)) or bool(notes),
-                  notes=notes)
+                  notes=notes, dropouts=len(ulog.dropouts),
+                  dropout_ms=sum(int(d.duration) for d in ulog.dropouts))
     data: dict[str, Any] = {}
     for d in ulog.data_list:
         if d.name in TOPICS and d.multi_id == 0 and d.name not in data:

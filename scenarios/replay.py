@@ -196,6 +196,7 @@ def _replay_ulog(
     inp = {
         "format": "ulog", "topics": ulog.topics, "ignored_topics": ulog.ignored_topics,
         "dropped": ulog.dropped, "corrupt": ulog.corrupt, "notes": ulog.notes,
+        "logger_dropouts": ulog.dropouts, "logger_dropout_ms": ulog.dropout_ms,
         "gnss_topic": ulog.gnss_topic,
         "fix_types": {str(k): v for k, v in sorted(ulog.fix_types.items())},
         "log_duration_s": ulog.duration_s,

@@ -538,6 +538,10 @@ def _warn_input(s: dict[str, Any]) -> None:
     if inp.get("corrupt"):
         err_console.print("[yellow]warning:[/] the ULog is damaged: pyulog skipped a corrupt "
                           "stretch; scored what was readable", highlight=False)
+    if inp.get("logger_dropouts"):
+        err_console.print(f"[yellow]warning:[/] the vehicle's logger dropped data "
+                          f"{inp['logger_dropouts']} times ({inp['logger_dropout_ms']} ms in "
+                          "all): samples are missing there", highlight=False)
     if inp.get("truncated") or inp.get("bad_frames") or inp.get("skipped_bytes"):
         err_console.print(
             f"[yellow]warning:[/] the log is damaged: {inp.get('bad_frames', 0)} bad frames, "

@@ -92,6 +92,7 @@ def test_old_field_names_degE7_and_attitude_only_reference() -> None:
     assert fix.alt_msl_m == pytest.approx(66.814, abs=1e-3)
     assert log.reference_position is None and log.reference_height is None
     assert log.reference and all(math.isnan(r.lat_rad) for r in log.reference)
+    assert (log.dropouts, log.dropout_ms) == (1, 30)  # the logger lost 30 ms, and says so
 
 
 def test_reproject_is_px4s_azimuthal_equidistant_projection() -> None:

@@ -98,6 +98,7 @@ def test_a_reference_without_global_position_is_said(tmp_path: Path) -> None:
     assert s["settling"]["warning"] is None and s["settling"]["applied_s"] == 1.0
     assert "magnetometer disagrees" in s["alignment"]["warning"]
     assert "no global position" in stderr and "magnetometer disagrees" in stderr
+    assert s["input"]["logger_dropouts"] == 1 and "logger dropped data 1 times" in stderr
 
 
 def test_gnss_only_at_the_very_end_cannot_align(tmp_path: Path) -> None:
