@@ -52,7 +52,8 @@ AirspeedOption = Annotated[str, typer.Option(
 AirspeedOverride = Annotated[str | None, typer.Option(
     help=f"Override the scenario's air-data choice: {', '.join(AIRSPEED_MODES)}.")]
 SettleOption = Annotated[
-    float, typer.Option(help="Scorecard: seconds excluded after the start and each outage.")]
+    float, typer.Option(help="Scorecard: seconds excluded after the start and each outage "
+                             "(shortened, with a warning, when a log is too short for it).")]
 
 
 class RunFailed(Exception):

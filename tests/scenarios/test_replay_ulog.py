@@ -142,7 +142,12 @@ def test_not_a_ulog_is_one_line(tmp_path: Path) -> None:
     assert "a damaged ULog with no readable sensor data" in _one_line(stdout + stderr)
 
 
-def test_bad_gnss_off_is_one_line(tmp_path: Path) -> None:
-    code, stdout, stderr = _replay(EVENTS, tmp_path, "--gnss-off", "soon")
+@pytest.mark.parametrize(("args", "needle"), [
+    (["--gnss-off", "soon"], "START:DURATION"),
+    (["--gnss-off", "10:0"], "duration > 0"),
+    (["--settle", "-1"], "--settle must be >= 0"),
+])
+def test_bad_options_are_one_line(tmp_path: Path, args: list[str], needle: str) -> None:
+    code, stdout, stderr = _replay(EVENTS, tmp_path, *args)
     assert code == 2
-    assert "START:DURATION" in _one_line(stdout + stderr)
+    assert needle in _one_line(stdout + stderr)
