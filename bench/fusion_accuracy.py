@@ -37,7 +37,7 @@ on the p95 and on every run.
 
     python bench/fusion_accuracy.py --out bench/results/fusion_accuracy.json \
         [--seeds 10] [--seed-base 100] [--plans racetrack,manoeuvre] [--duration 600] [--jobs 2]
-        [--gnss-bias default|on|off]
+        [--gnss-bias default|on|off] [--mag-reference wmm|learned]
 
 Each run is independent; ``--jobs`` runs them in that many processes (spawned, with one BLAS
 thread each so two jobs do not fight over two cores).
@@ -81,7 +81,8 @@ def _quantile(values: list[float], q: float) -> float:
     return float(np.quantile(v, q)) if v else float("nan")
 
 
-def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default") -> dict[str, Any]:
+def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default",
+            mag_reference: str = "wmm") -> dict[str, Any]:
     """Fly one plan with one seed and score the filter; returns one row of the results.
 
     Parameters
@@ -94,6 +95,9 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
         Simulated flight time, s.
     gnss_bias : str
         ``default`` (the configuration's), ``on`` or ``off``: the filter's GNSS bias states.
+    mag_reference : str
+        ``wmm`` (the default: World Magnetic Model at the filter's position) or ``learned``
+        (learned in flight, the filter before issue #14): the magnetometer's reference field.
 
     Returns
     -------
@@ -116,6 +120,7 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
         base = "ins22" if cfg.state_layout.startswith("ins22") else "ins16"
         cfg = cfg.model_copy(
             update={"state_layout": f"{base}+gnss" if gnss_bias == "on" else base})
+    cfg = cfg.model_copy(update={"mag": cfg.mag.model_copy(update={"reference": mag_reference})})
     run = FusionRun(cfg)
     report = fly(setup, run)
     nav, col = run.nav, run.collector
@@ -194,11 +199,11 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default")
     return row
 
 
-def _run_star(args: tuple[str, int, float, str]) -> dict[str, Any]:
-    plan, seed, duration, gnss_bias = args
+def _run_star(args: tuple[str, int, float, str, str]) -> dict[str, Any]:
+    plan, seed, duration, gnss_bias, mag_reference = args
     t0 = time.perf_counter()
     try:
-        row = run_one(plan, seed, duration, gnss_bias)
+        row = run_one(plan, seed, duration, gnss_bias, mag_reference)
     except Exception as exc:  # a failed run is reported, not allowed to sink the others
         row = {"plan": plan, "seed": seed, "error": f"{type(exc).__name__}: {exc}"}
     row["run_wall_s"] = time.perf_counter() - t0
@@ -294,6 +299,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("bench/results/fusion_accuracy.json"))
     ap.add_argument("--gnss-bias", choices=("default", "on", "off"), default="default",
                     help="the filter's GNSS position-bias states (default: as configured)")
+    ap.add_argument("--mag-reference", choices=("wmm", "learned"), default="wmm",
+                    help="the magnetometer's reference field (learned: the filter before #14)")
     args = ap.parse_args(argv)
     if args.seeds < 1 or args.jobs < 1:
         ap.error("--seeds and --jobs must be >= 1")
@@ -305,7 +312,8 @@ def main(argv: list[str] | None = None) -> int:
                  f"{last_end:g} s, then {SETTLE_S:g} s of GNSS)")
     plans = [p.strip() for p in args.plans.split(",") if p.strip()]
     seeds = list(range(args.seed_base, args.seed_base + args.seeds))
-    tasks = [(p, s, args.duration, args.gnss_bias) for p in plans for s in seeds]
+    tasks = [(p, s, args.duration, args.gnss_bias, args.mag_reference)
+             for p in plans for s in seeds]
 
     load0 = os.getloadavg()
     t0 = time.perf_counter()
@@ -341,6 +349,7 @@ def main(argv: list[str] | None = None) -> int:
             "outage / 60 s into the 60 s outage"),
         "filter_tuning": "hil.tuning.filter_config_for_presets(IMU, GNSS) (datasheet, not truth)",
         "gnss_bias": args.gnss_bias,
+        "mag_reference": args.mag_reference,
         "filter_layouts": sorted({r["filter_layout"] for r in rows if "filter_layout" in r}),
         "targets": {k: {"metric": m, "limit": lim} for k, (m, lim) in TARGETS.items()},
         "machine": {

@@ -1,4 +1,5 @@
-"""Initial alignment: in flight from GNSS, or static (levelling + magnetometer / gyrocompass).
+"""Initial alignment: in flight from GNSS, static (levelling + magnetometer / gyrocompass), or
+automatic (:class:`AutoAlignment`, the default: the path follows from the data).
 
 In flight (fixed wing, coordinated flight), from good fixes 1 and 2 spanning ``window_s`` (and
 no gap longer than ``max_fix_interval_s`` between them):
@@ -19,9 +20,11 @@ magnetometer. The attitude found is that of the interval's middle; it is carried
 time with the buffered gyro increments.
 
 Static: mean specific force over ``static_duration_s`` (levelling), heading from the
-tilt-compensated mean magnetometer field against the configured reference field, or, without
-one, gyrocompassing (horizontal Earth rate; only meaningful for gyros far better than the
-Earth rate, its yaw sigma is derived from the gyro bias).
+tilt-compensated mean magnetometer field against the reference field
+(:func:`fusion.aiding.mag.reference_field_n`: the World Magnetic Model at the fix and the
+configured date by default), or, without a magnetometer or a reference, gyrocompassing
+(horizontal Earth rate; only meaningful for gyros far better than the Earth rate, its yaw
+sigma is derived from the gyro bias).
 
 The filter starts from an alignment with the error covariance of :func:`aligned_covariance`
 (the default initial variances of :func:`initial_variances` with the alignment's sigmas).
@@ -37,9 +40,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion import earth
+from fusion.aiding.mag import reference_field_n
+from fusion.aiding.zero_motion import StillnessDetector
 from fusion.config import FilterConfig, GnssTuning, ImuTuning, InitConfig, MagTuning
 from fusion.error_model import StateLayout
-from fusion.rotations import dcm_to_quat, euler_to_dcm, quat_multiply, rotvec_to_quat, wrap_pi
+from fusion.rotations import (
+    dcm_to_quat,
+    euler_to_dcm,
+    quat_multiply,
+    quat_to_dcm,
+    rotvec_to_quat,
+    wrap_pi,
+)
 from fusion.samples import GnssFix
 from fusion.strapdown import InsState
 
@@ -55,7 +67,8 @@ class AlignmentResult(NamedTuple):
     sigma_vel_mps: float
     sigma_att_ned_rad: tuple[float, float, float]
     method: str
-    """``in_flight``, ``static_mag`` or ``static_gyrocompass``."""
+    """``in_flight`` (heading from the GNSS track), ``in_flight_mag`` (moving slowly: heading
+    from the magnetometer), ``static_mag`` or ``static_gyrocompass``."""
 
 
 def initial_variances(layout: StateLayout, config: FilterConfig) -> FloatArray:
@@ -205,6 +218,7 @@ class InFlightAlignment:
         self.gnss = gnss
         self._imu: deque[_Imu] = deque(maxlen=8192)
         self._fixes: deque[_Fix] = deque(maxlen=64)
+        self._mag: deque[tuple[int, FloatArray]] = deque(maxlen=1024)
 
     def add_imu(
         self,
@@ -241,8 +255,61 @@ class InFlightAlignment:
             )
         )  # fmt: skip
 
+    def add_mag(self, time_us: int, field_b: FloatArray) -> None:
+        """A valid magnetometer sample (body, T): the heading source of :meth:`poll_magnetic`."""
+        self._mag.append((time_us, np.asarray(field_b, dtype=float)))
+
     def poll(self) -> AlignmentResult | None:
-        """Try to align now (at the newest IMU sample's time)."""
+        """Try to align now (at the newest IMU sample's time), heading from the GNSS track:
+        needs ``min_speed_mps`` over the whole window."""
+        w = self._window()
+        if w is None:
+            return None
+        f1, f2, window_fixes, f_b, f_n, v_mid = w
+        speed = float(np.linalg.norm(v_mid[:2]))
+        if (
+            speed < self.init.min_speed_mps
+            or min(float(np.linalg.norm(f.v[:2])) for f in window_fixes) < self.init.min_speed_mps
+        ):
+            return None
+        try:
+            c_nb = triad(f_b, f_n, np.array([1.0, 0.0, 0.0]), v_mid)
+        except ValueError:
+            return None
+        return self._result(f1, f2, c_nb, self.init.yaw_sigma_rad, "in_flight")
+
+    def poll_magnetic(self, mag: MagTuning) -> AlignmentResult | None:
+        """Try to align now with the heading from the magnetometer against the reference field
+        (:func:`fusion.aiding.mag.reference_field_n`), at any speed: a hovering or slowly
+        moving vehicle, whose track says nothing about its heading. Level from the specific
+        force minus the GNSS acceleration as in :meth:`poll`; the mean body field over the
+        same window is the TRIAD's second vector."""
+        w = self._window()
+        if w is None:
+            return None
+        f1, f2, _, f_b, f_n, _ = w
+        fields = [m for t, m in self._mag if f1.time_us < t <= f2.time_us]
+        ref = reference_field_n(mag, 0.5 * (f1.lat + f2.lat), 0.5 * (f1.lon + f2.lon),
+                                0.5 * (f1.alt + f2.alt))  # fmt: skip
+        if not fields or ref is None:
+            return None
+        m_b = np.mean(fields, axis=0)
+        try:
+            c_nb = triad(f_b, f_n, m_b, ref)
+        except ValueError:
+            return None
+        # the tilt error leaks into the magnetic heading through the vertical field
+        tan_dip = abs(float(ref[2])) / max(math.hypot(float(ref[0]), float(ref[1])), 1e-9)
+        sig_yaw = min(math.pi, math.hypot(self.init.static_yaw_sigma_rad,
+                                          tan_dip * self.init.roll_pitch_sigma_rad))
+        return self._result(f1, f2, c_nb, sig_yaw, "in_flight_mag")
+
+    def _window(
+        self,
+    ) -> tuple[_Fix, _Fix, list[_Fix], FloatArray, FloatArray, FloatArray] | None:
+        """Fixes 1 and 2, the fixes between them, the mean body specific force over the
+        interval, the specific force in NED from GNSS, and the mean velocity; ``None`` until
+        a window of good fixes and IMU samples spanning it exists."""
         if len(self._fixes) < 2 or not self._imu:
             return None
         f2 = self._fixes[-1]
@@ -260,13 +327,7 @@ class InFlightAlignment:
         if now_us < f2.time_us or self._imu[0].time_us > f1.time_us:
             return None
         v_mid = 0.5 * (f1.v + f2.v)
-        speed = float(np.linalg.norm(v_mid[:2]))
         window_fixes = [f for f in self._fixes if f.time_us >= f1.time_us]
-        if (
-            speed < self.init.min_speed_mps
-            or min(float(np.linalg.norm(f.v[:2])) for f in window_fixes) < self.init.min_speed_mps
-        ):
-            return None
         window = [s for s in self._imu if f1.time_us < s.time_us <= f2.time_us]
         if len(window) < 2:
             return None
@@ -276,11 +337,15 @@ class InFlightAlignment:
         w_en = earth.transport_rate_n(lat_mid, alt_mid, v_mid)
         g_n = np.array([0.0, 0.0, float(earth.gravity(lat_mid, alt_mid))])
         f_n = (f2.v - f1.v) / dt_fix - g_n + np.cross(2.0 * w_ie + w_en, v_mid)
-        try:
-            c_nb = triad(f_b, f_n, np.array([1.0, 0.0, 0.0]), v_mid)
-        except ValueError:
-            return None
-        # carry the attitude from the interval's middle to now with the gyro increments
+        return f1, f2, window_fixes, f_b, f_n, v_mid
+
+    def _result(
+        self, f1: _Fix, f2: _Fix, c_nb: FloatArray, sig_yaw: float, method: str
+    ) -> AlignmentResult:
+        """The attitude ``c_nb`` of the window's middle carried to now with the gyro
+        increments, the position and velocity carried from fix 2 to now."""
+        now_us = self._imu[-1].time_us
+        dt_fix = (f2.time_us - f1.time_us) * 1e-6
         t_mid = 0.5 * (f1.time_us + f2.time_us)
         q = dcm_to_quat(c_nb)
         for s in self._imu:
@@ -288,8 +353,6 @@ class InFlightAlignment:
                 dt = min(s.dt_s, (s.time_us - t_mid) * 1e-6)
                 q = quat_multiply(q, rotvec_to_quat(np.asarray(s.w_b) * dt))
         q = q / np.linalg.norm(q)
-        from fusion.rotations import quat_to_dcm
-
         c_now = quat_to_dcm(q)
         # position/velocity carried from fix 2 to now with the GNSS velocity and acceleration
         lag = (now_us - f2.time_us) * 1e-6
@@ -305,8 +368,7 @@ class InFlightAlignment:
         sig_v = max(self.init.vel_sigma_mps, f2.sacc)
         rp = self.init.roll_pitch_sigma_rad
         return AlignmentResult(
-            now_us, state, (sig_h, sig_h, sig_h), sig_v, (rp, rp, self.init.yaw_sigma_rad),
-            "in_flight",
+            now_us, state, (sig_h, sig_h, sig_h), sig_v, (rp, rp, sig_yaw), method,
         )  # fmt: skip
 
 
@@ -321,11 +383,13 @@ class StaticAlignment:
     imu : ImuTuning
     """
 
-    def __init__(self, init: InitConfig, gnss: GnssTuning, mag: MagTuning, imu: ImuTuning) -> None:
+    def __init__(self, init: InitConfig, gnss: GnssTuning, mag: MagTuning, imu: ImuTuning,
+                 max_rate_rps: float | None = None) -> None:
         self.init = init
         self.gnss = gnss
         self.mag = mag
         self.imu = imu
+        self._max_rate = init.static_max_rate_rps if max_rate_rps is None else max_rate_rps
         self._restart()
         self._fix: _Fix | None = None
 
@@ -345,8 +409,9 @@ class StaticAlignment:
         f_b: tuple[float, float, float],
         w_b: tuple[float, float, float],
     ) -> None:
-        """A valid IMU sample; a rate above ``static_max_rate_rps`` restarts the window."""
-        if max(abs(w) for w in w_b) > self.init.static_max_rate_rps:
+        """A valid IMU sample; a rate above ``static_max_rate_rps`` (or the ``max_rate_rps``
+        given) restarts the window."""
+        if max(abs(w) for w in w_b) > self._max_rate:
             self._restart()
             return
         if self._t0_us is None:
@@ -363,8 +428,8 @@ class StaticAlignment:
             np.asarray(fix.v_ned_mps, dtype=float), float(fix.eph_m), float(fix.speed_accuracy_mps),
         )  # fmt: skip
 
-    def add_mag(self, field_b: FloatArray) -> None:
-        """A valid magnetometer sample."""
+    def add_mag(self, time_us: int, field_b: FloatArray) -> None:
+        """A valid magnetometer sample (body, T)."""
         if self._t0_us is not None:
             self._sum_m += field_b
             self._n_m += 1
@@ -379,7 +444,7 @@ class StaticAlignment:
         roll, pitch = level_from_specific_force(f_b)
         c_lev = euler_to_dcm(np.array([roll, pitch, 0.0]))
         fix = self._fix
-        ref = self.mag.reference_field_n_tesla
+        ref = reference_field_n(self.mag, fix.lat, fix.lon, fix.alt)
         if ref is not None and self._n_m > 0:
             m_lev = c_lev @ (self._sum_m / self._n_m)
             yaw = math.atan2(ref[1], ref[0]) - math.atan2(float(m_lev[1]), float(m_lev[0]))
@@ -404,3 +469,119 @@ class StaticAlignment:
             self._t1_us, state, (sig_h, sig_h, sig_h), self.init.vel_sigma_mps, (rp, rp, sig_yaw),
             method,
         )  # fmt: skip
+
+
+class AutoAlignment:
+    """The default alignment (``InitConfig.mode="auto"``): the path follows from the data.
+
+    - **at rest** (the rest detector of :mod:`fusion.aiding.zero_motion` judges its 1 s blocks
+      still and GNSS says slower than ``ZeroMotionTuning.max_speed_mps``): the static
+      alignment over ``static_duration_s`` of still blocks (levelling, magnetometer heading
+      against the reference field, gyrocompassing without one); the zero-velocity and
+      zero-angular-rate updates of the running filter are the fine alignment;
+    - **moving at ``min_speed_mps`` or more**: the in-flight alignment, heading from the GNSS
+      track (exactly the ``in_flight`` mode);
+    - **moving slower** (hover, taxi; the last block was not still): levelling from the
+      specific force minus the GNSS acceleration and heading from the magnetometer
+      (:meth:`InFlightAlignment.poll_magnetic`); the heading updates of the magnetometer then
+      hold yaw until GNSS velocity makes it observable. Without a magnetometer it waits for
+      speed, as ``in_flight`` does.
+
+    Parameters
+    ----------
+    config : FilterConfig
+    """
+
+    def __init__(self, config: FilterConfig) -> None:
+        cfg = config
+        self._flight = InFlightAlignment(cfg.init, cfg.gnss)
+        # rest is the detector's verdict; its rate bound (3 deg/s) is above a consumer gyro's
+        # turn-on bias (0.5 deg/s, 1 sigma), which the static mode's 0.02 rad/s is not
+        self._static = StaticAlignment(cfg.init, cfg.gnss, cfg.mag, cfg.imu,
+                                       max_rate_rps=cfg.zero_motion.max_rate_rps)
+        self._detector = StillnessDetector(cfg.zero_motion, cfg.imu)
+        self._mag_cfg = cfg.mag
+        self._max_rest_speed = cfg.zero_motion.max_speed_mps
+        self._v: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self._has_fix = False
+        self._has_mag = False
+        self._block_imu: list[tuple[int, float, tuple[float, float, float],
+                                    tuple[float, float, float]]] = []  # fmt: skip
+        self._block_mag: list[tuple[int, FloatArray]] = []
+        self.moving: bool | None = None
+        """Verdict of the last judged block (``None`` before the first)."""
+
+    @property
+    def state(self) -> str:
+        """What the alignment is waiting for, in words (health / status)."""
+        if not self._has_fix:
+            return "waiting for a GNSS fix"
+        if self.moving is None:
+            return "watching for rest or motion"
+        if not self.moving:
+            return "at rest: levelling"
+        if self._has_mag:
+            return "moving: magnetic heading"
+        return "moving: waiting for speed (no magnetometer)"
+
+    def add_imu(
+        self,
+        time_us: int,
+        dt_s: float,
+        f_b: tuple[float, float, float],
+        w_b: tuple[float, float, float],
+    ) -> None:
+        """A valid IMU sample: into the in-flight window and, block by block once the rest
+        detector judged the block still, into the static window."""
+        self._flight.add_imu(time_us, dt_s, f_b, w_b)
+        det = self._detector
+        blocks = det.blocks
+        vn, ve, vd = self._v
+        if vn * vn + ve * ve + vd * vd > self._max_rest_speed**2:
+            det.add((*f_b, *w_b), dt_s, self._v)  # clears the detector
+            self._end_block(still=False)
+            return
+        self._block_imu.append((time_us, dt_s, f_b, w_b))
+        still = det.add((*f_b, *w_b), dt_s, self._v)
+        if det.blocks != blocks:
+            self._end_block(still)
+
+    def _end_block(self, still: bool) -> None:
+        self.moving = not still
+        if still:
+            for s in self._block_imu:
+                self._static.add_imu(*s)
+            for t, m in self._block_mag:
+                self._static.add_mag(t, m)
+        else:
+            self._static._restart()
+        self._block_imu.clear()
+        self._block_mag.clear()
+
+    def add_fix(self, fix: GnssFix) -> None:
+        """A fix that passed the quality checks."""
+        self._flight.add_fix(fix)
+        self._static.add_fix(fix)
+        v = np.asarray(fix.v_ned_mps, dtype=float)
+        self._v = (float(v[0]), float(v[1]), float(v[2]) if math.isfinite(v[2]) else 0.0)
+        self._has_fix = True
+
+    def add_mag(self, time_us: int, field_b: FloatArray) -> None:
+        """A valid magnetometer sample."""
+        self._flight.add_mag(time_us, field_b)
+        self._block_mag.append((time_us, field_b))
+        self._has_mag = True
+
+    def poll(self) -> AlignmentResult | None:
+        """At rest: static; fast enough: track; moving slowly with a magnetometer: magnetic."""
+        vn, ve, vd = self._v
+        if vn * vn + ve * ve + vd * vd <= self._max_rest_speed**2:
+            res = self._static.poll()
+            if res is not None:
+                return res
+        res = self._flight.poll()
+        if res is not None or not self.moving or not self._has_mag:
+            return res
+        if math.hypot(vn, ve) >= self._flight.init.min_speed_mps:
+            return None  # fast enough for the track: wait for its window
+        return self._flight.poll_magnetic(self._mag_cfg)

@@ -24,6 +24,7 @@ from pydantic import (
 
 from fusion.altitude.channel import AltitudeChannelConfig
 from fusion.error_model import LayoutName
+from physconst.geomag import DEFAULT_DECIMAL_YEAR
 
 Probability = float
 
@@ -185,9 +186,19 @@ class MagTuning(_Frozen):
     learn_rate_hz: PositiveFloat = 5.0
     """Rate at which samples feed the reference-field learning and the hard-iron calibration,
     Hz (their samples are averaged, not fused: their rate is not the heading update's)."""
+    reference: Literal["wmm", "learned"] = "wmm"
+    """Where the Earth field that heading is measured against comes from. ``wmm``: the World
+    Magnetic Model (:mod:`physconst.geomag`) at the filter's position and ``decimal_year``
+    (declination, inclination and strength), re-evaluated every 500 m travelled; usable from
+    the first moment a position is known (static alignment, heading at hover). ``learned``:
+    from the body field and the filter attitude once the yaw sigma is below
+    ``learn_yaw_sigma_rad`` (no mag heading fusion before that), as before the WMM was wired
+    in. ``reference_field_n_tesla`` overrides both."""
+    decimal_year: float = Field(default=DEFAULT_DECIMAL_YEAR, ge=1900.0, le=2100.0)
+    """Date of the data, e.g. 2026.5 (:func:`physconst.geomag.decimal_year`): the date the WMM
+    field is evaluated at (secular variation: ~0.15 deg/yr of declination in Europe)."""
     reference_field_n_tesla: tuple[float, float, float] | None = None
-    """Earth field in NED (T). ``None``: learned from the body field and the filter attitude once
-    the yaw sigma is below ``learn_yaw_sigma_rad`` (no mag heading fusion before that)."""
+    """A fixed Earth field in NED (T) that replaces ``reference`` (e.g. a local survey)."""
     learn_yaw_sigma_rad: PositiveFloat = math.radians(2.0)
     min_horizontal_field_tesla: PositiveFloat = 5e-6
     """Samples whose horizontal field (after tilt) is weaker than this are not used."""
@@ -387,15 +398,23 @@ class ZeroMotionTuning(_Frozen):
     """1-sigma per axis of the velocity of a vehicle at rest (sway in wind), m/s."""
     fuse_rate_hz: PositiveFloat = 5.0
     gate_probability: Probability = Field(default=0.999, gt=0.5, lt=1.0)
+    zero_rate: bool = True
+    """Also fuse zero angular rate (the Earth rate) at the end of every still block: the gyro
+    bias calibration of the fine alignment at rest."""
+    rate_sigma_floor_rps: PositiveFloat = 1e-6
+    """Lower bound of the zero-rate sigma, rad/s (0.2 deg/h: g-sensitivity and scale factor
+    times the Earth rate, below any MEMS bias instability)."""
 
 
 class InitConfig(_Frozen):
     """Alignment and initial uncertainties."""
 
-    mode: Literal["in_flight", "static"] = "in_flight"
-    """``in_flight``: from two GNSS fixes (heading from the track, level from specific force
-    minus GNSS acceleration). ``static``: levelling plus magnetometer heading (gyrocompassing
-    when no magnetometer reference), vehicle at rest."""
+    mode: Literal["auto", "in_flight", "static"] = "auto"
+    """``auto`` (the default, :class:`fusion.alignment.AutoAlignment`): static at rest, from
+    the GNSS track when moving at ``min_speed_mps`` or more, heading from the magnetometer
+    when moving slower (hover). ``in_flight``: only from two GNSS fixes (heading from the
+    track, level from specific force minus GNSS acceleration). ``static``: only levelling plus
+    magnetometer heading (gyrocompassing without a magnetometer), vehicle at rest."""
     min_speed_mps: PositiveFloat = 5.0
     """In-flight alignment needs this ground speed for a track angle, m/s."""
     window_s: PositiveFloat = 1.0
@@ -413,8 +432,24 @@ class InitConfig(_Frozen):
     yaw_sigma_rad: PositiveFloat = math.radians(15.0)
     """Covers the track-vs-heading difference of a crabbing aircraft (10 deg and more)."""
     static_yaw_sigma_rad: PositiveFloat = math.radians(5.0)
+    """Yaw sigma of a magnetic heading at alignment (hard-iron residual, local anomaly); the
+    moving magnetic alignment adds the tilt error carried by the vertical field."""
     baro_bias_sigma_m: PositiveFloat = 2.0
     """Added (in quadrature) to the height sigma when the baro bias is initialised, m."""
+
+
+ALIGN_MODES: tuple[str, ...] = ("auto", "static", "in-flight")
+"""Alignment choices of the commands (``--align``): :attr:`InitConfig.mode` with a hyphen."""
+DEFAULT_ALIGN_MODE = "auto"
+"""The commands' alignment default: the path follows from the data (:class:`InitConfig`)."""
+
+
+def init_for_align(mode: str, base: InitConfig | None = None) -> InitConfig:
+    """``base`` (default :class:`InitConfig`) set for the command-line choice ``mode``
+    (:data:`ALIGN_MODES`; ValueError names the valid ones)."""
+    if mode not in ALIGN_MODES:
+        raise ValueError(f"unknown alignment {mode!r}; valid choices: {', '.join(ALIGN_MODES)}")
+    return (base or InitConfig()).model_copy(update={"mode": mode.replace("-", "_")})
 
 
 class RatesConfig(_Frozen):

@@ -51,6 +51,8 @@ class AidSource(StrEnum):
     """Synthetic sideslip (zero) of a fixed-wing aircraft."""
     ZERO_VEL = "zero_vel"
     """Zero velocity while the vehicle is at rest (:mod:`fusion.aiding.zero_motion`)."""
+    ZERO_RATE = "zero_rate"
+    """Zero angular rate (the Earth rate) while at rest: the gyro bias (same module)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -164,6 +166,10 @@ class Health:
     """Zero-velocity updates fused (vehicle at rest, :mod:`fusion.aiding.zero_motion`)."""
     zupt_rejected: int = 0
     """Zero-velocity updates refused by the gate (the vehicle moved within a still block)."""
+    zaru_fused: int = 0
+    """Zero-angular-rate updates fused (one per still block of the rest detector)."""
+    zaru_rejected: int = 0
+    """Zero-angular-rate updates refused by the gate (a slow rotation, not rest)."""
 
 
 HEALTH_FIELDS = tuple(f.name for f in fields(Health))
@@ -223,6 +229,8 @@ class HealthCounters:
     wind_resets: int
     zupt_fused: int
     zupt_rejected: int
+    zaru_fused: int
+    zaru_rejected: int
 
     def __init__(self) -> None:
         for name in HEALTH_FIELDS:
@@ -408,10 +416,30 @@ class AidingStatus:
     airspeed: AidSourceStatus = AidSourceStatus(AidSource.AIRSPEED)
     sideslip: AidSourceStatus = AidSourceStatus(AidSource.SIDESLIP)
     zero_vel: AidSourceStatus = AidSourceStatus(AidSource.ZERO_VEL)
+    zero_rate: AidSourceStatus = AidSourceStatus(AidSource.ZERO_RATE)
 
     def __getitem__(self, source: AidSource) -> AidSourceStatus:
         status: AidSourceStatus = getattr(self, source.value)
         return status
+
+
+@dataclass(frozen=True, slots=True)
+class AlignmentStatus:
+    """How the filter was aligned (:mod:`fusion.alignment`).
+
+    Attributes
+    ----------
+    method : str
+        ``in_flight`` (heading from the GNSS track), ``in_flight_mag`` (moving slowly: heading
+        from the magnetometer), ``static_mag``, ``static_gyrocompass`` or ``given``
+        (:meth:`fusion.filter.NavFilter.initialize`).
+    at_rest : bool
+        The rest detector's last block was still: zero-velocity and zero-angular-rate updates
+        are being fused (the fine alignment of a vehicle at rest).
+    """
+
+    method: str
+    at_rest: bool
 
 
 @dataclass(frozen=True, slots=True)
@@ -500,6 +528,8 @@ class NavEstimate:
         Body angular rate of the last IMU step (gyro increment minus the estimated bias, over
         the step; inertial rate, Earth rate included), rad/s: what ground stations show as
         roll / pitch / yaw rates. None from producers that do not know it.
+    alignment : AlignmentStatus or None
+        How the filter was aligned and whether the rest updates (fine alignment) run now.
     """
 
     time_us: int
@@ -524,6 +554,7 @@ class NavEstimate:
     P_nav: FloatArray | None = None
     air_data: AirDataStatus | None = None
     omega_b_rps: FloatArray | None = None
+    alignment: AlignmentStatus | None = None
 
 
 _ESTIMATE_SETTERS = tuple(getattr(NavEstimate, f.name).__set__ for f in fields(NavEstimate))

@@ -64,6 +64,7 @@ from fusion.aiding.zero_motion import ZeroMotionAiding
 from fusion.airspeed_model import AirspeedInputs
 from fusion.alignment import (
     AlignmentResult,
+    AutoAlignment,
     InFlightAlignment,
     StaticAlignment,
     aligned_covariance,
@@ -86,6 +87,7 @@ from fusion.estimate import (
     AidSource,
     AidSourceStatus,
     AirDataStatus,
+    AlignmentStatus,
     Health,
     HealthCounters,
     Innovation,
@@ -258,12 +260,13 @@ class NavFilter:
         self._alt = AltitudeLink(cfg.altitude, cfg.gnss.lever_arm_b_m, self._c)
         self._outage = OutageBridging(self.bridge, cfg.bridge.rate_hz, self._epoch)
         self._shadows = self._outage.shadows  # the IMU path's view of it
-        self._aligner: InFlightAlignment | StaticAlignment = (
-            InFlightAlignment(cfg.init, cfg.gnss)
-            if cfg.init.mode == "in_flight"
+        self._aligner: InFlightAlignment | StaticAlignment | AutoAlignment = (
+            InFlightAlignment(cfg.init, cfg.gnss) if cfg.init.mode == "in_flight"
             else StaticAlignment(cfg.init, cfg.gnss, cfg.mag, cfg.imu)
-        )
+            if cfg.init.mode == "static" else AutoAlignment(cfg)
+        )  # fmt: skip
         self.alignment_method: str | None = None
+        self._align_status: AlignmentStatus | None = None
         self._next_out_us = 0
         self._timeout_us = round(cfg.gnss.outage_timeout_s * 1e6)
         # the updates of the current step, and each source's status (rebuilt into the
@@ -442,6 +445,7 @@ class NavFilter:
             self._h_ref = float(state.alt_msl_m)  # the scale factor's reference height
             self._baro.control.on_bias_init()
         self.alignment_method = "given"
+        self._align_status = None
 
     def default_initial_variances(self) -> FloatArray:
         """Initial error variances (n,) from ``InitConfig`` and the sensor sigmas (what
@@ -523,7 +527,7 @@ class NavFilter:
         self._history_push(t, ins)
         zero = self._zero
         if zero is not None and good:
-            zero.on_imu(t, fw, dt, ins)
+            zero.on_imu(t, fw, dt, ins, bg)
         if self._loop_alt:
             self._alt.on_imu(t, dt, ins0.v_ned_mps[2], ins)
         if self._pending and self._pending[0].time_us <= t:
@@ -585,6 +589,28 @@ class NavFilter:
     def _start_from_alignment(self, res: AlignmentResult) -> None:
         self._start(res.time_us, res.state, aligned_covariance(self.layout, self.config, res))
         self.alignment_method = res.method
+
+    @property
+    def alignment_state(self) -> str:
+        """What the alignment is doing, in words: before alignment what it waits for, after
+        it the method and whether the rest updates (fine alignment) run."""
+        if self._ins is None:
+            aligner = self._aligner
+            if isinstance(aligner, AutoAlignment):
+                return aligner.state
+            return f"waiting ({self.config.init.mode})"
+        status = self._alignment_status()
+        return f"aligned: {status.method}" + (", at rest (fine alignment)"
+                                             if status.at_rest else "")
+
+    def _alignment_status(self) -> AlignmentStatus:
+        zero = self._zero
+        at_rest = zero is not None and zero.detector.still
+        status = self._align_status
+        if status is None or status.at_rest != at_rest:
+            status = self._align_status = AlignmentStatus(self.alignment_method or "given",
+                                                          at_rest)
+        return status
 
     def _start(self, time_us: int, state: InsState, cov: FloatArray) -> None:
         self._ins = state
@@ -937,9 +963,8 @@ class NavFilter:
         if field is None:
             return []
         if self._ins is None:
-            if isinstance(self._aligner, StaticAlignment):
-                self._aligner.add_mag(np.array(field))
-                self._try_align()
+            self._aligner.add_mag(t, np.array(field))
+            self._try_align()
             return []
         mag.fuse(field, t, self._ins, self._yaw_sigma)
         return []
@@ -1000,6 +1025,7 @@ class NavFilter:
             gctl.time_since_fused_s(t), self.layout.name,
             self._alt.status(), self.bridge.status, self._est_aiding, p_nav, self._air_status,
             buf[16:19],  # omega_b_rps
+            self._alignment_status(),
         )  # fmt: skip
 
 

@@ -33,13 +33,23 @@ from pygeomag.wmm.wmm_2025 import WMM_2025
 
 __all__ = [
     "DEFAULT_DECIMAL_YEAR",
+    "REEVALUATE_DISTANCE_M",
     "GeomagneticField",
     "decimal_year",
     "magnetic_field_ned_t",
+    "moved_beyond",
 ]
 
 DEFAULT_DECIMAL_YEAR: Final = 2026.0
 """Date of the simulated world when a scenario gives none (inside WMM2025's life span)."""
+
+REEVALUATE_DISTANCE_M: Final = 500.0
+"""A user of the field (the simulator's magnetometer, the filter's heading reference)
+re-evaluates it after moving this far, horizontally or vertically, m. The main field's
+gradient is about 0.1 deg of declination per 10 km at mid latitudes (a few nT per km), so
+500 m keeps the field used within ~0.01 deg of the model's at the vehicle for one evaluation
+(~0.2 ms of pure Python) per 500 m travelled."""
+_EARTH_RADIUS_M: Final = 6_371_000.0  # only to measure how far something moved
 
 _MODELS: Final = (WMM_2010, WMM_2015v2, WMM_2020, WMM_2025)
 _NT_TO_T: Final = 1e-9
@@ -125,6 +135,19 @@ def magnetic_field_ned_t(
         down_t=float(r.z) * _NT_TO_T,
         extrapolated=not (lo <= year < hi),
     )
+
+
+def moved_beyond(
+    a: tuple[float, float, float], b: tuple[float, float, float], distance_m: float
+) -> bool:
+    """True when the geodetic positions ``a`` and ``b`` (lat rad, lon rad, height m) are more
+    than ``distance_m`` apart horizontally (spherical approximation) or vertically; a NaN
+    position is always "moved"."""
+    lat0, lon0, h0 = a
+    lat1, lon1, h1 = b
+    dn = (lat1 - lat0) * _EARTH_RADIUS_M
+    de = (lon1 - lon0) * _EARTH_RADIUS_M * math.cos(lat1)
+    return not (dn * dn + de * de <= distance_m * distance_m and abs(h1 - h0) <= distance_m)
 
 
 def decimal_year(when: _dt.datetime | _dt.date) -> float:

@@ -1,24 +1,17 @@
-"""Magnetometer model: a constant Earth field rotated into body axes, noise, hard iron.
+"""Magnetometer model: the Earth's field at the vehicle rotated into body axes, noise, hard iron.
 
 Earth field
 -----------
-No model file is downloaded: the field is the **centred tilted dipole** given by the
-first-degree IGRF Gauss coefficients (IGRF-13, epoch 2020.0, nT)::
-
-    g10 = -29404.8,  g11 = -1450.9,  h11 = 4652.5,  reference radius a = 6371.2 km
-
-whose potential ``V = a·(a/r)²·(g10·cosθ + (g11·cosφ + h11·sinφ)·sinθ)`` gives, in ECEF,
-``B = (a/r)³·(3·(g·r̂)·r̂ − g)`` with ``g = (g11, h11, g10)``; it is rotated to the local NED
-frame with the geodetic latitude. The dipole carries about 90 % of the main field's energy at
-the surface but ignores the higher degrees: at 47°N 8°E it gives 48.4 µT and an inclination of
-65.2° (IGRF 2020: ≈ 48 µT, ≈ 63.5°) but a declination of −13.7° where the real one is about
-+3°: the non-dipole field matters for declination. Secular variation is ignored
-(tens of nT per year). Where the exact local field matters, give ``field_ned_ut`` (e.g. from
-a WMM/IGRF calculator) and the dipole is not used.
-
-The field is computed once, for the start location, and held constant: over a flight of a
-few hundred km it changes by a few per cent, which is below what hilnav uses the
-magnetometer for (heading aiding).
+The World Magnetic Model (:mod:`physconst.geomag`, the one definition of the Earth's field
+that the filter's heading reference uses too) at the vehicle's position and the simulated
+date (``decimal_year``, default :data:`physconst.geomag.DEFAULT_DECIMAL_YEAR`). Over a
+flight the field changes slowly with position (about 0.1 deg of declination per 10 km in
+central Europe, more near the poles): it is re-evaluated whenever the vehicle has moved more
+than :data:`physconst.geomag.REEVALUATE_DISTANCE_M` (500 m) from the point of the last
+evaluation, horizontally or in height (~0.01 deg of declination away from the poles).
+Crustal anomalies and secular variation within a flight are not modelled. Where a fixed
+local field is wanted (e.g. to reproduce a bench measurement), give ``field_ned_ut`` and the
+model is not used.
 
 Measurement: ``m_b = Q( C_bn·B_n + hard_iron + n )``, ``n ~ N(0, noise²)`` per axis.
 """
@@ -31,21 +24,19 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from physconst.geomag import (
+    DEFAULT_DECIMAL_YEAR,
+    REEVALUATE_DISTANCE_M,
+    magnetic_field_ned_t,
+    moved_beyond,
+)
 from sim._sensor_common import (
     BLOCK_STEPS,
     Finite,
     NonNegative,
     SensorConfigModel,
-    ecef_from_geodetic_m,
 )
 from sim.samples import MagSample
-
-IGRF_EPOCH = 2020.0
-"""Epoch of the dipole coefficients below (IGRF-13)."""
-IGRF_G10_NT = -29404.8
-IGRF_G11_NT = -1450.9
-IGRF_H11_NT = 4652.5
-IGRF_REFERENCE_RADIUS_M = 6371200.0
 
 
 class MagConfig(SensorConfigModel):
@@ -56,47 +47,14 @@ class MagConfig(SensorConfigModel):
     noise_ut : white noise per axis per sample, 1σ, µT.
     resolution_ut : output LSB, µT (0 = none).
     hard_iron_ut : constant offset in body axes (x, y, z), µT.
-    field_ned_ut : Earth field in NED, µT, overriding the IGRF dipole; None = use the dipole.
+    field_ned_ut : Earth field in NED, µT, overriding the World Magnetic Model; None = the
+        model at the vehicle's position and the simulated date.
     """
 
     noise_ut: NonNegative
     resolution_ut: NonNegative = 0.0
     hard_iron_ut: tuple[Finite, Finite, Finite] = (0.0, 0.0, 0.0)
     field_ned_ut: tuple[Finite, Finite, Finite] | None = None
-
-
-def dipole_field_ned_tesla(lat_rad: float, lon_rad: float, alt_m: float) -> NDArray[np.float64]:
-    """Earth magnetic field of the IGRF-13 (2020.0) centred dipole, in local NED.
-
-    Parameters
-    ----------
-    lat_rad, lon_rad : float
-        Geodetic latitude and longitude, rad (WGS-84).
-    alt_m : float
-        Height, m (MSL is used as ellipsoidal height; the difference is immaterial here).
-
-    Returns
-    -------
-    ndarray, shape (3,)
-        Field ``[B_N, B_E, B_D]``, tesla.
-    """
-    x, y, z = ecef_from_geodetic_m(lat_rad, lon_rad, alt_m)
-    r = math.sqrt(x * x + y * y + z * z)
-    rx, ry, rz = x / r, y / r, z / r
-    g = (IGRF_G11_NT, IGRF_H11_NT, IGRF_G10_NT)
-    gr = g[0] * rx + g[1] * ry + g[2] * rz
-    k = (IGRF_REFERENCE_RADIUS_M / r) ** 3
-    b_e = np.array([3.0 * gr * rx - g[0], 3.0 * gr * ry - g[1], 3.0 * gr * rz - g[2]]) * k
-    sl, cl = math.sin(lat_rad), math.cos(lat_rad)
-    so, co = math.sin(lon_rad), math.cos(lon_rad)
-    c_ne = np.array(
-        [
-            [-sl * co, -sl * so, cl],
-            [-so, co, 0.0],
-            [-cl * co, -cl * so, -sl],
-        ]
-    )
-    return np.asarray(c_ne @ b_e * 1e-9, dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -123,12 +81,14 @@ class MagModel:
     rng : numpy.random.Generator
         Used only by this model.
     lat_rad, lon_rad, alt_m : float
-        Start location (geodetic rad, MSL m) whose Earth field is held constant.
+        Start position (geodetic rad, m above the ellipsoid); later ones via :meth:`move_to`.
+    decimal_year : float
+        The simulated date, e.g. 2026.5 (:func:`physconst.geomag.decimal_year`).
 
     Attributes
     ----------
     field_ned_tesla : ndarray (3,)
-        The Earth field used, NED, tesla.
+        The Earth field in use (at the last evaluation point), NED, tesla.
     """
 
     def __init__(
@@ -138,21 +98,42 @@ class MagModel:
         lat_rad: float,
         lon_rad: float,
         alt_m: float,
+        decimal_year: float = DEFAULT_DECIMAL_YEAR,
     ) -> None:
-        if not all(math.isfinite(v) for v in (lat_rad, lon_rad, alt_m)):
-            raise ValueError("magnetometer start location must be finite")
-        if abs(lat_rad) > math.pi / 2:
-            raise ValueError(f"latitude must be within ±π/2 rad (got {lat_rad!r})")
+        if not math.isfinite(decimal_year):
+            raise ValueError(f"the simulated date must be finite (got {decimal_year!r})")
         self.config = config
         self.params = MagParams.from_config(config)
+        self.decimal_year = float(decimal_year)
         self._rng = rng
-        if config.field_ned_ut is not None:
-            self.field_ned_tesla = np.array(config.field_ned_ut, dtype=np.float64) * 1e-6
-        else:
-            self.field_ned_tesla = dipole_field_ned_tesla(lat_rad, lon_rad, alt_m)
-        self._bn = tuple(float(v) for v in self.field_ned_tesla)
+        self._fixed = config.field_ned_ut is not None
+        self._at = (math.nan, math.nan, math.nan)
+        self.field_ned_tesla = np.zeros(3)
+        self._bn = (0.0, 0.0, 0.0)
+        self.move_to(lat_rad, lon_rad, alt_m)
         self._noise: list[list[float]] = []
         self._idx = 0
+
+    def move_to(self, lat_rad: float, lon_rad: float, alt_m: float) -> None:
+        """The vehicle is at this geodetic position (rad, rad, m above the ellipsoid): the
+        field is re-evaluated when it moved more than ``REEVALUATE_DISTANCE_M`` since the last
+        evaluation. ValueError for a non-finite position or a latitude beyond ±π/2."""
+        if not all(math.isfinite(v) for v in (lat_rad, lon_rad, alt_m)):
+            raise ValueError("magnetometer position must be finite")
+        if abs(lat_rad) > math.pi / 2:
+            raise ValueError(f"latitude must be within ±π/2 rad (got {lat_rad!r})")
+        here = (lat_rad, lon_rad, alt_m)
+        if not moved_beyond(self._at, here, REEVALUATE_DISTANCE_M):
+            return
+        self._at = here
+        if self._fixed:
+            assert self.config.field_ned_ut is not None
+            self.field_ned_tesla = np.array(self.config.field_ned_ut, dtype=np.float64) * 1e-6
+        else:
+            f = magnetic_field_ned_t(lat_rad, lon_rad, alt_m, self.decimal_year)
+            self.field_ned_tesla = np.array(f.ned_t, dtype=np.float64)
+        self._bn = (float(self.field_ned_tesla[0]), float(self.field_ned_tesla[1]),
+                    float(self.field_ned_tesla[2]))
 
     def measure(self, time_us: int, q_nb: NDArray[np.float64]) -> MagSample:
         """One sample for attitude ``q_nb`` (4,) [w, x, y, z], body FRD -> NED."""

@@ -39,7 +39,8 @@ from collections import deque
 
 import numpy as np
 
-from sim._sensor_common import Positive, RateSchedule, SensorConfigModel
+from physconst.geomag import DEFAULT_DECIMAL_YEAR
+from sim._sensor_common import Finite, Positive, RateSchedule, SensorConfigModel
 from sim.baro import BaroConfig, BaroModel
 from sim.gnss import GnssConfig, GnssModel
 from sim.imu import AccelConfig, GyroConfig, ImuConfig, ImuModel
@@ -77,6 +78,8 @@ class SensorSuiteConfig(SensorConfigModel):
     imu_rate_hz : IMU output rate, Hz; None = the simulation rate. Must divide it.
     baro_rate_hz, mag_rate_hz, pitot_rate_hz : Hz, at most the simulation rate (the pitot's
         default 50 Hz is what PX4's simulator sends in HIL_SENSOR).
+    decimal_year : the simulated date, e.g. 2026.5: the magnetometer's Earth field is the
+        World Magnetic Model's at this date (:mod:`physconst.geomag`).
     """
 
     imu: ImuConfig
@@ -88,6 +91,7 @@ class SensorSuiteConfig(SensorConfigModel):
     mag_rate_hz: Positive = 50.0
     pitot: PitotConfig | None = None
     pitot_rate_hz: Positive = 50.0
+    decimal_year: Finite = DEFAULT_DECIMAL_YEAR
 
 
 class SensorSuite:
@@ -107,7 +111,7 @@ class SensorSuite:
     gnss : GnssModel
     baro : BaroModel
     mag : MagModel or None
-        Built at the first step, for the first truth's location.
+        Built at the first step; follows the truth's position (World Magnetic Model).
     pitot : PitotModel or None
         None when no pitot is configured.
     imu_decimation : int
@@ -226,13 +230,16 @@ class SensorSuite:
             air = air_velocity_b_mps(truth) if self._baro_air else None
             out.append(self.baro.measure(t, truth.alt_msl_m, air))
 
-        if self.mag is None:
-            self.mag = MagModel(
-                self.config.mag, self._rng_mag, truth.lat_rad, truth.lon_rad, truth.alt_msl_m
+        mag = self.mag
+        if mag is None:
+            mag = self.mag = MagModel(
+                self.config.mag, self._rng_mag, truth.lat_rad, truth.lon_rad, truth.alt_msl_m,
+                self.config.decimal_year,
             )
         ms = self._mag_schedule
         if t >= ms.next_us and ms.due(t):
-            out.append(self.mag.measure(t, truth.q_nb))
+            mag.move_to(truth.lat_rad, truth.lon_rad, truth.alt_msl_m)
+            out.append(mag.measure(t, truth.q_nb))
         pitot = self.pitot
         if pitot is not None:
             ps = self._pitot_schedule

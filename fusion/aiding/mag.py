@@ -12,10 +12,12 @@ With ``C^_nb = (I + [phi×]) C_nb``, ``m^_n = (I + [phi×]) m_n`` and to first o
 error through the (large, at mid latitudes) vertical field. The noise is a generous heading
 sigma from the configuration; soft/hard-iron residuals are not modelled.
 
-*When* — :class:`MagControl`: fuse at most ``fuse_rate_hz``; reference field from the
-configuration or learned: once the filter's yaw sigma is below ``learn_yaw_sigma_rad`` (GNSS
-manoeuvres made heading observable), the mean of ``C^_nb m_b`` over ``LEARN_SAMPLES`` samples
-(taken at ``learn_rate_hz``, faster than the heading is fused) becomes the reference.
+*When* — :class:`MagControl`: fuse at most ``fuse_rate_hz``; reference field
+(:func:`reference_field_n`) from the configuration, from the World Magnetic Model at the
+filter's position and the configured date (the default; re-evaluated every 500 m travelled),
+or learned: once the filter's yaw sigma is below ``learn_yaw_sigma_rad`` (GNSS manoeuvres
+made heading observable), the mean of ``C^_nb m_b`` over ``LEARN_SAMPLES`` samples (taken at
+``learn_rate_hz``, faster than the heading is fused) becomes the reference.
 Learning at the in-flight alignment itself would freeze the alignment's heading error (a
 crabbing aircraft's track is not its heading) into the reference. With
 ``hard_iron_calibration`` the body-fixed offset and the Earth field are estimated together
@@ -41,6 +43,7 @@ from fusion.estimate import AidSource, HealthCounters
 from fusion.rotations import euler_from_quat, quat_to_dcm, wrap_pi
 from fusion.samples import MagSample, as_vec3
 from fusion.strapdown import InsState
+from physconst.geomag import REEVALUATE_DISTANCE_M, magnetic_field_ned_t, moved_beyond
 
 LEARN_SAMPLES = 10
 #: Forgetting factor per calibration sample (at 5 Hz: a memory of ~10 minutes).
@@ -95,6 +98,19 @@ def heading_model(
     return Observation(z, H, np.array([[heading_noise_rad**2]]))
 
 
+def reference_field_n(
+    cfg: MagTuning, lat_rad: float, lon_rad: float, alt_m: float
+) -> NDArray[np.float64] | None:
+    """The Earth field (NED, T) heading is measured against at a position: the configured
+    field, the World Magnetic Model's at ``cfg.decimal_year`` (``reference="wmm"``), or
+    ``None`` when it is to be learned in flight."""
+    if cfg.reference_field_n_tesla is not None:
+        return np.asarray(cfg.reference_field_n_tesla, dtype=float)
+    if cfg.reference == "wmm":
+        return np.array(magnetic_field_ned_t(lat_rad, lon_rad, alt_m, cfg.decimal_year).ned_t)
+    return None
+
+
 class MagControl:
     """When to fuse magnetometer heading; owns the (configured or learned) reference field.
 
@@ -115,6 +131,9 @@ class MagControl:
             if cfg.reference_field_n_tesla is None
             else np.asarray(cfg.reference_field_n_tesla, dtype=float)
         )
+        self.follows_model = cfg.reference_field_n_tesla is None and cfg.reference == "wmm"
+        """The reference is the WMM's at the filter's position (:meth:`locate`)."""
+        self._at = (math.nan, math.nan, math.nan)
         self._learn: list[NDArray[np.float64]] = []
         self.calibrator = (
             HardIronCalibrator(cfg.calibration_min_heading_span_rad,
@@ -134,7 +153,7 @@ class MagControl:
         if cal is None or yaw_sigma_rad > self.cfg.learn_yaw_sigma_rad:
             return
         cal.add(c_nb, field_b, yaw_rad)
-        if cal.field_n is not None and self.cfg.reference_field_n_tesla is None:
+        if cal.field_n is not None and self._learns_reference:
             self.reference_n = cal.field_n
 
     def corrected(self, field_b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -151,9 +170,21 @@ class MagControl:
         return max(self.cfg.heading_noise_rad, self.cfg.uncalibrated_heading_noise_rad)
 
     @property
+    def _learns_reference(self) -> bool:
+        return self.cfg.reference_field_n_tesla is None and self.cfg.reference == "learned"
+
+    @property
     def learned(self) -> bool:
-        """The reference came from learning (not from the configuration)."""
-        return self.cfg.reference_field_n_tesla is None and self.reference_n is not None
+        """The reference came from learning (not from the configuration or the WMM)."""
+        return self._learns_reference and self.reference_n is not None
+
+    def locate(self, lat_rad: float, lon_rad: float, alt_m: float) -> None:
+        """The filter is here: with the WMM reference, the field is (re-)evaluated when the
+        position moved more than ``REEVALUATE_DISTANCE_M`` since the last evaluation."""
+        here = (lat_rad, lon_rad, alt_m)
+        if self.follows_model and moved_beyond(self._at, here, REEVALUATE_DISTANCE_M):
+            self._at = here
+            self.reference_n = reference_field_n(self.cfg, lat_rad, lon_rad, alt_m)
 
     def due(self, time_us: int) -> bool:
         """Rate limit of the heading update (``fuse_rate_hz``): True when a sample at
@@ -300,6 +331,8 @@ class MagAiding:
             calibration needs it).
         """
         ctl = self.control
+        if ctl.follows_model:
+            ctl.locate(ins.lat_rad, ins.lon_rad, ins.alt_msl_m)
         learning = (ctl.reference_n is None or ctl.calibrator is not None) and ctl.learning_due(
             time_us)
         fusing = ctl.reference_n is not None and ctl.due(time_us)

@@ -1,5 +1,5 @@
-"""Zero-velocity updates while the vehicle is at rest (ZUPT): what keeps a parked vehicle from
-drifting when GNSS is gone.
+"""Zero-velocity (ZUPT) and zero-angular-rate (ZARU) updates while the vehicle is at rest: what
+keeps a parked vehicle from drifting when GNSS is gone, and the fine alignment at rest.
 
 *When* — :class:`StillnessDetector`. The IMU output of a vehicle at rest is gravity, the Earth
 rate and sensor noise. Over blocks of ``window_s`` the detector takes, per axis, the standard
@@ -23,6 +23,13 @@ standing in wind. The update is fused at ``fuse_rate_hz`` while blocks stay stil
 filter's gated update (a vehicle that starts moving fails the gate before the detector's next
 block says so).
 
+*Zero angular rate* — :func:`zero_rate_model`: at the end of every still block its mean
+measured rate minus the gyro bias estimate is compared with the Earth rate in body axes; the
+difference is the gyro bias error (``H = -I``), with the block's own standard error as sigma
+(floored by ``rate_sigma_floor_rps``). This is the fine alignment's gyro calibration: at rest
+nothing else observes the vertical gyro's bias, which otherwise turns straight into heading
+drift.
+
 The thresholds are documented in :class:`fusion.config.ZeroMotionTuning`.
 """
 
@@ -32,11 +39,12 @@ import math
 
 import numpy as np
 
-from fusion import kalman
+from fusion import earth, kalman
 from fusion.aiding import Observation, Update
 from fusion.config import ImuTuning, ZeroMotionTuning
 from fusion.error_model import StateLayout
 from fusion.estimate import AidSource, HealthCounters
+from fusion.rotations import quat_to_dcm
 from fusion.strapdown import InsState
 
 
@@ -63,6 +71,41 @@ def zero_velocity_model(layout: StateLayout, ins: InsState, sigma_mps: float) ->
     return Observation(z, H, R)
 
 
+def zero_rate_model(
+    layout: StateLayout, ins: InsState, rate_b_rps: tuple[float, float, float],
+    gyro_bias_b_rps: tuple[float, float, float], sigma_rps: float,
+) -> Observation:  # fmt: skip
+    """Zero-angular-rate observation of the gyro bias error: at rest the gyros measure the
+    Earth rate and their bias.
+
+    Parameters
+    ----------
+    layout : StateLayout
+    ins : InsState
+        Gives the latitude and the attitude that carries the Earth rate into body axes.
+    rate_b_rps : 3 floats
+        Mean measured (uncompensated) angular rate over a still block, body, rad/s.
+    gyro_bias_b_rps : 3 floats
+        The filter's gyro bias estimate, rad/s.
+    sigma_rps : float
+        1-sigma per axis of that mean, rad/s.
+
+    Returns
+    -------
+    Observation
+        ``z = (rate - b^_g) - C_bn omega_ie^n = b_g - b^_g = -dbg`` (scale factor and
+        misalignment times the Earth rate are below 1e-8 rad/s and neglected), so ``H = -I``
+        on the gyro bias error.
+    """
+    w_ie_b = quat_to_dcm(ins.q_nb).T @ earth.earth_rate_n(ins.lat_rad)
+    z = np.array([rate_b_rps[i] - gyro_bias_b_rps[i] - float(w_ie_b[i]) for i in range(3)])
+    H = np.zeros((3, layout.n))
+    g = layout.BG
+    for i in range(3):
+        H[i, g + i] = -1.0
+    return Observation(z, H, np.eye(3) * (sigma_rps * sigma_rps))
+
+
 class StillnessDetector:
     """Block-wise rest detection from the IMU and the INS speed (module docstring).
 
@@ -84,6 +127,12 @@ class StillnessDetector:
         self._ng = imu.gyro_noise_density_rps_rthz
         self.still = False
         """Verdict of the last complete block."""
+        self.blocks = 0
+        """Complete blocks judged so far."""
+        self.block_rate_b_rps = (0.0, 0.0, 0.0)
+        """Mean angular rate of the last complete block (as sampled, body), rad/s."""
+        self.block_rate_sem_rps = 0.0
+        """Standard error of that mean (the largest axis's sample sigma / sqrt(n)), rad/s."""
         self._clear()
 
     def _clear(self) -> None:
@@ -115,6 +164,7 @@ class StillnessDetector:
 
     def _judge(self) -> bool:
         n = self._n
+        self.blocks += 1
         if n < 3:
             return False
         rate_hz = n / self._dt
@@ -123,18 +173,23 @@ class StillnessDetector:
         g_max = max(self._gyro_floor, self._k * self._ng * half)
         s, s2 = self._s, self._s2
         mean_rate2 = 0.0
+        still = True
+        worst_rate_var = 0.0
         for i in range(6):
             mean = s[i] / n
             var = max(s2[i] / n - mean * mean, 0.0)
             if math.sqrt(var) > (a_max if i < 3 else g_max):
-                return False
+                still = False
             if i >= 3:
                 mean_rate2 += mean * mean
-        return math.sqrt(mean_rate2) <= self._max_rate
+                worst_rate_var = max(worst_rate_var, var)
+        self.block_rate_b_rps = (s[3] / n, s[4] / n, s[5] / n)
+        self.block_rate_sem_rps = math.sqrt(worst_rate_var / n)
+        return still and math.sqrt(mean_rate2) <= self._max_rate
 
 
 class ZeroMotionAiding:
-    """Rest detection and the zero-velocity update, counted.
+    """Rest detection and the zero-velocity and zero-angular-rate updates, counted.
 
     Parameters
     ----------
@@ -142,7 +197,7 @@ class ZeroMotionAiding:
     imu : ImuTuning
     layout : StateLayout
     counters : HealthCounters
-        ``zupt_fused`` / ``zupt_rejected``.
+        ``zupt_fused`` / ``zupt_rejected``, ``zaru_fused`` / ``zaru_rejected``.
     update : Update
         The filter's gated update.
     """
@@ -157,10 +212,27 @@ class ZeroMotionAiding:
         self._period_us = round(1e6 / cfg.fuse_rate_hz)
         self._next_us = 0
         self.gate = kalman.chi2_gate(3, cfg.gate_probability)
+        self._rate_on = cfg.zero_rate
+        self._rate_floor = cfg.rate_sigma_floor_rps
+        self.rate_gate = kalman.chi2_gate(3, cfg.gate_probability)
 
-    def on_imu(self, t_us: int, fw: tuple[float, ...], dt: float, ins: InsState) -> None:
-        """One integrated IMU sample: detect rest; at rest, fuse zero velocity at the rate."""
-        if not self.detector.add(fw, dt, ins.v_ned_mps) or t_us < self._next_us:
+    def on_imu(self, t_us: int, fw: tuple[float, ...], dt: float, ins: InsState,
+               gyro_bias_b_rps: tuple[float, float, float]) -> None:
+        """One integrated IMU sample: detect rest; at rest, fuse zero velocity at the rate and,
+        at the end of every still block, the block's zero angular rate."""
+        det = self.detector
+        blocks = det.blocks
+        if not det.add(fw, dt, ins.v_ned_mps):
+            return
+        if self._rate_on and det.blocks != blocks:
+            sigma = max(det.block_rate_sem_rps, self._rate_floor)
+            obs = zero_rate_model(self._layout, ins, det.block_rate_b_rps, gyro_bias_b_rps, sigma)
+            res = self._update(obs, self.rate_gate, AidSource.ZERO_RATE, t_us)
+            if res.test_ratio <= 1.0:
+                self._c.zaru_fused += 1
+            else:
+                self._c.zaru_rejected += 1
+        if t_us < self._next_us:
             return
         self._next_us = t_us + self._period_us
         obs = zero_velocity_model(self._layout, ins, self._sigma)

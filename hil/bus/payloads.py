@@ -339,6 +339,8 @@ def status_payload(
         "links": None if links is None else {str(k): _plain(v) for k, v in links.items()},
         "bus": None if bus is None else _plain(bus),
         "air_data": None if getattr(est, "air_data", None) is None else _plain(est.air_data),
+        "alignment": (None if getattr(est, "alignment", None) is None
+                      else _plain(est.alignment)),
     }
 
 

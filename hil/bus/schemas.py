@@ -193,7 +193,7 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
     Topic.STATUS: _schema(
         Topic.STATUS,
         "Fusion service status: mode, outage timer, health counters, innovation test ratios, "
-        "bridging (GMDH) health, link and bus counters.",
+        "bridging (GMDH) health, link and bus counters, alignment.",
         {
             "time_us": _TIME,
             "mode": _d(_S, "initializing | gnss | bridging | dead-reckoning | free-inertial"),
@@ -217,8 +217,15 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
                 "air data: state (off | waiting | fusing | blocked | synthetic | stale), mean "
                 "wind N/E m/s, airspeed scale, last TAS m/s, pitot fault, gust N/E m/s",
             ),
+            "alignment": _d(
+                {"type": ["object", "null"]},
+                "alignment: method (in_flight | in_flight_mag | static_mag | "
+                "static_gyrocompass | given) and at_rest (zero-velocity and zero-angular-rate "
+                "updates running: the fine alignment at rest)",
+            ),
         },
-        optional=("time_since_gnss_s", "state_layout", "bridge", "links", "bus", "air_data"),
+        optional=("time_since_gnss_s", "state_layout", "bridge", "links", "bus", "air_data",
+                  "alignment"),
     ),
     Topic.INNOVATIONS: _schema(
         Topic.INNOVATIONS,
@@ -226,7 +233,7 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
         {
             "time_us": _TIME,
             "source": _d(_S, "aiding source: gnss_pos, gnss_vel, baro_hgt, mag_hdg, "
-                         "bridge_pos, bridge_vel, airspeed, sideslip, zero_vel"),
+                         "bridge_pos, bridge_vel, airspeed, sideslip, zero_vel, zero_rate"),
             "innovation": _d(
                 _arr(None),
                 "innovation of the error-state filter: INS-predicted minus measured, SI units "

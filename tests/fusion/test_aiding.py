@@ -323,7 +323,7 @@ def test_baro_control_batches_and_bias_init() -> None:
 
 
 def test_mag_control_rate_limit_and_learning() -> None:
-    ctl = mag.MagControl(MagTuning(fuse_rate_hz=5.0))
+    ctl = mag.MagControl(MagTuning(fuse_rate_hz=5.0, reference="learned"))
     assert [ctl.due(t) for t in range(0, 1_000_000, 50_000)].count(True) == 5
     assert ctl.reference_n is None
     ctl.learn(FIELD_N_T, yaw_sigma_rad=0.2)  # heading not good enough yet
@@ -332,6 +332,29 @@ def test_mag_control_rate_limit_and_learning() -> None:
         ctl.learn(FIELD_N_T, yaw_sigma_rad=0.01)
     assert ctl.learned
     np.testing.assert_allclose(ctl.reference_n, FIELD_N_T)
+
+
+def test_mag_control_wmm_reference_is_located_and_never_learned() -> None:
+    from physconst.geomag import magnetic_field_ned_t
+
+    ctl = mag.MagControl(MagTuning(decimal_year=2020.5))
+    assert ctl.follows_model and ctl.reference_n is None  # nowhere yet
+    lat, lon = math.radians(-33.9), math.radians(151.2)
+    ctl.locate(lat, lon, 50.0)
+    want = magnetic_field_ned_t(lat, lon, 50.0, 2020.5).ned_t
+    np.testing.assert_allclose(ctl.reference_n, want, rtol=1e-12)
+    ctl.locate(lat + 200.0 / 6.371e6, lon, 50.0)  # 200 m on: the same evaluation
+    np.testing.assert_allclose(ctl.reference_n, want, rtol=1e-12)
+    ctl.locate(lat + 2000.0 / 6.371e6, lon, 50.0)  # 2 km on: re-evaluated
+    assert not np.allclose(ctl.reference_n, want, rtol=1e-9, atol=0.0)
+    for _ in range(mag.LEARN_SAMPLES):
+        ctl.learn(FIELD_N_T, yaw_sigma_rad=0.01)
+    assert not ctl.learned
+    # a configured field overrides the model
+    fixed = mag.MagControl(MagTuning(reference_field_n_tesla=(2e-5, 0.0, 4e-5)))
+    fixed.locate(lat, lon, 50.0)
+    assert not fixed.follows_model
+    np.testing.assert_allclose(fixed.reference_n, (2e-5, 0.0, 4e-5))
 
 
 def test_hard_iron_calibration_recovers_the_offset_and_the_earth_field() -> None:

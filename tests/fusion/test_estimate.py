@@ -14,6 +14,7 @@ from fusion.estimate import (
     AidSource,
     AidSourceStatus,
     AirDataStatus,
+    AlignmentStatus,
     Health,
     Mode,
     NavEstimate,
@@ -41,7 +42,7 @@ def test_mode_is_a_string_for_every_consumer() -> None:
 def test_aid_sources_are_named_as_on_the_innovations_topic() -> None:
     assert [str(s) for s in AidSource] == [
         "gnss_pos", "gnss_vel", "baro_hgt", "mag_hdg", "bridge_pos", "bridge_vel", "airspeed",
-        "sideslip", "zero_vel",
+        "sideslip", "zero_vel", "zero_rate",
     ]  # fmt: skip
     # the status record has one field per source, in the same order
     assert [f.name for f in dataclasses.fields(AidingStatus)] == [s.value for s in AidSource]
@@ -67,6 +68,7 @@ def test_new_estimate_fills_every_field_in_order() -> None:
         5, 0.1, 0.2, 300.0, np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3), np.ones(16),
         Mode.GNSS, np.full(3, 0.01), np.full(3, 1e-5), 2.0, Health(), TestRatios(), 0.2,
         "ins16", None, None, AidingStatus(), np.eye(9), AirDataStatus(), np.zeros(3),
+        AlignmentStatus("static_mag", True),
     ]  # fmt: skip
     est = new_estimate(*values)
     names = [f.name for f in dataclasses.fields(NavEstimate)]

@@ -21,11 +21,16 @@ from fusion.filter import NavFilter
 from fusion.rotations import dcm_to_rotvec, euler_to_quat, quat_to_dcm
 from fusion.trajectory import SplineTrajectory, ideal_increments, imu_rates
 from physconst.airdata import impact_pressure_pa
+from physconst.geomag import DEFAULT_DECIMAL_YEAR, magnetic_field_ned_t
 from sim.samples import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample
 
 FloatArray = NDArray[np.float64]
-#: Earth field near 47 N 8 E, NED, tesla (declination ~3 deg, inclination ~63 deg).
-FIELD_N_T = np.array([21.5e-6, 1.2e-6, 42.5e-6])
+#: Earth field at the flights' start (47.4 N 8.5 E, 600 m) on the default date, NED, tesla: the
+#: World Magnetic Model's, the filter's default reference (declination 3.5 deg, inclination
+#: 63.5 deg). Held constant: over the few km of a test flight the model changes by < 0.02 deg.
+FIELD_N_T = np.array(
+    magnetic_field_ned_t(math.radians(47.4), math.radians(8.5), 600.0, DEFAULT_DECIMAL_YEAR).ned_t
+)
 
 
 def smooth_pulse(t: FloatArray, t0: float, t1: float, ramp: float) -> FloatArray:
@@ -125,9 +130,16 @@ class SensorErrors:
     baro_noise_m: float
     baro_bias_sigma_m: float
     baro_bias_tau_s: float
+    accel_turn_on_sigma: float = 0.0
+    """Run-to-run accelerometer bias (a random constant on top of the Gauss-Markov part),
+    m/s^2; drawn only when > 0 (so scenarios without it keep their random streams)."""
+    gyro_turn_on_sigma: float = 0.0
+    """Run-to-run gyro bias, rad/s (drawn only when > 0)."""
 
     @classmethod
-    def from_config(cls, cfg: FilterConfig) -> SensorErrors:
+    def from_config(cls, cfg: FilterConfig, *, turn_on: bool = False) -> SensorErrors:
+        """The filter's own error model; ``turn_on`` adds its turn-on bias sigmas (a real
+        sensor's run-to-run bias, which a stationary alignment cannot tell from tilt)."""
         i = cfg.imu
         return cls(
             i.gyro_noise_density_rps_rthz,
@@ -139,6 +151,8 @@ class SensorErrors:
             cfg.baro.noise_m,
             cfg.baro.bias_sigma_m,
             cfg.baro.bias_tau_s,
+            i.accel_turn_on_sigma_mps2 if turn_on else 0.0,
+            i.gyro_turn_on_sigma_rps if turn_on else 0.0,
         )
 
 
@@ -229,12 +243,17 @@ def make_scenario(
     mag_noise_t: float = 0.2e-6,
     gnss_outages: list[tuple[float, float]] | None = None,
     gnss_glitches: dict[int, FloatArray] | None = None,
+    mag_hard_iron_t: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    vibration_accel_mps2: float = 0.0,
+    vibration_gyro_rps: float = 0.0,
 ) -> Scenario:
     """Ideal IMU from the flight plus sensor errors; GNSS/baro/mag from the truth plus noise.
 
     ``errors=None`` means perfect sensors (no noise, no bias). ``gnss_glitches`` maps a fix
     index (0 = first fix) to the NED offset (m) of that fix from the true antenna position
-    (replacing its noise, so the glitch size is exact).
+    (replacing its noise, so the glitch size is exact). ``mag_hard_iron_t``: a constant
+    body-axis offset of the magnetometer (T). ``vibration_*``: extra white noise per IMU
+    sample (a hovering multicopter's propellers), 1-sigma; drawn only when > 0.
     """
     if isinstance(prep, Flight):
         prep = prepare(prep, imu_rate_hz)
@@ -245,8 +264,16 @@ def make_scenario(
     if errors is not None:
         ba = gauss_markov(rng, n, 3, errors.accel_bias_sigma, errors.accel_bias_tau_s, dt)
         bg = gauss_markov(rng, n, 3, errors.gyro_bias_sigma, errors.gyro_bias_tau_s, dt)
+        if errors.accel_turn_on_sigma > 0.0:
+            ba = ba + rng.normal(0.0, errors.accel_turn_on_sigma, 3)
+        if errors.gyro_turn_on_sigma > 0.0:
+            bg = bg + rng.normal(0.0, errors.gyro_turn_on_sigma, 3)
         f = f + ba + rng.normal(0.0, errors.accel_noise / math.sqrt(dt), (n, 3))
         w = w + bg + rng.normal(0.0, errors.gyro_noise / math.sqrt(dt), (n, 3))
+        if vibration_accel_mps2 > 0.0:
+            f = f + rng.normal(0.0, vibration_accel_mps2, (n, 3))
+        if vibration_gyro_rps > 0.0:
+            w = w + rng.normal(0.0, vibration_gyro_rps, (n, 3))
     else:
         ba = np.zeros((n, 3))
         bg = np.zeros((n, 3))
@@ -318,7 +345,7 @@ def make_scenario(
         m_times = np.arange(m_period, int(edges_us[-1]) + 1, m_period, dtype=np.int64)
         cm = quat_to_dcm(traj(m_times * 1e-6).q_nb)
         for i, t_us in enumerate(m_times.tolist()):
-            m_b = cm[i].T @ FIELD_N_T
+            m_b = cm[i].T @ FIELD_N_T + np.asarray(mag_hard_iron_t)
             if errors is not None:
                 m_b = m_b + rng.normal(0.0, mag_noise_t, 3)
             timed.append((t_us, 3, MagSample(t_us, m_b)))

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from pydantic import ValidationError
 
 import physconst as pc
+from physconst.geomag import magnetic_field_ned_t
 from sim import atmosphere as atm
 from sim._sensor_common import meridian_prime_radii_m
 from sim.baro import BaroModel
@@ -450,15 +451,58 @@ def test_baro_lag_time_constant() -> None:
 # --------------------------------------------------------------------------- magnetometer
 
 
-def test_dipole_field_is_plausible_at_47n_8e() -> None:
-    model = MagModel(mag_preset("ideal"), np.random.default_rng(0), LAT, LON, 500.0)
-    b = model.field_ned_tesla * 1e6
-    intensity = float(np.linalg.norm(b))
-    inclination = math.degrees(math.atan2(b[2], math.hypot(b[0], b[1])))
-    # IGRF at Zurich: ≈ 48 µT, inclination ≈ 63.5°; the centred dipole is 1-2° steeper.
-    assert intensity == pytest.approx(48.0, abs=2.5)
-    assert inclination == pytest.approx(63.5, abs=3.0)
-    assert b[0] > 0 and b[2] > 0  # points north and down in the northern hemisphere
+def test_field_is_the_world_magnetic_model_at_the_simulated_date() -> None:
+    model = MagModel(mag_preset("ideal"), np.random.default_rng(0), LAT, LON, 500.0, 2026.5)
+    ref = magnetic_field_ned_t(LAT, LON, 500.0, 2026.5)
+    np.testing.assert_array_equal(model.field_ned_tesla, ref.ned_t)
+    b = model.field_ned_tesla
+    # the real declination near Zurich (about +3.5 deg east), not the former dipole's -13.7
+    assert 3.0 < math.degrees(math.atan2(b[1], b[0])) < 4.5
+
+
+def _declination_deg(field_b: np.ndarray) -> float:
+    return math.degrees(math.atan2(field_b[1], field_b[0]))
+
+
+@pytest.mark.parametrize(
+    ("lat_deg", "lon_deg"),
+    [(47.0, 8.0), (-33.9, 151.2), (64.1, -21.9), (-54.8, -68.3), (1.3, 103.8), (71.0, -156.8)],
+)
+def test_declination_follows_the_model_along_a_flight(lat_deg: float, lon_deg: float) -> None:
+    # GIVEN an ideal magnetometer flown level, nose north, 100 km east-north-east and 2 km up
+    lat0, lon0 = math.radians(lat_deg), math.radians(lon_deg)
+    model = MagModel(mag_preset("ideal"), np.random.default_rng(0), lat0, lon0, 100.0)
+    worst = 0.0
+    for k in range(0, 1001, 5):
+        s = k / 1000.0
+        lat = lat0 + s * 40_000.0 / 6.371e6
+        lon = lon0 + s * 92_000.0 / (6.371e6 * math.cos(lat0))
+        alt = 100.0 + 2000.0 * s
+        # WHEN it reports where it is every 100 m
+        model.move_to(lat, lon, alt)
+        got = _declination_deg(model.measure(k, LEVEL_NORTH).field_b_tesla)
+        ref = math.degrees(magnetic_field_ned_t(lat, lon, alt, 2026.0).declination_rad)
+        worst = max(worst, abs(got - ref))
+    # THEN its declination is the model's at the vehicle within the 0.5 deg (the
+    # field is re-evaluated every 500 m: ~0.01 deg away from the poles)
+    assert worst < 0.5
+    if abs(lat_deg) < 65.0:
+        assert worst < 0.05
+
+
+def test_suite_magnetometer_takes_the_configured_date() -> None:
+    truth = stationary_truth(0)
+    decl = {}
+    for year in (2016.5, 2026.5):
+        suite = SensorSuite(suite_config(mag="ideal").model_copy(update={"decimal_year": year}),
+                            seed=1, sim_rate_hz=200.0)
+        mags = [s for k in range(20) for s in suite.step(stationary_truth(k))
+                if isinstance(s, MagSample)]
+        f = magnetic_field_ned_t(truth.lat_rad, truth.lon_rad, truth.alt_msl_m, year)
+        # level, nose north: body axes are NED
+        np.testing.assert_allclose(mags[0].field_b_tesla, f.ned_t, rtol=0, atol=1e-15)
+        decl[year] = math.degrees(f.declination_rad)
+    assert decl[2026.5] - decl[2016.5] > 0.8  # secular variation reaches the simulator
 
 
 def test_mag_rotates_field_into_body_axes() -> None:
