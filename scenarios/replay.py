@@ -38,7 +38,7 @@ from hil.pipeline import FusionRun
 from hil.streamer import GnssWindow
 from hil.tlog import TlogReader, iter_decoded
 from hil.ulog import REFERENCE_LABEL, UlogLog, read_ulog
-from physconst.geomag import DEFAULT_DECIMAL_YEAR, decimal_year, magnetic_field_ned_t
+from physconst.geomag import decimal_year, magnetic_field_ned_t
 from scenarios.report import write_plots
 from scenarios.summary import RunInfo, score_run, write_summary
 from sim.samples import GnssFix, ImuSample, MagSample, Sample, Truth
@@ -274,12 +274,12 @@ def _alignment_for_log(
 ) -> tuple[FilterConfig, dict[str, Any]]:
     """How the filter aligns on a recorded log.
 
-    THE ONE PLACE TO SWITCH TO ``InitConfig(mode="auto")`` once the automatic alignment
-    (branch ``align``) lands: until then, a log whose first 3-D fix is slower than
-    ``InitConfig.min_speed_mps`` (a vehicle at rest: in-flight alignment could not start) is
-    aligned statically, with the magnetometer heading against the World Magnetic Model's field
-    at that fix and the log's date (``physconst.geomag``). A log that starts in motion keeps
-    ``config`` (in-flight alignment).
+    The filter aligns by itself (``InitConfig.mode="auto"``: static at rest, from the GNSS
+    track when moving, from the magnetometer when hovering); a log adds what the filter
+    cannot know: its date, which goes to the World Magnetic Model reference
+    (``MagTuning.decimal_year``; unknown: :data:`DEFAULT_DECIMAL_YEAR`, the filter's default).
+    The WMM field at the first 3-D fix is recorded, with the magnetometer's own dip and
+    strength over the first seconds and a warning when they disagree.
 
     Parameters
     ----------
@@ -287,49 +287,46 @@ def _alignment_for_log(
     head : sequence of Sample
         The log's samples in time order, at least up to its first 3-D fix.
     year : float or None
-        The log's date, decimal year (None: unknown, :data:`DEFAULT_DECIMAL_YEAR` is used).
+        The log's date, decimal year (None: unknown).
     whole_log : bool
         ``head`` is the whole log (else a vehicle at rest without magnetometer may still move
-        later, and is left to the in-flight alignment).
+        later).
 
     Raises
     ------
     ValueError
-        The vehicle is at rest and the log has no magnetometer, and never reaches the speed
-        of an in-flight alignment: no heading can be found.
+        The vehicle never moves and the log has no magnetometer: no heading can be found
+        (gyrocompassing needs gyros far better than a flight controller's).
     """
+    if year is not None:
+        config = config.model_copy(update={
+            "mag": config.mag.model_copy(update={"decimal_year": year})})
+    info: dict[str, Any] = {"mode": config.init.mode, "decimal_year": config.mag.decimal_year,
+                            "date_known": year is not None}
     fixes = [s for s in head if isinstance(s, GnssFix) and s.fix_type >= 3]
     if not fixes:
-        return config, {"mode": config.init.mode}
+        return config, info
     first = fixes[0]
     speed = math.hypot(float(first.v_ned_mps[0]), float(first.v_ned_mps[1]))
     min_speed = config.init.min_speed_mps
-    if not speed < min_speed:
-        return config, {"mode": config.init.mode, "first_fix_speed_mps": speed}
-    if not any(isinstance(s, MagSample) for s in head):
-        if not whole_log or any(
-                math.hypot(float(f.v_ned_mps[0]), float(f.v_ned_mps[1])) >= min_speed
-                for f in fixes):
-            return config, {"mode": config.init.mode, "first_fix_speed_mps": speed,
-                            "note": "at rest without a magnetometer: aligns once moving"}
+    info["first_fix_speed_mps"] = speed
+    has_mag = any(isinstance(s, MagSample) for s in head)
+    if speed < min_speed and not has_mag and whole_log and all(
+            math.hypot(float(f.v_ned_mps[0]), float(f.v_ned_mps[1])) < min_speed
+            for f in fixes):
         raise ValueError(
             f"alignment not reached: the vehicle never moved (GNSS ground speed below "
             f"{min_speed:g} m/s) and the log has no magnetometer, so no heading can be found; "
             "replay a log with magnetometer data (vehicle_magnetometer / HIL_SENSOR mag) or "
             "one that includes flight")
-    when = DEFAULT_DECIMAL_YEAR if year is None else year
-    field = magnetic_field_ned_t(first.lat_rad, first.lon_rad, first.alt_msl_m, when)
-    config = config.model_copy(update={
-        "init": config.init.model_copy(update={"mode": "static"}),
-        "mag": config.mag.model_copy(update={"reference_field_n_tesla": field.ned_t}),
-    })
-    info: dict[str, Any] = {
-        "mode": "static", "first_fix_speed_mps": speed,
-        "magnetic_model": "WMM", "decimal_year": when, "date_known": year is not None,
+    field = magnetic_field_ned_t(first.lat_rad, first.lon_rad, first.alt_msl_m,
+                                 config.mag.decimal_year)
+    info.update({
+        "magnetic_model": "WMM",
         "declination_deg": math.degrees(field.declination_rad),
         "inclination_deg": math.degrees(field.inclination_rad),
         "intensity_ut": field.intensity_t * 1e6,
-    }
+    })
     info.update(_mag_check(head, field.inclination_rad, field.intensity_t,
                            config.init.static_duration_s))
     return config, info
@@ -379,7 +376,7 @@ def _score(
     col = run.collector
     assert col is not None
     if not any(e.mode != "initializing" for e in col.estimates):
-        raise ValueError(_not_aligned(log, run, alignment))
+        raise ValueError(_not_aligned(log, run))
     if len(col.truths) < 2:
         raise ValueError(f"{log}: the log holds no {reference['source']} "
                          f"({', '.join(reference['topics'])}) to score against")
@@ -394,6 +391,7 @@ def _score(
     scored = score_run(run, info, settle_s=settle_s, fit_settle=True)
     s = scored.summary
     s["reference"] = reference
+    alignment["method"] = run.nav.alignment_method
     s["alignment"] = alignment
     s["gnss_off"] = {"windows": cut.as_list(), "fixes_removed": cut.removed}
     s["input"] = inp
@@ -405,16 +403,12 @@ def _score(
     return ReplayResult(s, summary_path, plots)
 
 
-def _not_aligned(log: Path, run: FusionRun, alignment: dict[str, Any]) -> str:
+def _not_aligned(log: Path, run: FusionRun) -> str:
     """Why the filter never navigated, in one line with what the user can do."""
     fixes = run.collector.fix_times_us if run.collector is not None else []
     span = (f"3-D fixes from {fixes[0] * 1e-6:.1f} to {fixes[-1] * 1e-6:.1f} s" if fixes
             else "no 3-D fix")
-    if alignment.get("mode") == "static":
-        return (f"{log}: alignment not reached: the vehicle never stayed still for "
-                f"{run.config.init.static_duration_s:g} s (gyro rates above "
-                f"{math.degrees(run.config.init.static_max_rate_rps):.1f} deg/s) with a usable "
-                f"GNSS fix ({span}); replay a log that starts at rest or includes flight")
-    return (f"{log}: alignment not reached: in-flight alignment needs a GNSS ground speed of "
-            f"{run.config.init.min_speed_mps:g} m/s over good fixes ({span}); the log never "
-            "gave it")
+    return (f"{log}: alignment not reached ({span}; at the end of the log the filter was "
+            f"{run.nav.alignment_state}): the log needs {run.config.init.static_duration_s:g} s "
+            f"at rest, or a GNSS ground speed of {run.config.init.min_speed_mps:g} m/s, or a "
+            "magnetometer while moving slower, after a good fix")
