@@ -16,7 +16,9 @@ GNSS outages are the gaps in the fixes longer than one second; ``gnss_off`` wind
 fixes of a real flight (``START:DURATION``, seconds from the log's first sample) so that a
 team can rehearse a denial on its own data. The settling time is fitted to the log
 (:func:`scenarios.summary.fit_settling`): a log shorter than ``--settle`` is scored over what it
-has, with a warning in ``summary.json`` (``settling``) that the CLI prints on stderr.
+has, with a warning in ``summary.json`` (``settling``) that the CLI prints on stderr. The
+filter aligns by itself; the log's date goes to its World Magnetic Model reference
+(:func:`_alignment_for_log`).
 """
 
 from __future__ import annotations
