@@ -27,8 +27,10 @@ from fusion.bridging.registry import BRIDGE_METHODS, make_bridge
 from fusion.config import (
     ALTITUDE_METHODS,
     DEFAULT_AIRSPEED_MODE,
+    DEFAULT_ALIGN_MODE,
     FilterConfig,
     airspeed_tuning,
+    init_for_align,
 )
 from fusion.estimate import NavEstimate
 from fusion.filter import NavFilter
@@ -279,12 +281,13 @@ def record_flight(setup: SimSetup, path: Path, *, progress: ProgressFn | None = 
 # ---------------------------------------------------------------------------------- fuse
 def filter_config(
     imu: str, receiver: GnssConfig, altitude: str = "ekf",
-    airspeed: str = DEFAULT_AIRSPEED_MODE,
+    airspeed: str = DEFAULT_AIRSPEED_MODE, align: str = DEFAULT_ALIGN_MODE,
 ) -> FilterConfig:
     """The filter every command builds: tuned from the IMU datasheet preset ``imu``, modelling
     the GNSS ``receiver`` (its time-correlated error as bias states when it has one), with the
-    altitude method ``altitude`` and the air-data choice ``airspeed``
-    (:data:`fusion.config.AIRSPEED_MODES`). ValueError names a bad preset or method."""
+    altitude method ``altitude``, the air-data choice ``airspeed``
+    (:data:`fusion.config.AIRSPEED_MODES`) and the alignment ``align``
+    (:data:`fusion.config.ALIGN_MODES`). ValueError names a bad preset or method."""
     if altitude not in ALTITUDE_METHODS:
         raise ValueError(
             f"unknown altitude method {altitude!r}; valid methods: {', '.join(ALTITUDE_METHODS)}"
@@ -295,6 +298,7 @@ def filter_config(
         "gnss": filter_gnss_config(receiver, config.gnss),
         "state_layout": gnss_state_layout(receiver, config.state_layout),
         "airspeed": airspeed_tuning(airspeed, config.airspeed),
+        "init": init_for_align(align, config.init),
     })
 
 

@@ -69,7 +69,7 @@ from typing import Any, Final, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from fusion.config import DEFAULT_AIRSPEED_MODE
+from fusion.config import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
 from fusion.estimate import Mode, NavEstimate
 from hil.bus import Topic
 from hil.codec import TRUTH_COMPONENT_ID, mavlink2
@@ -126,6 +126,8 @@ class FusionOptions(BaseModel):
     altitude: str = "ekf"
     airspeed: str = DEFAULT_AIRSPEED_MODE
     """Air data: ``on``, ``off`` or ``synthetic`` (:data:`fusion.config.AIRSPEED_MODES`)."""
+    align: str = DEFAULT_ALIGN_MODE
+    """Alignment: ``auto``, ``static`` or ``in-flight`` (:data:`fusion.config.ALIGN_MODES`)."""
     gcs: str | None = None
     gcs_tlog: Path | None = None
     """Record the shadow vehicle's stream here (.tlog, estimate-time stamps); needs ``gcs``."""
@@ -289,7 +291,7 @@ class FusionService:
     def __init__(self, options: FusionOptions, *, signing_key: bytes | None = None) -> None:
         self.options = options
         self.config = filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
-                                    options.airspeed)
+                                    options.airspeed, options.align)
         self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None)
         self.nav = self.fusion.nav
         self.decoder = self.fusion.decoder

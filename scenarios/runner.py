@@ -66,10 +66,13 @@ def sim_setup(scenario: Scenario) -> SimSetup:
 def filter_config(scenario: Scenario, altitude: str | None = None) -> FilterConfig:
     """The filter tuned from the scenario's IMU datasheet preset and its GNSS receiver's error
     model (position-bias states for a time-correlated receiver), with its altitude method
-    and its air-data choice (``fusion.airspeed``)."""
-    return pipeline_filter_config(scenario.imu_preset, scenario.sensor_config().gnss,
-                                  altitude or scenario.fusion.altitude,
-                                  scenario.fusion.airspeed)
+    its air-data choice (``fusion.airspeed``), its alignment (``fusion.align``), and the
+    magnetic reference at the scenario's date (``date``)."""
+    config = pipeline_filter_config(scenario.imu_preset, scenario.sensor_config().gnss,
+                                    altitude or scenario.fusion.altitude,
+                                    scenario.fusion.airspeed, scenario.fusion.align)
+    mag = config.mag.model_copy(update={"decimal_year": scenario.decimal_year})
+    return config.model_copy(update={"mag": mag})
 
 
 def simulate(scenario: Scenario, sink: Callable[[int, bytes], None], *,

@@ -30,6 +30,7 @@ VARY_KEYS: dict[str, tuple[tuple[str, ...], str]] = {
     "bridge": (("fusion", "bridge"), "GNSS-outage bridging method"),
     "altitude": (("fusion", "altitude"), "vertical channel method"),
     "airspeed": (("fusion", "airspeed"), "air data: on, off, synthetic"),
+    "align": (("fusion", "align"), "alignment: auto, static, in-flight"),
     "aircraft": (("aircraft",), "JSBSim aircraft (hilnav list)"),
     "plan": (("plan",), "flight plan: packaged name or YAML path relative to the scenario"),
 }

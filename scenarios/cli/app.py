@@ -34,11 +34,17 @@ R = TypeVar("R")
 
 # the methods the fusion offers (fusion/ imports no I/O: cheap to import here)
 from fusion.bridging.registry import BRIDGE_METHODS  # noqa: E402
-from fusion.config import AIRSPEED_MODES, ALTITUDE_METHODS, DEFAULT_AIRSPEED_MODE  # noqa: E402
+from fusion.config import (  # noqa: E402
+    AIRSPEED_MODES,
+    ALIGN_MODES,
+    ALTITUDE_METHODS,
+    DEFAULT_AIRSPEED_MODE,
+    DEFAULT_ALIGN_MODE,
+)
 
 # Options of every command that runs the filter: defined once so that replay, demo, fusion
 # and up build the filter from the same choices (run / compare / campaign take them from the
-# scenario file, with --bridge / --altitude / --airspeed overrides).
+# scenario file, with --bridge / --altitude / --airspeed / --align overrides).
 ImuOption = Annotated[str, typer.Option(help="IMU datasheet preset the filter is tuned for.")]
 GnssOption = Annotated[
     str, typer.Option(help="GNSS receiver preset the filter models (its correlated error).")]
@@ -51,6 +57,11 @@ AirspeedOption = Annotated[str, typer.Option(
          "(on, plus synthetic airspeed for a fixed-wing without a pitot).")]
 AirspeedOverride = Annotated[str | None, typer.Option(
     help=f"Override the scenario's air-data choice: {', '.join(AIRSPEED_MODES)}.")]
+AlignOption = Annotated[str, typer.Option(
+    help="Alignment (experts): auto (at rest: levelling + magnetometer; moving: GNSS track, or "
+         "the magnetometer when slower than 5 m/s), static, in-flight.")]
+AlignOverride = Annotated[str | None, typer.Option(
+    help=f"Override the scenario's alignment: {', '.join(ALIGN_MODES)}.")]
 SettleOption = Annotated[
     float, typer.Option(help="Scorecard: seconds excluded after the start and each outage "
                              "(shortened, with a warning, when a log is too short for it).")]
@@ -287,6 +298,7 @@ def fusion(
     bridge: BridgeOption = "none",
     altitude: AltitudeOption = "ekf",
     airspeed: AirspeedOption = DEFAULT_AIRSPEED_MODE,
+    align: AlignOption = DEFAULT_ALIGN_MODE,
     gcs: Annotated[
         str | None,
         typer.Option(help="Shadow vehicle for ground stations, e.g. udpout:127.0.0.1:14550."),
@@ -336,7 +348,7 @@ def fusion(
     options = FusionOptions(
         mavlink=mavlink, source=source, zenoh=zenoh, vehicle=vehicle, imu=imu, gnss=gnss,
         bridge=bridge,
-        altitude=altitude, airspeed=airspeed, gcs=gcs, gcs_tlog=gcs_tlog,
+        altitude=altitude, airspeed=airspeed, align=align, gcs=gcs, gcs_tlog=gcs_tlog,
         shadow_system_id=shadow_sysid, companion=companion,
         companion_kind=companion_kind,  # type: ignore[arg-type]  # pydantic checks the literal
         companion_system_id=companion_sysid, duration_s=duration, idle_exit_s=idle_exit, out=out,
@@ -345,7 +357,7 @@ def fusion(
     # a bad preset, method or source -> exit 2 before any socket opens
     if source is not None:
         parse_source(source)
-    build_filter(filter_config(imu, gnss_preset(gnss), altitude, airspeed), bridge)
+    build_filter(filter_config(imu, gnss_preset(gnss), altitude, airspeed, align), bridge)
     key = _signing_key(signing_key_file)
 
     def ready(service: Any) -> None:
@@ -453,6 +465,7 @@ def up(
     bridge: BridgeOption = "none",
     altitude: AltitudeOption = "ekf",
     airspeed: AirspeedOption = DEFAULT_AIRSPEED_MODE,
+    align: AlignOption = DEFAULT_ALIGN_MODE,
     gcs: Annotated[
         str | None, typer.Option(help="Also show the shadow vehicle to this ground station URL.")
     ] = None,
@@ -468,7 +481,8 @@ def up(
 
     options = UpOptions(duration_s=duration, speed=speed, out=out, vehicle=vehicle, plan=plan,
                         seed=seed, gnss_off=tuple(gnss_off or ()), imu=imu, gnss=gnss,
-                        bridge=bridge, altitude=altitude, airspeed=airspeed, gcs=gcs,
+                        bridge=bridge, altitude=altitude, airspeed=airspeed, align=align,
+                        gcs=gcs,
                         monitor=monitor,
                         lockstep=lockstep, foxglove_port=foxglove)
     summary = run_up(options, log=lambda text: console.print(text, highlight=False))
@@ -493,6 +507,7 @@ def replay(
     bridge: BridgeOption = "none",
     altitude: AltitudeOption = "ekf",
     airspeed: AirspeedOption = DEFAULT_AIRSPEED_MODE,
+    align: AlignOption = DEFAULT_ALIGN_MODE,
     settle: SettleOption = 60.0,
     imu: ImuOption = "industrial-mems",
     gnss: GnssOption = "modern",
@@ -513,13 +528,14 @@ def replay(
     _choice("bridging method", bridge, BRIDGE_METHODS)
     _choice("altitude method", altitude, ALTITUDE_METHODS)
     _choice("airspeed mode", airspeed, AIRSPEED_MODES)
+    _choice("alignment", align, ALIGN_MODES)
     windows = list(gnss_off or [])
     for w in windows:  # a malformed window -> exit 2 before the log is read
         GnssWindow.parse(w)
     if not settle >= 0.0:
         raise ValueError(f"--settle must be >= 0 s (got {settle:g})")
     result = run_replay(log, out,
-                        config=filter_config(imu, gnss_preset(gnss), altitude, airspeed),
+                        config=filter_config(imu, gnss_preset(gnss), altitude, airspeed, align),
                         bridge=bridge, altitude=altitude, settle_s=settle, gnss_off=windows)
     console.print(f"scored against: {result.summary['reference']['source']}")
     _print_summary(result.summary)
@@ -589,6 +605,7 @@ def demo(
     ),
     gnss: Annotated[str, typer.Option(help="GNSS preset (sensor and filter model).")] = "modern",
     airspeed: AirspeedOption = DEFAULT_AIRSPEED_MODE,
+    align: AlignOption = DEFAULT_ALIGN_MODE,
 ) -> None:
     """The main job: fly a racetrack, record it, run the filter with a GNSS outage, score it."""
     _out_dir(out)
@@ -598,7 +615,7 @@ def demo(
 
     out.mkdir(parents=True, exist_ok=True)
     log = out / "run.tlog"
-    config = filter_config(imu, gnss_preset(gnss), airspeed=airspeed)
+    config = filter_config(imu, gnss_preset(gnss), airspeed=airspeed, align=align)
     request = SimSetup.build(plan=plan, imu=imu, gnss=gnss, duration_s=duration, seed=seed,
                                gnss_off=[outage])
     with _progress(duration, "flying") as progress:
@@ -635,6 +652,7 @@ def list_choices(
         "pitot": presets.available_pitot_presets(),
         "bridge": list(BRIDGE_METHODS),
         "altitude": list(ALTITUDE_METHODS),
+        "align": list(ALIGN_MODES),
     }
     if as_json:
         sys.stdout.write(json.dumps(choices, indent=2) + "\n")
@@ -662,6 +680,7 @@ def run(
     bridge: Annotated[str | None, typer.Option(help="Override the bridging method.")] = None,
     altitude: Annotated[str | None, typer.Option(help="Override the altitude method.")] = None,
     airspeed: AirspeedOverride = None,
+    align: AlignOverride = None,
     quiet: Annotated[bool, typer.Option(help="No progress bar.")] = False,
 ) -> None:
     """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
@@ -669,7 +688,7 @@ def run(
     from scenarios.runner import run_scenario
 
     scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
-                         airspeed=airspeed)
+                         airspeed=airspeed, align=align)
     if quiet:
         result = run_scenario(scn, out)
     else:
@@ -700,6 +719,7 @@ def compare(
     seed_base: Annotated[int, typer.Option(help="First seed (seeds S, S+1, ...).")] = 100,
     altitude: Annotated[str | None, typer.Option(help="Override the altitude method.")] = None,
     airspeed: AirspeedOverride = None,
+    align: AlignOverride = None,
 ) -> None:
     """Every bridging method on the same sensor data per seed (the papers' Tables 1 and 2)."""
     _out_dir(out)
@@ -707,7 +727,7 @@ def compare(
     from scenarios.compare import markdown, parse_methods
 
     names = parse_methods(methods)
-    scn = _load_scenario(scenario, altitude=altitude, airspeed=airspeed)
+    scn = _load_scenario(scenario, altitude=altitude, airspeed=airspeed, align=align)
     result = run_compare(scn, names, list(range(seed_base, seed_base + seeds)), out,
                          progress=lambda msg: err_console.print(msg, highlight=False))
     console.print(markdown(result), highlight=False)
@@ -741,9 +761,10 @@ def campaign(
     seed_base: Annotated[int, typer.Option(help="First seed.")] = 100,
     vary: Annotated[list[str] | None, typer.Option(
         help="Grid axis KEY=V1,V2 (imu, gnss, baro, mag, pitot, bridge, altitude, airspeed,"
-             " aircraft, plan); repeatable.")
+             " align, aircraft, plan); repeatable.")
     ] = None,
     airspeed: AirspeedOverride = None,
+    align: AlignOverride = None,
     scheduler: Annotated[str | None, typer.Option(
         help="Dask scheduler address (tcp://HOST:8786); default: a local cluster.")] = None,
     workers: Annotated[int | None, typer.Option(help="Local cluster workers (default: cores).")
@@ -765,6 +786,11 @@ def campaign(
         if "airspeed" in grid:
             raise ValueError("give --airspeed or --vary airspeed=..., not both")
         grid["airspeed"] = [airspeed]
+    if align is not None:  # one alignment for every run: a one-value grid axis
+        _choice("alignment", align, ALIGN_MODES)
+        if "align" in grid:
+            raise ValueError("give --align or --vary align=..., not both")
+        grid["align"] = [align]
     seed_list = list(range(seed_base, seed_base + seeds))
     bar = Progress(TextColumn("[bold]campaign"), BarColumn(), MofNCompleteColumn(),
                    TextColumn("runs"), TimeElapsedColumn(), TimeRemainingColumn(),

@@ -28,7 +28,7 @@ from typing import IO, Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from fusion.config import DEFAULT_AIRSPEED_MODE
+from fusion.config import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
 from hil.bus import validate_vehicle
 from hil.pipeline import SimSetup, build_filter, filter_config
 from hil.router import zenoh_router
@@ -62,6 +62,8 @@ class UpOptions(BaseModel):
     """The fusion's altitude method."""
     airspeed: str = DEFAULT_AIRSPEED_MODE
     """The fusion's air-data choice (on, off, synthetic)."""
+    align: str = DEFAULT_ALIGN_MODE
+    """The fusion's alignment (auto, static, in-flight)."""
     gnss_off: tuple[str, ...] = ()
     gcs: str | None = None
     monitor: bool = True
@@ -171,7 +173,7 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
                    imu=options.imu, gnss=options.gnss,
                    duration_s=options.duration_s or _DEFAULT_DURATION_S)
     build_filter(filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
-                               options.airspeed), options.bridge)
+                               options.airspeed, options.align), options.bridge)
     out = options.out
     out.mkdir(parents=True, exist_ok=True)
     summary_path = out / "summary.json"
@@ -182,7 +184,8 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
         fusion_args = ["fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
                        "--vehicle", options.vehicle, "--out", str(out), "--imu", options.imu,
                        "--gnss", options.gnss, "--bridge", options.bridge,
-                       "--altitude", options.altitude, "--airspeed", options.airspeed]
+                       "--altitude", options.altitude, "--airspeed", options.airspeed,
+                       "--align", options.align]
         settle = options.settle_s
         if settle is None:
             settle = min(60.0, 0.25 * (options.duration_s or _DEFAULT_DURATION_S))

@@ -3,6 +3,7 @@ timeline, checked for consistency, with builders of the simulator's SI objects."
 
 from __future__ import annotations
 
+import datetime as dt
 import re
 from collections.abc import Mapping
 from pathlib import Path
@@ -22,6 +23,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from physconst.geomag import DEFAULT_DECIMAL_YEAR, decimal_year
 from scenarios.schema.base import Strict, first_error, key_error, listing, unknown_name
 from scenarios.schema.criteria import CriterionSpec
 from scenarios.schema.errors import scenario_error
@@ -104,6 +106,11 @@ class Scenario(Strict):
     )
     duration_s: float = Field(gt=0.0, le=86400.0, description="Simulated flight time, s.")
     seed: int = Field(default=1, ge=0, le=2**31 - 1, description="Seed of every random stream.")
+    date: dt.date | None = Field(
+        default=None,
+        description="Date of the simulated world, e.g. 2026-06-15: the Earth's magnetic field "
+        "(World Magnetic Model) of the simulated magnetometer and of the filter's reference is "
+        "evaluated at it; default 2026-01-01.")
     sim_rate_hz: float = Field(default=200.0, ge=50.0, le=400.0,
                                description="Flight dynamics (JSBSim) rate, Hz.")
     wind_ned_mps: tuple[float, float, float] = Field(
@@ -292,7 +299,14 @@ class Scenario(Strict):
             baro_rate_hz=s.baro.rate_hz,
             mag_rate_hz=s.mag.rate_hz,
             pitot_rate_hz=s.pitot.rate_hz,
+            decimal_year=self.decimal_year,
         )
+
+    @property
+    def decimal_year(self) -> float:
+        """The scenario's date as a decimal year (:data:`physconst.geomag.DEFAULT_DECIMAL_YEAR`
+        without one)."""
+        return DEFAULT_DECIMAL_YEAR if self.date is None else decimal_year(self.date)
 
     def imu_config(self) -> ImuConfig:
         """The simulated IMU: the preset with the scenario's gyro / accel overrides."""
@@ -330,6 +344,7 @@ class Scenario(Strict):
         altitude: str | None = None,
         duration_s: float | None = None,
         airspeed: str | None = None,
+        align: str | None = None,
     ) -> Scenario:
         """A re-validated copy with command-line overrides applied.
 
@@ -344,7 +359,7 @@ class Scenario(Strict):
             data["seed"] = seed
         if duration_s is not None:
             data["duration_s"] = duration_s
-        if bridge is not None or altitude is not None or airspeed is not None:
+        if any(v is not None for v in (bridge, altitude, airspeed, align)):
             fusion = dict(data.get("fusion", {}))
             if bridge is not None:
                 fusion["bridge"] = bridge
@@ -352,6 +367,8 @@ class Scenario(Strict):
                 fusion["altitude"] = altitude
             if airspeed is not None:
                 fusion["airspeed"] = airspeed
+            if align is not None:
+                fusion["align"] = align
             data["fusion"] = fusion
         try:
             return Scenario.model_validate(data, context={"base_dir": self._base_dir})

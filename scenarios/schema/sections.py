@@ -13,6 +13,7 @@ from pydantic import (
     BaseModel,
     Field,
     ValidationError,
+    ValidationInfo,
     create_model,
     field_validator,
     model_validator,
@@ -20,7 +21,13 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 
 from fusion.bridging.registry import BRIDGE_METHODS
-from fusion.config import AIRSPEED_MODES, ALTITUDE_METHODS, DEFAULT_AIRSPEED_MODE
+from fusion.config import (
+    AIRSPEED_MODES,
+    ALIGN_MODES,
+    ALTITUDE_METHODS,
+    DEFAULT_AIRSPEED_MODE,
+    DEFAULT_ALIGN_MODE,
+)
 from scenarios.schema.base import Strict, first_error, key_error, listing, unknown_name
 from sim import presets
 from sim.baro import BaroConfig
@@ -265,6 +272,15 @@ class Sensors(Strict):
 
 
 # -------------------------------------------------------------------------------- fusion
+_FUSION_CHOICES: dict[str, tuple[str, tuple[str, ...]]] = {
+    "bridge": ("bridging method", tuple(BRIDGE_METHODS)),
+    "altitude": ("altitude method", tuple(ALTITUDE_METHODS)),
+    "airspeed": ("airspeed mode", tuple(AIRSPEED_MODES)),
+    "align": ("alignment", tuple(ALIGN_MODES)),
+}
+"""The fusion section's named choices: what the error calls them, and the valid ones."""
+
+
 class FusionSection(Strict):
     """Fusion settings: outage-bridging and vertical-channel methods."""
 
@@ -282,24 +298,17 @@ class FusionSection(Strict):
         "synthetic (on, plus synthetic airspeed for a fixed-wing without a pitot).",
         json_schema_extra=listing("enum", list(AIRSPEED_MODES)),
     )
+    align: str = Field(
+        default=DEFAULT_ALIGN_MODE,
+        description="Alignment: auto (static at rest, GNSS track when moving, magnetometer "
+        "heading when slow), static, in-flight.",
+        json_schema_extra=listing("enum", list(ALIGN_MODES)),
+    )
 
-    @field_validator("bridge")
+    @field_validator("bridge", "altitude", "airspeed", "align")
     @classmethod
-    def _known_bridge(cls, value: str) -> str:
-        if value not in BRIDGE_METHODS:
-            raise ValueError(unknown_name("bridging method", value, BRIDGE_METHODS))
-        return value
-
-    @field_validator("altitude")
-    @classmethod
-    def _known_altitude(cls, value: str) -> str:
-        if value not in ALTITUDE_METHODS:
-            raise ValueError(unknown_name("altitude method", value, ALTITUDE_METHODS))
-        return value
-
-    @field_validator("airspeed")
-    @classmethod
-    def _known_airspeed(cls, value: str) -> str:
-        if value not in AIRSPEED_MODES:
-            raise ValueError(unknown_name("airspeed mode", value, AIRSPEED_MODES))
+    def _known_choice(cls, value: str, info: ValidationInfo) -> str:
+        what, valid = _FUSION_CHOICES[str(info.field_name)]
+        if value not in valid:
+            raise ValueError(unknown_name(what, value, valid))
         return value

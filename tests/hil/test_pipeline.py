@@ -45,6 +45,17 @@ def test_the_factory_names_bad_methods_and_presets() -> None:
         build_filter(filter_config("industrial-mems", gnss_preset("modern")), "magic")
     with pytest.raises(ValueError, match=r"airspeed mode 'maybe'.*synthetic"):
         filter_config("industrial-mems", gnss_preset("modern"), "ekf", "maybe")
+    with pytest.raises(ValueError, match=r"alignment 'sideways'.*in-flight"):
+        filter_config("industrial-mems", gnss_preset("modern"), align="sideways")
+
+
+def test_the_commands_filter_aligns_automatically_unless_told() -> None:
+    default = filter_config("industrial-mems", gnss_preset("modern"))
+    assert default.init.mode == "auto" and default.mag.reference == "wmm"
+    for choice, mode in (("static", "static"), ("in-flight", "in_flight"), ("auto", "auto")):
+        cfg = filter_config("industrial-mems", gnss_preset("modern"), align=choice)
+        assert cfg.init.mode == mode
+        assert cfg.model_copy(update={"init": default.init}) == default
 
 
 def test_the_commands_filter_carries_the_air_data_states_and_the_airspeed_choice() -> None:

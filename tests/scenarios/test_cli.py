@@ -51,6 +51,9 @@ def test_replay_bad_input(tmp_path: Path, short_flight_log: Path) -> None:
     assert code == 2 and "no such log file" in out
     code, out = _run("replay", str(short_flight_log), "--out", str(tmp_path), "--bridge", "magic")
     assert code == 2 and "valid choices: none" in out
+    code, out = _run("replay", str(short_flight_log), "--out", str(tmp_path), "--align", "up")
+    assert code == 2 and "valid choices: auto, static, in-flight" in out
+    assert len(out.strip().splitlines()) == 1
 
 
 def test_sim_records_a_log_mavlogdump_reads(tmp_path: Path) -> None:
@@ -153,6 +156,7 @@ def test_list_json() -> None:
     assert "c172x" in choices["aircraft"] and "c310" in choices["aircraft"]
     assert set(choices["plans"]) == {"cruise", "racetrack", "climb-descent", "survey", "manoeuvre"}
     assert {"consumer-mems", "industrial-mems", "tactical", "paper-p2"} <= set(choices["imu"])
+    assert choices["align"] == ["auto", "static", "in-flight"]
 
 
 def test_check_command_reports_the_deployment_health() -> None:

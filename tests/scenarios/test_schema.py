@@ -334,6 +334,7 @@ def test_missing_duration(tmp_path: Path) -> None:
         ("fusion: {bridge: gmhd}\n", "fusion.bridge", "did you mean 'gmdh'"),
         ("fusion: {altitude: mpc}\n", "fusion.altitude", "unknown altitude method"),
         ("fusion: {airspeed: maybe}\n", "fusion.airspeed", "unknown airspeed mode"),
+        ("fusion: {align: statc}\n", "fusion.align", "did you mean 'static'"),
         ("plan: nowhere.yaml\n", "plan", "unknown flight plan"),
         ("turbulence: stormy\n", "turbulence", "unknown turbulence level"),
         ("sensors: {imu: {rate_hz: 70}}\n", "sensors.imu.rate_hz", "must divide"),
@@ -833,3 +834,18 @@ def test_wind_keys_reach_the_flight(tmp_path: Path) -> None:
     """)).flight_config()
     assert table.wind_table == ((500.0, 0.0, 2.0), (1500.0, 10.0, 2.0))
     assert table.wind_at(1000.0, 1000.0) == (5.0, 2.0, 0.0)
+
+
+def test_the_scenario_date_reaches_the_magnetometer_and_the_filter(tmp_path: Path) -> None:
+    from physconst.geomag import DEFAULT_DECIMAL_YEAR
+    from scenarios.runner import filter_config
+
+    dated = load_scenario(write(tmp_path, "name: x\nduration_s: 60\ndate: 2016-07-02\n"))
+    assert dated.decimal_year == pytest.approx(2016.5, abs=0.01)
+    assert dated.sensor_config().decimal_year == dated.decimal_year
+    assert filter_config(dated).mag.decimal_year == dated.decimal_year
+    plain = load_scenario(write(tmp_path, "name: y\nduration_s: 60\n", "plain.yaml"))
+    assert plain.sensor_config().decimal_year == DEFAULT_DECIMAL_YEAR
+    assert filter_config(plain).mag.decimal_year == DEFAULT_DECIMAL_YEAR
+    err = error_of(write(tmp_path, "name: z\nduration_s: 60\ndate: next tuesday\n", "bad.yaml"))
+    assert err.key == "date"
