@@ -410,7 +410,14 @@ def _not_aligned(log: Path, run: FusionRun) -> str:
     fixes = run.collector.fix_times_us if run.collector is not None else []
     span = (f"3-D fixes from {fixes[0] * 1e-6:.1f} to {fixes[-1] * 1e-6:.1f} s" if fixes
             else "no 3-D fix")
+    init = run.config.init
+    needs = {
+        "static": f"the static alignment (--align static) needs {init.static_duration_s:g} s at "
+                  "rest after a good fix; try --align auto",
+        "in_flight": f"the in-flight alignment (--align in-flight) needs a GNSS ground speed of "
+                     f"{init.min_speed_mps:g} m/s; try --align auto",
+    }.get(init.mode, f"the log needs {init.static_duration_s:g} s at rest, or a GNSS ground "
+                     f"speed of {init.min_speed_mps:g} m/s, or a magnetometer while moving "
+                     "slower, after a good fix")
     return (f"{log}: alignment not reached ({span}; at the end of the log the filter was "
-            f"{run.nav.alignment_state}): the log needs {run.config.init.static_duration_s:g} s "
-            f"at rest, or a GNSS ground speed of {run.config.init.min_speed_mps:g} m/s, or a "
-            "magnetometer while moving slower, after a good fix")
+            f"{run.nav.alignment_state}): {needs}")

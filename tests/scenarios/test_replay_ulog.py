@@ -119,6 +119,17 @@ def test_gnss_only_at_the_very_end_is_scored_over_what_there_is(tmp_path: Path) 
     assert "longer than the log allows" in stderr
 
 
+def test_a_forced_alignment_that_cannot_happen_says_why(tmp_path: Path) -> None:
+    """GIVEN the tagged log (3-D fix only in its last 1.5 s, single SITL gyro spikes) WHEN
+    replayed with --align static THEN the 2-s static window never completes after the fix:
+    exit 2, one line with the fixes' span and the way out."""
+    code, stdout, stderr = _replay(TAGGED, tmp_path, "--align", "static")
+    assert code == 2
+    line = _one_line(stdout + stderr)
+    assert "alignment not reached (3-D fixes from 9.3 to 10.8 s" in line
+    assert "try --align auto" in line
+
+
 @pytest.mark.parametrize(
     ("crafted", "needle"),
     [
