@@ -53,12 +53,15 @@ def _shade(ax: Axes, outages: list[Window], events: Sequence[EventWindow] = ()) 
                    alpha=0.5, lw=0.0, label="scenario event" if i == 0 else None)
 
 
-def plot_ground_track(estimate: Track, truth: Track, outages: list[Window], path: Path) -> None:
+def plot_ground_track(estimate: Track, truth: Track, outages: list[Window], path: Path, *,
+                      reference_label: str = "truth") -> None:
+    """Ground track of the estimate and of the reference (``reference_label``: "truth" for a
+    simulation, the autopilot's estimate for a flight log)."""
     lat0, lon0, h0 = truth.lat_rad[0], truth.lon_rad[0], truth.alt_m[0]
     n_t, e_t = _local_ne(truth, lat0, lon0, h0)
     n_e, e_e = _local_ne(estimate, lat0, lon0, h0)
     fig, ax = _subplots(figsize=(7, 7))
-    ax.plot(e_t, n_t, color="k", lw=1.2, label="truth")
+    ax.plot(e_t, n_t, color="k", lw=1.2, label=reference_label)
     ax.plot(e_e, n_e, color="tab:blue", lw=0.9, label="estimate")
     for i, w in enumerate(outages):
         m = w.mask(estimate.time_s)
@@ -67,7 +70,7 @@ def plot_ground_track(estimate: Track, truth: Track, outages: list[Window], path
         mt = w.mask(truth.time_s)
         if np.any(mt):
             ax.plot(e_t[mt], n_t[mt], color="tab:orange", lw=2.4, alpha=0.5,
-                    label="truth during outage" if i == 0 else None)
+                    label=f"{reference_label} during outage" if i == 0 else None)
             k0, k1 = np.flatnonzero(mt)[[0, -1]]
             ax.plot(e_t[k0], n_t[k0], "o", color="tab:red", ms=5,
                     label="outage start" if i == 0 else None)
@@ -87,8 +90,9 @@ def plot_ground_track(estimate: Track, truth: Track, outages: list[Window], path
 
 
 def plot_errors(err: Errors, outages: list[Window], path: Path, *,
-                events: Sequence[EventLike] = ()) -> None:
-    """Position, velocity and attitude errors per axis with the filter's ±3-sigma envelope."""
+                events: Sequence[EventLike] = (), reference_label: str = "truth") -> None:
+    """Position, velocity and attitude errors (estimate minus ``reference_label``) per axis
+    with the filter's ±3-sigma envelope."""
     evs = _events(events)
     fig, axes = _subplots(3, 3, figsize=(14, 9), sharex=True)
     # (title, errors, axis names, their 1-sigma (N, >=3) or None, first column, scale)
@@ -113,6 +117,7 @@ def plot_errors(err: Errors, outages: list[Window], path: Path, *,
     axes[0, 0].legend(loc="upper left", fontsize=8)
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
+    fig.suptitle(f"estimate minus {reference_label}", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
 
@@ -233,16 +238,18 @@ def plot_drift_compare(
 
 
 def write_plots(estimate: Track, truth: Track, err: Errors, outages: list[Window],
-                out_dir: Path, *, events: Sequence[EventLike] = ()) -> list[Path]:
-    """Write the run's plots into ``out_dir``; returns their paths.
+                out_dir: Path, *, events: Sequence[EventLike] = (),
+                reference_label: str = "truth") -> list[Path]:
+    """Write the run's plots into ``out_dir``; returns their paths. ``truth`` is the reference
+    the errors are taken against, named ``reference_label`` in the plots.
 
     ``ground_track.png``, ``errors.png``, ``horizontal_vertical.png`` and, when there are
     outages, ``drift.png``.
     """
     paths = [out_dir / "ground_track.png", out_dir / "errors.png",
              out_dir / "horizontal_vertical.png"]
-    plot_ground_track(estimate, truth, outages, paths[0])
-    plot_errors(err, outages, paths[1], events=events)
+    plot_ground_track(estimate, truth, outages, paths[0], reference_label=reference_label)
+    plot_errors(err, outages, paths[1], events=events, reference_label=reference_label)
     plot_horizontal_vertical(err, outages, paths[2], events=events)
     if outages:
         paths.append(out_dir / "drift.png")

@@ -100,6 +100,74 @@ class ScoringConfig(BaseModel):
     bad_fix_min_m: PositiveFloat = 10.0
 
 
+MIN_SCORED_FRACTION = 0.5
+"""A fitted settling time leaves at least this fraction of the GNSS-on time to score."""
+
+
+@dataclass(frozen=True)
+class Settling:
+    """The settling time a scorecard used, and why it differs from the one asked for.
+
+    Attributes
+    ----------
+    requested_s : the ``--settle`` asked for, s.
+    applied_s : the one used, s (see :func:`fit_settling`).
+    span_s : seconds during which both the navigation estimate and the reference exist.
+    scored_s : seconds the GNSS-on figures cover with ``applied_s`` (after the start and
+        after each outage).
+    warning : None, or a one-line explanation (the CLI prints it on stderr).
+    """
+
+    requested_s: float
+    applied_s: float
+    span_s: float
+    scored_s: float
+    warning: str | None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"requested_s": self.requested_s, "applied_s": self.applied_s,
+                "span_s": self.span_s, "scored_s": self.scored_s, "warning": self.warning}
+
+
+def _on_seconds(time_s: np.ndarray, outages: list[Window], settle_s: float) -> float:
+    if time_s.size < 2:
+        return 0.0
+    dt = np.diff(time_s, append=time_s[-1])
+    return float(np.sum(dt[metrics.gnss_on_mask(time_s, outages, settle_s=settle_s)]))
+
+
+def fit_settling(requested_s: float, time_s: np.ndarray, outages: list[Window]) -> Settling:
+    """Fit ``requested_s`` of settling to a log: never GNSS-on figures that are silently empty.
+
+    ``time_s`` are the scored times (estimate and reference both present), ``outages`` the
+    GNSS outages. The request is applied when it leaves at least ``MIN_SCORED_FRACTION`` of
+    the GNSS-on time (after the start and after each outage); otherwise the longest settling
+    that does (found by bisection, to 1 ms) is applied, with a warning. No GNSS-on time at all
+    (the outages cover the log) gives a warning that nothing can be scored with GNSS on.
+    """
+    span = float(time_s[-1] - time_s[0]) if time_s.size else 0.0
+    full = _on_seconds(time_s, outages, 0.0)
+    if full <= 0.0:
+        return Settling(requested_s, 0.0, span, 0.0,
+                        f"no GNSS-on time to score: the estimate overlaps the reference for "
+                        f"{span:.1f} s, all of it in GNSS outages")
+    needed = MIN_SCORED_FRACTION * full
+    scored = _on_seconds(time_s, outages, requested_s)
+    if scored >= needed:
+        return Settling(requested_s, requested_s, span, scored, None)
+    lo, hi = 0.0, requested_s
+    while hi - lo > 1e-3:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _on_seconds(time_s, outages, mid) >= needed else (lo, mid)
+    lo = math.floor(lo * 1e3) / 1e3  # down: never below the fraction to score
+    scored = _on_seconds(time_s, outages, lo)
+    return Settling(requested_s, lo, span, scored,
+                    f"--settle {requested_s:g} s is longer than the log allows: the estimate "
+                    f"overlaps the reference for {span:.1f} s ({full:.1f} s with GNSS); "
+                    f"settled {lo:.1f} s after the start and each outage and scored "
+                    f"{scored:.1f} s with GNSS on")
+
+
 @dataclass(frozen=True)
 class RunInfo:
     scenario: str
@@ -250,6 +318,7 @@ def score_run(
     events: Sequence[EventWindow | Mapping[str, Any]] = (),
     health_extra: Mapping[str, Any] | None = None,
     with_series: bool = False,
+    fit_settle: bool = False,
 ) -> Scored:
     """Score what a :class:`hil.pipeline.FusionRun` collected: the one scorer of ``run``,
     ``replay``, ``compare``, ``campaign``, the live scorecard and the benches.
@@ -257,7 +326,9 @@ def score_run(
     GNSS outages are the gaps of more than 1 s between received 3-D fixes (up to the end of
     the shorter of the estimate and truth tracks); ``health`` holds the filter's and the
     decoder's final counters plus ``health_extra``; ``with_series`` adds the per-estimate
-    mode / test-ratio / counter series that event scoring needs.
+    mode / test-ratio / counter series that event scoring needs. ``fit_settle`` fits
+    ``settle_s`` to a short log (:func:`fit_settling`) and writes ``settling`` into the
+    summary.
 
     Raises
     ------
@@ -275,9 +346,17 @@ def score_run(
     health: dict[str, Any] = {"filter": plain_dict(run.nav.health),
                               "decoder": plain_dict(run.decoder.counters)}
     health.update(health_extra or {})
+    fitted = None
+    if fit_settle:
+        t = estimate.time_s
+        fitted = fit_settling(settle_s, t[(t >= truth.time_s[0]) & (t <= truth.time_s[-1])],
+                              outages)
+        settle_s = fitted.applied_s
     summary, err = build_summary(
         info, estimate, truth, outages, settle_s=settle_s, criteria=criteria, health=health,
         events=events, series=col.series() if with_series else None)
+    if fitted is not None:
+        summary["settling"] = fitted.as_dict()
     return Scored(summary, err, estimate, truth, outages)
 
 

@@ -63,7 +63,8 @@ AlignOption = Annotated[str, typer.Option(
 AlignOverride = Annotated[str | None, typer.Option(
     help=f"Override the scenario's alignment: {', '.join(ALIGN_MODES)}.")]
 SettleOption = Annotated[
-    float, typer.Option(help="Scorecard: seconds excluded after the start and each outage.")]
+    float, typer.Option(help="Scorecard: seconds excluded after the start and each outage "
+                             "(shortened, with a warning, when a log is too short for it).")]
 
 # How a bus client (fusion, sim, monitor, check) joins a secured Zenoh router; see the README's
 # "Securing the Zenoh bus". Secrets never go on the command line: files or the environment.
@@ -426,6 +427,7 @@ def fusion(
     summary = serve_fusion(options, signing_key=key, bus_access=access, on_ready=ready)
     if summary is not None:
         _print_summary(summary)
+        _warn_input(summary)
         live = summary.get("live", {})
         console.print(f"live: lost frames {live.get('lost_frames')}, "
                       f"realtime factor {_fmt(summary.get('realtime_factor'))}")
@@ -625,7 +627,9 @@ def up(
 @app.command()
 @cli_errors
 def replay(
-    log: Annotated[Path, typer.Argument(help="MAVLink log (.tlog) with HIL_SENSOR/HIL_GPS.")],
+    log: Annotated[Path, typer.Argument(
+        help="Flight log: a MAVLink .tlog (HIL_SENSOR/HIL_GPS, truth as HIL_STATE_QUATERNION) "
+             "or a PX4 ULog .ulg (scored against the autopilot's own estimate).")],
     out: Annotated[Path, typer.Option(help="Output folder for summary.json and plots.")],
     bridge: BridgeOption = "none",
     altitude: AltitudeOption = "ekf",
@@ -634,10 +638,17 @@ def replay(
     settle: SettleOption = 60.0,
     imu: ImuOption = "industrial-mems",
     gnss: GnssOption = "modern",
+    gnss_off: Annotated[
+        list[str] | None,
+        typer.Option("--gnss-off", help="Cut GNSS START:DURATION s, from the log's first "
+                                        "sample (repeatable)."),
+    ] = None,
 ) -> None:
-    """Run the navigation filter on a recorded log and score it against the logged truth."""
+    """Run the navigation filter on a recorded log and score it against the log's truth
+    (.tlog) or the autopilot's estimate (.ulg)."""
     _out_dir(out)
     from hil.pipeline import filter_config
+    from hil.streamer import GnssWindow
     from scenarios.replay import replay as run_replay
     from sim.presets import gnss_preset
 
@@ -645,17 +656,36 @@ def replay(
     _choice("altitude method", altitude, ALTITUDE_METHODS)
     _choice("airspeed mode", airspeed, AIRSPEED_MODES)
     _choice("alignment", align, ALIGN_MODES)
+    windows = list(gnss_off or [])
+    for w in windows:  # a malformed window -> exit 2 before the log is read
+        GnssWindow.parse(w)
+    if not settle >= 0.0:
+        raise ValueError(f"--settle must be >= 0 s (got {settle:g})")
     result = run_replay(log, out,
                         config=filter_config(imu, gnss_preset(gnss), altitude, airspeed, align),
-                        bridge=bridge, altitude=altitude, settle_s=settle)
+                        bridge=bridge, altitude=altitude, settle_s=settle, gnss_off=windows)
+    console.print(f"scored against: {result.summary['reference']['source']}")
     _print_summary(result.summary)
     _warn_input(result.summary)
     console.print(f"summary -> {result.summary_path}")
 
 
 def _warn_input(s: dict[str, Any]) -> None:
-    """Say on stderr when the log was damaged or cut (the scorecard has it in ``input``)."""
+    """Say on stderr when the log was damaged or cut (the scorecard has it in ``input``), when
+    the settling time was shortened to fit the log (``settling``) and what the reference
+    lacks (``reference``)."""
+    for section in ("settling", "reference", "alignment"):
+        warning = s.get(section, {}).get("warning")
+        if warning:
+            err_console.print(f"[yellow]warning:[/] {warning}", highlight=False)
     inp = s.get("input", {})
+    if inp.get("corrupt"):
+        err_console.print("[yellow]warning:[/] the ULog is damaged: pyulog skipped a corrupt "
+                          "stretch; scored what was readable", highlight=False)
+    if inp.get("logger_dropouts"):
+        err_console.print(f"[yellow]warning:[/] the vehicle's logger dropped data "
+                          f"{inp['logger_dropouts']} times ({inp['logger_dropout_ms']} ms in "
+                          "all): samples are missing there", highlight=False)
     if inp.get("truncated") or inp.get("bad_frames") or inp.get("skipped_bytes"):
         err_console.print(
             f"[yellow]warning:[/] the log is damaged: {inp.get('bad_frames', 0)} bad frames, "
@@ -665,7 +695,7 @@ def _warn_input(s: dict[str, Any]) -> None:
 
 
 def _fmt(v: Any, spec: str = ".2f") -> str:
-    return "n/a" if v is None else format(v, spec)
+    return "n/a" if v is None or (isinstance(v, float) and v != v) else format(v, spec)
 
 
 def _print_summary(s: dict[str, Any]) -> None:

@@ -28,7 +28,8 @@ def live_summary(service: FusionService, wall_s: float) -> dict[str, Any] | None
     info = RunInfo(scenario="live", seed=None, sim_duration_s=col.last_time_us * 1e-6,
                    wall_s=wall_s, bridge=o.bridge, altitude=o.altitude)
     try:
-        scored = score_run(service.fusion, info, settle_s=o.settle_s)
+        # settled as replay settles: the same frames give the same scorecard
+        scored = score_run(service.fusion, info, settle_s=o.settle_s, fit_settle=True)
     except ValueError:
         return None
     summary = scored.summary

@@ -126,6 +126,27 @@ def test_replay_writes_the_contract(tmp_path: Path, short_flight_log: Path) -> N
     assert s["health"]["filter"]["gnss_fused"] > 500
     for png in ("ground_track.png", "errors.png", "horizontal_vertical.png"):
         assert (out / png).stat().st_size > 10_000
+    assert s["reference"]["source"] == "truth"
+    assert s["settling"] == {"requested_s": 30.0, "applied_s": 30.0,
+                             "span_s": pytest.approx(s["settling"]["span_s"]),
+                             "scored_s": pytest.approx(s["settling"]["scored_s"]),
+                             "warning": None}
+
+
+def test_replay_gnss_off_cuts_a_recorded_flight(tmp_path: Path, short_flight_log: Path) -> None:
+    """GIVEN the recorded flight (its own outage 120-150 s) WHEN replayed with --gnss-off
+    40:20 THEN the fixes of 40-60 s are removed and a second outage is scored against truth."""
+    out = tmp_path / "cut"
+    code, text = _run("replay", str(short_flight_log), "--out", str(out), "--settle", "20",
+                      "--gnss-off", "40:20")
+    assert code == 0, text
+    s = json.loads((out / "summary.json").read_text())
+    assert s["gnss_off"]["fixes_removed"] > 50
+    first, second = s["outages"]
+    assert first["start_s"] == pytest.approx(40.0, abs=0.5)
+    assert first["end_s"] == pytest.approx(60.0, abs=0.5)
+    assert second["start_s"] == pytest.approx(120.0, abs=0.5)
+    assert first["horizontal_error_m_at"]["10"] is not None
 
 
 def test_list_json() -> None:
