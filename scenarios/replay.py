@@ -377,9 +377,9 @@ def _score(
 ) -> ReplayResult:
     col = run.collector
     assert col is not None
-    if not any(e.mode != "initializing" for e in col.estimates):
+    if all(m == "initializing" for m in col.modes()):
         raise ValueError(_not_aligned(log, run))
-    if len(col.truths) < 2:
+    if col.n_truths < 2:
         raise ValueError(f"{log}: the log holds no {reference['source']} "
                          f"({', '.join(reference['topics'])}) to score against")
     est, ref = col.estimate_track(), col.truth_track()
@@ -407,8 +407,9 @@ def _score(
 
 def _not_aligned(log: Path, run: FusionRun) -> str:
     """Why the filter never navigated, in one line with what the user can do."""
-    fixes = run.collector.fix_times_us if run.collector is not None else []
-    span = (f"3-D fixes from {fixes[0] * 1e-6:.1f} to {fixes[-1] * 1e-6:.1f} s" if fixes
+    fixes = (np.asarray(run.collector.fix_times_us) if run.collector is not None
+             else np.zeros(0))
+    span = (f"3-D fixes from {fixes[0] * 1e-6:.1f} to {fixes[-1] * 1e-6:.1f} s" if fixes.size
             else "no 3-D fix")
     init = run.config.init
     needs = {
