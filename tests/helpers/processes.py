@@ -16,3 +16,20 @@ def hilnav_process(*args: str, log: Path) -> subprocess.Popen[bytes]:
         stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True,
         env={**os.environ, "COLUMNS": "200"},
     )
+
+
+def lockstep_chain(
+    tmp_path: Path, port: int, *, speed: str, duration_s: str, seed: str, settle_s: str,
+    fusion_args: tuple[str, ...] = (), sim_args: tuple[str, ...] = (),
+) -> tuple[subprocess.Popen[bytes], subprocess.Popen[bytes]]:
+    """A fusion service on ``udpin:127.0.0.1:PORT`` writing its live scorecard to
+    ``tmp_path/live``, and a lockstep simulator streaming to it and recording
+    ``tmp_path/run.tlog``; logs in ``fusion.log`` / ``sim.log``. The caller stops both by PID."""
+    fusion = hilnav_process(
+        "fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--out", str(tmp_path / "live"),
+        "--idle-exit", "3", "--settle", settle_s, *fusion_args, log=tmp_path / "fusion.log")
+    sim = hilnav_process(
+        "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", speed, "--lockstep",
+        "--duration", duration_s, "--seed", seed, *sim_args,
+        "--record", str(tmp_path / "run.tlog"), "--wait-peer", "30", log=tmp_path / "sim.log")
+    return fusion, sim

@@ -30,7 +30,7 @@ from scenarios.cli.app import app
 from scenarios.cli.up import free_udp_port, stop_process
 from scenarios.replay import replay
 from sim.samples import GnssFix
-from tests.helpers.processes import hilnav_process
+from tests.helpers.processes import hilnav_process, lockstep_chain
 
 SHADOW_SYS = 42
 
@@ -312,13 +312,9 @@ def test_live_fusion_with_gmdh_and_loop_mpc_equals_replay_with_the_same_options(
     replay build the same filter."""
     port = free_udp_port()
     options = ["--bridge", "gmdh", "--altitude", "loop-mpc"]
-    fusion = hilnav_process(
-        "fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--out", str(tmp_path / "live"),
-        "--idle-exit", "3", "--settle", "20", *options, log=tmp_path / "fusion.log")
-    sim = hilnav_process(
-        "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "50", "--lockstep",
-        "--duration", "150", "--seed", "4", "--gnss-off", "100:20",
-        "--record", str(tmp_path / "run.tlog"), "--wait-peer", "30", log=tmp_path / "sim.log")
+    fusion, sim = lockstep_chain(tmp_path, port, speed="50", duration_s="150", seed="4",
+                                 settle_s="20", fusion_args=tuple(options),
+                                 sim_args=("--gnss-off", "100:20"))
     try:
         assert sim.wait(240) == 0, (tmp_path / "sim.log").read_text()
         assert fusion.wait(60) == 0, (tmp_path / "fusion.log").read_text()
@@ -355,13 +351,8 @@ def test_a_second_sender_flooding_the_fusion_costs_the_legitimate_stream_nothing
     from sim.samples import GnssFix, ImuSample
 
     port = free_udp_port()
-    fusion = hilnav_process(
-        "fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--out", str(tmp_path / "live"),
-        "--idle-exit", "3", "--settle", "20", log=tmp_path / "fusion.log")
-    sim = hilnav_process(
-        "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "20", "--lockstep",
-        "--duration", "90", "--seed", "6", "--record", str(tmp_path / "run.tlog"),
-        "--wait-peer", "30", log=tmp_path / "sim.log")
+    fusion, sim = lockstep_chain(tmp_path, port, speed="20", duration_s="90", seed="6",
+                                 settle_s="20")
     stop = threading.Event()
     sent = [0]
 

@@ -150,16 +150,11 @@ def test_hostile_stamps_from_the_simulators_own_address_cannot_stop_the_lockstep
     thread: TIMESYNC carries int64 ns; an hour-ahead stamp would be the simulator's newest
     acknowledgement for good), the flight runs to its end and the scorecard is written."""
     from scenarios.cli.up import free_udp_port, stop_process
-    from tests.helpers.processes import hilnav_process
+    from tests.helpers.processes import lockstep_chain
 
     port = free_udp_port()
-    fusion = hilnav_process(
-        "fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--out", str(tmp_path / "live"),
-        "--idle-exit", "3", "--settle", "10", log=tmp_path / "fusion.log")
-    sim = hilnav_process(
-        "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "20", "--lockstep",
-        "--duration", "40", "--seed", "8", "--record", str(tmp_path / "run.tlog"),
-        "--wait-peer", "30", log=tmp_path / "sim.log")
+    fusion, sim = lockstep_chain(tmp_path, port, speed="20", duration_s="40", seed="8",
+                                 settle_s="10")
     stop = threading.Event()
     sent = [0]
 

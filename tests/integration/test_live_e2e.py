@@ -192,7 +192,10 @@ def test_companion_gps_input_and_odometry_reach_a_pymavlink_client(
                 MavlinkLink(f"udpout:127.0.0.1:{port}", LinkRole.simulator())))
         for link in links:
             _connect(link)
-        assert _pace(links, frames, speed=40.0) == 2 * len(frames)
+        # 20x: two fusion processes on a 2-core machine; at 40x one fusion alone needs ~100 %
+        # of a core (decode + filter ~120 us per 200 Hz IMU sample, bench/fusion_speed.py) and
+        # any other load overflowed its input socket (CI: 550 of 900 ODOMETRY frames)
+        assert _pace(links, frames, speed=20.0) == 2 * len(frames)
         got = {"gps_input": clients["gps_input"].wait_for(150, START_TIMEOUT_S),
                "odometry": clients["odometry"].wait_for(900, START_TIMEOUT_S)}
 

@@ -223,11 +223,12 @@ def test_a_truncated_log_is_scored_and_says_so(tmp_path: Path, short_flight_log:
     assert s["input"]["truncated"] is True and s["input"]["frames"] > 10_000
     assert s["sim_duration_s"] < 130.0
     whole = CliRunner().invoke(app, ["replay", str(short_flight_log), "--out",
-                                     str(tmp_path / "w")])
+                                     str(tmp_path / "w"), "--settle", "20"])
     assert whole.exit_code == 0 and "warning" not in whole.output
     w = json.loads((tmp_path / "w" / "summary.json").read_text())
-    assert w["input"] == {"records": w["input"]["records"], "frames": w["input"]["frames"],
-                          "bad_frames": 0, "truncated": False, "skipped_bytes": 0}
+    assert w["input"] == {"format": "tlog", "records": w["input"]["records"],
+                          "frames": w["input"]["frames"], "bad_frames": 0, "truncated": False,
+                          "skipped_bytes": 0}
 
 
 def test_a_bad_airspeed_choice_is_bad_input(tmp_path: Path, short_flight_log: Path) -> None:
