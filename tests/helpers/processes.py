@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 
@@ -33,3 +34,23 @@ def lockstep_chain(
         "--duration", duration_s, "--seed", seed, *sim_args,
         "--record", str(tmp_path / "run.tlog"), "--wait-peer", "30", log=tmp_path / "sim.log")
     return fusion, sim
+
+
+def finish_lockstep_chain(
+    tmp_path: Path, fusion: subprocess.Popen[bytes], sim: subprocess.Popen[bytes],
+    stop: threading.Event, helper: threading.Thread,
+) -> None:
+    """Wait for a :func:`lockstep_chain` to fly to its end (both exit 0), then stop the test's
+    ``helper`` thread (e.g. an attacker) through ``stop``; the processes are stopped by PID
+    whatever happens."""
+    from scenarios.cli.up import stop_process
+
+    try:
+        assert sim.wait(240) == 0, (tmp_path / "sim.log").read_text()
+        stop.set()
+        assert fusion.wait(60) == 0, (tmp_path / "fusion.log").read_text()
+    finally:
+        stop.set()
+        for p in (sim, fusion):
+            stop_process(p)
+    helper.join(5.0)

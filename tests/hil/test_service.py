@@ -30,7 +30,7 @@ from scenarios.cli.app import app
 from scenarios.cli.up import free_udp_port, stop_process
 from scenarios.replay import replay
 from sim.samples import GnssFix
-from tests.helpers.processes import hilnav_process, lockstep_chain
+from tests.helpers.processes import finish_lockstep_chain, hilnav_process, lockstep_chain
 
 SHADOW_SYS = 42
 
@@ -382,15 +382,7 @@ def test_a_second_sender_flooding_the_fusion_costs_the_legitimate_stream_nothing
 
     attacker = threading.Thread(target=flood, daemon=True)
     attacker.start()
-    try:
-        assert sim.wait(240) == 0, (tmp_path / "sim.log").read_text()
-        stop.set()
-        assert fusion.wait(60) == 0, (tmp_path / "fusion.log").read_text()
-    finally:
-        stop.set()
-        for p in (sim, fusion):
-            stop_process(p)
-    attacker.join(5.0)
+    finish_lockstep_chain(tmp_path, fusion, sim, stop, attacker)
     live = json.loads((tmp_path / "live" / "summary.json").read_text())
     links = live["live"]["links"]["mavlink"]
     assert sent[0] > 2_000  # the flood happened

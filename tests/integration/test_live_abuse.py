@@ -149,8 +149,8 @@ def test_hostile_stamps_from_the_simulators_own_address_cannot_stop_the_lockstep
     acknowledging the simulator's real time (a stamp of 2^64 - 1 us used to kill its reader
     thread: TIMESYNC carries int64 ns; an hour-ahead stamp would be the simulator's newest
     acknowledgement for good), the flight runs to its end and the scorecard is written."""
-    from scenarios.cli.up import free_udp_port, stop_process
-    from tests.helpers.processes import lockstep_chain
+    from scenarios.cli.up import free_udp_port
+    from tests.helpers.processes import finish_lockstep_chain, lockstep_chain
 
     port = free_udp_port()
     fusion, sim = lockstep_chain(tmp_path, port, speed="20", duration_s="40", seed="8",
@@ -177,15 +177,7 @@ def test_hostile_stamps_from_the_simulators_own_address_cannot_stop_the_lockstep
 
     spoofer = threading.Thread(target=spoof, daemon=True)
     spoofer.start()
-    try:
-        assert sim.wait(240) == 0, (tmp_path / "sim.log").read_text()
-        stop.set()
-        assert fusion.wait(60) == 0, (tmp_path / "fusion.log").read_text()
-    finally:
-        stop.set()
-        for p in (sim, fusion):
-            stop_process(p)
-    spoofer.join(5.0)
+    finish_lockstep_chain(tmp_path, fusion, sim, stop, spoofer)
     assert "Traceback" not in (tmp_path / "fusion.log").read_text()
     live = json.loads((tmp_path / "live" / "summary.json").read_text())
     assert sent[0] >= 10
