@@ -167,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
         processes[name] = entry
     fusion = processes.get("fusion", {})
     result = {
-        "command": cmd,
+        "command": ["python", *cmd[1:]],  # the interpreter's path is this machine's own
         "exit_code": up.returncode,
         "duration_s": args.duration,
         "speed": args.speed,

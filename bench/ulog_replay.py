@@ -81,7 +81,8 @@ def main() -> int:
             on = row.get("gnss_on", {})
             print(log.stem, row["args"], row["exit"], row.get("error", ""),
                   {k: None if v is None else round(v, 3) for k, v in on.items()})
-    out = {"logs_dir": str(a.logs), "load_average": os.getloadavg(), "results": results}
+    logs_dir = os.path.relpath(a.logs.resolve(), ROOT)  # relative to the repo: portable
+    out = {"logs_dir": logs_dir, "load_average": os.getloadavg(), "results": results}
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text(json.dumps(out, indent=1) + "\n")
     print(f"-> {a.out}")
