@@ -99,11 +99,11 @@ import math
 import re
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from functools import lru_cache
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Self
+from typing import Any, Literal, Self
 
 import jsbsim
 import numpy as np
@@ -113,7 +113,7 @@ from physconst import WGS84_A_M
 from sim.guidance import Controls, Guidance, GuidanceGains, GuidanceInput, TrimPoint
 from sim.plans import FlightPlan, Leg
 from sim.samples import Truth
-from sim.vehicle_state import N_CONTROLS, VehicleState
+from sim.vehicle_state import CONTROL_INDEX, N_CONTROLS, VehicleState, control_range
 
 # --- unit conversions (exact definitions) ---------------------------------------------------
 FT_M = 0.3048
@@ -246,6 +246,9 @@ class FlightConfig(BaseModel):
     (c172x and c310 reach their maximum lift near 14-16 deg; the guidance law itself stays
     below ``guidance.alpha_max_rad``, 12 deg by default).
     ``guidance``: gains of the guidance law (defaults tuned on c172x and c310).
+    ``control``: who flies the aircraft after the trim: ``"guidance"`` (our guidance law flies
+    the plan) or ``"external"`` (an autopilot in the loop: the controls given to
+    :meth:`Flight.command` hold until the next command; the plan is not flown).
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -261,6 +264,7 @@ class FlightConfig(BaseModel):
     seed: int = Field(default=0, ge=0, le=2**31 - 1)
     stall_alpha_deg: float = Field(default=15.0, gt=5.0, le=60.0)
     guidance: GuidanceGains = GuidanceGains()
+    control: Literal["guidance", "external"] = "guidance"
 
     @model_validator(mode="after")
     def _one_wind_profile(self) -> Self:
@@ -482,6 +486,7 @@ class Flight:
         self._step = 0
         self._ended: FlightEnded | None = None
         self._stall_s = 0.0
+        self._guided = config.control == "guidance"
         # JSBSim prints a banner from the FGFDMExec constructor unless the (process-wide)
         # debug level is 0 before construction.
         jsbsim.FGJSBBase().debug_lvl = 0
@@ -757,6 +762,56 @@ class Flight:
             propeller_rpm=tuple(node.get_double_value() for node in self._n_rpm),
         )
 
+    def command(self, controls: Sequence[float]) -> int:
+        """Fly with ``controls`` from the next step on (``control="external"`` only).
+
+        ``controls`` is a control vector in PX4's HIL_ACTUATOR_CONTROLS order and signs, the
+        inverse of :meth:`vehicle_state` (0 roll, + = right wing down; 1 pitch, + = nose up;
+        2 yaw, + = nose right; 3 throttle 0..1, every engine; 4 flaps 0..1); up to
+        :data:`~sim.vehicle_state.N_CONTROLS` values, missing ones hold. Each surface command
+        is written so that command + the trim JSBSim set equals the given value. A value
+        outside its range (:func:`~sim.vehicle_state.control_range`) is clipped; a non-finite
+        value leaves that control as it was. Returns how many values were clipped or
+        ignored (the caller counts them).
+
+        Raises
+        ------
+        RuntimeError
+            The flight is guided by its own law (``control="guidance"``).
+        """
+        if self._guided:
+            raise RuntimeError("Flight.command needs FlightConfig.control = 'external'")
+        if len(controls) > N_CONTROLS:
+            raise ValueError(f"at most {N_CONTROLS} controls, got {len(controls)}")
+        bad = 0
+        values: list[float | None] = [None] * N_CONTROLS
+        for i, value in enumerate(controls):
+            x = float(value)
+            if not math.isfinite(x):
+                bad += 1
+                continue
+            low, high = control_range(i)
+            if x < low or x > high:
+                bad += 1
+                x = min(max(x, low), high)
+            values[i] = x
+        roll_trim, pitch_trim, yaw_trim = (node.get_double_value() for node in self._n_trim)
+        roll, pitch, yaw = (values[CONTROL_INDEX[k]] for k in ("roll", "pitch", "yaw"))
+        if roll is not None:
+            self._n_ail.set_double_value(roll - roll_trim)
+        if pitch is not None:
+            self._n_ele.set_double_value(-pitch - pitch_trim)
+        if yaw is not None:
+            self._n_rud.set_double_value(-yaw - yaw_trim)
+        throttle = values[CONTROL_INDEX["throttle"]]
+        if throttle is not None:
+            for node in self._n_thr:
+                node.set_double_value(throttle)
+        flaps = values[CONTROL_INDEX["flaps"]]
+        if flaps is not None and self._n_flap is not None:
+            self._n_flap.set_double_value(max(flaps, 0.0))
+        return bad
+
     def step(self) -> Truth:
         """Advance one step of ``1 / rate_hz`` and return the new truth.
 
@@ -786,7 +841,8 @@ class Flight:
             raise self._ended
         if self._fdm is None:
             raise RuntimeError("the flight is closed")
-        self._write_controls(self._guidance.update(self._guidance_input(self.time_s)))
+        if self._guided:
+            self._write_controls(self._guidance.update(self._guidance_input(self.time_s)))
         self._fdm.run()
         self._step += 1
         raw = self._raw = self._sample()
