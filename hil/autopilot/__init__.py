@@ -1,0 +1,10 @@
+"""An autopilot in the loop: PX4 (simulator interface) or ArduPilot (SITL JSON backend) flies
+our JSBSim aircraft through its actuator commands.
+
+* :mod:`hil.autopilot.backend`: what a protocol backend provides (:class:`AutopilotBackend`)
+  and the one lockstep loop every backend runs in (:func:`fly_with_autopilot`).
+"""
+
+from hil.autopilot.backend import AutopilotBackend, AutopilotFlown, fly_with_autopilot
+
+__all__ = ["AutopilotBackend", "AutopilotFlown", "fly_with_autopilot"]
