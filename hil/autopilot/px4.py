@@ -126,7 +126,8 @@ class Px4Backend:
         self._last_send_wall = 0.0
         self._step_wall_s = 0.0
         self._last_step_us: int | None = None
-        self._base = self.link.counters()
+        self._base = self._prev = self.link.counters()
+        self._protocol_ok = False
         self._c = {"controls": 0, "lockstep_controls": 0, "disarmed_controls": 0,
                    "nonfinite_channels": 0, "reconnects": 0, "steps_sent": 0,
                    "frames_sent": 0, "boot_steps": 0, "interval_requests": 0}
@@ -239,21 +240,25 @@ class Px4Backend:
             self._booted = False
             self._pending = None
             self._boot_wall0 = time.monotonic()
-            self._base = c
-        self._check_protocol(c)
+            # what came before this receive belongs to the old connection
+            self._base, self._protocol_ok = self._prev, False
+        self._prev = c
+        if not self._protocol_ok:
+            self._check_protocol(c)
 
     def _check_protocol(self, c: dict[str, int]) -> None:
-        first = self.link.first_bytes
-        got = c["bytes_received"] - self._base["bytes_received"]
         frames = c["received"] - self._base["received"]
         v1 = c["mavlink1"] - self._base["mavlink1"]
-        if frames > v1 or got == 0:
-            return  # MAVLink 2 frames have come on this connection: the right protocol
+        if frames > v1:
+            self._protocol_ok = True  # MAVLink 2 frames came on this connection
+            return
+        first = self.link.first_bytes
         magic = int.from_bytes(first[:2], "little") if len(first) >= 2 else -1
         if magic in _ARDUPILOT_SERVO_MAGICS:
             raise WrongProtocol(
                 f"{self.url}: got an ArduPilot SITL {_ARDUPILOT_SERVO_MAGICS[magic]}-channel "
                 f"servo packet (magic {magic}); {_EXPECTED}. For ArduPilot use --ardupilot")
+        got = c["bytes_received"] - self._base["bytes_received"]
         if got < _NO_FRAME_BYTES:
             return
         if v1 > 0:

@@ -236,8 +236,23 @@ def sim(
     tls_cert: TlsCertOption = None,
     tls_key: TlsKeyOption = None,
     zenoh_key_file: ZenohKeyFileOption = None,
+    px4: Annotated[str | None, typer.Option(
+        help="PX4 flies the aircraft: wait for PX4 SITL here (tcpin:127.0.0.1:4560, the port "
+             "PX4 dials; tcpin:0.0.0.0:4560 for a PX4 on another machine; lockstep) or talk to "
+             "a HITL board (serial:/dev/ttyACM0:921600; paced at --speed).",
+        rich_help_panel="Autopilot in the loop")] = None,
+    actuator_map: Annotated[Path | None, typer.Option(
+        help="With --px4: actuator map YAML (default: the legacy HIL order 0 roll, 1 pitch, "
+             "2 yaw, 3 throttle).", rich_help_panel="Autopilot in the loop")] = None,
+    stall_timeout: Annotated[float, typer.Option(
+        help="With an autopilot: wall seconds without its controls before the run ends as "
+             "stalled.", rich_help_panel="Autopilot in the loop")] = 10.0,
+    connect_timeout: Annotated[float, typer.Option(
+        help="With an autopilot: wall seconds to wait for it to connect.",
+        rich_help_panel="Autopilot in the loop")] = 60.0,
 ) -> None:
-    """Fly a plan and record it (lockstep, as fast as possible) or stream it live (--live)."""
+    """Fly a plan and record it (lockstep, as fast as possible), stream it live (--live), or let
+    PX4 fly it (--px4)."""
     if record is not None:
         _out_file(record, "--record")
     from hil.pipeline import SimSetup, record_flight
@@ -251,6 +266,14 @@ def sim(
     )
     if lockstep and live is None:
         raise ValueError("--lockstep paces against a fusion service: it needs --live URL")
+    if px4 is None and actuator_map is not None:
+        raise ValueError("--actuator-map maps PX4's controls: it needs --px4 URL")
+    if px4 is not None:
+        if live is not None:
+            raise ValueError("--px4 and --live are two ways to fly: give one")
+        _sim_px4(request, px4, actuator_map=actuator_map, record=record, speed=speed,
+                 stall_timeout=stall_timeout, connect_timeout=connect_timeout)
+        return
     if live is not None:
         access = _bus_access(zenoh, zenoh_user, zenoh_password_file, tls_ca, tls_cert,
                              tls_key, zenoh_key_file)
@@ -268,6 +291,24 @@ def sim(
     )
     if report.ended is not None:
         raise RunFailed(f"{report.ended}; the log up to that point is kept in {record}")
+
+
+def _sim_px4(request: Any, url: str, *, actuator_map: Path | None, record: Path | None,
+             speed: float, stall_timeout: float, connect_timeout: float) -> None:
+    from hil.live_sim import stop_on_signals
+    from scenarios.cli.px4 import fly_px4, px4_failure, px4_report
+
+    def listening(where: str) -> None:
+        err_console.print(f"sim: waiting for PX4 at {where}", highlight=False, markup=False)
+
+    with stop_on_signals() as stop, _progress(request.duration_s, "PX4 flying") as progress:
+        flown = fly_px4(request, url, actuator_map=actuator_map, record=record, speed=speed,
+                        stall_timeout_s=stall_timeout, connect_timeout_s=connect_timeout,
+                        progress=progress, stop=stop, on_listening=listening)
+    console.print(px4_report(flown, record), highlight=False)
+    failure = px4_failure(flown, url, connect_timeout)
+    if failure is not None:
+        raise RunFailed(failure)
 
 
 def _signing_key(path: Path | None) -> bytes | None:
