@@ -42,6 +42,14 @@ from typing import Any
 
 import numpy as np
 
+from fusion.rotations import (
+    euler_from_quat,
+    euler_to_quat,
+    quat_multiply,
+    quat_to_dcm,
+    rotvec_to_quat,
+    wrap_pi,
+)
 from hil.codec import mavlink2
 
 _G = 9.80665
@@ -81,41 +89,6 @@ class _Estimate:
     last_fix_us: int = -1
     aligned: bool = False
     omega: np.ndarray = field(default_factory=lambda: np.zeros(3))
-
-
-def _q_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
-
-
-def _dcm(q: np.ndarray) -> np.ndarray:
-    w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
-def _euler(q: np.ndarray) -> tuple[float, float, float]:
-    w, x, y, z = q
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return roll, pitch, yaw
-
-
-def _q_from_euler(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return np.array([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
-                     cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
 
 
 class Px4Peer:
@@ -341,14 +314,14 @@ class Px4Peer:
             # level the first time from the accelerometer (straight flight: f = -g)
             roll = math.atan2(-f[1], -f[2])
             pitch = math.atan2(f[0], math.hypot(f[1], f[2]))
-            e.q = _q_from_euler(roll, pitch, 0.0)
+            e.q = euler_to_quat([roll, pitch, 0.0])
             self._last_imu_us = t
             return
         dt = (t - self._last_imu_us) * 1e-6
         self._last_imu_us = t
         if dt <= 0:
             return
-        c_nb = _dcm(e.q)
+        c_nb = quat_to_dcm(e.q)
         v = max(e.airspeed_mps, 10.0)
         g_meas = np.array([0.0, w[2] * v, -w[1] * v]) - f  # gravity in body: w x v_b - f
         corr = np.zeros(3)
@@ -357,15 +330,10 @@ class Px4Peer:
             corr += 0.5 * np.cross(g_meas / norm, c_nb.T @ np.array([0.0, 0.0, 1.0]))
         if mag is not None and e.aligned:
             m_n = c_nb @ mag
-            err = _wrap(math.atan2(m_n[1], m_n[0]) - e.decl_rad)
+            err = wrap_pi(math.atan2(m_n[1], m_n[0]) - e.decl_rad)
             corr += c_nb.T @ np.array([0.0, 0.0, -0.3 * err])
-        rate = w + corr
-        angle = np.linalg.norm(rate) * dt
-        if angle > 0:
-            axis = rate / np.linalg.norm(rate)
-            dq = np.concatenate(([math.cos(angle / 2)], math.sin(angle / 2) * axis))
-            e.q = _q_mul(e.q, dq)
-            e.q /= np.linalg.norm(e.q)
+        e.q = quat_multiply(e.q, rotvec_to_quat((w + corr) * dt))
+        e.q /= np.linalg.norm(e.q)
         if mag is not None:
             self._last_mag = mag
 
@@ -386,13 +354,13 @@ class Px4Peer:
             e.alt_m = e.baro_alt_m + e.baro_offset_m
         last_mag = getattr(self, "_last_mag", None)
         if not e.aligned and math.hypot(v[0], v[1]) > 10.0 and last_mag is not None:
-            roll, pitch, _ = _euler(e.q)
-            e.q = _q_from_euler(roll, pitch, math.atan2(v[1], v[0]))
-            m_n = _dcm(e.q) @ last_mag
+            roll, pitch, _ = euler_from_quat(e.q)
+            e.q = euler_to_quat([roll, pitch, math.atan2(v[1], v[0])])
+            m_n = quat_to_dcm(e.q) @ last_mag
             e.decl_rad = math.atan2(m_n[1], m_n[0])
             e.aligned = True
         if e.aligned:
-            _, pitch, yaw = _euler(e.q)
+            _, pitch, yaw = euler_from_quat(e.q)
             air = e.airspeed_mps * math.cos(pitch) * np.array([math.cos(yaw), math.sin(yaw)])
             e.wind_ne += 0.05 * ((v[:2] - air) - e.wind_ne)
 
@@ -406,7 +374,7 @@ class Px4Peer:
         if not e.aligned or not self._gnss_lost() or math.isnan(e.lat_rad):
             return
         dt = (t - prev) * 1e-6
-        _, pitch, yaw = _euler(e.q)
+        _, pitch, yaw = euler_from_quat(e.q)
         air = e.airspeed_mps * math.cos(pitch) * np.array([math.cos(yaw), math.sin(yaw)])
         vne = air + e.wind_ne
         e.v_ned = np.array([vne[0], vne[1], -self._climb_mps])
@@ -419,7 +387,7 @@ class Px4Peer:
         e, p = self._est, self.plan
         dt = 1e-6 * (self.clock_us - getattr(self, "_ctl_prev_us", self.clock_us))
         self._ctl_prev_us = self.clock_us
-        roll, pitch, yaw = _euler(e.q)
+        roll, pitch, yaw = euler_from_quat(e.q)
         if math.isnan(self._alt_cmd_m) and not math.isnan(e.alt_m):
             self._alt_cmd_m = e.alt_m
         bank_cmd = 0.0
@@ -429,7 +397,7 @@ class Px4Peer:
             heading_cmd = self._heading0 + math.radians(
                 sum(d for t_s, d in p.turns if self.clock_us >= t_s * 1e6))
             limit = math.radians(p.max_bank_deg)
-            bank_cmd = max(-limit, min(limit, 1.2 * _wrap(heading_cmd - yaw)))
+            bank_cmd = max(-limit, min(limit, 1.2 * wrap_pi(heading_cmd - yaw)))
         pitch_cmd = math.radians(2.0)
         if not math.isnan(self._alt_cmd_m) and not math.isnan(e.alt_m):
             climb_cmd = max(-3.0, min(3.0, 0.2 * (self._alt_cmd_m - e.alt_m)))
@@ -477,7 +445,7 @@ class Px4Peer:
         if self.clock_us < self._next_telemetry_us or math.isnan(e.lat_rad) or math.isnan(e.alt_m):
             return
         self._next_telemetry_us = self.clock_us + self._telemetry_period_us
-        roll, pitch, yaw = _euler(e.q)
+        roll, pitch, yaw = euler_from_quat(e.q)
         self.estimates.append((self.clock_us, math.degrees(e.lat_rad), math.degrees(e.lon_rad),
                                e.alt_m, roll, yaw))
         if self._tel_sock is None or self.telemetry is None:

@@ -9,10 +9,11 @@ import socket
 import struct
 import threading
 from pathlib import Path
+from typing import Any
 
 import pytest
 
-from hil.autopilot import fly_with_autopilot
+from hil.autopilot import AutopilotFlown, fly_with_autopilot
 from hil.autopilot.actuators import ActuatorMap
 from hil.autopilot.px4 import Px4Backend, WrongProtocol
 from hil.codec import mavlink2
@@ -26,6 +27,17 @@ RATE_HZ = 50.0
 def _yaw_deg(step: SimStep) -> float:
     w, x, y, z = (float(v) for v in step.truth.q_nb)
     return math.degrees(math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+
+
+def _fly_with_peer(setup: SimSetup, *, amap: ActuatorMap | None = None,
+                   stall_timeout_s: float = 20.0, **peer_options: Any
+                   ) -> tuple[AutopilotFlown, Px4Peer]:
+    """Fly ``setup`` with a Px4Backend on a free loopback port and a peer dialling it."""
+    with Px4Backend("tcpin:127.0.0.1:0", actuator_map=amap) as backend:
+        with Px4Peer(f"tcp:127.0.0.1:{backend.local_address[1]}", **peer_options) as peer:
+            flown = fly_with_autopilot(setup, backend, stall_timeout_s=stall_timeout_s)
+    assert peer.errors == []
+    return flown, peer
 
 
 def _telemetry_socket() -> socket.socket:
@@ -96,12 +108,8 @@ def test_px4_flies_a_turn_through_a_gnss_outage_in_lockstep() -> None:
 
 def test_lockstep_never_runs_ahead_of_a_silent_px4_and_reports_the_stall() -> None:
     setup = SimSetup.build(duration_s=30.0, rate_hz=RATE_HZ, seed=5)
-    with Px4Backend("tcpin:127.0.0.1:0") as backend:
-        peer = Px4Peer(f"tcp:127.0.0.1:{backend.local_address[1]}", outputs="legacy",
-                       silent_after_s=3.0)
-        with peer:
-            flown = fly_with_autopilot(setup, backend, stall_timeout_s=1.0)
-    assert peer.errors == []
+    flown, peer = _fly_with_peer(setup, stall_timeout_s=1.0, outputs="legacy",
+                                 silent_after_s=3.0)
     # the peer answered every HIL_SENSOR before 3 s; the step of 3.00 s got no answer
     assert flown.stalled is not None and "PX4 sent no controls for 1 s" in flown.stalled
     assert "simulated time 3.00 s" in flown.stalled
@@ -111,13 +119,9 @@ def test_lockstep_never_runs_ahead_of_a_silent_px4_and_reports_the_stall() -> No
 
 def test_nan_and_out_of_range_controls_are_clipped_and_counted() -> None:
     setup = SimSetup.build(duration_s=8.0, rate_hz=RATE_HZ, seed=5)
-    amap = ActuatorMap.load(STANDARD_PLANE)
-    with Px4Backend("tcpin:127.0.0.1:0", actuator_map=amap) as backend:
-        peer = Px4Peer(f"tcp:127.0.0.1:{backend.local_address[1]}", nan_every=10,
-                       out_of_range_every=7)
-        with peer:
-            flown = fly_with_autopilot(setup, backend, stall_timeout_s=20.0)
-    assert peer.errors == [] and flown.stalled is None
+    flown, peer = _fly_with_peer(setup, amap=ActuatorMap.load(STANDARD_PLANE), nan_every=10,
+                                 out_of_range_every=7)
+    assert flown.stalled is None
     flown_msgs = flown.counters["controls"]  # the messages the simulator flew, in order
     bad = [kind for n, kind in peer.bad_at if n <= flown_msgs]
     assert bad.count("nan") > 5 and bad.count("out_of_range") > 5
@@ -127,16 +131,24 @@ def test_nan_and_out_of_range_controls_are_clipped_and_counted() -> None:
 
 def test_a_restarted_px4_reconnects_and_boots_again() -> None:
     setup = SimSetup.build(duration_s=10.0, rate_hz=RATE_HZ, seed=5)
-    with Px4Backend("tcpin:127.0.0.1:0") as backend:
-        peer = Px4Peer(f"tcp:127.0.0.1:{backend.local_address[1]}", outputs="legacy",
-                       restart_at_s=4.0)
-        with peer:
-            flown = fly_with_autopilot(setup, backend, stall_timeout_s=20.0)
-    assert peer.errors == [] and flown.stalled is None and flown.ended is None
+    flown, peer = _fly_with_peer(setup, outputs="legacy", restart_at_s=4.0)
+    assert flown.stalled is None and flown.ended is None
     c = flown.counters
     assert peer.counters["connections"] == 2 and c["reconnects"] == 1
     assert flown.steps == 500 and c["boot_steps"] >= 2 * peer.boot_sensors
     assert peer.sensor_times[-1] == 10_000_000  # the new PX4 was fed to the end
+
+
+def test_paced_flight_flies_the_newest_controls() -> None:
+    # HITL-style: simulated time at 10x the wall clock, the newest controls each step
+    setup = SimSetup.build(duration_s=5.0, rate_hz=RATE_HZ, seed=5)
+    with Px4Backend("tcpin:127.0.0.1:0") as backend:
+        with Px4Peer(f"tcp:127.0.0.1:{backend.local_address[1]}", outputs="legacy") as peer:
+            flown = fly_with_autopilot(setup, backend, speed=10.0, stall_timeout_s=20.0)
+    assert peer.errors == [] and flown.stalled is None and flown.ended is None
+    assert flown.steps == 250 == peer.counters["sensors"]
+    # paced: a step does not wait for controls, so some steps fly the previous ones
+    assert 0 < flown.counters["controls"] <= peer.counters["controls"]
 
 
 def _serve_wrong_protocol(port: int, payload: bytes, stop: threading.Event) -> None:
