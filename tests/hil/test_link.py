@@ -410,6 +410,20 @@ def test_stream_survives_garbage_truncated_corrupted_unknown_and_mavlink1() -> N
     assert_books_balance(c)
 
 
+def test_first_bytes_of_each_connection_are_kept_to_name_a_wrong_protocol() -> None:
+    with MavlinkLink("tcpin:127.0.0.1:0", LinkRole.simulator()) as link:
+        peer = Peer(link)
+        with socket.create_connection(link.local_address) as raw:
+            raw.sendall(b"GET / HTTP/1.1\r\n" + b"x" * 100)
+            pump(lambda: link.counters()["bytes_received"] >= 116, peer)
+        assert link.first_bytes == b"GET / HTTP/1.1\r\n"[:16]
+        with socket.create_connection(link.local_address) as raw:  # a new connection
+            raw.sendall(b"\x1a\x48")
+            pump(lambda: link.counters()["connects"] == 2
+                 and link.counters()["bytes_received"] >= 118, peer)
+        assert link.first_bytes == b"\x1a\x48"
+
+
 def test_udp_truncated_datagram_does_not_spoil_the_next(
     fusion_udp: Peer, raw_udp: socket.socket
 ) -> None:
