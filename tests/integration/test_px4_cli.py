@@ -68,7 +68,7 @@ def test_sim_px4_records_what_px4_flew_and_exits_0(tmp_path: Path) -> None:
 
 
 def test_sim_px4_exits_1_when_px4_goes_silent(tmp_path: Path) -> None:
-    proc, log, port = _sim_px4(tmp_path, "--duration", "30", "--stall-timeout", "1")
+    proc, log, port = _sim_px4(tmp_path, "--duration", "30", "--stall-timeout", "3")
     try:
         with Px4Peer(f"tcp:127.0.0.1:{port}", outputs="legacy", silent_after_s=2.0):
             rc = proc.wait(timeout=120)
@@ -76,7 +76,7 @@ def test_sim_px4_exits_1_when_px4_goes_silent(tmp_path: Path) -> None:
         stop_process(proc)
     text = log.read_text()
     assert rc == 1, text
-    assert "failed: PX4 sent no controls for 1 s (simulated time 2.00 s)" in text
+    assert "failed: PX4 sent no controls for 3 s (simulated time 2.00 s)" in text
 
 
 def test_sim_px4_exits_2_naming_the_protocol_it_expected(tmp_path: Path) -> None:
