@@ -12,8 +12,10 @@ UDP server of that exchange; :func:`hil.autopilot.fly_with_autopilot` runs it in
   again (``repeated_frames``). A frame count going backwards means ArduPilot restarted: it is
   reported once per restart (``restarts``, :attr:`ArduPilotBackend.warnings`) and flown on
   (the aircraft cannot be put back; ArduPilot's clock simply resumes at our timestamp).
-* ``send``: the state line of the step; parameter changes due by its simulated time go out
-  on ArduPilot's MAVLink port (``mavlink_url``; :mod:`hil.autopilot.sim_params`).
+* ``send``: the state line of the step (its IMU sample and the latest pitot airspeed as our
+  fusion gets them, so IMU and pitot faults reach ArduPilot too); parameter changes due by its
+  simulated time go out on ArduPilot's MAVLink port (``mavlink_url``;
+  :mod:`hil.autopilot.sim_params`) for what ArduPilot simulates itself (GPS, barometer).
 
 Bad input (counted in :meth:`counters`, never fatal): an unknown magic (``bad_magic``) or a
 known magic with the wrong length (``bad_size``) is ignored; an undriven mapped output (PWM 0)
@@ -46,7 +48,9 @@ from hil.autopilot.sitl_json import (
     parse_servo_packet,
 )
 from hil.pipeline import SimSetup, SimStep
+from physconst.airdata import calibrated_airspeed_mps
 from sim.faults.ardupilot import ardupilot_param_schedule, ardupilot_unmapped
+from sim.samples import AirspeedSample, ImuSample
 
 __all__ = ["DEFAULT_URL", "ArduPilotBackend", "parse_json_url"]
 
@@ -136,6 +140,7 @@ class ArduPilotBackend:
              "skipped_frames", "restarts", "bad_magic", "bad_size", "wrong_protocol",
              "pwm_clipped", "pwm_undriven", "send_errors"), 0)
         self.frame_rate_hz: int | None = None
+        self._airspeed_mps: float | None = None  # of the latest pitot sample (held between)
 
     # -- setup --
     def _param_sender(self, setup: SimSetup, mavlink_url: str | None) -> SimParamSender | None:
@@ -214,7 +219,13 @@ class ArduPilotBackend:
         return servo.controls
 
     def send(self, step: SimStep) -> None:
-        line = json_state_line(step.truth, self.origin)
+        imu: ImuSample | None = None
+        for sample in step.sensed:
+            if isinstance(sample, ImuSample):
+                imu = sample
+            elif isinstance(sample, AirspeedSample):
+                self._airspeed_mps = calibrated_airspeed_mps(sample.diff_pressure_pa)
+        line = json_state_line(step.truth, self.origin, imu=imu, airspeed_mps=self._airspeed_mps)
         self._last_line = line
         self._counts["steps_answered"] += 1
         self._send(line)

@@ -25,16 +25,18 @@ vectors as ``[x,y,z]``), so no key may be a prefix of an earlier key (we send no
                     ArduPilot's clock advances by its differences, so its ``time_boot_ms``
                     is this time in ms (lockstep SITL: ``time_now_us`` starts at 0 and adds
                     ``timestamp - last_timestamp`` each frame)
-    imu.gyro        body rates FRD, rad/s (``Truth.omega_b_rps``)
-    imu.accel_body  specific force FRD, m/s^2 (about [0, 0, -9.8] level)
+    imu.gyro        body rates FRD, rad/s: the step's IMU sample (hilnav's IMU model and the
+                    scenario's IMU faults, as our fusion gets them; the truth without one)
+    imu.accel_body  specific force FRD, m/s^2 (about [0, 0, -9.8] level), the same way
     position        NED from the origin, m (down = -(alt MSL - origin alt)); ArduPilot turns
                     it into lat/lon with ``Location::offset`` from its home, so the origin
                     must be ArduPilot's home (``--home LAT,LON,ALT,HDG``)
     quaternion      [w, x, y, z] body -> NED (ArduPilot's q1..q4); used when present
     attitude        [roll, pitch, yaw] rad (for ArduPilot versions without ``quaternion``)
     velocity        NED, m/s (ground velocity)
-    airspeed        indicated (equivalent) airspeed, m/s: ArduPilot's simulated pitot
-                    turns it into a differential pressure as an EAS
+    airspeed        calibrated airspeed of the latest pitot sample (pitot faults included),
+                    else the truth's indicated airspeed, m/s: ArduPilot's simulated pitot
+                    turns it into a differential pressure
     ==============  ==========================================================================
 
 ArduPilot simulates its own barometer (from the position), compass (from the attitude), and
@@ -48,7 +50,7 @@ import struct
 from dataclasses import dataclass
 from typing import Final
 
-from sim.samples import Truth
+from sim.samples import ImuSample, Truth
 
 __all__ = [
     "LATLON_TO_M",
@@ -131,16 +133,21 @@ def ned_from_origin(origin: JsonOrigin, lat_rad: float, lon_rad: float,
     return north, east, origin.alt_msl_m - alt_msl_m
 
 
-def json_state_line(truth: Truth, origin: JsonOrigin) -> bytes:
-    """The state line ArduPilot reads for ``truth`` (see the module docstring)."""
+def json_state_line(truth: Truth, origin: JsonOrigin, *, imu: ImuSample | None = None,
+                    airspeed_mps: float | None = None) -> bytes:
+    """The state line ArduPilot reads for ``truth`` (see the module docstring): its IMU is
+    ``imu`` (the IMU sample hilnav's own fusion gets, faults included) or else the truth's
+    rates and specific force; its airspeed ``airspeed_mps`` (the pitot's calibrated
+    airspeed) or else the truth's indicated airspeed."""
     n, e, d = ned_from_origin(origin, truth.lat_rad, truth.lon_rad, truth.alt_msl_m)
     w, x, y, z = (float(v) for v in truth.q_nb)
     roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
     pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
     yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    g = truth.omega_b_rps
-    f = truth.specific_force_b_mps2
+    g = truth.omega_b_rps if imu is None else imu.angular_rate_b_rps
+    f = truth.specific_force_b_mps2 if imu is None else imu.specific_force_b_mps2
     v = truth.v_ned_mps
+    airspeed = truth.indicated_airspeed_mps if airspeed_mps is None else airspeed_mps
     return (
         f'\n{{"timestamp":{truth.time_us / 1e6!r},'
         f'"imu":{{"gyro":[{float(g[0])!r},{float(g[1])!r},{float(g[2])!r}],'
@@ -149,5 +156,5 @@ def json_state_line(truth: Truth, origin: JsonOrigin) -> bytes:
         f'"quaternion":[{w!r},{x!r},{y!r},{z!r}],'
         f'"attitude":[{roll!r},{pitch!r},{yaw!r}],'
         f'"velocity":[{float(v[0])!r},{float(v[1])!r},{float(v[2])!r}],'
-        f'"airspeed":{float(truth.indicated_airspeed_mps)!r}}}\n'
+        f'"airspeed":{float(airspeed)!r}}}\n'
     ).encode("ascii")

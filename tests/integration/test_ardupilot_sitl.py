@@ -5,6 +5,7 @@ parameters over its MAVLink port."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import socket
 import threading
@@ -19,6 +20,7 @@ from hil.autopilot.sitl_json import encode_servo_packet
 from hil.codec import mavlink2
 from hil.link import LinkRole, MavlinkLink
 from hil.pipeline import SimSetup
+from sim.faults import ImuBiasStep, PitotBlockage
 from sim.flight import Flight
 from tests.helpers.ardupilot_peer import ArduPilotPeer, PeerPlan, parse_sim_json
 
@@ -196,3 +198,29 @@ def test_mavlink_on_the_json_port_gets_one_line_naming_what_was_expected() -> No
 def test_a_bad_url_is_one_clear_error(url: str) -> None:
     with pytest.raises(ValueError, match="expected udpin:HOST:PORT"):
         ArduPilotBackend(url)
+
+
+def test_imu_and_pitot_faults_reach_ardupilot_through_the_json_line() -> None:
+    # GIVEN an accelerometer bias step of +1 m/s^2 on x at 2 s and a pitot blocked at 3 s
+    setup = dataclasses.replace(_setup(4.0), faults=(
+        ImuBiasStep(start_s=2.0, sensor="accel", axis="x", value=1.0),
+        PitotBlockage(start_s=3.0, mode="zero"),
+    ))
+    lines = []
+    with ArduPilotBackend("udpin:127.0.0.1:0", setup=setup) as backend, \
+            _client(backend) as sock, _flying(setup, backend, stall_timeout_s=5.0) as out:
+        for frame in range(400):
+            sock.send(encode_servo_packet(frame, [1460, 1400, 1870, 1500]))
+            lines.append(_line(sock))
+    assert out["flown"].steps == 400
+    # THEN ArduPilot's accelerometer carries the bias from 2 s on (IMU noise averages out)
+    ax = [(line["timestamp"][0], line["accel_body"][0]) for line in lines]
+    before = [a for t, a in ax if 1.0 < t <= 2.0]
+    after = [a for t, a in ax if 2.0 < t <= 3.0]
+    assert sum(after) / len(after) - sum(before) / len(before) == pytest.approx(1.0, abs=0.15)
+    # AND its airspeed is the pitot's: flying before 3 s, nothing once the pitot is blocked
+    speeds = [(line["timestamp"][0], line["airspeed"][0]) for line in lines]
+    assert all(40.0 < v < 55.0 for t, v in speeds if 0.1 < t < 2.9)
+    assert all(v == 0.0 for t, v in speeds if t > 3.1)
+    # AND neither needed a parameter (nothing to send, so no MAVLink port was asked for)
+    assert backend.param_sender is None and not backend.warnings
