@@ -21,10 +21,13 @@ vectors as ``[x,y,z]``), so no key may be a prefix of an earlier key (we send no
 ``velocity_wind``, whose name starts with ``velocity``). Fields (SI, ArduPilot's frames):
 
     ==============  ==========================================================================
-    timestamp       simulated time since the flight start, s (``Truth.time_us`` / 1e6):
-                    ArduPilot's clock advances by its differences, so its ``time_boot_ms``
-                    is this time in ms (lockstep SITL: ``time_now_us`` starts at 0 and adds
-                    ``timestamp - last_timestamp`` each frame)
+    timestamp       simulated time since the flight start, s (``Truth.time_us`` / 1e6).
+                    ArduPilot's clock is this time: SIM_JSON's ``recv_fdm`` adds
+                    ``timestamp - last_timestamp`` (``last_timestamp`` starting at 0) to the
+                    aircraft's ``time_now_us`` (0 at construction, ``SIM_Aircraft``), and
+                    lockstep SITL's HAL clock is stopped at ``time_now_us``; so its
+                    ``time_boot_ms`` x 1000 = our ``time_usec`` (to the ms). After a restart
+                    ArduPilot's clock jumps straight to our current timestamp
     imu.gyro        body rates FRD, rad/s: the step's IMU sample (hilnav's IMU model and the
                     scenario's IMU faults, as our fusion gets them; the truth without one)
     imu.accel_body  specific force FRD, m/s^2 (about [0, 0, -9.8] level), the same way
@@ -50,6 +53,7 @@ import struct
 from dataclasses import dataclass
 from typing import Final
 
+from sim.faults.ardupilot import LATLON_TO_M
 from sim.samples import ImuSample, Truth
 
 __all__ = [
@@ -70,8 +74,6 @@ _PACKET_16 = struct.Struct("<HHI16H")
 _PACKET_32 = struct.Struct("<HHI32H")
 PACKET_SIZES: Final = {SERVO_MAGIC_16: _PACKET_16.size, SERVO_MAGIC_32: _PACKET_32.size}
 """Magic -> packet size, bytes (40, 72)."""
-LATLON_TO_M: Final = 0.011131884502145034
-"""Metres per 1e-7 degree of latitude, ArduPilot's ``LATLON_TO_M`` (its flat-earth offsets)."""
 _MAVLINK_STX = (0xFD, 0xFE)
 
 

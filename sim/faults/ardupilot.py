@@ -70,13 +70,16 @@ from sim.faults.events import (
 __all__ = [
     "ARDUPILOT_DEFAULTS",
     "JSON_EVENTS",
+    "LATLON_TO_M",
     "ParamSet",
     "ardupilot_param_schedule",
     "ardupilot_unmapped",
 ]
 
 LATLON_TO_M = 0.011131884502145034
-"""Metres per 1e-7 degree of latitude (ArduPilot's ``LATLON_TO_M``)."""
+"""Metres per 1e-7 degree of latitude: ArduPilot's ``LATLON_TO_M`` (``AP_Common/Location``),
+the scale of its flat-earth offsets (GPS glitches here, the JSON position in
+:mod:`hil.autopilot.sitl_json`)."""
 
 ARDUPILOT_DEFAULTS: dict[str, float] = {
     "SIM_GPS1_ENABLE": 1.0,
