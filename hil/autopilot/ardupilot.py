@@ -141,6 +141,7 @@ class ArduPilotBackend:
              "pwm_clipped", "pwm_undriven", "send_errors"), 0)
         self.frame_rate_hz: int | None = None
         self._airspeed_mps: float | None = None  # of the latest pitot sample (held between)
+        self._rate_hz = None if setup is None else setup.flight.rate_hz
 
     # -- setup --
     def _param_sender(self, setup: SimSetup, mavlink_url: str | None) -> SimParamSender | None:
@@ -279,6 +280,10 @@ class ArduPilotBackend:
         self._peer = address
         if self.frame_rate_hz != parsed.frame_rate_hz:
             self.frame_rate_hz = parsed.frame_rate_hz
+            if self._rate_hz is not None and parsed.frame_rate_hz != round(self._rate_hz):
+                self._warn(f"ArduPilot asks for {parsed.frame_rate_hz} Hz physics "
+                           f"(SIM_RATE_HZ); hilnav steps at {self._rate_hz:g} Hz: set "
+                           f"SIM_RATE_HZ {self._rate_hz:g}")
         last = self._frame_count
         if last is not None and parsed.frame_count == last:
             c["repeated_frames"] += 1

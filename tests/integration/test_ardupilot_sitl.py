@@ -149,6 +149,18 @@ def test_a_repeated_frame_count_does_not_step_and_a_smaller_one_is_a_restart() -
     assert any("restarted" in w for w in backend.warnings)
 
 
+def test_a_physics_rate_unlike_ours_is_one_warning() -> None:
+    setup = _setup(5.0)
+    with ArduPilotBackend("udpin:127.0.0.1:0", setup=setup) as backend, \
+            _client(backend) as sock, _flying(setup, backend, stall_timeout_s=5.0):
+        for frame in range(3):
+            sock.send(encode_servo_packet(frame, [1500, 1500, 1700, 1500], frame_rate_hz=400))
+            _line(sock)
+    assert backend.frame_rate_hz == 400
+    assert backend.warnings == ["ArduPilot asks for 400 Hz physics (SIM_RATE_HZ); hilnav "
+                                "steps at 100 Hz: set SIM_RATE_HZ 100"]
+
+
 def test_a_silent_autopilot_stalls_the_run_where_it_stopped() -> None:
     setup = _setup(30.0)
     with ArduPilotBackend("udpin:127.0.0.1:0") as backend:
@@ -210,7 +222,8 @@ def test_imu_and_pitot_faults_reach_ardupilot_through_the_json_line() -> None:
     with ArduPilotBackend("udpin:127.0.0.1:0", setup=setup) as backend, \
             _client(backend) as sock, _flying(setup, backend, stall_timeout_s=5.0) as out:
         for frame in range(400):
-            sock.send(encode_servo_packet(frame, [1460, 1400, 1870, 1500]))
+            sock.send(encode_servo_packet(frame, [1460, 1400, 1870, 1500],
+                                          frame_rate_hz=round(RATE_HZ)))
             lines.append(_line(sock))
     assert out["flown"].steps == 400
     # THEN ArduPilot's accelerometer carries the bias from 2 s on (IMU noise averages out)
