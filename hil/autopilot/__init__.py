@@ -3,6 +3,10 @@ our JSBSim aircraft through its actuator commands.
 
 * :mod:`hil.autopilot.backend`: what a protocol backend provides (:class:`AutopilotBackend`)
   and the one lockstep loop every backend runs in (:func:`fly_with_autopilot`).
+* :mod:`hil.autopilot.ardupilot`: ArduPilot SITL's JSON physics interface
+  (:class:`~hil.autopilot.ardupilot.ArduPilotBackend`), with :mod:`hil.autopilot.sitl_json`
+  (its bytes), :mod:`hil.autopilot.servos` (servo outputs -> controls) and
+  :mod:`hil.autopilot.sim_params` (the scenario's denial as SIM_* parameters over MAVLink).
 """
 
 from hil.autopilot.backend import AutopilotBackend, AutopilotFlown, fly_with_autopilot
