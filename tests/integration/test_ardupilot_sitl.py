@@ -140,8 +140,9 @@ def test_a_repeated_frame_count_does_not_step_and_a_smaller_one_is_a_restart() -
         sock.send(encode_servo_packet(11, [1500, 1500, 1700, 1500]))
         second = _line(sock)
         assert second["timestamp"][0] == pytest.approx(first["timestamp"][0] + 1 / RATE_HZ)
-        sock.send(encode_servo_packet(0, [1500, 1500, 1700, 1500]))  # ArduPilot restarted
-        third = _line(sock)
+        with _client(backend) as restarted:  # a new ArduPilot process: a new source port
+            restarted.send(encode_servo_packet(0, [1500, 1500, 1700, 1500]))
+            third = _line(restarted)  # the answer follows the new sender
         assert third["timestamp"][0] == pytest.approx(second["timestamp"][0] + 1 / RATE_HZ)
         counters = backend.counters()
     assert counters["repeated_frames"] == 1 and counters["restarts"] == 1
