@@ -20,7 +20,7 @@ from hil.autopilot.sitl_json import encode_servo_packet
 from hil.codec import mavlink2
 from hil.link import LinkRole, MavlinkLink
 from hil.pipeline import SimSetup
-from sim.faults import ImuBiasStep, PitotBlockage
+from sim.faults import GnssSpoofHijack, ImuBiasStep, PitotBlockage
 from sim.flight import Flight
 from tests.helpers.ardupilot_peer import ArduPilotPeer, PeerPlan, parse_sim_json
 
@@ -238,3 +238,30 @@ def test_imu_and_pitot_faults_reach_ardupilot_through_the_json_line() -> None:
     assert all(v == 0.0 for t, v in speeds if t > 3.1)
     # AND neither needed a parameter (nothing to send, so no MAVLink port was asked for)
     assert backend.param_sender is None and not backend.warnings
+
+
+def test_a_hijack_spoof_moves_the_peers_gps_by_the_offset_in_metres() -> None:
+    # GIVEN a spoofed GNSS position 300 m north and 200 m west from 10 s to 30 s, played to
+    # ArduPilot as SIM_GPS1_GLTCH_X/Y in degrees
+    setup = dataclasses.replace(_setup(40.0), faults=(
+        GnssSpoofHijack(start_s=10.0, duration_s=20.0, offset_ned_m=(300.0, -200.0, 0.0)),))
+    peer = ArduPilotPeer(home=(47.0, 8.0, 0.0), trim=_trim(setup), mavlink=True,
+                         frame_rate_hz=round(RATE_HZ))
+    with ArduPilotBackend("udpin:127.0.0.1:0", setup=setup,
+                         mavlink_url=peer.mavlink_url) as backend:
+        peer.start(f"udp:127.0.0.1:{backend.local_address[1]}")
+        try:
+            flown = fly_with_autopilot(setup, backend, stall_timeout_s=10.0)
+        finally:
+            peer.stop()
+    assert peer.error is None and flown.steps == 40 * RATE_HZ
+    # THEN the peer's GPS-based position is off by that offset in metres while spoofed (its
+    # GPS lags 100 ms: ~5 m behind along the track north), and back afterwards
+    off = {round(a[0]): (a[1] - b[1], a[2] - b[2])
+           for a, b in zip(peer.track, peer.truth_track, strict=True)}
+    for t in (15, 20, 25):
+        assert off[t][0] == pytest.approx(300.0 - 5.0, abs=3.0)
+        assert off[t][1] == pytest.approx(-200.0, abs=3.0)
+    assert math.hypot(*off[35]) < 10.0
+    # X, Y, Z at their defaults at 0 s; X and Y at 10 s and back at 30 s (Z stays 0)
+    assert backend.counters()["params_acked"] == backend.counters()["params_sent"] == 7
