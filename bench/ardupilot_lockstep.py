@@ -39,7 +39,11 @@ from hil.autopilot.sitl_json import (
 )
 from hil.pipeline import SimChain, SimSetup
 from scenarios.cli.up import stop_process
-from sim.flight import Flight
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+from tests.helpers.ardupilot_peer import trimmed_controls  # noqa: E402
 
 _PEER = """
 import signal, sys, threading
@@ -54,18 +58,13 @@ peer.stop()
 """
 
 
-def _trim(setup: SimSetup) -> tuple[float, ...]:
-    with Flight(setup.flight.model_copy(update={"control": "external"}), setup.plan) as f:
-        return f.vehicle_state().controls[:4]
-
-
 def lockstep(setup: SimSetup) -> dict[str, float]:
-    trim = _trim(setup)
+    trim = trimmed_controls(setup)
     with ArduPilotBackend("udpin:127.0.0.1:0") as backend:
         port = backend.local_address[1]
         peer = subprocess.Popen(
             [sys.executable, "-c", _PEER, f"udp:127.0.0.1:{port}", ",".join(map(str, trim))],
-            cwd=Path(__file__).resolve().parents[1], start_new_session=True)
+            cwd=ROOT, start_new_session=True)
         cpu: list[float] = []  # CPU time at every step's end: the stepping alone is timed
         try:
             flown = fly_with_autopilot(setup, backend, connect_timeout_s=60.0,
@@ -84,7 +83,7 @@ def chain_alone(setup: SimSetup) -> float:
     """CPU us per step of the same chain with constant external commands (no protocol)."""
     setup = setup.__class__(**{**setup.__dict__, "flight": setup.flight.model_copy(
         update={"control": "external"})})
-    trim = list(_trim(setup))
+    trim = list(trimmed_controls(setup))
     steps = 0
     with SimChain(setup) as chain:
         assert chain.flight is not None

@@ -21,8 +21,7 @@ from hil.codec import mavlink2
 from hil.link import LinkRole, MavlinkLink
 from hil.pipeline import SimSetup
 from sim.faults import GnssSpoofHijack, ImuBiasStep, PitotBlockage
-from sim.flight import Flight
-from tests.helpers.ardupilot_peer import ArduPilotPeer, PeerPlan, parse_sim_json
+from tests.helpers.ardupilot_peer import ArduPilotPeer, PeerPlan, parse_sim_json, trimmed_controls
 
 HIL_GPS_ID = int(mavlink2.MAVLINK_MSG_ID_HIL_GPS)
 RATE_HZ = 100.0
@@ -30,12 +29,6 @@ RATE_HZ = 100.0
 
 def _setup(duration_s: float, gnss_off: tuple[str, ...] = ()) -> SimSetup:
     return SimSetup.build(duration_s=duration_s, rate_hz=RATE_HZ, seed=3, gnss_off=gnss_off)
-
-
-def _trim(setup: SimSetup) -> tuple[float, ...]:
-    """The controls the aircraft is trimmed with (a tuned ArduPlane's servo trims)."""
-    with Flight(setup.flight.model_copy(update={"control": "external"}), setup.plan) as f:
-        return f.vehicle_state().controls[:4]
 
 
 def _msg_id(frame: bytes) -> int:
@@ -68,8 +61,8 @@ def test_the_peer_flies_a_turn_while_its_gps_is_switched_off_by_parameter() -> N
         autopilot=int(mavlink2.MAV_AUTOPILOT_INVALID)))
     peer = ArduPilotPeer(
         telemetry_url=f"udpout:127.0.0.1:{telemetry.local_address[1]}",
-        plan=PeerPlan(headings=((60.0, 90.0),)), home=(47.0, 8.0, 0.0), trim=_trim(setup),
-        mavlink=True, channels=32)
+        plan=PeerPlan(headings=((60.0, 90.0),)), home=(47.0, 8.0, 0.0),
+        trim=trimmed_controls(setup), mavlink=True, channels=32)
     gnss_frames: list[int] = []
     telemetry_msgs: list = []
     with telemetry, ArduPilotBackend("udpin:127.0.0.1:0", setup=setup,
@@ -165,7 +158,7 @@ def test_a_physics_rate_unlike_ours_is_one_warning() -> None:
 def test_a_silent_autopilot_stalls_the_run_where_it_stopped() -> None:
     setup = _setup(30.0)
     with ArduPilotBackend("udpin:127.0.0.1:0") as backend:
-        peer = ArduPilotPeer(trim=_trim(setup), silent_after=120)
+        peer = ArduPilotPeer(trim=trimmed_controls(setup), silent_after=120)
         peer.start(f"udp:127.0.0.1:{backend.local_address[1]}")
         try:
             flown = fly_with_autopilot(setup, backend, stall_timeout_s=0.5)
@@ -245,7 +238,7 @@ def test_a_hijack_spoof_moves_the_peers_gps_by_the_offset_in_metres() -> None:
     # ArduPilot as SIM_GPS1_GLTCH_X/Y in degrees
     setup = dataclasses.replace(_setup(40.0), faults=(
         GnssSpoofHijack(start_s=10.0, duration_s=20.0, offset_ned_m=(300.0, -200.0, 0.0)),))
-    peer = ArduPilotPeer(home=(47.0, 8.0, 0.0), trim=_trim(setup), mavlink=True,
+    peer = ArduPilotPeer(home=(47.0, 8.0, 0.0), trim=trimmed_controls(setup), mavlink=True,
                          frame_rate_hz=round(RATE_HZ))
     with ArduPilotBackend("udpin:127.0.0.1:0", setup=setup,
                          mavlink_url=peer.mavlink_url) as backend:
