@@ -7,6 +7,10 @@ our JSBSim aircraft through its actuator commands.
   HIL_ACTUATOR_CONTROLS channels -> the aircraft's controls (YAML per airframe).
 * :mod:`hil.autopilot.px4`: :class:`~hil.autopilot.px4.Px4Backend`, the simulator side of
   PX4's simulator MAVLink interface (SITL over TCP, HITL over serial).
+* :mod:`hil.autopilot.ardupilot`: ArduPilot SITL's JSON physics interface
+  (:class:`~hil.autopilot.ardupilot.ArduPilotBackend`), with :mod:`hil.autopilot.sitl_json`
+  (its bytes), :mod:`hil.autopilot.servos` (servo outputs -> controls) and
+  :mod:`hil.autopilot.sim_params` (the scenario's denial as SIM_* parameters over MAVLink).
 """
 
 from hil.autopilot.backend import AutopilotBackend, AutopilotFlown, fly_with_autopilot
