@@ -3,8 +3,20 @@ our JSBSim aircraft through its actuator commands.
 
 * :mod:`hil.autopilot.backend`: what a protocol backend provides (:class:`AutopilotBackend`)
   and the one lockstep loop every backend runs in (:func:`fly_with_autopilot`).
+* :mod:`hil.autopilot.factory`: :func:`make_backend`, the one place a backend is built from
+  its kind (``px4``, ``ardupilot``) and settings.
+* :mod:`hil.autopilot.telemetry`: the autopilot's own estimate and health, recorded from its
+  MAVLink telemetry (:class:`~hil.autopilot.telemetry.AutopilotTelemetry`).
 """
 
 from hil.autopilot.backend import AutopilotBackend, AutopilotFlown, fly_with_autopilot
+from hil.autopilot.factory import AUTOPILOT_KINDS, BackendSettings, make_backend
 
-__all__ = ["AutopilotBackend", "AutopilotFlown", "fly_with_autopilot"]
+__all__ = [
+    "AUTOPILOT_KINDS",
+    "AutopilotBackend",
+    "AutopilotFlown",
+    "BackendSettings",
+    "fly_with_autopilot",
+    "make_backend",
+]

@@ -194,6 +194,8 @@ class AutopilotTelemetry:
                     self._on_message(msg)
                 if not self._requested and self._autopilot is not None and self.rate_hz:
                     self._request_rates()
+            for msg in link.recv(0.0):  # what arrived before the stop
+                self._on_message(msg)
         except Exception as exc:  # the recorder ends; the run reports why
             self.error = f"{type(exc).__name__}: {exc}"
         finally:
