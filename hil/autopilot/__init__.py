@@ -3,6 +3,10 @@ our JSBSim aircraft through its actuator commands.
 
 * :mod:`hil.autopilot.backend`: what a protocol backend provides (:class:`AutopilotBackend`)
   and the one lockstep loop every backend runs in (:func:`fly_with_autopilot`).
+* :mod:`hil.autopilot.actuators`: :class:`~hil.autopilot.actuators.ActuatorMap`, PX4's
+  HIL_ACTUATOR_CONTROLS channels -> the aircraft's controls (YAML per airframe).
+* :mod:`hil.autopilot.px4`: :class:`~hil.autopilot.px4.Px4Backend`, the simulator side of
+  PX4's simulator MAVLink interface (SITL over TCP, HITL over serial).
 * :mod:`hil.autopilot.factory`: :func:`make_backend`, the one place a backend is built from
   its kind (``px4``, ``ardupilot``) and settings.
 * :mod:`hil.autopilot.telemetry`: the autopilot's own estimate and health, recorded from its

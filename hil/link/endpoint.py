@@ -19,6 +19,7 @@ from hil.signing import Signer, Verdict, reframe
 __all__ = ["MavlinkLink"]
 
 _IDLE_WAKE_S: Final = 0.05  # longest real-time sleep inside recv() between housekeeping runs
+_FIRST_BYTES: Final = 16  # kept of each connection's first bytes, to name a wrong protocol
 
 
 #: Sequence numbers this far behind the last one count as reordered, not lost.
@@ -99,6 +100,7 @@ class MavlinkLink:
         self._heartbeat_state = (0, 0, int(mavlink2.MAV_STATE_ACTIVE))
         self._next_heartbeat = clock()
         self._closed = False
+        self._first_bytes = bytearray()
         try:
             self._transport: Transport = open_transport(
                 self.url,
@@ -147,6 +149,12 @@ class MavlinkLink:
     def local_address(self) -> Any:
         """Bound (host, port) of a ``udpin`` / ``udpout`` / ``tcpin`` link, else None."""
         return self._transport.local_address
+
+    @property
+    def first_bytes(self) -> bytes:
+        """The first bytes (up to 16) received since the link opened or its stream last
+        (re)connected: what a peer speaking another protocol sent, for the error message."""
+        return bytes(self._first_bytes)
 
     @property
     def peer_alive(self) -> bool:
@@ -290,6 +298,7 @@ class MavlinkLink:
             self._generation = self._transport.generation
             self._stream_parser.reset()
             self._rx_seq.clear()
+            self._first_bytes.clear()
 
     def _check_peers(self, now: float) -> None:
         timeout = self.role.peer_timeout_s
@@ -302,6 +311,9 @@ class MavlinkLink:
         self._counters.bytes_received += len(data)
         if address is None:
             self._check_generation()
+        if len(self._first_bytes) < _FIRST_BYTES:
+            self._first_bytes += data[: _FIRST_BYTES - len(self._first_bytes)]
+        if address is None:
             frames = self._stream_parser.feed(data)
         else:
             frames = self._datagram_parser.feed(data, final=True)
