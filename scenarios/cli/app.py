@@ -236,8 +236,27 @@ def sim(
     tls_cert: TlsCertOption = None,
     tls_key: TlsKeyOption = None,
     zenoh_key_file: ZenohKeyFileOption = None,
+    ardupilot: Annotated[str | None, typer.Option(
+        help="ArduPilot SITL flies the aircraft: serve its JSON physics interface here "
+             "(udpin:127.0.0.1:9002; udpin:0.0.0.0:9002 for a SITL on another machine).",
+        rich_help_panel="Autopilot in the loop")] = None,
+    servo_map: Annotated[Path | None, typer.Option(
+        help="With --ardupilot: servo map YAML (default ArduPlane: 1 aileron, 2 elevator, "
+             "3 throttle, 4 rudder, 1000-2000 us).", rich_help_panel="Autopilot in the loop")
+    ] = None,
+    ardupilot_mavlink: Annotated[str | None, typer.Option(
+        help="With --ardupilot: ArduPilot's MAVLink port (e.g. tcp:127.0.0.1:5760) for the "
+             "SIM_GPS1_* parameters of the GNSS denial.", rich_help_panel="Autopilot in the loop")
+    ] = None,
+    stall_timeout: Annotated[float, typer.Option(
+        help="With an autopilot: wall seconds without its controls before the run ends as "
+             "stalled.", rich_help_panel="Autopilot in the loop")] = 10.0,
+    connect_timeout: Annotated[float, typer.Option(
+        help="With an autopilot: wall seconds to wait for it to connect.",
+        rich_help_panel="Autopilot in the loop")] = 60.0,
 ) -> None:
-    """Fly a plan and record it (lockstep, as fast as possible) or stream it live (--live)."""
+    """Fly a plan and record it (lockstep, as fast as possible) or stream it live (--live);
+    with --ardupilot, ArduPilot SITL flies it."""
     if record is not None:
         _out_file(record, "--record")
     from hil.pipeline import SimSetup, record_flight
@@ -251,6 +270,15 @@ def sim(
     )
     if lockstep and live is None:
         raise ValueError("--lockstep paces against a fusion service: it needs --live URL")
+    if ardupilot is None and (servo_map is not None or ardupilot_mavlink is not None):
+        raise ValueError("--servo-map and --ardupilot-mavlink need --ardupilot URL")
+    if ardupilot is not None:
+        if live is not None:
+            raise ValueError("--ardupilot and --live are two ways to fly: give one")
+        _sim_ardupilot(request, ardupilot, servo_map=servo_map, mavlink_url=ardupilot_mavlink,
+                       record=record, stall_timeout=stall_timeout,
+                       connect_timeout=connect_timeout)
+        return
     if live is not None:
         access = _bus_access(zenoh, zenoh_user, zenoh_password_file, tls_ca, tls_cert,
                              tls_key, zenoh_key_file)
@@ -268,6 +296,27 @@ def sim(
     )
     if report.ended is not None:
         raise RunFailed(f"{report.ended}; the log up to that point is kept in {record}")
+
+
+def _sim_ardupilot(request: Any, url: str, *, servo_map: Path | None, mavlink_url: str | None,
+                   record: Path | None, stall_timeout: float, connect_timeout: float) -> None:
+    from scenarios.cli.ardupilot import flown_sentence, fly_ardupilot
+
+    def say(line: str) -> None:
+        err_console.print(line, highlight=False, markup=False)
+
+    with _progress(request.duration_s, "flying") as progress:
+        flown = fly_ardupilot(request, url, servo_map_path=servo_map, mavlink_url=mavlink_url,
+                              record=record, connect_timeout_s=connect_timeout,
+                              stall_timeout_s=stall_timeout, progress=progress,
+                              on_waiting=say, warn=lambda w: say(f"warning: {w}"))
+    if not flown.connected:
+        raise RunFailed(f"no ArduPilot servo packet within {connect_timeout:g} s on {url}")
+    console.print(flown_sentence(flown, record), highlight=False, markup=False)
+    if flown.stalled is not None:
+        raise RunFailed(flown.stalled)
+    if flown.ended is not None:
+        raise RunFailed(str(flown.ended))
 
 
 def _signing_key(path: Path | None) -> bytes | None:

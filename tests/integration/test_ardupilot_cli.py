@@ -1,0 +1,82 @@
+"""``hilnav sim --ardupilot URL``: the command, its bad input and a whole flight with the
+ArduPilot-side protocol peer (a real hilnav process, stopped by PID)."""
+
+from __future__ import annotations
+
+import re
+import time
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from hil.codec import mavlink2
+from hil.pipeline import SimSetup
+from hil.tlog import read_tlog
+from scenarios.cli.app import app
+from scenarios.cli.up import stop_process
+from sim.flight import Flight
+from tests.helpers.ardupilot_peer import ArduPilotPeer
+from tests.helpers.processes import hilnav_process
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["--servo-map", "s.yaml"], "need --ardupilot URL"),
+    (["--ardupilot-mavlink", "tcp:127.0.0.1:5760"], "need --ardupilot URL"),
+    (["--ardupilot", "tcp:127.0.0.1:9002"], "expected udpin:HOST:PORT"),
+    (["--ardupilot", "udpin:127.0.0.1:0", "--live", "udpout:127.0.0.1:9"], "give one"),
+    (["--ardupilot", "udpin:127.0.0.1:0", "--servo-map", "missing.yaml"], "servo map"),
+    (["--ardupilot", "udpin:127.0.0.1:0", "--ardupilot-mavlink", "bogus:1"], "link URL"),
+    (["--ardupilot", "udpin:127.0.0.1:0", "--stall-timeout", "0"], "stall timeout"),
+])
+def test_bad_autopilot_options_are_one_line_and_exit_2(
+    tmp_path: Path, args: list[str], needle: str
+) -> None:
+    result = CliRunner().invoke(app, ["sim", "--record", str(tmp_path / "x.tlog"),
+                                      "--duration", "5", *args])
+    assert result.exit_code == 2, result.output
+    assert needle in result.output and "Traceback" not in result.output
+    assert len([ln for ln in result.output.splitlines() if ln.strip()]) == 1
+
+
+def test_no_ardupilot_within_the_connect_timeout_exits_1(tmp_path: Path) -> None:
+    result = CliRunner().invoke(app, ["sim", "--ardupilot", "udpin:127.0.0.1:0", "--duration",
+                                      "5", "--connect-timeout", "0.3"])
+    assert result.exit_code == 1
+    assert "no ArduPilot servo packet within 0.3 s" in result.output
+
+
+def test_sim_flies_with_the_ardupilot_peer_and_records_every_frame(tmp_path: Path) -> None:
+    # GIVEN the peer's MAVLink port, and hilnav sim serving the JSON interface on a free port
+    setup = SimSetup.build(duration_s=30.0, rate_hz=100.0, seed=5, gnss_off=["10:10"])
+    with Flight(setup.flight.model_copy(update={"control": "external"}), setup.plan) as f:
+        trim = f.vehicle_state().controls[:4]
+    peer = ArduPilotPeer(trim=trim, mavlink=True)
+    log, tlog = tmp_path / "sim.log", tmp_path / "run.tlog"
+    proc = hilnav_process(
+        "sim", "--ardupilot", "udpin:127.0.0.1:0", "--ardupilot-mavlink", peer.mavlink_url,
+        "--duration", "30", "--rate", "100", "--seed", "5", "--gnss-off", "10:10",
+        "--record", str(tlog), log=log)
+    try:
+        port = None
+        deadline = time.monotonic() + 60.0
+        while port is None and time.monotonic() < deadline and proc.poll() is None:
+            m = re.search(r"servo packets on udp 127\.0\.0\.1:(\d+)", log.read_text())
+            port = int(m.group(1)) if m else None
+            time.sleep(0.05)
+        assert port is not None, log.read_text()
+        # WHEN the peer connects and flies
+        with peer.start(f"udp:127.0.0.1:{port}"):
+            code = proc.wait(timeout=120)
+    finally:
+        stop_process(proc)
+    out = log.read_text()
+    # THEN the run succeeded, the denial went out as parameters and every frame was recorded
+    assert code == 0, out
+    assert "flew 30.0 s simulated with ArduPilot" in out and "3000 steps" in out
+    assert "SIM_* parameters sent 3, acknowledged 3" in out
+    assert [v for _, n, v in peer.param_log if n == "SIM_GPS1_ENABLE"] == [1.0, 0.0, 1.0]
+    gps = [t for t, frame in read_tlog(tlog)
+           if frame[7] | frame[8] << 8 | frame[9] << 16 == mavlink2.MAVLINK_MSG_ID_HIL_GPS]
+    assert gps and not [t for t in gps if 10e6 <= t < 20e6]
+    assert max(gps) > 29e6
