@@ -19,12 +19,16 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
+from hil.autopilot import AutopilotFlown
+from hil.autopilot.telemetry import AutopilotTelemetry
 from hil.tracks import Track
 from scenarios.event_metrics import EventWindow
 from scenarios.metrics import Errors, Window
 from scenarios.summary import RunInfo, build_summary
 
-__all__ = ["AUTOPILOT_METRIC_KEYS", "ScoredAutopilot", "autopilot_section"]
+__all__ = ["AUTOPILOT_METRIC_KEYS", "ScoredAutopilot", "autopilot_section", "score_flown"]
 
 #: The keys of hilnav's summary that the autopilot section repeats for the autopilot.
 AUTOPILOT_METRIC_KEYS = ("outages", "gnss_on", "events", "scoring")
@@ -95,3 +99,43 @@ def autopilot_section(
     section.update({k: summary[k] for k in AUTOPILOT_METRIC_KEYS})
     section["samples"] = int(err.time_s.size)
     return ScoredAutopilot(section, track, err)
+
+
+def score_flown(
+    flown: AutopilotFlown,
+    telemetry: AutopilotTelemetry | None,
+    truth: Track | None,
+    outages: list[Window],
+    *,
+    link: Mapping[str, Any],
+    settle_s: float,
+    events: Sequence[EventWindow | Mapping[str, Any]] = (),
+) -> ScoredAutopilot:
+    """The section of a flight with an autopilot (:func:`hil.autopilot.fly_with_autopilot`)
+    whose telemetry ``telemetry`` recorded (None: none was recorded): its counters (the
+    backend's, ``clipped_controls``, ``steps``, ``telemetry_*``), health and estimate scored
+    against ``truth`` (None: no truth, nothing scored) by :func:`autopilot_section`."""
+    counters = {**flown.counters, "clipped_controls": flown.clipped_controls,
+                "steps": flown.steps}
+    track: Track | None = None
+    health: dict[str, Any] | None = None
+    problem: str | None = None
+    if telemetry is None:
+        problem = "no telemetry link to record its estimate from"
+    else:
+        counters.update({f"telemetry_{k}": v for k, v in telemetry.counters().items()})
+        health = telemetry.health()
+        try:
+            track = telemetry.estimate_track()
+        except ValueError as exc:
+            problem = str(exc)
+        if telemetry.error is not None:
+            problem = f"telemetry recorder stopped: {telemetry.error}"
+    if truth is None:
+        track, problem = None, problem or "the flight produced no truth to score against"
+    z = np.zeros(0)
+    return autopilot_section(
+        flown.autopilot, track, truth if truth is not None else Track(z, z, z, z, z, z),
+        outages, link=link, counters=counters, stalled=flown.stalled,
+        connected=flown.connected, health=health, settle_s=settle_s, events=events,
+        problem=problem)

@@ -32,6 +32,7 @@ from hil.autopilot import (
     AutopilotBackend,
     AutopilotFlown,
     BackendSettings,
+    close_backend,
     fly_with_autopilot,
     make_backend,
 )
@@ -39,7 +40,7 @@ from hil.autopilot.telemetry import AutopilotTelemetry
 from hil.pipeline import Flown, FrameSink, FusionRun, SimSetup, build_filter, fly, tee
 from hil.pipeline import filter_config as pipeline_filter_config
 from hil.tlog import TlogWriter
-from scenarios.autopilot_summary import ScoredAutopilot, autopilot_section
+from scenarios.autopilot_summary import ScoredAutopilot, score_flown
 from scenarios.jsonable import plain_dict
 from scenarios.schema import Scenario
 from scenarios.summary import RunInfo, Scored, score_run, write_summary
@@ -260,7 +261,7 @@ class AutopilotRun:
             try:
                 telemetry = AutopilotTelemetry(ap.telemetry, rate_hz=ap.telemetry_rate_hz)
             except ValueError as exc:
-                _close(backend)
+                close_backend(backend)
                 raise ValueError(f"autopilot telemetry {ap.telemetry}: {exc}") from None
         return cls(scenario, backend, telemetry)
 
@@ -278,7 +279,7 @@ class AutopilotRun:
         finally:
             if self.telemetry is not None:
                 self.telemetry.stop()
-            _close(self.backend)
+            close_backend(self.backend)
         self.flown = flown
         if not flown.connected:
             raise AutopilotAbsent(
@@ -306,32 +307,8 @@ class AutopilotRun:
 
     def score(self, hilnav: Scored, events: list[dict[str, Any]]) -> ScoredAutopilot:
         """The autopilot's estimate scored with hilnav's truth, outages, events and settling."""
-        flown = self.flown
-        assert flown is not None
+        assert self.flown is not None
         ap = self.scenario.autopilot
-        counters = dict(flown.counters)
-        counters["clipped_controls"] = flown.clipped_controls
-        counters["steps"] = flown.steps
-        track, health, problem = None, None, None
-        link = {"simulator": ap.link, "telemetry": ap.telemetry}
-        if self.telemetry is None:
-            problem = "no telemetry link configured (autopilot.telemetry: null)"
-        else:
-            counters.update({f"telemetry_{k}": v for k, v in self.telemetry.counters().items()})
-            health = self.telemetry.health()
-            try:
-                track = self.telemetry.estimate_track()
-            except ValueError as exc:
-                problem = str(exc)
-            if self.telemetry.error is not None:
-                problem = f"telemetry recorder stopped: {self.telemetry.error}"
-        return autopilot_section(
-            flown.autopilot, track, hilnav.truth, hilnav.outages, link=link,
-            counters=counters, stalled=flown.stalled, connected=flown.connected,
-            health=health, settle_s=SETTLE_S, events=events, problem=problem)
-
-
-def _close(backend: AutopilotBackend) -> None:
-    close = getattr(backend, "close", None)
-    if callable(close):
-        close()
+        return score_flown(self.flown, self.telemetry, hilnav.truth, hilnav.outages,
+                           link={"simulator": ap.link, "telemetry": ap.telemetry},
+                           settle_s=SETTLE_S, events=events)

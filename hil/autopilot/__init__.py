@@ -14,13 +14,14 @@ our JSBSim aircraft through its actuator commands.
 """
 
 from hil.autopilot.backend import AutopilotBackend, AutopilotFlown, fly_with_autopilot
-from hil.autopilot.factory import AUTOPILOT_KINDS, BackendSettings, make_backend
+from hil.autopilot.factory import AUTOPILOT_KINDS, BackendSettings, close_backend, make_backend
 
 __all__ = [
     "AUTOPILOT_KINDS",
     "AutopilotBackend",
     "AutopilotFlown",
     "BackendSettings",
+    "close_backend",
     "fly_with_autopilot",
     "make_backend",
 ]

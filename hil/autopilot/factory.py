@@ -15,7 +15,7 @@ from typing import Any, Final
 from hil.autopilot.backend import AutopilotBackend
 from hil.pipeline import SimSetup
 
-__all__ = ["AUTOPILOT_KINDS", "BackendSettings", "make_backend"]
+__all__ = ["AUTOPILOT_KINDS", "BackendSettings", "close_backend", "make_backend"]
 
 AUTOPILOT_KINDS: Final = ("px4", "ardupilot")
 """The autopilots that can fly (``none``, hilnav's guidance, needs no backend)."""
@@ -81,3 +81,10 @@ def make_backend(kind: str, settings: BackendSettings | None = None) -> Autopilo
                    else ardupilot.ArduPilotBackend(**kwargs))
         return backend
     raise ValueError(f"unknown autopilot {kind!r}; valid: {', '.join(AUTOPILOT_KINDS)}")
+
+
+def close_backend(backend: AutopilotBackend) -> None:
+    """Close a backend that holds sockets (the protocol does not require ``close``)."""
+    close = getattr(backend, "close", None)
+    if callable(close):
+        close()

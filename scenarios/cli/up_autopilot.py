@@ -28,6 +28,7 @@ from hil.autopilot import (
     AutopilotBackend,
     AutopilotFlown,
     BackendSettings,
+    close_backend,
     fly_with_autopilot,
     make_backend,
 )
@@ -36,7 +37,7 @@ from hil.link import LinkRole, MavlinkLink
 from hil.pipeline import SimSetup, SimStep
 from hil.tlog import TlogWriter
 from hil.tracks import Track
-from scenarios.autopilot_summary import autopilot_section
+from scenarios.autopilot_summary import score_flown
 from scenarios.cli.up import _DEFAULT_DURATION_S, _FUSION_IDLE_EXIT_S, Child, UpOptions, settle_s
 from scenarios.jsonable import write_json
 from scenarios.metrics import Window
@@ -101,8 +102,9 @@ def fly_autopilot(options: UpOptions, endpoint: str, port: int, children: list[C
 
         _wait_for_fusion(link, 30.0)
         name = options.autopilot if options.autopilot != "none" else backend.name
+        where = options.autopilot_link or getattr(backend, "url", "its default link")
         log(f"simulator     in this process: waiting up to {options.connect_timeout_s:g} s "
-            f"for {backend.name} on {options.autopilot_link or 'its default link'}"
+            f"for {backend.name} on {where}"
             + (f"; its estimate from {options.autopilot_telemetry}"
                if telemetry is not None else "") + f"; recording {out / 'run.tlog'}")
         if name in AUTOPILOT_SIDE_COMMANDS:
@@ -120,9 +122,7 @@ def fly_autopilot(options: UpOptions, endpoint: str, port: int, children: list[C
         finally:
             if telemetry is not None:
                 telemetry.stop()
-            close = getattr(backend, "close", None)
-            if callable(close):
-                close()
+            close_backend(backend)
     if flown is not None:
         log(_flown_line(flown))
         try:
@@ -181,23 +181,6 @@ def _section(options: UpOptions, summary: dict[str, Any], flown: AutopilotFlown,
     scorecard (found by the fusion service from the gaps of the same sensor stream)."""
     outages = [Window(float(o["start_s"]), float(o["end_s"]))
                for o in summary.get("outages") or []]
-    counters = {**flown.counters, "clipped_controls": flown.clipped_controls,
-                "steps": flown.steps}
-    track, health, problem = None, None, None
-    if telemetry is None:
-        problem = "no telemetry link (--autopilot-telemetry none)"
-    else:
-        counters.update({f"telemetry_{k}": v for k, v in telemetry.counters().items()})
-        health = telemetry.health()
-        try:
-            track = telemetry.estimate_track()
-        except ValueError as exc:
-            problem = str(exc)
-    if len(truths) < 2:
-        track, problem = None, problem or "the flight produced no truth to score against"
     link = {"simulator": options.autopilot_link, "telemetry": options.autopilot_telemetry}
-    return autopilot_section(
-        flown.autopilot, track, _truth_track(truths) if len(truths) >= 2 else _truth_track([]),
-        outages, link=link, counters=counters, stalled=flown.stalled,
-        connected=flown.connected, health=health, settle_s=settle_s(options),
-        problem=problem).section
+    return score_flown(flown, telemetry, _truth_track(truths) if len(truths) >= 2 else None,
+                       outages, link=link, settle_s=settle_s(options)).section

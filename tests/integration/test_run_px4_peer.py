@@ -8,22 +8,15 @@ from __future__ import annotations
 import json
 import math
 import os
-import socket
 import subprocess
 import sys
 from pathlib import Path
 
 from scenarios.cli.up import free_udp_port, stop_process
+from tests.helpers.processes import free_tcp_port
 from tests.helpers.px4_peer import PeerPlan, Px4Peer
 
 STANDARD_PLANE = Path(__file__).resolve().parents[2] / "docs/autopilot/px4-standard-plane.yaml"
-
-
-def _free_tcp_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
 
 
 def _scenario(tmp_path: Path, port: int, tport: int, *, stall_timeout_s: float) -> Path:
@@ -50,7 +43,7 @@ events:
 
 def _run_with_peer(tmp_path: Path, **peer_faults: float) -> tuple[subprocess.CompletedProcess[str],
                                                                    Px4Peer]:
-    port, tport = _free_tcp_port(), free_udp_port()
+    port, tport = free_tcp_port(), free_udp_port()
     scn = _scenario(tmp_path, port, tport, stall_timeout_s=1.0 if peer_faults else 20.0)
     proc = subprocess.Popen(
         [sys.executable, "-m", "scenarios.cli", "run", str(scn), "--out", str(tmp_path / "out"),

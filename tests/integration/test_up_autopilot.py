@@ -8,26 +8,19 @@ from __future__ import annotations
 import json
 import os
 import re
-import socket
 import subprocess
 import sys
 from pathlib import Path
 
 from scenarios.cli.up import free_udp_port, stop_process, wait_gone
+from tests.helpers.processes import free_tcp_port
 from tests.helpers.px4_peer import PeerPlan, Px4Peer
 
 _PID = re.compile(r"^(fusion|monitor)\s+pid (\d+):", re.M)
 
 
-def _free_tcp_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
-
-
 def test_up_px4_waits_for_px4_and_writes_the_side_by_side_scorecard(tmp_path: Path) -> None:
-    port, tport = _free_tcp_port(), free_udp_port()
+    port, tport = free_tcp_port(), free_udp_port()
     out = tmp_path / "up"
     proc = subprocess.Popen(
         [sys.executable, "-m", "scenarios.cli", "up", "--px4",
