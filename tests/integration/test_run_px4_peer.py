@@ -44,7 +44,8 @@ events:
 def _run_with_peer(tmp_path: Path, **peer_faults: float) -> tuple[subprocess.CompletedProcess[str],
                                                                    Px4Peer]:
     port, tport = free_tcp_port(), free_udp_port()
-    scn = _scenario(tmp_path, port, tport, stall_timeout_s=1.0 if peer_faults else 20.0)
+    # the stall timeout also bounds PX4's boot (paced at real time): 3 s leaves it room
+    scn = _scenario(tmp_path, port, tport, stall_timeout_s=3.0 if peer_faults else 20.0)
     proc = subprocess.Popen(
         [sys.executable, "-m", "scenarios.cli", "run", str(scn), "--out", str(tmp_path / "out"),
          "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -90,7 +91,7 @@ def test_a_px4_that_stops_sending_controls_fails_the_run(tmp_path: Path) -> None
     assert peer.errors == []
     # one clear line (after the line saying where it waited)
     (failed,) = [line for line in done.stderr.splitlines() if line.startswith("failed:")]
-    assert "PX4 sent no controls for 1 s (simulated time 70.00 s)" in failed
+    assert "PX4 sent no controls for 3 s (simulated time 70.00 s)" in failed
     assert "Traceback" not in done.stderr
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["autopilot"]["stalled"].startswith("PX4 sent no controls") and not s["passed"]
