@@ -149,11 +149,14 @@ def _parse_wind(text: str) -> tuple[float, float, float]:
 
 @dataclass(frozen=True)
 class SimStep:
-    """One simulator step: the truth, the sensor samples and the frames they became."""
+    """One simulator step: the truth, the sensor samples and the frames they became;
+    ``sensed``: the samples as sent, after the fault timeline (what an autopilot's sensors
+    read: :mod:`hil.autopilot.ardupilot` sends ArduPilot its IMU and airspeed from them)."""
 
     truth: Truth
     samples: Sequence[Sample]
     frames: list[Frame]
+    sensed: Sequence[Sample] = ()
 
 
 class SimChain:
@@ -229,7 +232,8 @@ class SimChain:
             reports = vehicle.step(truth.time_us, flight.vehicle_state)
             if reports:
                 samples = [*samples, *reports]
-            yield SimStep(truth, samples, streamer.frames(truth, samples))
+            frames = streamer.frames(truth, samples)
+            yield SimStep(truth, samples, frames, streamer.last_samples)
 
 
 @dataclass(frozen=True)

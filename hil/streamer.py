@@ -89,6 +89,9 @@ class SensorStreamer:
         self._gnss_off = tuple(gnss_off)
         self.gnss_suppressed = 0
         self.faults = faults
+        self.last_samples: Sequence[Sample] = ()
+        """The samples of the last :meth:`frames` call as sent: after the fault timeline (the
+        GNSS windows, which drop whole fixes, not applied)."""
 
     @property
     def fault_log(self) -> list[FaultLogEntry]:
@@ -104,6 +107,7 @@ class SensorStreamer:
         """Frames for one step: ``[(time_us, frame), ...]`` in emission order."""
         if self.faults is not None:
             samples = self.faults.apply(truth, samples)
+        self.last_samples = samples
         out: list[tuple[int, bytes]] = []
         imu: ImuSample | None = None
         baro: BaroSample | None = None

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from typing import Final
 
-from physconst import ISA_R_AIR_JPKGK
+from physconst import ISA_P0_PA, ISA_R_AIR_JPKGK, ISA_T0_K
 
 GAMMA_AIR: Final = 1.4
 """Ratio of specific heats of dry air (ISO 2533)."""
@@ -57,3 +57,9 @@ def true_airspeed_mps(
         return 0.0
     ratio = math.expm1(_K * math.log1p(impact_pressure_pa / static_pressure_pa))
     return math.sqrt(_M2 * ratio) * speed_of_sound_mps(temperature_k)
+
+
+def calibrated_airspeed_mps(impact_pressure_pa: float) -> float:
+    """Calibrated airspeed (m/s) of an impact pressure: the true airspeed that gives it in the
+    ISA sea-level atmosphere (what an airspeed indicator shows)."""
+    return true_airspeed_mps(impact_pressure_pa, ISA_P0_PA, ISA_T0_K)

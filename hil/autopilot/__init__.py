@@ -11,6 +11,10 @@ our JSBSim aircraft through its actuator commands.
   its kind (``px4``, ``ardupilot``) and settings.
 * :mod:`hil.autopilot.telemetry`: the autopilot's own estimate and health, recorded from its
   MAVLink telemetry (:class:`~hil.autopilot.telemetry.AutopilotTelemetry`).
+* :mod:`hil.autopilot.ardupilot`: ArduPilot SITL's JSON physics interface
+  (:class:`~hil.autopilot.ardupilot.ArduPilotBackend`), with :mod:`hil.autopilot.sitl_json`
+  (its bytes), :mod:`hil.autopilot.servos` (servo outputs -> controls) and
+  :mod:`hil.autopilot.sim_params` (the scenario's denial as SIM_* parameters over MAVLink).
 """
 
 from hil.autopilot.backend import AutopilotBackend, AutopilotFlown, fly_with_autopilot

@@ -12,8 +12,10 @@ UDP server of that exchange; :func:`hil.autopilot.fly_with_autopilot` runs it in
   again (``repeated_frames``). A frame count going backwards means ArduPilot restarted: it is
   reported once per restart (``restarts``, :attr:`ArduPilotBackend.warnings`) and flown on
   (the aircraft cannot be put back; ArduPilot's clock simply resumes at our timestamp).
-* ``send``: the state line of the step; parameter changes due by its simulated time go out
-  on ArduPilot's MAVLink port (``mavlink_url``; :mod:`hil.autopilot.sim_params`).
+* ``send``: the state line of the step (its IMU sample and the latest pitot airspeed as our
+  fusion gets them, so IMU and pitot faults reach ArduPilot too); parameter changes due by its
+  simulated time go out on ArduPilot's MAVLink port (``mavlink_url``;
+  :mod:`hil.autopilot.sim_params`) for what ArduPilot simulates itself (GPS, barometer).
 
 Bad input (counted in :meth:`counters`, never fatal): an unknown magic (``bad_magic``) or a
 known magic with the wrong length (``bad_size``) is ignored; an undriven mapped output (PWM 0)
@@ -46,7 +48,9 @@ from hil.autopilot.sitl_json import (
     parse_servo_packet,
 )
 from hil.pipeline import SimSetup, SimStep
+from physconst.airdata import calibrated_airspeed_mps
 from sim.faults.ardupilot import ardupilot_param_schedule, ardupilot_unmapped
+from sim.samples import AirspeedSample, ImuSample
 
 __all__ = ["DEFAULT_URL", "ArduPilotBackend", "parse_json_url"]
 
@@ -136,6 +140,8 @@ class ArduPilotBackend:
              "skipped_frames", "restarts", "bad_magic", "bad_size", "wrong_protocol",
              "pwm_clipped", "pwm_undriven", "send_errors"), 0)
         self.frame_rate_hz: int | None = None
+        self._airspeed_mps: float | None = None  # of the latest pitot sample (held between)
+        self._rate_hz = None if setup is None else setup.flight.rate_hz
 
     # -- setup --
     def _param_sender(self, setup: SimSetup, mavlink_url: str | None) -> SimParamSender | None:
@@ -214,7 +220,13 @@ class ArduPilotBackend:
         return servo.controls
 
     def send(self, step: SimStep) -> None:
-        line = json_state_line(step.truth, self.origin)
+        imu: ImuSample | None = None
+        for sample in step.sensed:
+            if isinstance(sample, ImuSample):
+                imu = sample
+            elif isinstance(sample, AirspeedSample):
+                self._airspeed_mps = calibrated_airspeed_mps(sample.diff_pressure_pa)
+        line = json_state_line(step.truth, self.origin, imu=imu, airspeed_mps=self._airspeed_mps)
         self._last_line = line
         self._counts["steps_answered"] += 1
         self._send(line)
@@ -268,6 +280,10 @@ class ArduPilotBackend:
         self._peer = address
         if self.frame_rate_hz != parsed.frame_rate_hz:
             self.frame_rate_hz = parsed.frame_rate_hz
+            if self._rate_hz is not None and parsed.frame_rate_hz != round(self._rate_hz):
+                self._warn(f"ArduPilot asks for {parsed.frame_rate_hz} Hz physics "
+                           f"(SIM_RATE_HZ); hilnav steps at {self._rate_hz:g} Hz: set "
+                           f"SIM_RATE_HZ {self._rate_hz:g}")
         last = self._frame_count
         if last is not None and parsed.frame_count == last:
             c["repeated_frames"] += 1

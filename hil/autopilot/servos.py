@@ -9,12 +9,14 @@ format and the surface names of ArduPilot's ``SERVOn_FUNCTION`` (aileron, elevat
 Signs (ArduPlane)
     ArduPlane writes each surface as a scaled output (``SRV_Channels::set_output_scaled``,
     +-4500) and turns it into PWM as ``trim + scaled / 4500 * (max - trim)`` (below the trim
-    with ``trim - min``), negated when ``SERVOn_REVERSED`` is set. A positive scaled aileron
-    demands roll right, a positive elevator nose up, a positive rudder nose right, so PWM
-    above the trim maps to PX4's positive roll / pitch / yaw (``reversed: true`` undoes a
-    reversed servo). The throttle is ``(pwm - min) / (max - min)``. These are ArduPlane's
-    conventions as documented; they have not been checked against a running ArduPlane here
-    (none can run on this machine), only against the protocol peer of the tests.
+    with ``trim - min``), negated when ``SERVOn_REVERSED`` is set. PWM above the trim is roll
+    right, nose up, nose right: that is what ArduPilot's own SITL plane, which ArduPlane's
+    default parameters fly with unreversed servos, does with it (``libraries/SITL/
+    SIM_Plane.cpp``: surface angle ``(pwm - 1500) / 500`` times ``c_l_deltaa = 0.25``,
+    ``c_m_deltae = 1.0``, ``c_n_deltar = 0.1``, all positive, in FRD moments). So PWM above
+    the trim maps to PX4's positive roll / pitch / yaw (``reversed: true`` undoes a reversed
+    servo). The throttle is ``(pwm - min) / (max - min)``. Read from ArduPilot's sources; not
+    checked against a running ArduPlane (none can run on this machine).
 
 YAML (``--servo-map FILE``)::
 

@@ -7,13 +7,15 @@ default) once the simulated time reaches it. ArduPilot answers every PARAM_SET w
 PARAM_VALUE of the parameter; those acknowledgements are counted (``params_acked``), and a
 PARAM_VALUE whose value differs from the one set (a parameter this ArduPilot does not have
 keeps answering nothing, a read-only one answers its own value) counts as ``params_rejected``.
-Sending never blocks the simulator: a PARAM_SET the link cannot take now is retried on the
-next step.
+Sending never blocks the simulator: a PARAM_SET the link cannot take now (not connected
+yet) is retried on the next step, in order (``params_send_failed`` counts each such change
+once).
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Sequence
 
 from hil.codec import mavlink2
@@ -52,7 +54,8 @@ class SimParamSender:
         self._schedule = list(schedule)
         self._next = 0
         self._target = (target_system, target_component)
-        self._pending: dict[str, float] = {}
+        self._pending: dict[str, deque[float]] = {}  # values set, not acknowledged yet
+        self._failed_at = -1
         self.sent = self.acked = self.rejected = self.send_failed = 0
 
     def close(self) -> None:
@@ -60,6 +63,7 @@ class SimParamSender:
 
     def advance(self, time_s: float) -> None:
         """Send everything due at or before ``time_s``; read acknowledgements (no waiting)."""
+        self.poll()
         while self._next < len(self._schedule) and self._schedule[self._next].time_s <= time_s:
             p = self._schedule[self._next]
             msg = mavlink2.MAVLink_param_set_message(
@@ -67,12 +71,13 @@ class SimParamSender:
                 int(mavlink2.MAV_PARAM_TYPE_REAL32),
             )
             if not self.link.send_message(msg):
-                self.send_failed += 1
+                if self._failed_at != self._next:  # count each change once, not each retry
+                    self.send_failed += 1
+                    self._failed_at = self._next
                 break  # retried on the next step, in order
             self.sent += 1
-            self._pending[p.name] = p.value
+            self._pending.setdefault(p.name, deque()).append(p.value)
             self._next += 1
-        self.poll()
 
     def poll(self, timeout_s: float = 0.0) -> None:
         """Read PARAM_VALUE acknowledgements (waiting up to ``timeout_s`` for the first)."""
@@ -81,9 +86,10 @@ class SimParamSender:
                 continue
             name = msg.param_id.rstrip("\x00") if isinstance(msg.param_id, str) else \
                 bytes(msg.param_id).rstrip(b"\x00").decode("ascii", "replace")
-            wanted = self._pending.pop(name, None)
-            if wanted is None:
-                continue
+            queue = self._pending.get(name)
+            if not queue:
+                continue  # not ours (a ground station's read, a duplicate)
+            wanted = queue.popleft()  # TCP keeps the order: the oldest set is answered first
             if math.isclose(float(msg.param_value), wanted, rel_tol=1e-6, abs_tol=1e-9):
                 self.acked += 1
             else:

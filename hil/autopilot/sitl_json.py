@@ -21,20 +21,25 @@ vectors as ``[x,y,z]``), so no key may be a prefix of an earlier key (we send no
 ``velocity_wind``, whose name starts with ``velocity``). Fields (SI, ArduPilot's frames):
 
     ==============  ==========================================================================
-    timestamp       simulated time since the flight start, s (``Truth.time_us`` / 1e6):
-                    ArduPilot's clock advances by its differences, so its ``time_boot_ms``
-                    is this time in ms (lockstep SITL: ``time_now_us`` starts at 0 and adds
-                    ``timestamp - last_timestamp`` each frame)
-    imu.gyro        body rates FRD, rad/s (``Truth.omega_b_rps``)
-    imu.accel_body  specific force FRD, m/s^2 (about [0, 0, -9.8] level)
+    timestamp       simulated time since the flight start, s (``Truth.time_us`` / 1e6).
+                    ArduPilot's clock is this time: SIM_JSON's ``recv_fdm`` adds
+                    ``timestamp - last_timestamp`` (``last_timestamp`` starting at 0) to the
+                    aircraft's ``time_now_us`` (0 at construction, ``SIM_Aircraft``), and
+                    lockstep SITL's HAL clock is stopped at ``time_now_us``; so its
+                    ``time_boot_ms`` x 1000 = our ``time_usec`` (to the ms). After a restart
+                    ArduPilot's clock jumps straight to our current timestamp
+    imu.gyro        body rates FRD, rad/s: the step's IMU sample (hilnav's IMU model and the
+                    scenario's IMU faults, as our fusion gets them; the truth without one)
+    imu.accel_body  specific force FRD, m/s^2 (about [0, 0, -9.8] level), the same way
     position        NED from the origin, m (down = -(alt MSL - origin alt)); ArduPilot turns
                     it into lat/lon with ``Location::offset`` from its home, so the origin
                     must be ArduPilot's home (``--home LAT,LON,ALT,HDG``)
     quaternion      [w, x, y, z] body -> NED (ArduPilot's q1..q4); used when present
     attitude        [roll, pitch, yaw] rad (for ArduPilot versions without ``quaternion``)
     velocity        NED, m/s (ground velocity)
-    airspeed        indicated (equivalent) airspeed, m/s: ArduPilot's simulated pitot
-                    turns it into a differential pressure as an EAS
+    airspeed        calibrated airspeed of the latest pitot sample (pitot faults included),
+                    else the truth's indicated airspeed, m/s: ArduPilot's simulated pitot
+                    turns it into a differential pressure
     ==============  ==========================================================================
 
 ArduPilot simulates its own barometer (from the position), compass (from the attitude), and
@@ -48,7 +53,8 @@ import struct
 from dataclasses import dataclass
 from typing import Final
 
-from sim.samples import Truth
+from sim.faults.ardupilot import LATLON_TO_M
+from sim.samples import ImuSample, Truth
 
 __all__ = [
     "LATLON_TO_M",
@@ -68,8 +74,6 @@ _PACKET_16 = struct.Struct("<HHI16H")
 _PACKET_32 = struct.Struct("<HHI32H")
 PACKET_SIZES: Final = {SERVO_MAGIC_16: _PACKET_16.size, SERVO_MAGIC_32: _PACKET_32.size}
 """Magic -> packet size, bytes (40, 72)."""
-LATLON_TO_M: Final = 0.011131884502145034
-"""Metres per 1e-7 degree of latitude, ArduPilot's ``LATLON_TO_M`` (its flat-earth offsets)."""
 _MAVLINK_STX = (0xFD, 0xFE)
 
 
@@ -131,16 +135,21 @@ def ned_from_origin(origin: JsonOrigin, lat_rad: float, lon_rad: float,
     return north, east, origin.alt_msl_m - alt_msl_m
 
 
-def json_state_line(truth: Truth, origin: JsonOrigin) -> bytes:
-    """The state line ArduPilot reads for ``truth`` (see the module docstring)."""
+def json_state_line(truth: Truth, origin: JsonOrigin, *, imu: ImuSample | None = None,
+                    airspeed_mps: float | None = None) -> bytes:
+    """The state line ArduPilot reads for ``truth`` (see the module docstring): its IMU is
+    ``imu`` (the IMU sample hilnav's own fusion gets, faults included) or else the truth's
+    rates and specific force; its airspeed ``airspeed_mps`` (the pitot's calibrated
+    airspeed) or else the truth's indicated airspeed."""
     n, e, d = ned_from_origin(origin, truth.lat_rad, truth.lon_rad, truth.alt_msl_m)
     w, x, y, z = (float(v) for v in truth.q_nb)
     roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
     pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
     yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    g = truth.omega_b_rps
-    f = truth.specific_force_b_mps2
+    g = truth.omega_b_rps if imu is None else imu.angular_rate_b_rps
+    f = truth.specific_force_b_mps2 if imu is None else imu.specific_force_b_mps2
     v = truth.v_ned_mps
+    airspeed = truth.indicated_airspeed_mps if airspeed_mps is None else airspeed_mps
     return (
         f'\n{{"timestamp":{truth.time_us / 1e6!r},'
         f'"imu":{{"gyro":[{float(g[0])!r},{float(g[1])!r},{float(g[2])!r}],'
@@ -149,5 +158,5 @@ def json_state_line(truth: Truth, origin: JsonOrigin) -> bytes:
         f'"quaternion":[{w!r},{x!r},{y!r},{z!r}],'
         f'"attitude":[{roll!r},{pitch!r},{yaw!r}],'
         f'"velocity":[{float(v[0])!r},{float(v[1])!r},{float(v[2])!r}],'
-        f'"airspeed":{float(truth.indicated_airspeed_mps)!r}}}\n'
+        f'"airspeed":{float(airspeed)!r}}}\n'
     ).encode("ascii")

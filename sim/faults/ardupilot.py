@@ -32,16 +32,17 @@ scenario touches is set to its default, so a previous run leaves nothing behind)
                             the pressure offset at the origin's ISA pressure [0]
     baro_drift,             ``SIM_BARO_GLITCH`` ramped every ``ramp_step_s``; a weather front
     weather_front           keeps its final offset after it ends
-    imu_bias_step (accel)   ``SIM_ACC1_BIAS_X/Y/Z`` (m/s^2) [0]
     ======================  ==================================================================
 
     Overlapping events add up (offsets, biases) or combine (ENABLE: any outage; ACC: the
     largest factor; LAG_MS: the largest latency; HZ: the lowest rate).
 
-Not mapped (:func:`ardupilot_unmapped` says why): baro_freeze, imu_bias_step of the gyro,
-imu_stuck, imu_saturation (ArduPilot's IMU is the JSON ``imu`` field: a frozen or clipped
-axis needs the backend to send it), mag_anomaly, pitot_blockage, pitot_drift,
-airspeed_failure (the JSON ``airspeed`` is the truth).
+Through the JSON line, not parameters (:data:`JSON_EVENTS`): the IMU events and the pitot
+blockage / drift (ArduPilot's IMU and airspeed are the JSON ``imu`` and ``airspeed``, which
+hil.autopilot.ardupilot fills from the faulted samples hilnav's fusion gets).
+
+Not mapped (:func:`ardupilot_unmapped` says why): baro_freeze, mag_anomaly,
+airspeed_failure.
 """
 
 from __future__ import annotations
@@ -62,20 +63,23 @@ from sim.faults.events import (
     GnssRate,
     GnssSpoofDrift,
     GnssSpoofHijack,
-    ImuBiasStep,
     WeatherFront,
     event_type_name,
 )
 
 __all__ = [
     "ARDUPILOT_DEFAULTS",
+    "JSON_EVENTS",
+    "LATLON_TO_M",
     "ParamSet",
     "ardupilot_param_schedule",
     "ardupilot_unmapped",
 ]
 
 LATLON_TO_M = 0.011131884502145034
-"""Metres per 1e-7 degree of latitude (ArduPilot's ``LATLON_TO_M``)."""
+"""Metres per 1e-7 degree of latitude: ArduPilot's ``LATLON_TO_M`` (``AP_Common/Location``),
+the scale of its flat-earth offsets (GPS glitches here, the JSON position in
+:mod:`hil.autopilot.sitl_json`)."""
 
 ARDUPILOT_DEFAULTS: dict[str, float] = {
     "SIM_GPS1_ENABLE": 1.0,
@@ -87,21 +91,21 @@ ARDUPILOT_DEFAULTS: dict[str, float] = {
     "SIM_GPS1_HZ": 5.0,
     "SIM_GPS1_ACC": 0.3,
     "SIM_BARO_GLITCH": 0.0,
-    "SIM_ACC1_BIAS_X": 0.0,
-    "SIM_ACC1_BIAS_Y": 0.0,
-    "SIM_ACC1_BIAS_Z": 0.0,
 }
 """ArduPilot's defaults of every parameter this module sets."""
 
-_UNMAPPED = {
+_IN_JSON = "reaches ArduPilot through the JSON state line, not a parameter"
+_NOT_MAPPED = {
     "baro_freeze": "ArduPilot SITL has no frozen-barometer parameter",
-    "imu_stuck": "ArduPilot's IMU is the JSON imu field; a stuck axis is not a SIM_ parameter",
-    "imu_saturation": "ArduPilot's IMU is the JSON imu field; clipping is not a SIM_ parameter",
     "mag_anomaly": "ArduPilot computes its compass from the attitude; no field offset mapped",
-    "pitot_blockage": "ArduPilot's airspeed is the JSON airspeed field (the truth)",
-    "pitot_drift": "ArduPilot's airspeed is the JSON airspeed field (the truth)",
-    "airspeed_failure": "ArduPilot's airspeed is the JSON airspeed field (the truth)",
+    "airspeed_failure": "the JSON airspeed cannot be absent: ArduPilot keeps reading the last "
+                        "pitot airspeed (a stuck sensor, not a failed one)",
 }
+"""Events that do not reach ArduPilot as they are, and why."""
+JSON_EVENTS = frozenset({"imu_bias_step", "imu_stuck", "imu_saturation", "pitot_blockage",
+                         "pitot_drift"})
+"""Events ArduPilot sees through the JSON state line (its ``imu`` is the faulted IMU sample,
+its ``airspeed`` the faulted pitot's), so no parameter is set for them."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,11 +118,9 @@ class ParamSet:
 
 
 def ardupilot_unmapped(event: FaultEvent) -> str | None:
-    """Why ``event`` does not reach ArduPilot, or None when it is mapped (fully or as the
-    module docstring says)."""
-    if isinstance(event, ImuBiasStep) and event.sensor == "gyro":
-        return "gyro bias steps are not mapped (only the accelerometer's SIM_ACC1_BIAS)"
-    return _UNMAPPED.get(event_type_name(event))
+    """Why ``event`` does not reach ArduPilot, or None when it does (by a parameter, as the
+    module docstring says, or through the JSON line: :data:`JSON_EVENTS`)."""
+    return _NOT_MAPPED.get(event_type_name(event))
 
 
 # A contribution to one parameter: (name, start_s, end_s or None, value(t) -> float | None).
@@ -203,8 +205,6 @@ def ardupilot_param_schedule(
             terms.append(("SIM_BARO_GLITCH", s, None if keep else e,
                           baro.ramp(s, end, ev.rate_pa_per_s)))
             ramps.append((s, end))
-        elif isinstance(ev, ImuBiasStep) and ev.sensor == "accel":
-            terms.append((f"SIM_ACC1_BIAS_{'XYZ'[ev.axis]}", s, e, _const(ev.value)))
     return _sample(terms, ramps, duration_s, ramp_step_s)
 
 

@@ -46,9 +46,11 @@ from hil.autopilot.servos import ServoMap
 from hil.autopilot.sitl_json import LATLON_TO_M, encode_servo_packet
 from hil.codec import mavlink2
 from hil.link import LinkRole, MavlinkLink
+from hil.pipeline import SimSetup
 from sim.faults.ardupilot import ARDUPILOT_DEFAULTS
+from sim.flight import Flight
 
-__all__ = ["ArduPilotPeer", "PeerPlan", "parse_sim_json"]
+__all__ = ["ArduPilotPeer", "PeerPlan", "parse_sim_json", "trimmed_controls"]
 
 # SIM_JSON's key table: (section, key, number of values, required)
 _KEYS = (
@@ -101,6 +103,13 @@ def parse_sim_json(line: str) -> dict[str, tuple[float, ...]] | None:
     if "attitude" not in out and "quaternion" not in out:
         return None
     return out
+
+
+def trimmed_controls(setup: SimSetup) -> tuple[float, ...]:
+    """The controls (PX4 order: roll, pitch, yaw, throttle) the aircraft of ``setup`` starts
+    trimmed with: a tuned ArduPlane's servo trims for the peer's ``trim``."""
+    with Flight(setup.flight.model_copy(update={"control": "external"}), setup.plan) as f:
+        return f.vehicle_state().controls[:4]
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from hil.autopilot.sitl_json import (
     ned_from_origin,
     parse_servo_packet,
 )
-from sim.samples import Truth
+from sim.samples import ImuSample, Truth
 from tests.helpers.ardupilot_peer import parse_sim_json
 
 
@@ -111,3 +111,15 @@ def test_a_line_without_a_mandatory_field_is_dropped_like_sim_json() -> None:
     # a space before a vector breaks SIM_JSON's reader (it skips exactly '":', then
     # sscanf("[%f, %f, %f]") needs the bracket)
     assert parse_sim_json(line.replace('"position":', '"position": ')) is None
+
+
+def test_the_imu_and_airspeed_can_be_the_sensors_hilnav_fuses() -> None:
+    truth = _truth()
+    imu = ImuSample(time_us=truth.time_us, dt_s=0.005,
+                    specific_force_b_mps2=np.array([0.5, 1.5, -9.0]),
+                    angular_rate_b_rps=np.array([0.2, 0.0, -0.1]))
+    line = json_state_line(truth, JsonOrigin(0.0, 0.0), imu=imu, airspeed_mps=0.0)
+    got = parse_sim_json(line.decode().strip())
+    assert got is not None
+    assert got["gyro"] == (0.2, 0.0, -0.1) and got["accel_body"] == (0.5, 1.5, -9.0)
+    assert got["airspeed"] == (0.0,)  # a blocked pitot reads no airspeed

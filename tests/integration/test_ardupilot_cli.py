@@ -15,8 +15,7 @@ from hil.pipeline import SimSetup
 from hil.tlog import read_tlog
 from scenarios.cli.app import app
 from scenarios.cli.up import stop_process
-from sim.flight import Flight
-from tests.helpers.ardupilot_peer import ArduPilotPeer
+from tests.helpers.ardupilot_peer import ArduPilotPeer, trimmed_controls
 from tests.helpers.processes import hilnav_process
 
 
@@ -49,9 +48,7 @@ def test_no_ardupilot_within_the_connect_timeout_exits_1(tmp_path: Path) -> None
 def test_sim_flies_with_the_ardupilot_peer_and_records_every_frame(tmp_path: Path) -> None:
     # GIVEN the peer's MAVLink port, and hilnav sim serving the JSON interface on a free port
     setup = SimSetup.build(duration_s=30.0, rate_hz=100.0, seed=5, gnss_off=["10:10"])
-    with Flight(setup.flight.model_copy(update={"control": "external"}), setup.plan) as f:
-        trim = f.vehicle_state().controls[:4]
-    peer = ArduPilotPeer(trim=trim, mavlink=True)
+    peer = ArduPilotPeer(trim=trimmed_controls(setup), mavlink=True)
     log, tlog = tmp_path / "sim.log", tmp_path / "run.tlog"
     proc = hilnav_process(
         "sim", "--ardupilot", "udpin:127.0.0.1:0", "--ardupilot-mavlink", peer.mavlink_url,

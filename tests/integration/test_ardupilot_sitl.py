@@ -5,6 +5,7 @@ parameters over its MAVLink port."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import socket
 import threading
@@ -19,8 +20,8 @@ from hil.autopilot.sitl_json import encode_servo_packet
 from hil.codec import mavlink2
 from hil.link import LinkRole, MavlinkLink
 from hil.pipeline import SimSetup
-from sim.flight import Flight
-from tests.helpers.ardupilot_peer import ArduPilotPeer, PeerPlan, parse_sim_json
+from sim.faults import GnssSpoofHijack, ImuBiasStep, PitotBlockage
+from tests.helpers.ardupilot_peer import ArduPilotPeer, PeerPlan, parse_sim_json, trimmed_controls
 
 HIL_GPS_ID = int(mavlink2.MAVLINK_MSG_ID_HIL_GPS)
 RATE_HZ = 100.0
@@ -28,12 +29,6 @@ RATE_HZ = 100.0
 
 def _setup(duration_s: float, gnss_off: tuple[str, ...] = ()) -> SimSetup:
     return SimSetup.build(duration_s=duration_s, rate_hz=RATE_HZ, seed=3, gnss_off=gnss_off)
-
-
-def _trim(setup: SimSetup) -> tuple[float, ...]:
-    """The controls the aircraft is trimmed with (a tuned ArduPlane's servo trims)."""
-    with Flight(setup.flight.model_copy(update={"control": "external"}), setup.plan) as f:
-        return f.vehicle_state().controls[:4]
 
 
 def _msg_id(frame: bytes) -> int:
@@ -66,8 +61,8 @@ def test_the_peer_flies_a_turn_while_its_gps_is_switched_off_by_parameter() -> N
         autopilot=int(mavlink2.MAV_AUTOPILOT_INVALID)))
     peer = ArduPilotPeer(
         telemetry_url=f"udpout:127.0.0.1:{telemetry.local_address[1]}",
-        plan=PeerPlan(headings=((60.0, 90.0),)), home=(47.0, 8.0, 0.0), trim=_trim(setup),
-        mavlink=True, channels=32)
+        plan=PeerPlan(headings=((60.0, 90.0),)), home=(47.0, 8.0, 0.0),
+        trim=trimmed_controls(setup), mavlink=True, channels=32)
     gnss_frames: list[int] = []
     telemetry_msgs: list = []
     with telemetry, ArduPilotBackend("udpin:127.0.0.1:0", setup=setup,
@@ -138,8 +133,9 @@ def test_a_repeated_frame_count_does_not_step_and_a_smaller_one_is_a_restart() -
         sock.send(encode_servo_packet(11, [1500, 1500, 1700, 1500]))
         second = _line(sock)
         assert second["timestamp"][0] == pytest.approx(first["timestamp"][0] + 1 / RATE_HZ)
-        sock.send(encode_servo_packet(0, [1500, 1500, 1700, 1500]))  # ArduPilot restarted
-        third = _line(sock)
+        with _client(backend) as restarted:  # a new ArduPilot process: a new source port
+            restarted.send(encode_servo_packet(0, [1500, 1500, 1700, 1500]))
+            third = _line(restarted)  # the answer follows the new sender
         assert third["timestamp"][0] == pytest.approx(second["timestamp"][0] + 1 / RATE_HZ)
         counters = backend.counters()
     assert counters["repeated_frames"] == 1 and counters["restarts"] == 1
@@ -147,10 +143,22 @@ def test_a_repeated_frame_count_does_not_step_and_a_smaller_one_is_a_restart() -
     assert any("restarted" in w for w in backend.warnings)
 
 
+def test_a_physics_rate_unlike_ours_is_one_warning() -> None:
+    setup = _setup(5.0)
+    with ArduPilotBackend("udpin:127.0.0.1:0", setup=setup) as backend, \
+            _client(backend) as sock, _flying(setup, backend, stall_timeout_s=5.0):
+        for frame in range(3):
+            sock.send(encode_servo_packet(frame, [1500, 1500, 1700, 1500], frame_rate_hz=400))
+            _line(sock)
+    assert backend.frame_rate_hz == 400
+    assert backend.warnings == ["ArduPilot asks for 400 Hz physics (SIM_RATE_HZ); hilnav "
+                                "steps at 100 Hz: set SIM_RATE_HZ 100"]
+
+
 def test_a_silent_autopilot_stalls_the_run_where_it_stopped() -> None:
     setup = _setup(30.0)
     with ArduPilotBackend("udpin:127.0.0.1:0") as backend:
-        peer = ArduPilotPeer(trim=_trim(setup), silent_after=120)
+        peer = ArduPilotPeer(trim=trimmed_controls(setup), silent_after=120)
         peer.start(f"udp:127.0.0.1:{backend.local_address[1]}")
         try:
             flown = fly_with_autopilot(setup, backend, stall_timeout_s=0.5)
@@ -196,3 +204,57 @@ def test_mavlink_on_the_json_port_gets_one_line_naming_what_was_expected() -> No
 def test_a_bad_url_is_one_clear_error(url: str) -> None:
     with pytest.raises(ValueError, match="expected udpin:HOST:PORT"):
         ArduPilotBackend(url)
+
+
+def test_imu_and_pitot_faults_reach_ardupilot_through_the_json_line() -> None:
+    # GIVEN an accelerometer bias step of +1 m/s^2 on x at 2 s and a pitot blocked at 3 s
+    setup = dataclasses.replace(_setup(4.0), faults=(
+        ImuBiasStep(start_s=2.0, sensor="accel", axis="x", value=1.0),
+        PitotBlockage(start_s=3.0, mode="zero"),
+    ))
+    lines = []
+    with ArduPilotBackend("udpin:127.0.0.1:0", setup=setup) as backend, \
+            _client(backend) as sock, _flying(setup, backend, stall_timeout_s=5.0) as out:
+        for frame in range(400):
+            sock.send(encode_servo_packet(frame, [1460, 1400, 1870, 1500],
+                                          frame_rate_hz=round(RATE_HZ)))
+            lines.append(_line(sock))
+    assert out["flown"].steps == 400
+    # THEN ArduPilot's accelerometer carries the bias from 2 s on (IMU noise averages out)
+    ax = [(line["timestamp"][0], line["accel_body"][0]) for line in lines]
+    before = [a for t, a in ax if 1.0 < t <= 2.0]
+    after = [a for t, a in ax if 2.0 < t <= 3.0]
+    assert sum(after) / len(after) - sum(before) / len(before) == pytest.approx(1.0, abs=0.15)
+    # AND its airspeed is the pitot's: flying before 3 s, nothing once the pitot is blocked
+    speeds = [(line["timestamp"][0], line["airspeed"][0]) for line in lines]
+    assert all(40.0 < v < 55.0 for t, v in speeds if 0.1 < t < 2.9)
+    assert all(v == 0.0 for t, v in speeds if t > 3.1)
+    # AND neither needed a parameter (nothing to send, so no MAVLink port was asked for)
+    assert backend.param_sender is None and not backend.warnings
+
+
+def test_a_hijack_spoof_moves_the_peers_gps_by_the_offset_in_metres() -> None:
+    # GIVEN a spoofed GNSS position 300 m north and 200 m west from 10 s to 30 s, played to
+    # ArduPilot as SIM_GPS1_GLTCH_X/Y in degrees
+    setup = dataclasses.replace(_setup(40.0), faults=(
+        GnssSpoofHijack(start_s=10.0, duration_s=20.0, offset_ned_m=(300.0, -200.0, 0.0)),))
+    peer = ArduPilotPeer(home=(47.0, 8.0, 0.0), trim=trimmed_controls(setup), mavlink=True,
+                         frame_rate_hz=round(RATE_HZ))
+    with ArduPilotBackend("udpin:127.0.0.1:0", setup=setup,
+                         mavlink_url=peer.mavlink_url) as backend:
+        peer.start(f"udp:127.0.0.1:{backend.local_address[1]}")
+        try:
+            flown = fly_with_autopilot(setup, backend, stall_timeout_s=10.0)
+        finally:
+            peer.stop()
+    assert peer.error is None and flown.steps == 40 * RATE_HZ
+    # THEN the peer's GPS-based position is off by that offset in metres while spoofed (its
+    # GPS lags 100 ms: ~5 m behind along the track north), and back afterwards
+    off = {round(a[0]): (a[1] - b[1], a[2] - b[2])
+           for a, b in zip(peer.track, peer.truth_track, strict=True)}
+    for t in (15, 20, 25):
+        assert off[t][0] == pytest.approx(300.0 - 5.0, abs=3.0)
+        assert off[t][1] == pytest.approx(-200.0, abs=3.0)
+    assert math.hypot(*off[35]) < 10.0
+    # X, Y, Z at their defaults at 0 s; X and Y at 10 s and back at 30 s (Z stays 0)
+    assert backend.counters()["params_acked"] == backend.counters()["params_sent"] == 7

@@ -9,6 +9,7 @@ import pytest
 from physconst import ISA_P0_PA, ISA_T0_K
 from physconst.airdata import (
     air_density_kgpm3,
+    calibrated_airspeed_mps,
     impact_pressure_pa,
     speed_of_sound_mps,
     true_airspeed_mps,
@@ -43,3 +44,12 @@ def test_no_flow_reads_zero_airspeed() -> None:
     assert true_airspeed_mps(0.0, ISA_P0_PA, ISA_T0_K) == 0.0
     assert true_airspeed_mps(-3.0, ISA_P0_PA, ISA_T0_K) == 0.0
     assert math.isfinite(true_airspeed_mps(1e-9, ISA_P0_PA, ISA_T0_K))
+
+
+def test_calibrated_airspeed_is_the_true_airspeed_at_isa_sea_level_and_less_aloft() -> None:
+    assert calibrated_airspeed_mps(impact_pressure_pa(50.0, ISA_P0_PA, ISA_T0_K)) == \
+        pytest.approx(50.0, rel=1e-12)
+    # at 3000 m (70.1 kPa, 268.7 K) 60 m/s true reads about 60 * sqrt(rho/rho0) ~ 51.6 m/s
+    cas = calibrated_airspeed_mps(impact_pressure_pa(60.0, 70108.5, 268.66))
+    assert 51.0 < cas < 52.5
+    assert calibrated_airspeed_mps(0.0) == 0.0

@@ -11,6 +11,7 @@ from sim.atmosphere import altitude_from_pressure, pressure_from_altitude
 from sim.faults import (
     AirspeedFailure,
     BaroDrift,
+    BaroFreeze,
     BaroGlitch,
     FaultEvent,
     GnssDegradation,
@@ -21,10 +22,11 @@ from sim.faults import (
     GnssSpoofDrift,
     GnssSpoofHijack,
     ImuBiasStep,
+    PitotBlockage,
     WeatherFront,
 )
 from sim.faults.ardupilot import (
-    ARDUPILOT_DEFAULTS,
+    JSON_EVENTS,
     LATLON_TO_M,
     ParamSet,
     ardupilot_param_schedule,
@@ -108,15 +110,16 @@ def test_baro_offsets_are_isa_altitude_offsets_and_add_up() -> None:
     assert max(glitch) == 52.0
 
 
-def test_accelerometer_bias_steps_map_and_the_rest_is_reported_unmapped() -> None:
-    accel = ImuBiasStep(start_s=3.0, duration_s=4.0, sensor="accel", axis="y", value=0.5)
-    gyro = ImuBiasStep(start_s=3.0, sensor="gyro", axis=0, value=0.01)
-    s = _schedule([accel, gyro, AirspeedFailure(start_s=1.0)])
-    assert _values(s, "SIM_ACC1_BIAS_Y") == [(0.0, 0.0), (3.0, 0.5), (7.0, 0.0)]
-    assert ardupilot_unmapped(accel) is None
-    assert "gyro" in (ardupilot_unmapped(gyro) or "")
-    assert "airspeed" in (ardupilot_unmapped(AirspeedFailure(start_s=1.0)) or "")
-    assert {p.name for p in s} <= set(ARDUPILOT_DEFAULTS)
+def test_imu_and_pitot_events_set_no_parameter_and_the_rest_is_reported_unmapped() -> None:
+    imu = ImuBiasStep(start_s=3.0, duration_s=4.0, sensor="accel", axis="y", value=0.5)
+    pitot = PitotBlockage(start_s=5.0, mode="zero")
+    freeze = BaroFreeze(start_s=1.0, duration_s=2.0)
+    s = _schedule([imu, pitot, freeze, AirspeedFailure(start_s=1.0)])
+    assert s == []  # the IMU and pitot reach ArduPilot through the JSON line
+    assert {"imu_bias_step", "pitot_blockage"} <= JSON_EVENTS
+    assert ardupilot_unmapped(imu) is None and ardupilot_unmapped(pitot) is None
+    assert "last pitot airspeed" in (ardupilot_unmapped(AirspeedFailure(start_s=1.0)) or "")
+    assert "frozen" in (ardupilot_unmapped(freeze) or "")
 
 
 def test_nothing_to_play_is_an_empty_schedule() -> None:
