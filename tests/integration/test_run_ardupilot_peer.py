@@ -12,8 +12,7 @@ from pathlib import Path
 from scenarios.cli.up import free_udp_port
 from scenarios.runner import run_scenario, sim_setup
 from scenarios.schema import load_scenario
-from sim.flight import Flight
-from tests.helpers.ardupilot_peer import ArduPilotPeer, PeerPlan
+from tests.helpers.ardupilot_peer import ArduPilotPeer, PeerPlan, trimmed_controls
 
 
 def test_run_scores_ardupilots_estimate_beside_hilnavs(tmp_path: Path) -> None:
@@ -41,9 +40,7 @@ events:
 
     # the peer is trimmed as a tuned ArduPlane (the aircraft's trim at the start); its MAVLink
     # port is named in the scenario; the run waits for it, then it flies
-    setup = sim_setup(load_scenario(scenario(None)))
-    with Flight(setup.flight.model_copy(update={"control": "external"}), setup.plan) as f:
-        trim = f.vehicle_state().controls[:4]
+    trim = trimmed_controls(sim_setup(load_scenario(scenario(None))))
     peer = ArduPilotPeer(telemetry_url=f"udpout:127.0.0.1:{tport}",
                          plan=PeerPlan(headings=((70.0, 90.0),)), home=(47.0, 8.0, 0.0),
                          trim=trim, mavlink=True)
