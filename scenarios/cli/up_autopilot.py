@@ -21,9 +21,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from fusion import rotations
 from hil.autopilot import (
     AutopilotBackend,
     AutopilotFlown,
@@ -36,7 +33,7 @@ from hil.autopilot.telemetry import AutopilotTelemetry
 from hil.link import LinkRole, MavlinkLink
 from hil.pipeline import SimSetup, SimStep
 from hil.tlog import TlogWriter
-from hil.tracks import Track
+from hil.tracks import truth_track
 from scenarios.autopilot_summary import score_flown
 from scenarios.cli.up import _DEFAULT_DURATION_S, _FUSION_IDLE_EXIT_S, Child, UpOptions, settle_s
 from scenarios.jsonable import write_json
@@ -164,17 +161,6 @@ def _flown_line(flown: AutopilotFlown) -> str:
             "clipped" + (f"; {flown.stalled}" if flown.stalled else ""))
 
 
-def _truth_track(truths: list[Truth]) -> Track:
-    return Track(
-        time_s=np.array([t.time_us for t in truths], dtype=np.float64) * 1e-6,
-        lat_rad=np.array([t.lat_rad for t in truths]),
-        lon_rad=np.array([t.lon_rad for t in truths]),
-        alt_m=np.array([t.alt_msl_m for t in truths]),
-        v_ned_mps=np.array([t.v_ned_mps for t in truths]).reshape(-1, 3),
-        euler_rad=rotations.quat_to_euler(np.array([t.q_nb for t in truths]).reshape(-1, 4)),
-    )
-
-
 def _section(options: UpOptions, summary: dict[str, Any], flown: AutopilotFlown,
              telemetry: AutopilotTelemetry | None, truths: list[Truth]) -> dict[str, Any]:
     """The autopilot's estimate scored with the truth flown here and the outages of the live
@@ -182,5 +168,5 @@ def _section(options: UpOptions, summary: dict[str, Any], flown: AutopilotFlown,
     outages = [Window(float(o["start_s"]), float(o["end_s"]))
                for o in summary.get("outages") or []]
     link = {"simulator": options.autopilot_link, "telemetry": options.autopilot_telemetry}
-    return score_flown(flown, telemetry, _truth_track(truths) if len(truths) >= 2 else None,
+    return score_flown(flown, telemetry, truth_track(truths) if len(truths) >= 2 else None,
                        outages, link=link, settle_s=settle_s(options)).section

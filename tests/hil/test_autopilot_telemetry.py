@@ -14,7 +14,7 @@ from hil.autopilot.telemetry import AutopilotTelemetry
 from hil.codec import mavlink2
 from hil.link import LinkRole, MavlinkLink
 from hil.pipeline import SimChain, SimSetup
-from hil.tracks import Track
+from hil.tracks import Track, truth_track
 from scenarios.autopilot_summary import autopilot_section
 from scenarios.metrics import Window
 from sim.samples import Truth
@@ -30,19 +30,6 @@ def truths() -> list[Truth]:
     setup = SimSetup.build(duration_s=60.0, rate_hz=100.0, seed=5)
     with SimChain(setup) as chain:
         return [step.truth for step in chain.steps()]
-
-
-def _truth_track(truths: list[Truth]) -> Track:
-    from fusion import rotations
-
-    return Track(
-        time_s=np.array([t.time_us for t in truths], dtype=float) * 1e-6,
-        lat_rad=np.array([t.lat_rad for t in truths]),
-        lon_rad=np.array([t.lon_rad for t in truths]),
-        alt_m=np.array([t.alt_msl_m for t in truths]),
-        v_ned_mps=np.array([t.v_ned_mps for t in truths]),
-        euler_rad=rotations.quat_to_euler(np.array([t.q_nb for t in truths])),
-    )
 
 
 def _wait(cond: object, timeout_s: float = 10.0) -> None:
@@ -90,7 +77,7 @@ def test_the_recorder_keeps_every_report_on_the_simulated_time_axis(
 
 def test_the_scorecard_measures_the_known_error_of_the_autopilot_estimate(
         recorded: AutopilotTelemetry, truths: list[Truth]) -> None:
-    truth = _truth_track(truths)
+    truth = truth_track(truths)
     scored = autopilot_section(
         "PX4", recorded.estimate_track(), truth, [Window(*OUTAGE)],
         link={"telemetry": recorded.url}, counters=recorded.counters(), stalled=None,
