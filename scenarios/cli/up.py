@@ -242,6 +242,9 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print,
                    duration_s=options.duration_s or _DEFAULT_DURATION_S)
     build_filter(filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
                                options.airspeed, options.align), options.bridge)
+    if options.autopilot != "none" and options.lockstep:
+        raise ValueError("--lockstep paces the simulator against the fusion; with --px4 / "
+                         "--ardupilot the autopilot sets the pace (lockstep with it)")
     if options.autopilot != "none" and backend is None:
         from scenarios.cli.up_autopilot import up_backend
 

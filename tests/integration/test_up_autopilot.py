@@ -12,6 +12,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from scenarios.cli.up import free_udp_port, stop_process, wait_gone
 from tests.helpers.processes import free_tcp_port
 from tests.helpers.px4_peer import PeerPlan, Px4Peer
@@ -53,3 +55,22 @@ def test_up_px4_waits_for_px4_and_writes_the_side_by_side_scorecard(tmp_path: Pa
     assert (theirs["start_s"], theirs["end_s"]) == (mine["start_s"], mine["end_s"])
     assert "hilnav vs PX4" in text
     assert (out / "run.tlog").stat().st_size > 0
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["--px4", "--ardupilot"], "give --px4 or --ardupilot, not both"),
+    (["--autopilot-link", "tcpin:127.0.0.1:4560"], "--autopilot-link needs --px4 or --ardupilot"),
+    (["--px4", "--lockstep"], "the autopilot sets the pace"),
+    (["--px4", "--autopilot-link", "tcpin:no-such-host.invalid:4560"], "no-such-host"),
+    (["--ardupilot", "--autopilot-link", "tcpin:127.0.0.1:9002"], "udp"),
+])
+def test_bad_autopilot_options_are_one_line_and_start_nothing(
+        tmp_path: Path, args: list[str], needle: str) -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "scenarios.cli", "up", *args, "--duration", "10", "--out",
+         str(tmp_path / "up")], capture_output=True, text=True, timeout=120, check=False,
+        env={**os.environ, "COLUMNS": "200"})
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], proc.stderr
+    assert "pid" not in proc.stdout  # nothing was started
