@@ -53,6 +53,9 @@ def compare(
         make_bridge(m)
     if not seeds:
         raise ValueError("need at least one seed")
+    if scenario.autopilot.flies:
+        raise ValueError(f"{scenario.name}: autopilot: {scenario.autopilot.kind} needs the "
+                         "autopilot connected; fly it with `hilnav run`, not `compare`")
     altitude = altitude or scenario.fusion.altitude
     out_dir.mkdir(parents=True, exist_ok=True)
     runs: dict[str, list[dict[str, Any]]] = {m: [] for m in methods}

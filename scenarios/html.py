@@ -160,6 +160,63 @@ def _plots(plots: Sequence[Path] | Mapping[str, Path]) -> str:
     return "".join(out)
 
 
+def side_by_side_rows(summary: Mapping[str, Any]) -> list[tuple[str, Any, Any]]:
+    """``(figure, hilnav's value, the autopilot's value)`` rows of a run with an autopilot in
+    the loop (its ``autopilot`` section): GNSS-on accuracy, then per outage (matched by start)
+    the horizontal RMSE / max / error at 10, 30, 60 s, CEP50 / 95, vertical RMSE and
+    re-convergence. Empty without an autopilot section."""
+    ap = summary.get("autopilot")
+    if not ap:
+        return []
+    rows: list[tuple[str, Any, Any]] = []
+    on_h, on_a = summary.get("gnss_on") or {}, ap.get("gnss_on") or {}
+    for key, label in (("horizontal_rmse_m", "horizontal RMSE (m)"),
+                       ("vertical_rmse_m", "vertical RMSE (m)"),
+                       ("roll_rmse_deg", "roll RMSE (deg)"), ("pitch_rmse_deg", "pitch RMSE (deg)"),
+                       ("yaw_rmse_deg", "yaw RMSE (deg)")):
+        rows.append((f"GNSS on: {label}", on_h.get(key), on_a.get(key)))
+    theirs = {round(o["start_s"], 3): o for o in ap.get("outages") or []}
+    for i, o in enumerate(summary.get("outages") or []):
+        a = theirs.get(round(o["start_s"], 3), {})
+        name = f"outage {i + 1} ({o['start_s']:.0f}-{o['end_s']:.0f} s)"
+        for key, label in (("horizontal_rmse_m", "horizontal RMSE (m)"),
+                           ("horizontal_max_m", "horizontal max (m)"),
+                           ("cep50_m", "CEP50 (m)"), ("cep95_m", "CEP95 (m)"),
+                           ("vertical_rmse_m", "vertical RMSE (m)"),
+                           ("reconverge_s", "re-converged after (s)")):
+            rows.append((f"{name}: {label}", o.get(key), a.get(key)))
+        for at in ("10", "30", "60"):
+            rows.append((f"{name}: horizontal error at {at} s (m)",
+                         (o.get("horizontal_error_m_at") or {}).get(at),
+                         (a.get("horizontal_error_m_at") or {}).get(at)))
+    return rows
+
+
+def _autopilot(summary: Mapping[str, Any]) -> str:
+    ap = summary["autopilot"]
+    source = _e(ap.get("source"))
+    state = [f"connected: {_num(ap.get('connected'))}",
+             f"stalled: {_e(ap.get('stalled') or 'no')}"]
+    if ap.get("problem"):
+        state.append(f"not scored: {_e(ap['problem'])}")
+    rows = [[_e(name), _num(h), _num(a)] for name, h, a in side_by_side_rows(summary)]
+    health = ap.get("health") or {}
+    texts = [f"{_num(t.get('time_s'), '.1f')} s: {_e(t.get('text'))}"
+             for t in health.get("warnings") or []]
+    est = health.get("estimator") or {}
+    return "".join([
+        f"<p>{source}: {' · '.join(state)}</p>",
+        _table(["figure", "hilnav", source], rows),
+        "<p>No NEES for the autopilot: its telemetry carries no covariance of the nine "
+        "navigation errors.</p>",
+        f"<p>{source} declared its absolute horizontal position lost at "
+        f"{_e(est.get('pos_horiz_abs_lost_s') or '–')} s, regained at "
+        f"{_e(est.get('pos_horiz_abs_regained_s') or '–')} s.</p>",
+        "<p>Warnings and failsafes: " + ("; ".join(texts) if texts else "none") + "</p>",
+        _kv({"counters": ap.get("counters") or {}, "link": ap.get("link") or {}}),
+    ])
+
+
 def render_html(summary: Mapping[str, Any], plots: Sequence[Path] | Mapping[str, Path]) -> str:
     """The page as a string (see :func:`write_html`)."""
     passed = bool(summary.get("passed"))
@@ -184,6 +241,8 @@ def render_html(summary: Mapping[str, Any], plots: Sequence[Path] | Mapping[str,
              "containment_3sigma": summary.get("containment_3sigma") or {}}),
         "<h2>Health counters</h2>", _kv(summary.get("health") or {}),
     ]
+    if summary.get("autopilot"):
+        parts += ["<h2>Both estimates on one scorecard</h2>", _autopilot(summary)]
     if summary.get("rejections_outside_events"):
         parts += ["<h2>Rejections outside outages and events</h2>",
                   _kv(summary["rejections_outside_events"])]

@@ -237,6 +237,44 @@ def plot_drift_compare(
     fig.savefig(path, dpi=100)
 
 
+def plot_side_by_side(truth: Track, hilnav: Track, hilnav_err: Errors, autopilot_track: Track,
+                      autopilot_err: Errors, outages: list[Window], path: Path, *,
+                      autopilot: str = "autopilot") -> None:
+    """Truth, hilnav's estimate and the autopilot's through the same denial: the ground
+    tracks (left), horizontal and height errors of both estimates vs time with the outages
+    shaded (right)."""
+    fig = Figure(figsize=(15, 7))
+    grid = fig.add_gridspec(2, 2, width_ratios=(1.0, 1.4))
+    ax_t = fig.add_subplot(grid[:, 0])
+    lat0, lon0, h0 = truth.lat_rad[0], truth.lon_rad[0], truth.alt_m[0]
+    for track, label, color, lw in ((truth, "truth", "k", 1.4), (hilnav, "hilnav", "tab:blue",
+                                     0.9), (autopilot_track, autopilot, "tab:green", 0.9)):
+        n, e = _local_ne(track, lat0, lon0, h0)
+        ax_t.plot(e, n, color=color, lw=lw, label=label)
+    ax_t.set_xlabel("east (m)")
+    ax_t.set_ylabel("north (m)")
+    ax_t.set_aspect("equal", adjustable="datalim")
+    ax_t.grid(alpha=0.3)
+    ax_t.legend(loc="best")
+    ax_t.set_title("Ground track")
+    a1 = fig.add_subplot(grid[0, 1])
+    a2 = fig.add_subplot(grid[1, 1], sharex=a1)
+    for err, label, color in ((hilnav_err, "hilnav", "tab:blue"),
+                              (autopilot_err, autopilot, "tab:green")):
+        a1.plot(err.time_s, err.horizontal_m, lw=0.9, color=color, label=label)
+        a2.plot(err.time_s, -err.pos_ned_m[:, 2], lw=0.9, color=color, label=label)
+    for ax, label in ((a1, "horizontal error (m)"), (a2, "height error (m)")):
+        _shade(ax, outages)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper left", fontsize=8)
+    a1.set_ylim(bottom=0.0)
+    a2.set_xlabel("time (s)")
+    fig.suptitle(f"truth, hilnav and {autopilot} through the same GNSS denial", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+
+
 def write_plots(estimate: Track, truth: Track, err: Errors, outages: list[Window],
                 out_dir: Path, *, events: Sequence[EventLike] = (),
                 reference_label: str = "truth") -> list[Path]:

@@ -5,6 +5,13 @@ timeline) -> MAVLink 2 bytes (the same encoder the live path uses) -> ``run.tlog
 memory, the decoder -> NavFilter with the scenario's bridging and altitude methods. The same
 scenario and seed give the same bytes and the same numbers on every machine.
 
+With ``autopilot: px4 | ardupilot`` the autopilot flies instead of hilnav's guidance: the one
+autopilot loop (:func:`hil.autopilot.fly_with_autopilot`) runs the same sensor chain in lockstep
+with the autopilot, every frame goes to the same fusion and ``run.tlog``, the autopilot's own
+estimate is recorded from its telemetry (:class:`hil.autopilot.telemetry.AutopilotTelemetry`)
+and scored beside hilnav's (``summary.json``'s ``autopilot`` section,
+:mod:`scenarios.autopilot_summary`). A stalled autopilot fails the run and says so.
+
 The flight and the fusion are the pipeline's (:mod:`hil.pipeline`); this module turns a
 :class:`~scenarios.schema.Scenario` into its :class:`~hil.pipeline.SimSetup` and filter, scores
 the run with the one scorer (:func:`scenarios.summary.score_run`) and writes the run folder.
@@ -21,15 +28,29 @@ from pathlib import Path
 from typing import Any
 
 from fusion.config import FilterConfig
-from hil.pipeline import Flown, FusionRun, SimSetup, build_filter, fly, tee
+from hil.autopilot import (
+    AutopilotBackend,
+    AutopilotFlown,
+    BackendSettings,
+    close_backend,
+    fly_with_autopilot,
+    make_backend,
+)
+from hil.autopilot.telemetry import AutopilotTelemetry
+from hil.pipeline import Flown, FrameSink, FusionRun, SimSetup, build_filter, fly, tee
 from hil.pipeline import filter_config as pipeline_filter_config
 from hil.tlog import TlogWriter
+from scenarios.autopilot_summary import ScoredAutopilot, score_flown
 from scenarios.jsonable import plain_dict
 from scenarios.schema import Scenario
 from scenarios.summary import RunInfo, Scored, score_run, write_summary
 from sim.faults.events import event_type_name
 
 ProgressFn = Callable[[float], None]
+
+SETTLE_S = 60.0
+"""Seconds after the start and after each outage / event left out of the GNSS-on figures
+(hilnav's and the autopilot's alike)."""
 
 #: Event types whose effect on the navigation is scored as an event (time to detect etc.).
 _SCORED_EVENT_KINDS = {
@@ -38,6 +59,10 @@ _SCORED_EVENT_KINDS = {
     "gnss_jamming": "jamming",
     "baro_glitch": "glitch",
 }
+
+
+class AutopilotAbsent(RuntimeError):
+    """The autopilot never connected, or stalled before there was anything to score."""
 
 
 @dataclass(frozen=True)
@@ -104,17 +129,25 @@ def score(
     wall_s: float,
     health_extra: dict[str, Any] | None = None,
     reports: bool = True,
+    autopilot: AutopilotRun | None = None,
 ) -> tuple[dict[str, Any], list[Path]]:
-    """Build ``summary.json`` (+ JUnit XML, plots and HTML when ``reports``) in ``out_dir``."""
+    """Build ``summary.json`` (+ JUnit XML, plots and HTML when ``reports``) in ``out_dir``;
+    with ``autopilot``, its estimate scored beside hilnav's (the ``autopilot`` section)."""
     col = run.collector
     assert col is not None
     end_s = col.end_s()
     info = RunInfo(scenario=scenario.name, seed=scenario.seed, sim_duration_s=sim_duration_s,
                    wall_s=wall_s, bridge=bridge, altitude=altitude)
-    scored: Scored = score_run(run, info, criteria=scenario.criteria(),
-                               events=event_windows(scenario, end_s),
-                               health_extra=health_extra, with_series=True)
+    events = event_windows(scenario, end_s)
+    scored: Scored = score_run(run, info, criteria=scenario.criteria(), events=events,
+                               health_extra=health_extra, with_series=True, settle_s=SETTLE_S)
     summary = scored.summary
+    side: ScoredAutopilot | None = None
+    if autopilot is not None:
+        side = autopilot.score(scored, events)
+        summary["autopilot"] = side.section
+        if autopilot.failed:
+            summary["passed"] = False  # a stalled or absent autopilot fails the run
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [out_dir / "summary.json"]
     write_summary(summary, files[0])
@@ -127,6 +160,14 @@ def score(
         write_junit(summary, junit, suite_name=f"hilnav.{scenario.name}")
         plots = write_plots(scored.estimate, scored.truth, scored.errors, scored.outages,
                             out_dir, events=summary["events"])
+        if side is not None and side.track is not None and side.errors is not None:
+            from scenarios.report import plot_side_by_side
+
+            path = out_dir / "autopilot_side_by_side.png"
+            plot_side_by_side(scored.truth, scored.estimate, scored.errors, side.track,
+                              side.errors, scored.outages, path,
+                              autopilot=str(side.section["source"]))
+            plots.append(path)
         html = out_dir / "report.html"
         write_html(summary, plots, html)
         files += [junit, *plots, html]
@@ -142,8 +183,14 @@ def run_scenario(
     progress: ProgressFn | None = None,
     tlog: bool = True,
     reports: bool = True,
+    backend: AutopilotBackend | None = None,
 ) -> RunResult:
-    """Fly, fuse and score one scenario (seed and overrides already applied to ``scenario``)."""
+    """Fly, fuse and score one scenario (seed and overrides already applied to ``scenario``).
+
+    With ``autopilot: px4 | ardupilot`` (or a ``backend`` given, e.g. by a test) the autopilot
+    flies (:class:`AutopilotRun`); :class:`AutopilotAbsent` when it never connects, or stalls
+    before hilnav has an estimate to score.
+    """
     bridge = bridge or scenario.fusion.bridge
     altitude = altitude or scenario.fusion.altitude
     config = filter_config(scenario, altitude)
@@ -151,13 +198,20 @@ def run_scenario(
     out_dir.mkdir(parents=True, exist_ok=True)
     log_path = out_dir / "run.tlog"
     fusion = FusionRun(config, bridge, nav=nav)
+    flies = backend is not None or scenario.autopilot.flies
+    ap_run = AutopilotRun.open(scenario, backend) if flies else None
     t0 = time.perf_counter()
+
+    def fly_into(sink: FrameSink) -> Flown:
+        if ap_run is not None:
+            return ap_run.fly(sink, progress)
+        return simulate(scenario, sink, progress=progress)
+
     if tlog:
         with TlogWriter(log_path) as log:
-            flown = simulate(scenario, tee(lambda t, f: log.write(f, t), fusion),
-                             progress=progress)
+            flown = fly_into(tee(lambda t, f: log.write(f, t), fusion))
     else:
-        flown = simulate(scenario, fusion, progress=progress)
+        flown = fly_into(fusion)
     wall = time.perf_counter() - t0
     extra: dict[str, Any] = {
         "faults": flown.fault_counters,
@@ -166,10 +220,12 @@ def run_scenario(
     }
     if flown.ended is not None:
         extra["flight_ended"] = str(flown.ended)
+    if ap_run is not None:
+        ap_run.check_scorable(fusion)
     summary, files = score(
         scenario, fusion, out_dir, bridge=bridge, altitude=altitude,
         sim_duration_s=flown.sim_duration_s, wall_s=wall, health_extra=extra,
-        reports=reports)
+        reports=reports, autopilot=ap_run)
     if flown.ended is not None:
         # a crash is a failed run whatever the criteria say
         summary["passed"] = False
@@ -177,3 +233,82 @@ def run_scenario(
     if tlog:
         files.insert(1, log_path)
     return RunResult(summary, out_dir, files)
+
+
+class AutopilotRun:
+    """An autopilot at the controls of one run: its backend, its telemetry recorder and what
+    the flight with it produced (:meth:`open`, :meth:`fly`, :meth:`score`)."""
+
+    def __init__(self, scenario: Scenario, backend: AutopilotBackend,
+                 telemetry: AutopilotTelemetry | None) -> None:
+        self.scenario = scenario
+        self.backend = backend
+        self.telemetry = telemetry
+        self.flown: AutopilotFlown | None = None
+
+    @classmethod
+    def open(cls, scenario: Scenario, backend: AutopilotBackend | None = None) -> AutopilotRun:
+        """Build the scenario's backend (:func:`hil.autopilot.make_backend`, unless one is
+        given) and start recording its telemetry. ValueError: a bad setting or URL."""
+        ap = scenario.autopilot
+        if backend is None:
+            backend = make_backend(ap.kind, BackendSettings(
+                link=ap.link, actuator_map=scenario.autopilot_path(ap.actuator_map),
+                servo_map=scenario.autopilot_path(ap.servo_map), mavlink=ap.mavlink,
+                setup=sim_setup(scenario)))
+        telemetry = None
+        if ap.telemetry is not None:
+            try:
+                telemetry = AutopilotTelemetry(ap.telemetry, rate_hz=ap.telemetry_rate_hz)
+            except ValueError as exc:
+                close_backend(backend)
+                raise ValueError(f"autopilot telemetry {ap.telemetry}: {exc}") from None
+        return cls(scenario, backend, telemetry)
+
+    def fly(self, sink: FrameSink, progress: ProgressFn | None = None) -> Flown:
+        """Fly the scenario with the autopilot at the controls, every frame into ``sink``."""
+        ap = self.scenario.autopilot
+        if self.telemetry is not None:
+            self.telemetry.start()
+        setup = sim_setup(self.scenario)
+        try:
+            flown = fly_with_autopilot(
+                setup, self.backend, on_frame=sink, speed=ap.speed,
+                connect_timeout_s=ap.connect_timeout_s, stall_timeout_s=ap.stall_timeout_s,
+                progress=progress)
+        finally:
+            if self.telemetry is not None:
+                self.telemetry.stop()
+            close_backend(self.backend)
+        self.flown = flown
+        if not flown.connected:
+            raise AutopilotAbsent(
+                f"{flown.autopilot} did not connect within {ap.connect_timeout_s:g} s "
+                f"(link {ap.link or 'the backend default'})")
+        return Flown(flown.sim_duration_s, flown.wall_s, flown.frames, flown.ended,
+                     flown.fault_log, flown.fault_counters)
+
+    @property
+    def failed(self) -> bool:
+        """The autopilot stalled (stopped sending controls) or never connected."""
+        return self.flown is None or not self.flown.connected or self.flown.stalled is not None
+
+    def check_scorable(self, fusion: FusionRun) -> None:
+        """AutopilotAbsent when a stall left hilnav nothing to score."""
+        col = fusion.collector
+        try:
+            if col is not None:
+                col.end_s()
+        except ValueError as exc:
+            stalled = self.flown.stalled if self.flown is not None else None
+            if stalled is None:
+                raise
+            raise AutopilotAbsent(f"{stalled}; nothing to score: {exc}") from None
+
+    def score(self, hilnav: Scored, events: list[dict[str, Any]]) -> ScoredAutopilot:
+        """The autopilot's estimate scored with hilnav's truth, outages, events and settling."""
+        assert self.flown is not None
+        ap = self.scenario.autopilot
+        return score_flown(self.flown, self.telemetry, hilnav.truth, hilnav.outages,
+                           link={"simulator": ap.link, "telemetry": ap.telemetry},
+                           settle_s=SETTLE_S, events=events)

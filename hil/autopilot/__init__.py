@@ -7,6 +7,10 @@ our JSBSim aircraft through its actuator commands.
   HIL_ACTUATOR_CONTROLS channels -> the aircraft's controls (YAML per airframe).
 * :mod:`hil.autopilot.px4`: :class:`~hil.autopilot.px4.Px4Backend`, the simulator side of
   PX4's simulator MAVLink interface (SITL over TCP, HITL over serial).
+* :mod:`hil.autopilot.factory`: :func:`make_backend`, the one place a backend is built from
+  its kind (``px4``, ``ardupilot``) and settings.
+* :mod:`hil.autopilot.telemetry`: the autopilot's own estimate and health, recorded from its
+  MAVLink telemetry (:class:`~hil.autopilot.telemetry.AutopilotTelemetry`).
 * :mod:`hil.autopilot.ardupilot`: ArduPilot SITL's JSON physics interface
   (:class:`~hil.autopilot.ardupilot.ArduPilotBackend`), with :mod:`hil.autopilot.sitl_json`
   (its bytes), :mod:`hil.autopilot.servos` (servo outputs -> controls) and
@@ -14,5 +18,14 @@ our JSBSim aircraft through its actuator commands.
 """
 
 from hil.autopilot.backend import AutopilotBackend, AutopilotFlown, fly_with_autopilot
+from hil.autopilot.factory import AUTOPILOT_KINDS, BackendSettings, close_backend, make_backend
 
-__all__ = ["AutopilotBackend", "AutopilotFlown", "fly_with_autopilot"]
+__all__ = [
+    "AUTOPILOT_KINDS",
+    "AutopilotBackend",
+    "AutopilotFlown",
+    "BackendSettings",
+    "close_backend",
+    "fly_with_autopilot",
+    "make_backend",
+]

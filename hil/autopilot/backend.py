@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from hil.pipeline import FrameSink, ProgressFn, SimChain, SimSetup, SimStep
+from sim.faults import FaultLogEntry
 from sim.flight import FlightEnded
 
 __all__ = ["AutopilotBackend", "AutopilotFlown", "fly_with_autopilot"]
@@ -81,6 +82,9 @@ class AutopilotFlown:
     stopped: bool
     clipped_controls: int
     counters: dict[str, int] = field(default_factory=dict)
+    fault_log: list[FaultLogEntry] = field(default_factory=list)
+    """The fault injector's event starts and ends (as :attr:`hil.pipeline.Flown.fault_log`)."""
+    fault_counters: dict[str, int] = field(default_factory=dict)
 
     @property
     def realtime_factor(self) -> float:
@@ -167,6 +171,7 @@ def fly_with_autopilot(
         return AutopilotFlown(
             backend.name, True, chain.sim_duration_s, time.monotonic() - wall0, steps, frames,
             chain.ended, stalled, stop.is_set(), clipped, backend.counters(),
+            list(chain.fault_log), chain.fault_counters,
         )
     raise AssertionError("unreachable")  # pragma: no cover
 

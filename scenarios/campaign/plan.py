@@ -196,6 +196,9 @@ def plan_runs(
             raise ValueError(f"{path} has the same content as {seen[sha]}; give it once")
         seen[sha] = path
         base = load_scenario(path)
+        if base.autopilot.flies:
+            raise ValueError(f"{path}: autopilot: {base.autopilot.kind} needs the autopilot "
+                             "connected, run by run; fly it with `hilnav run`, not a campaign")
         for i_pt, point in enumerate(points):
             try:
                 varied = apply_point(base, point)

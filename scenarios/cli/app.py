@@ -12,7 +12,7 @@ import json
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Annotated, Any, ParamSpec, TypeVar
+from typing import Annotated, Any, Literal, ParamSpec, TypeVar
 
 import pydantic
 import typer
@@ -687,27 +687,66 @@ def up(
         help="Allow --zenoh-host beyond loopback without authentication.",
         rich_help_panel="Zenoh security")] = False,
     zenoh_key_file: ZenohKeyFileOption = None,
+    px4: Annotated[bool, typer.Option(
+        "--px4", help="PX4 flies: wait for PX4 SITL (tcpin:127.0.0.1:4560) or a HITL board "
+                      "(--autopilot-link serial:DEV:BAUD).",
+        rich_help_panel="Autopilot in the loop")] = False,
+    ardupilot: Annotated[bool, typer.Option(
+        "--ardupilot", help="ArduPilot flies: wait for ArduPilot SITL's JSON backend "
+                            "(udpin:127.0.0.1:9002).",
+        rich_help_panel="Autopilot in the loop")] = False,
+    autopilot_link: Annotated[str | None, typer.Option(
+        help="With --px4 / --ardupilot: where the simulator meets the autopilot (default: "
+             "the one above).", rich_help_panel="Autopilot in the loop")] = None,
+    autopilot_telemetry: Annotated[str, typer.Option(
+        help="Where the autopilot reports its estimate ('none': not recorded).",
+        rich_help_panel="Autopilot in the loop")] = "udpin:127.0.0.1:14550",
+    connect_timeout: Annotated[float, typer.Option(
+        help="Wait this long for the autopilot, s.",
+        rich_help_panel="Autopilot in the loop")] = 300.0,
+    stall_timeout: Annotated[float, typer.Option(
+        help="End the run as stalled after this long without controls, s.",
+        rich_help_panel="Autopilot in the loop")] = 10.0,
 ) -> None:
-    """Run router + fusion + sim (+ monitor) on loopback; Ctrl-C stops everything."""
+    """Run router + fusion + sim (+ monitor) on loopback; Ctrl-C stops everything. With --px4
+    or --ardupilot the autopilot flies and both estimates are scored side by side."""
     _out_dir(out)
     from scenarios.cli.up import UpOptions, run_up
 
+    if px4 and ardupilot:
+        raise ValueError("give --px4 or --ardupilot, not both")
+    kind: Literal["none", "px4", "ardupilot"] = "px4" if px4 else \
+        "ardupilot" if ardupilot else "none"
+    if autopilot_link is not None and kind == "none":
+        raise ValueError("--autopilot-link needs --px4 or --ardupilot")
     options = UpOptions(duration_s=duration, speed=speed, out=out, vehicle=vehicle, plan=plan,
                         seed=seed, gnss_off=tuple(gnss_off or ()), imu=imu, gnss=gnss,
                         bridge=bridge, altitude=altitude, airspeed=airspeed, align=align,
                         gcs=gcs,
                         monitor=monitor,
                         lockstep=lockstep, foxglove_port=foxglove, zenoh_host=zenoh_host,
-                        users_file=users_file, insecure=insecure, zenoh_key_file=zenoh_key_file)
+                        users_file=users_file, insecure=insecure, zenoh_key_file=zenoh_key_file,
+                        autopilot=kind,
+                        autopilot_link=autopilot_link,
+                        autopilot_telemetry=None if autopilot_telemetry == "none"
+                        else autopilot_telemetry,
+                        connect_timeout_s=connect_timeout, stall_timeout_s=stall_timeout)
     summary = run_up(options, log=lambda text: console.print(text, highlight=False))
     if summary is not None:
         console.print("[bold]scorecard of the live run[/]")
         _print_summary(summary)
+        _print_autopilot(summary)
         live = summary.get("live", {})
         console.print(f"live: lost frames {live.get('lost_frames')}, "
                       f"realtime factor {_fmt(summary.get('realtime_factor'))}")
-    elif duration is not None:
+    elif duration is not None or kind != "none":
         raise RunFailed("the live run produced no scorecard (see the fusion output above)")
+    if summary is not None and (summary.get("autopilot") or {}).get("stalled"):
+        raise RunFailed(summary["autopilot"]["stalled"])
+    if summary is not None and summary.get("autopilot") and \
+            not summary["autopilot"].get("connected"):
+        raise RunFailed(f"{summary['autopilot']['source']} did not connect within "
+                        f"{connect_timeout:g} s")
 
 
 # ------------------------------------------------------------------------------------ replay
@@ -805,6 +844,35 @@ def _print_summary(s: dict[str, Any]) -> None:
         console.print(f"NEES (9 dof, GNSS on): {_fmt(nees.get('nees_mean'))}")
 
 
+def _say_waiting_for_autopilot(scn: Any) -> None:
+    ap = scn.autopilot
+    err_console.print(
+        f"waiting up to {ap.connect_timeout_s:g} s for {ap.kind} on "
+        f"{ap.link or 'its default link'}; its estimate is recorded from "
+        f"{ap.telemetry or 'nowhere (telemetry: null)'}", highlight=False)
+
+
+def _print_autopilot(s: dict[str, Any]) -> None:
+    """The side-by-side lines of a run with an autopilot in the loop (nothing without one)."""
+    from scenarios.html import side_by_side_rows
+
+    ap = s.get("autopilot")
+    if not ap:
+        return
+    console.print(f"[bold]hilnav vs {ap['source']}[/] (same truth, same GNSS denial)",
+                  highlight=False)
+    for name, mine, theirs in side_by_side_rows(s):
+        if mine is None and theirs is None:
+            continue
+        console.print(f"  {name}: hilnav {_fmt(mine)} | {ap['source']} {_fmt(theirs)}",
+                      highlight=False)
+    if ap.get("problem"):
+        err_console.print(f"[yellow]warning:[/] {ap['source']}'s estimate not scored: "
+                          f"{ap['problem']}", highlight=False)
+    for t in (ap.get("health") or {}).get("failsafes") or []:
+        console.print(f"  {ap['source']} at {t['time_s']:.1f} s: {t['text']}", highlight=False)
+
+
 # -------------------------------------------------------------------------------------- demo
 @app.command()
 @cli_errors
@@ -899,17 +967,23 @@ def run(
 ) -> None:
     """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
     _out_dir(out)
-    from scenarios.runner import run_scenario
+    from scenarios.runner import AutopilotAbsent, run_scenario
 
     scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
                          airspeed=airspeed, align=align)
-    if quiet:
-        result = run_scenario(scn, out)
-    else:
-        with _progress(scn.duration_s, scn.name) as progress:
-            result = run_scenario(scn, out, progress=progress)
+    if scn.autopilot.flies:
+        _say_waiting_for_autopilot(scn)
+    try:
+        if quiet:
+            result = run_scenario(scn, out)
+        else:
+            with _progress(scn.duration_s, scn.name) as progress:
+                result = run_scenario(scn, out, progress=progress)
+    except AutopilotAbsent as exc:
+        raise RunFailed(str(exc)) from None
     s = result.summary
     _print_summary(s)
+    _print_autopilot(s)
     for c in s.get("criteria", []):
         mark = "[green]pass[/]" if c["ok"] else "[red]FAIL[/]"
         console.print(f"  {mark} {c['name']}: {_fmt(c['value'], '.3g')} (limit {c['limit']:.3g})",
@@ -917,6 +991,8 @@ def run(
     if "flight_ended" in s.get("health", {}):
         raise RunFailed(f"the flight ended early: {s['health']['flight_ended']}; see {out}")
     console.print(f"summary -> {out / 'summary.json'}; report -> {out / 'report.html'}")
+    if (s.get("autopilot") or {}).get("stalled"):
+        raise RunFailed(f"{s['autopilot']['stalled']}; see {out}")
     if not result.passed:
         failed = [c["name"] for c in s.get("criteria", []) if not c["ok"]]
         raise RunFailed(f"{scn.name}: criteria failed: {', '.join(failed)}")

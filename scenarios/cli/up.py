@@ -34,7 +34,7 @@ import tempfile
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -96,6 +96,14 @@ class UpOptions(BaseModel):
     """Allow ``zenoh_host`` beyond loopback without authentication."""
     zenoh_key_file: Path | None = None
     """Shared payload key for every child (default: ``HILNAV_ZENOH_KEY``, inherited)."""
+    autopilot: Literal["none", "px4", "ardupilot"] = "none"
+    """An autopilot flies instead of hilnav's guidance (:mod:`scenarios.cli.up_autopilot`)."""
+    autopilot_link: str | None = None
+    """Where the simulator meets it (None: the backend's default)."""
+    autopilot_telemetry: str | None = "udpin:127.0.0.1:14550"
+    """Where it reports its estimate (None: not recorded)."""
+    connect_timeout_s: float = Field(default=300.0, gt=0.0)
+    stall_timeout_s: float = Field(default=10.0, gt=0.0)
 
 
 def free_udp_port(host: str = "127.0.0.1") -> int:
@@ -213,8 +221,12 @@ def _is_main_thread() -> bool:
     return threading.current_thread() is threading.main_thread()
 
 
-def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[str, Any] | None:
-    """Run router, fusion, sim and monitor until the sim is done (or Ctrl-C).
+def run_up(options: UpOptions, *, log: Callable[[str], None] = print,
+           backend: Any = None) -> dict[str, Any] | None:
+    """Run router, fusion, sim and monitor until the sim is done (or Ctrl-C). With
+    ``options.autopilot`` the simulator side runs in this process with the autopilot at the
+    controls (:func:`scenarios.cli.up_autopilot.fly_autopilot`; ``backend``: a backend already
+    built, for tests).
 
     Returns
     -------
@@ -230,6 +242,13 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
                    duration_s=options.duration_s or _DEFAULT_DURATION_S)
     build_filter(filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
                                options.airspeed, options.align), options.bridge)
+    if options.autopilot != "none" and options.lockstep:
+        raise ValueError("--lockstep paces the simulator against the fusion; with --px4 / "
+                         "--ardupilot the autopilot sets the pace (lockstep with it)")
+    if options.autopilot != "none" and backend is None:
+        from scenarios.cli.up_autopilot import up_backend
+
+        backend = up_backend(options)  # a bad link or map fails before anything starts
     out = options.out
     out.mkdir(parents=True, exist_ok=True)
     summary_path = out / "summary.json"
@@ -241,13 +260,23 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print) -> dict[st
         security, zenoh_args = _bus_security(options, Path(private))
         listen = stack.enter_context(zenoh_router(host=options.zenoh_host, security=security))
         children = stack.enter_context(_children())
+        if backend is not None:
+            from scenarios.cli.up_autopilot import fly_autopilot
+
+            endpoint = _start_fusion_and_monitor(options, listen, security, zenoh_args, port,
+                                                 children, log, idle_exit=True)
+            return fly_autopilot(options, endpoint, port, children, log, summary_path,
+                                 backend=backend)
         return _run_children(options, listen, security, zenoh_args, port, children, log,
                              summary_path)
 
 
-def _run_children(options: UpOptions, listen: str, security: RouterSecurity,
-                  zenoh_args: dict[str, list[str]], port: int, children: list[Child],
-                  log: Callable[[str], None], summary_path: Path) -> dict[str, Any] | None:
+def _start_fusion_and_monitor(options: UpOptions, listen: str, security: RouterSecurity,
+                              zenoh_args: dict[str, list[str]], port: int,
+                              children: list[Child], log: Callable[[str], None], *,
+                              idle_exit: bool) -> str:
+    """Start the fusion service (``children[0]``, MAVLink in on ``udpin:127.0.0.1:PORT``) and
+    the monitor; returns the Zenoh endpoint the children use."""
     out = options.out
     host = endpoint_host(listen)
     # the children are on this machine: an every-interface router is reached on loopback
@@ -264,11 +293,8 @@ def _run_children(options: UpOptions, listen: str, security: RouterSecurity,
                    "--gnss", options.gnss, "--bridge", options.bridge,
                    "--altitude", options.altitude, "--airspeed", options.airspeed,
                    "--align", options.align]
-    settle = options.settle_s
-    if settle is None:
-        settle = min(60.0, 0.25 * (options.duration_s or _DEFAULT_DURATION_S))
-    fusion_args += ["--settle", str(settle)]
-    if options.duration_s is not None:
+    fusion_args += ["--settle", str(settle_s(options))]
+    if idle_exit:
         fusion_args += ["--idle-exit", str(_FUSION_IDLE_EXIT_S)]
     if options.gcs is not None:
         fusion_args += ["--gcs", options.gcs, "--gcs-tlog", str(out / "shadow.tlog")]
@@ -289,6 +315,24 @@ def _run_children(options: UpOptions, listen: str, security: RouterSecurity,
         if options.foxglove_port is not None:
             log(f"foxglove      open connection -> Foxglove WebSocket "
                 f"ws://127.0.0.1:{options.foxglove_port}")
+    return endpoint
+
+
+def settle_s(options: UpOptions) -> float:
+    """The scorecard's settling time: ``settle_s``, else 60 s, at most a quarter of the
+    duration."""
+    if options.settle_s is not None:
+        return options.settle_s
+    return min(60.0, 0.25 * (options.duration_s or _DEFAULT_DURATION_S))
+
+
+def _run_children(options: UpOptions, listen: str, security: RouterSecurity,
+                  zenoh_args: dict[str, list[str]], port: int, children: list[Child],
+                  log: Callable[[str], None], summary_path: Path) -> dict[str, Any] | None:
+    out = options.out
+    endpoint = _start_fusion_and_monitor(options, listen, security, zenoh_args, port, children,
+                                         log, idle_exit=options.duration_s is not None)
+    fusion = children[0]
     sim_args = ["sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", str(options.speed),
                 "--zenoh", endpoint, *zenoh_args["sim"], "--vehicle", options.vehicle,
                 "--plan", options.plan,

@@ -28,7 +28,13 @@ from scenarios.schema.base import Strict, first_error, key_error, listing, unkno
 from scenarios.schema.criteria import CriterionSpec
 from scenarios.schema.errors import scenario_error
 from scenarios.schema.events import Event
-from scenarios.schema.sections import FusionSection, Sensors, StartSection
+from scenarios.schema.sections import (
+    AutopilotSection,
+    AutopilotSetting,
+    FusionSection,
+    Sensors,
+    StartSection,
+)
 from scenarios.summary import Criterion
 from sim import presets
 from sim.faults.events import FaultEvent, GnssJamming, GnssOutage, GnssRate
@@ -140,6 +146,10 @@ class Scenario(Strict):
         default=(), alias="criteria", description="All must hold for the run to pass."
     )
     events: tuple[Event, ...] = Field(default=(), description="Fault timeline.")
+    autopilot: AutopilotSetting = Field(
+        default_factory=lambda: AutopilotSection(),
+        description="Who flies: none (hilnav's guidance law, the default), px4 or ardupilot "
+        "(an autopilot in the loop, at its actuators), with its link settings.")
 
     _plan: FlightPlan | None = PrivateAttr(default=None)
     _base_dir: Path | None = PrivateAttr(default=None)
@@ -322,6 +332,13 @@ class Scenario(Strict):
     def fault_events(self) -> tuple[FaultEvent, ...]:
         """The timeline as ``sim.faults`` events, SI units, in file order."""
         return self.events
+
+    def autopilot_path(self, path: str | None) -> Path | None:
+        """A file named in the ``autopilot`` section, relative to this scenario's folder."""
+        if path is None:
+            return None
+        p = Path(path)
+        return p if p.is_absolute() or self._base_dir is None else self._base_dir / p
 
     def criteria(self) -> tuple[Criterion, ...]:
         """Pass criteria for :func:`scenarios.summary.build_summary`."""

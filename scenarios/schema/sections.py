@@ -7,10 +7,11 @@ from __future__ import annotations
 import copy
 import re
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, ClassVar, Self, cast
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, Self, cast
 
 from pydantic import (
     BaseModel,
+    BeforeValidator,
     Field,
     ValidationError,
     ValidationInfo,
@@ -312,3 +313,73 @@ class FusionSection(Strict):
         if value not in valid:
             raise ValueError(unknown_name(what, value, valid))
         return value
+
+
+AUTOPILOT_KINDS: tuple[str, ...] = ("none", "px4", "ardupilot")
+"""Who flies: hilnav's own guidance (none) or an autopilot in the loop."""
+
+
+class AutopilotSection(Strict):
+    """An autopilot in the loop (issue #20): who flies, where it connects, where its telemetry
+    (its own estimate) arrives, and how long to wait for it. ``autopilot: px4`` is short for
+    ``autopilot: {kind: px4}``; ``none`` (the default) flies hilnav's own guidance law."""
+
+    kind: Literal["none", "px4", "ardupilot"] = Field(
+        default="none", description="none (hilnav's guidance flies), px4 or ardupilot.")
+    link: str | None = Field(
+        default=None, min_length=1,
+        description="Where the simulator meets the autopilot: PX4 tcpin:HOST:4560 (PX4 SITL "
+        "connects) or serial:DEVICE:BAUD (HITL); ArduPilot udpin:HOST:9002 (its JSON "
+        "backend). Default: the backend's.")
+    telemetry: str | None = Field(
+        default="udpin:127.0.0.1:14550", description="MAVLink link on which the autopilot "
+        "reports its estimate (GLOBAL_POSITION_INT, ATTITUDE, ...); null: not recorded.")
+    telemetry_rate_hz: float = Field(
+        default=10.0, gt=0.0, le=250.0,
+        description="Rate asked of the autopilot for its estimate messages, Hz.")
+    actuator_map: str | None = Field(
+        default=None, min_length=1,
+        description="PX4: actuator map YAML (channel -> control surface); default: the legacy "
+        "HIL order. Relative to this file.")
+    servo_map: str | None = Field(
+        default=None, min_length=1,
+        description="ArduPilot: servo map YAML (servo output -> control surface, PWM range); "
+        "default: ArduPlane's outputs. Relative to this file.")
+    mavlink: str | None = Field(
+        default=None, min_length=1,
+        description="ArduPilot: its MAVLink port (e.g. tcp:127.0.0.1:5760) over which the "
+        "scenario's GNSS events are set as its simulated-GPS parameters.")
+    speed: float | None = Field(
+        default=None, gt=0.0, le=100.0,
+        description="null: lockstep (SITL); else simulated s per wall s (HITL: 1).")
+    connect_timeout_s: float = Field(
+        default=120.0, gt=0.0, le=3600.0, description="Wait this long for the autopilot, s.")
+    stall_timeout_s: float = Field(
+        default=10.0, gt=0.0, le=600.0,
+        description="End the run as stalled after this long without controls, s.")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Self:
+        for key, only in (("actuator_map", "px4"), ("servo_map", "ardupilot"),
+                          ("mavlink", "ardupilot")):
+            if getattr(self, key) is not None and self.kind != only:
+                raise key_error(f"{key} is a setting of autopilot kind {only!r}, not "
+                                f"{self.kind!r}", (key,))
+        return self
+
+    @property
+    def flies(self) -> bool:
+        """Whether an autopilot (not hilnav's guidance) is at the controls."""
+        return self.kind != "none"
+
+
+def _autopilot_shorthand(value: Any) -> Any:
+    return {"kind": value} if isinstance(value, str) else value
+
+
+AutopilotSetting = Annotated[
+    AutopilotSection,
+    BeforeValidator(_autopilot_shorthand,
+                    json_schema_input_type=AutopilotSection | Literal["none", "px4", "ardupilot"]),
+]
+"""The ``autopilot`` key: a section, or just the kind (``autopilot: px4``)."""

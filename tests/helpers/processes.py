@@ -54,3 +54,13 @@ def finish_lockstep_chain(
         for p in (sim, fusion):
             stop_process(p)
     helper.join(5.0)
+
+
+def free_tcp_port(host: str = "127.0.0.1") -> int:
+    """A TCP port that was free a moment ago."""
+    import socket
+
+    with socket.socket() as s:
+        s.bind((host, 0))
+        port: int = s.getsockname()[1]
+        return port

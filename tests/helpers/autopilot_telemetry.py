@@ -1,0 +1,88 @@
+"""The telemetry side of an autopilot, for tests of the estimate recorder and the scorecard.
+
+:class:`EstimateSender` sends what an autopilot's MAVLink instance sends a ground station
+(HEARTBEAT, GLOBAL_POSITION_INT, ATTITUDE, ESTIMATOR_STATUS, STATUSTEXT, COMMAND_ACK for
+SET_MESSAGE_INTERVAL) over a real ``udpout`` link, as real MAVLink 2 bytes. Its "estimate" is
+the truth it is given plus a *known* error: ``offset_north_m`` inside the ``windows`` (e.g. a
+GNSS outage) and ``yaw_offset_deg`` always, so a test can check the scorecard's numbers against
+them. Inside the windows its estimator status drops ESTIMATOR_POS_HORIZ_ABS and it sends one
+failsafe STATUSTEXT, as an autopilot that lost GNSS does.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from fusion import earth, rotations
+from hil.codec import mavlink2
+from hil.link import LinkRole, MavlinkLink
+from sim.samples import Truth
+
+_FLAGS_OK = int(mavlink2.ESTIMATOR_ATTITUDE | mavlink2.ESTIMATOR_VELOCITY_HORIZ
+                | mavlink2.ESTIMATOR_POS_HORIZ_ABS | mavlink2.ESTIMATOR_POS_VERT_ABS)
+
+
+class EstimateSender:
+    """An autopilot's telemetry link (system 1, component 1) sending truth + known errors."""
+
+    def __init__(self, url: str, *, rate_hz: float = 10.0, offset_north_m: float = 0.0,
+                 windows: Sequence[tuple[float, float]] = (), yaw_offset_deg: float = 0.0,
+                 autopilot: int = int(mavlink2.MAV_AUTOPILOT_PX4)) -> None:
+        role = LinkRole(system_id=1, component_id=1, mav_type=int(mavlink2.MAV_TYPE_FIXED_WING),
+                        autopilot=autopilot,
+                        accept_msg_ids=frozenset({int(mavlink2.MAVLINK_MSG_ID_COMMAND_LONG)}))
+        self.link = MavlinkLink(url, role)
+        self.link.set_heartbeat_state(base_mode=int(mavlink2.MAV_MODE_FLAG_SAFETY_ARMED),
+                                      custom_mode=4 << 16)
+        self.period_us = round(1e6 / rate_hz)
+        self.offset_north_m = offset_north_m
+        self.windows = tuple(windows)
+        self.yaw_offset_rad = math.radians(yaw_offset_deg)
+        self.next_us = 0
+        self.sent = 0
+        self.commands: list[int] = []
+        self._announced = False
+
+    def in_window(self, time_s: float) -> bool:
+        return any(a <= time_s < b for a, b in self.windows)
+
+    def send_truth(self, truth: Truth) -> None:
+        """Send the estimate of ``truth`` when due (every ``1/rate_hz`` simulated s)."""
+        for msg in self.link.recv(0.0):
+            if msg.get_msgId() == mavlink2.MAVLINK_MSG_ID_COMMAND_LONG:
+                self.commands.append(int(msg.param1))
+                self.link.send_message(mavlink2.MAVLink_command_ack_message(
+                    msg.command, int(mavlink2.MAV_RESULT_ACCEPTED)))
+        if truth.time_us < self.next_us:
+            return
+        self.next_us = truth.time_us + self.period_us
+        t_s = truth.time_us * 1e-6
+        inside = self.in_window(t_s)
+        lat, alt = truth.lat_rad, truth.alt_msl_m
+        if inside:
+            r_n, _ = earth.principal_radii(lat)
+            lat = lat + self.offset_north_m / (float(r_n) + alt)
+        roll, pitch, yaw = (float(v) for v in rotations.quat_to_euler(truth.q_nb))
+        yaw = (yaw + self.yaw_offset_rad + math.pi) % (2 * math.pi) - math.pi
+        ms = truth.time_us // 1000
+        v = np.round(truth.v_ned_mps * 100.0).astype(int)
+        self.link.send_message(mavlink2.MAVLink_global_position_int_message(
+            ms, round(math.degrees(lat) * 1e7), round(math.degrees(truth.lon_rad) * 1e7),
+            round(alt * 1e3), round(alt * 1e3), int(v[0]), int(v[1]), int(v[2]),
+            round(math.degrees(yaw) * 100) % 36000))
+        p, q, r = (float(w) for w in truth.omega_b_rps)
+        self.link.send_message(mavlink2.MAVLink_attitude_message(ms, roll, pitch, yaw, p, q, r))
+        flags = _FLAGS_OK & ~int(mavlink2.ESTIMATOR_POS_HORIZ_ABS) if inside else _FLAGS_OK
+        self.link.send_message(mavlink2.MAVLink_estimator_status_message(
+            truth.time_us, flags, 0.1, 0.2, 0.1, 0.1, 0.0, 0.0, 1.5, 2.5))
+        if inside and not self._announced:
+            self._announced = True
+            self.link.send_message(mavlink2.MAVLink_statustext_message(
+                int(mavlink2.MAV_SEVERITY_CRITICAL), b"Failsafe enabled: no global position"))
+        self.sent += 1
+
+    def close(self) -> None:
+        self.link.close()
