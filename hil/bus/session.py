@@ -1,18 +1,13 @@
 """The Zenoh session of one hilnav process: non-blocking publishing, subscriptions, liveliness,
 the configuration queryable.
 
-Publishing never waits for the network (the caller is the filter loop): :meth:`Bus.publish`
-rate-limits per topic and serialises; then, when the session is open and nothing is queued or
-being sent, it hands the sample to Zenoh at once from the caller's thread (the *direct* path:
-one thread hand-off less on the way to a subscriber, ~0.1-0.3 ms here; Zenoh's put with
-congestion control ``DROP`` returns once the sample is in its own transmit queue, and waits at
-most its ``wait_before_drop``, 1 ms, for room there; a put that took that long means a slow
-subscriber, and the direct path then pauses for a second). Otherwise (no session yet, a backlog, the
-publisher thread busy) it appends to a bounded queue that a publisher thread drains in order.
-A full queue drops its *oldest* message (the freshest estimate matters most) and counts it;
-:meth:`Bus.stats` reports every counter. Publishers are declared *express* (Zenoh sends each
-sample at once instead of waiting to batch it with the next): the rates are low (<= a few
-hundred per second) and latency is what a monitor or a flight controller needs.
+Publishing never blocks the caller (the filter loop): :meth:`Bus.publish` rate-limits per topic,
+serialises, and appends to a bounded queue that a publisher thread drains into Zenoh publishers
+declared with congestion control ``DROP``. A full queue drops its *oldest* message (the freshest
+estimate matters most) and counts it; :meth:`Bus.stats` reports every counter. (Putting
+straight from the caller's thread when nothing is queued was tried for latency, issue 15: the
+Bus hop was not measurably faster, 0.68 vs 0.65 ms median under load, and bursts lost more
+samples to Zenoh's ``DROP``, e.g. innovations of a lockstep run at ``--speed 1000``; reverted.)
 
 Connection: the default is a Zenoh *client* that connects to a router (``hilnav up``'s in-process
 router, see :mod:`hil.router`, or zenohd). A Zenoh (1.10) client cannot open a session while no
@@ -106,10 +101,6 @@ class Declaration:
 
 
 _Mode = Literal["client", "peer"]
-# A direct put this slow waited for room in Zenoh's transmit queue (its wait_before_drop is
-# 1 ms): the filter's thread then stops putting directly for _DIRECT_PAUSE_S.
-_CONGESTED_PUT_S = 0.8e-3
-_DIRECT_PAUSE_S = 1.0
 
 
 class Bus:
@@ -178,9 +169,6 @@ class Bus:
         self._keys = {t: key(self.vehicle, t) for t in Topic}
         self._lock = threading.RLock()
         self._cond = threading.Condition(self._lock)
-        # held while samples go to Zenoh (direct path or publisher thread): keeps their order
-        self._send_lock = threading.Lock()
-        self._direct_after = 0.0  # monotonic time before which the direct path is not used
         self._queue: deque[tuple[Topic, str, bytes]] = deque()
         self._declarations: list[Declaration] = []
         self._publishers: dict[str, zenoh.Publisher] = {}
@@ -338,8 +326,6 @@ class Bus:
         return True
 
     def _enqueue(self, topic: Topic, key_expr: str, data: bytes) -> None:
-        if self._put_now(topic, key_expr, data):
-            return
         with self._cond:
             if len(self._queue) >= self.config.queue_size:
                 old_topic, _, _ = self._queue.popleft()
@@ -350,27 +336,6 @@ class Bus:
             self._queue.append((topic, key_expr, data))
             self._c["enqueued"] += 1
             self._cond.notify()
-
-    def _put_now(self, topic: Topic, key_expr: str, data: bytes) -> bool:
-        """The direct path (see the module docstring): False when the sample must be queued."""
-        session = self._session
-        if (session is None or time.monotonic() < self._direct_after
-                or not self._send_lock.acquire(blocking=False)):
-            return False
-        try:
-            with self._lock:
-                if self._queue or self._stopping:
-                    return False  # behind what is queued, in order
-                self._c["enqueued"] += 1
-            t0 = time.monotonic()
-            self._send(session, ((topic, key_expr, data),))
-            if time.monotonic() - t0 >= _CONGESTED_PUT_S:
-                # Zenoh waited for room in its transmit queue (a slow or stuck subscriber):
-                # leave that wait to the publisher thread for a while
-                self._direct_after = time.monotonic() + _DIRECT_PAUSE_S
-            return True
-        finally:
-            self._send_lock.release()
 
     def _publish_built(self, topic: Topic, time_us: int | None, build: Callable[[], dict]) -> bool:
         """Rate-limit first, build the payload only when it will be sent."""
@@ -692,7 +657,6 @@ class Bus:
                         ),
                         # a slow link must never stall the publisher thread (and so the queue)
                         congestion_control=zenoh.CongestionControl.DROP,
-                        express=True,  # sent at once, not batched with the next sample
                     )
                     self._publishers[key_expr] = pub
         return pub
@@ -745,21 +709,19 @@ class Bus:
                     continue
             with self._cond:
                 self._cond.wait_for(lambda: self._queue or self._stopping, timeout=check_every_s)
+                batch, self._queue = self._queue, deque()
+                stopping = self._stopping
             now = time.monotonic()
             if now >= next_check:
                 self._check_connected()
                 next_check = now + check_every_s
-            with self._send_lock:  # no direct put in between: the queue goes out in order
-                with self._cond:
-                    batch, self._queue = self._queue, deque()
-                    stopping = self._stopping
-                if batch:
-                    try:
-                        self._send(self._session, batch)
-                    except Exception as exc:  # keep the thread alive: it is the only drain
-                        with self._lock:
-                            self._c["put_errors"] += len(batch)
-                            self.last_error = f"{type(exc).__name__}: {exc}"
+            if batch:
+                try:
+                    self._send(self._session, batch)
+                except Exception as exc:  # keep the thread alive: it is the only drain
+                    with self._lock:
+                        self._c["put_errors"] += len(batch)
+                        self.last_error = f"{type(exc).__name__}: {exc}"
             if stopping:
                 break
         self._first_attempt.set()

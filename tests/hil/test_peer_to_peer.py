@@ -52,7 +52,7 @@ def test_two_peer_buses_talk_directly_without_a_router() -> None:
             time.sleep(0.005)  # subscriber share this process's GIL here)
         assert _wait(lambda: len(got) == 100, 10.0)
         st = pub.stats()
-    assert got == list(range(100))  # in order, whether put directly or through the queue
+    assert got == list(range(100))  # in order
     assert st.published == 100 and st.dropped_queue_full == 0 and st.put_errors == 0
 
 
@@ -103,8 +103,8 @@ def test_fusion_serves_routed_and_direct_subscribers(tmp_path: Path) -> None:
     # the same estimates as through the router (both subscribed before the first one). The
     # publishers' congestion control is DROP (a stalled subscriber must not stall the filter):
     # here the router and both subscribers share this process, and on a loaded machine the
-    # router's deliveries to its client lost up to 30 % of the estimates (the direct peer < 1 %,
-    # with or without the direct put), so compare what both received
+    # router's deliveries to its client lost up to 30 % of the estimates (the direct peer < 1 %),
+    # so compare what both received
     by_time = {e["time_us"]: e for e in routed}
     both = [e for e in direct if e["time_us"] in by_time]
     assert len(both) > 100
