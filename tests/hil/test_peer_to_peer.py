@@ -56,6 +56,34 @@ def test_two_peer_buses_talk_directly_without_a_router() -> None:
     assert st.published == 100 and st.dropped_queue_full == 0 and st.put_errors == 0
 
 
+
+def test_the_payload_key_works_on_a_direct_link() -> None:
+    """A direct link has no login or TLS, but tagged samples still hold: a peer without the
+    key (or with another) that connects to the fusion's endpoint cannot get a forged estimate
+    accepted by a direct subscriber that has the key."""
+    key = bytes(range(32))
+    listen = f"tcp/127.0.0.1:{free_tcp_port()}"
+    got: list[str] = []
+    cfg = BusConfig(rates_hz=dict.fromkeys(PUBLISHED_TOPICS))
+    with Bus(None, vehicle="pk", mode="peer", listen=listen, config=cfg, auth_key=key) as fusion, \
+            Bus(listen, vehicle="pk", mode="peer", auth_key=key) as sub, \
+            Bus(listen, vehicle="pk", mode="peer", config=cfg) as rogue, \
+            Bus(listen, vehicle="pk", mode="peer", config=cfg, auth_key=bytes(32)) as wrong:
+        sub.subscribe(Topic.ESTIMATE, lambda m: got.append(m.payload["mode"])
+                      if m.payload else None)
+        for bus in (sub, rogue, wrong):
+            assert bus.wait_connected(10.0)
+        assert _wait(lambda: fusion.has_subscribers(Topic.ESTIMATE), 10.0)
+        fusion.publish(Topic.ESTIMATE, {"time_us": 1, "mode": "real-1"})
+        assert _wait(lambda: got == ["real-1"], 10.0)
+        rogue.publish(Topic.ESTIMATE, {"time_us": 2, "mode": "forged-untagged"})
+        wrong.publish(Topic.ESTIMATE, {"time_us": 3, "mode": "forged-wrong-key"})
+        time.sleep(0.5)
+        fusion.publish(Topic.ESTIMATE, {"time_us": 4, "mode": "real-2"})
+        assert _wait(lambda: "real-2" in got, 10.0)
+        time.sleep(0.3)
+    assert got == ["real-1", "real-2"]
+
 def test_fusion_serves_routed_and_direct_subscribers(tmp_path: Path) -> None:
     port = free_udp_port()
     listen = f"tcp/127.0.0.1:{free_tcp_port()}"
