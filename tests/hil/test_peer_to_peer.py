@@ -140,6 +140,41 @@ def test_fusion_serves_routed_and_direct_subscribers(tmp_path: Path) -> None:
     assert len(direct) >= 0.95 * len(set(times_direct) | set(times_routed))
 
 
+
+def test_monitor_peer_records_a_direct_publisher(tmp_path: Path) -> None:
+    """``hilnav monitor --peer --connect EP`` (no router anywhere) records what a peer that
+    listens on EP publishes, and reports it as connected."""
+    from mcap.reader import make_reader
+
+    listen = f"tcp/127.0.0.1:{free_tcp_port()}"
+    record = tmp_path / "p2p.mcap"
+    stop = threading.Event()
+    cfg = BusConfig(rates_hz=dict.fromkeys(PUBLISHED_TOPICS))
+
+    def publisher() -> None:
+        with Bus(None, vehicle="mp", mode="peer", listen=listen, config=cfg) as bus:
+            i = 0
+            while not stop.is_set():
+                bus.publish(Topic.ESTIMATE, {"time_us": i * 40_000, "mode": "gnss"})
+                i += 1
+                time.sleep(0.04)
+
+    thread = threading.Thread(target=publisher)
+    thread.start()
+    try:
+        result = CliRunner().invoke(app, ["monitor", "--peer", "--connect", listen, "--vehicle",
+                                          "mp", "--headless", "--duration", "3", "--record",
+                                          str(record)])
+    finally:
+        stop.set()
+        thread.join()
+    assert result.exit_code == 0, result.output
+    assert "router=up" in result.output  # connected (to its peer)
+    with record.open("rb") as f:
+        n = sum(1 for _s, channel, _m in make_reader(f).iter_messages()
+                if channel.topic == "hilnav/mp/fusion/estimate")
+    assert n >= 10
+
 @pytest.mark.parametrize(
     ("args", "needle"),
     [
