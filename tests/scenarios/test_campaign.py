@@ -331,3 +331,19 @@ def test_remote_cluster_recipe_on_loopback(first: CampaignResult, tiny: Path,
         assert again.exit_code == 0, again.output
         rep2 = json.loads((out / "campaign.json").read_text())
         assert (rep2["execution"]["executed"], rep2["execution"]["resumed"]) == (0, 4)
+
+
+def test_workers_that_cannot_import_hilnav_stop_the_campaign_before_any_run(
+        tiny: Path, tmp_path: Path, scheduler: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    import scenarios.campaign.execute as execute
+
+    def no_hilnav() -> float:  # a closure: pickled by value, so it runs as is on the worker
+        raise ModuleNotFoundError("No module named 'scenarios'")
+
+    monkeypatch.setattr(execute, "warm_up", no_hilnav)
+    result = CliRunner().invoke(app, ["campaign", str(tiny), "--seeds", "1", "--out",
+                                      str(tmp_path / "c"), "--scheduler", scheduler])
+    assert result.exit_code == 2, result.output
+    assert "cannot import hilnav" in result.output and "install the same hilnav" in result.output
+    assert "Traceback" not in result.output
+    assert not list((tmp_path / "c" / "runs").rglob("summary.json"))
