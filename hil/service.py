@@ -26,9 +26,11 @@ Outputs (all optional; none of them can block the filter)
       detected faults), with or without a ground station.
     * ``--companion URL --companion-kind gps_input|odometry``: GPS_INPUT (ArduPilot, 5 Hz)
       or ODOMETRY (PX4, 30 Hz) to a flight controller, on simulated time.
-    * ``--zenoh EP``: estimate, status (mode, test ratios, health, link counters), error vs
-      truth (estimate and truth of the same time), innovations (one message per aiding update,
-      see below), a ``fusion/config`` queryable and a ``fusion/alive`` liveliness token
+    * ``--zenoh EP`` (a router) and / or ``--zenoh-listen EP`` (peer-to-peer: subscribers
+      connect to this process directly, one hop less; loopback only): estimate, status
+      (mode, test ratios, health, link counters), error vs truth (estimate and truth of the
+      same time), innovations (one message per aiding update, see below), a
+      ``fusion/config`` queryable and a ``fusion/alive`` liveliness token
       (:class:`hil.bus.Bus`: bounded queue, never blocks).
     * ``--out DIR``: at exit, ``summary.json`` of everything received (estimate vs truth,
       GNSS outages from fix gaps), computed exactly as ``hilnav replay`` does, plus a
@@ -128,6 +130,10 @@ class FusionOptions(BaseModel):
     source: str | None = None
     """Accept sensors only from ``SYSID[:COMPID]``; None: lock onto the first sensor source."""
     zenoh: str | None = None
+    zenoh_listen: str | None = None
+    """Peer-to-peer subscription mode: the bus is a Zenoh peer listening here (loopback) for
+    subscribers that connect directly (``hilnav monitor --peer``), besides ``zenoh``'s router
+    when given."""
     vehicle: str = "sim1"
     imu: str = "industrial-mems"
     gnss: str = "modern"
@@ -373,11 +379,12 @@ class FusionService:
             self.companion = CompanionEncoder(role.system_id, role.component_id)
             self._links["companion"] = stack.enter_context(
                 MavlinkLink(o.companion, role, signer=self._signer(2)))
-        if o.zenoh is not None:
+        if o.zenoh is not None or o.zenoh_listen is not None:
             from hil.bus import Bus
 
             self._bus = stack.enter_context(Bus(
-                o.zenoh, vehicle=o.vehicle, security=self.bus_access.security,
+                o.zenoh, vehicle=o.vehicle, mode="client" if o.zenoh_listen is None else "peer",
+                listen=o.zenoh_listen, security=self.bus_access.security,
                 auth_key=self.bus_access.auth_key))
             self._bus.declare_config_queryable(self.config_snapshot)
             self._bus.declare_liveliness()

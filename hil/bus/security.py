@@ -42,6 +42,7 @@ __all__ = [
     "BusAccess",
     "ClientSecurity",
     "RouterSecurity",
+    "check_peer_link",
     "endpoint_host",
     "is_loopback_endpoint",
 ]
@@ -89,6 +90,23 @@ def is_loopback_endpoint(endpoint: str) -> bool:
         return ipaddress.ip_address(host).is_loopback
     except ValueError:
         return False  # a name other than localhost may resolve to any interface
+
+
+def check_peer_link(endpoints: Sequence[str], security: ClientSecurity) -> None:
+    """Refuse a direct peer link (``hilnav fusion --zenoh-listen``, ``hilnav monitor --peer``)
+    that is not plain loopback: ``ValueError`` (one line) for an endpoint beyond loopback or for
+    login / TLS options. Login, TLS and access control are the router's: a direct peer link
+    has none of them, so it stays on this machine. The shared payload key (HMAC tags,
+    :mod:`hil.bus.auth`) works on it as on the router."""
+    exposed = [e for e in endpoints if not is_loopback_endpoint(e)]
+    if exposed:
+        raise ValueError(f"a direct peer link stays on loopback (it has no login, TLS or access "
+                         f"control); {', '.join(exposed)} is not: use the router "
+                         "(hilnav router --users-file / --mtls) beyond this machine")
+    if not security.empty:
+        raise ValueError("--zenoh-user / --tls-* are router features: a direct peer link "
+                         "(--zenoh-listen, --peer) has no login or TLS; use the router, or the "
+                         "shared payload key (--zenoh-key-file) to authenticate samples")
 
 
 def _readable(path: Path | None, what: str) -> Path | None:

@@ -4,7 +4,10 @@ the configuration queryable.
 Publishing never blocks the caller (the filter loop): :meth:`Bus.publish` rate-limits per topic,
 serialises, and appends to a bounded queue that a publisher thread drains into Zenoh publishers
 declared with congestion control ``DROP``. A full queue drops its *oldest* message (the freshest
-estimate matters most) and counts it; :meth:`Bus.stats` reports every counter.
+estimate matters most) and counts it; :meth:`Bus.stats` reports every counter. (Putting
+straight from the caller's thread when nothing is queued was tried for latency, issue 15: the
+Bus hop was not measurably faster, 0.68 vs 0.65 ms median under load, and bursts lost more
+samples to Zenoh's ``DROP``, e.g. innovations of a lockstep run at ``--speed 1000``; reverted.)
 
 Connection: the default is a Zenoh *client* that connects to a router (``hilnav up``'s in-process
 router, see :mod:`hil.router`, or zenohd). A Zenoh (1.10) client cannot open a session while no
@@ -116,9 +119,12 @@ class Bus:
         keeps retrying until the router answers, then Zenoh reconnects by itself after a router
         restart. ``"peer"``: connect to ``connect`` directly (Zenoh >= 1.9 routers no longer
         relay between two peers, so two peer-mode buses need a direct link: give one of them a
-        ``listen`` endpoint and the other ``connect`` to it).
+        ``listen`` endpoint and the other ``connect`` to it). A peer that also connects to a
+        router serves both: the router's clients through the router, its direct peers
+        without it. Only the endpoints given are used: no multicast or gossip discovery.
     listen : str, optional
-        Peer mode only: endpoint(s) to listen on, comma separated.
+        Peer mode only: endpoint(s) to listen on, comma separated (the peer-to-peer
+        subscription mode of ``hilnav fusion --zenoh-listen``).
     config : BusConfig, optional
         Rates, queue size, connect timeout.
     security : ClientSecurity, optional
@@ -589,8 +595,10 @@ class Bus:
                 "exit_on_failure": False,
                 "retry": {"period_init_ms": 50, "period_max_ms": 1000, "period_increase_factor": 2},
             },
-            # explicit endpoints only: no multicast discovery on the LAN
-            "scouting": {"multicast": {"enabled": False}},
+            # explicit endpoints only: no multicast discovery on the LAN, and no gossip (a
+            # direct peer of the fusion must not learn the router from it and get each sample
+            # twice, or reach hosts it was not pointed at)
+            "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": False}},
             "adminspace": {"enabled": False},
         }
         transport = self.security.transport()

@@ -36,6 +36,7 @@ def monitor_main(
     headless: bool,
     foxglove_port: int | None = None,
     bus_access: BusAccess | None = None,
+    peer: bool = False,
 ) -> int:
     """Subscribe to ``hilnav/<vehicle>/**`` and show it; optionally record it to MCAP.
 
@@ -43,7 +44,8 @@ def monitor_main(
     ----------
     connect : str
         Zenoh router endpoint, e.g. ``tcp/127.0.0.1:7447``. The monitor keeps running (and
-        says "no router") until the router answers, and reconnects when it restarts.
+        says "no router") until the router answers, and reconnects when it restarts. With
+        ``peer``: a fusion's ``--zenoh-listen`` endpoint.
     vehicle : str
         Vehicle key chunk.
     record : Path, optional
@@ -56,6 +58,8 @@ def monitor_main(
     foxglove_port : int, optional
         Serve a Foxglove WebSocket on ``127.0.0.1:<port>`` (0: a free port) streaming the same
         channels as the recording; the URL is printed.
+    peer : bool
+        Subscribe as a Zenoh peer connected directly to ``connect`` (peer-to-peer mode).
 
     Returns
     -------
@@ -102,8 +106,8 @@ def monitor_main(
     deadline = None if duration_s is None else time.monotonic() + duration_s
     try:
         access = bus_access or BusAccess()
-        with Bus(connect, vehicle=vehicle, security=access.security,
-                 auth_key=access.auth_key) as bus:
+        with Bus(connect, vehicle=vehicle, mode="peer" if peer else "client",
+                 security=access.security, auth_key=access.auth_key) as bus:
             bus.subscribe("**", on_message)
             bus.subscribe_liveliness(state.set_alive)
             done = threading.Event()

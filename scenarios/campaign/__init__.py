@@ -25,8 +25,10 @@ core by default, or an existing cluster (``scheduler="tcp://HOST:8786"``) whose 
 same hilnav installed. Scenarios are loaded and the grid applied on the client; workers receive
 the resulting :class:`~scenarios.schema.Scenario` objects, fly them in a private temporary
 folder and send the run's files back, so workers need neither the scenario files nor a shared
-file system. A run that raises is recorded (``error.txt`` and ``campaign.json["failed"]``), never
-silently dropped.
+file system. Before the first submission every worker imports the run's modules once
+(:func:`~scenarios.campaign.execute.warm_up`, ``execution.warm_up_s``), so that one-off cost is
+not charged to whichever runs come first. A run that raises is recorded (``error.txt`` and
+``campaign.json["failed"]``), never silently dropped.
 
 Aggregation reads the summaries back sorted by run id, so it is the same whatever the order in
 which the runs completed. Per scenario x grid point (the bridging and altitude methods are part

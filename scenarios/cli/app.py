@@ -431,6 +431,9 @@ def fusion(
         help="Take sensors only from SYSID[:COMPID] (default: lock onto the first sensor "
              "source; other senders are counted and ignored).")] = None,
     zenoh: Annotated[str | None, typer.Option(help="Zenoh router endpoint to publish on.")] = None,
+    zenoh_listen: Annotated[str | None, typer.Option(
+        help="Peer-to-peer: also serve Zenoh subscribers that connect here directly (hilnav "
+             "monitor --peer), without the router's hop; loopback only, no login/TLS.")] = None,
     vehicle: Annotated[str, typer.Option(help="Zenoh vehicle name.")] = "sim1",
     imu: ImuOption = "industrial-mems",
     gnss: GnssOption = "modern",
@@ -485,15 +488,22 @@ def fusion(
     from scenarios.cli.live import serve_fusion
     from sim.presets import gnss_preset
 
-    access = _bus_access(zenoh, zenoh_user, zenoh_password_file, tls_ca, tls_cert, tls_key,
-                         zenoh_key_file)
-    if zenoh is not None:
+    access = _bus_access(zenoh or zenoh_listen, zenoh_user, zenoh_password_file, tls_ca,
+                         tls_cert, tls_key, zenoh_key_file)
+    if zenoh is not None or zenoh_listen is not None:
         from hil.bus import validate_endpoint, validate_vehicle
 
-        validate_endpoint(zenoh)
+        for endpoint in (zenoh, zenoh_listen):
+            if endpoint is not None:
+                validate_endpoint(endpoint)
         validate_vehicle(vehicle)
+    if zenoh_listen is not None:
+        from hil.bus.security import check_peer_link
+
+        check_peer_link([zenoh_listen], access.security)
     options = FusionOptions(
-        mavlink=mavlink, source=source, zenoh=zenoh, vehicle=vehicle, imu=imu, gnss=gnss,
+        mavlink=mavlink, source=source, zenoh=zenoh, zenoh_listen=zenoh_listen,
+        vehicle=vehicle, imu=imu, gnss=gnss,
         bridge=bridge,
         altitude=altitude, airspeed=airspeed, align=align, gcs=gcs, gcs_tlog=gcs_tlog,
         shadow_system_id=shadow_sysid, companion=companion,
@@ -532,6 +542,9 @@ FoxgloveOption = Annotated[int | None, typer.Option(
 @cli_errors
 def monitor(
     connect: Annotated[str, typer.Option(help="Zenoh router endpoint.")] = "tcp/127.0.0.1:7447",
+    peer: Annotated[bool, typer.Option(
+        help="--connect is a fusion's --zenoh-listen endpoint: subscribe to it directly as a "
+             "Zenoh peer (one hop less than through the router; loopback only).")] = False,
     vehicle: Annotated[str, typer.Option(help="Vehicle name.")] = "sim1",
     record: Annotated[Path | None, typer.Option(help="Record everything to this .mcap.")] = None,
     duration: Annotated[float | None, typer.Option(help="Stop after S wall seconds.")] = None,
@@ -553,8 +566,13 @@ def monitor(
     validate_endpoint(connect)
     access = _bus_access(connect, zenoh_user, zenoh_password_file, tls_ca, tls_cert, tls_key,
                          zenoh_key_file)
+    if peer:
+        from hil.bus.security import check_peer_link
+
+        check_peer_link([connect], access.security)
     code = monitor_main(connect=connect, vehicle=vehicle, record=record, duration_s=duration,
-                        headless=headless, foxglove_port=foxglove, bus_access=access)
+                        headless=headless, foxglove_port=foxglove, bus_access=access,
+                        peer=peer)
     if code:
         raise typer.Exit(code)
 

@@ -302,3 +302,48 @@ def test_a_run_that_raises_is_reported(tmp_path: Path, scheduler: str) -> None:
     assert "Traceback" in error_txt
     assert not (out / "runs" / failed["id"] / "summary.json").exists()
     assert "JSBSim cannot trim" in (out / "campaign.md").read_text()
+
+
+def test_remote_cluster_recipe_on_loopback(first: CampaignResult, tiny: Path,
+                                           tmp_path: Path) -> None:
+    """The README's remote-cluster recipe, on 127.0.0.1: ``dask scheduler`` and two ``dask
+    worker`` processes (what other hosts would run), ``hilnav campaign --scheduler``."""
+    from tests.helpers.dask_cluster import dask_cli_cluster
+
+    out = tmp_path / "remote"
+    args = ["campaign", str(tiny), "--seeds", str(len(SEEDS)), "--seed-base", str(SEEDS[0]),
+            "--vary", "imu=" + ",".join(VARY["imu"]), "--out", str(out)]
+    with dask_cli_cluster(2, tmp_path / "cluster") as address:
+        result = CliRunner().invoke(app, [*args, "--scheduler", address])
+        assert result.exit_code == 0, result.output
+        rep = json.loads((out / "campaign.json").read_text())
+        assert rep["execution"]["scheduler"] == address
+        assert rep["execution"]["workers"] == 2 and rep["execution"]["executed"] == 4
+        assert rep["execution"]["warm_up_s"] >= 0.0
+        # the outputs come back to the client's folder; the workers' folders keep no run
+        for r in rep["runs"]:
+            assert (out / "runs" / r["id"] / "summary.json").is_file()
+        assert not list((tmp_path / "cluster").rglob("summary.json"))
+        # same numbers whichever machine flew the runs
+        assert _deterministic(rep) == _deterministic(first.report)
+        # resumable: the same command again flies nothing
+        again = CliRunner().invoke(app, [*args, "--scheduler", address])
+        assert again.exit_code == 0, again.output
+        rep2 = json.loads((out / "campaign.json").read_text())
+        assert (rep2["execution"]["executed"], rep2["execution"]["resumed"]) == (0, 4)
+
+
+def test_workers_that_cannot_import_hilnav_stop_the_campaign_before_any_run(
+        tiny: Path, tmp_path: Path, scheduler: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    import scenarios.campaign.execute as execute
+
+    def no_hilnav() -> float:  # a closure: pickled by value, so it runs as is on the worker
+        raise ModuleNotFoundError("No module named 'scenarios'")
+
+    monkeypatch.setattr(execute, "warm_up", no_hilnav)
+    result = CliRunner().invoke(app, ["campaign", str(tiny), "--seeds", "1", "--out",
+                                      str(tmp_path / "c"), "--scheduler", scheduler])
+    assert result.exit_code == 2, result.output
+    assert "cannot import hilnav" in result.output and "install the same hilnav" in result.output
+    assert "Traceback" not in result.output
+    assert not list((tmp_path / "c" / "runs").rglob("summary.json"))
