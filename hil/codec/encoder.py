@@ -151,6 +151,12 @@ def _time_us(value: int, name: str) -> int:
     return t
 
 
+def _sample_name(sample: object, imu: object, baro: object, mag: object) -> str:
+    """Which argument of :meth:`Encoder.sensors` ``sample`` is (for error messages)."""
+    return "imu" if sample is imu else "baro" if sample is baro else (
+        "mag" if sample is mag else "airspeed")
+
+
 def _uint8(value: int, name: str) -> int:
     v = int(value)
     if v != value or not 0 <= v <= UINT8_MAX:
@@ -316,38 +322,30 @@ class Encoder:
             if diff_pressure_pa is not None:
                 raise ValueError("give airspeed or diff_pressure_pa, not both")
             diff_pressure_pa = airspeed.diff_pressure_pa
-        given: list[tuple[str, ImuSample | BaroSample | MagSample | AirspeedSample]] = [
-            (name, s)
-            for name, s in (("imu", imu), ("baro", baro), ("mag", mag), ("airspeed", airspeed))
-            if s is not None
-        ]
-        if not given and diff_pressure_pa is None:
+        given = [s for s in (imu, baro, mag, airspeed) if s is not None]
+        if given:
+            first = given[0]
+            # the usual case in one pass; a mismatch is reported by _check_agree
+            for s in given:
+                if s.time_us != first.time_us or s.sensor_id != first.sensor_id:
+                    self._check_agree(imu, baro, mag, airspeed, time_us is None)
+            sensor_id = first.sensor_id
+            if type(sensor_id) is not int or not 0 <= sensor_id <= UINT8_MAX:
+                sensor_id = _uint8(sensor_id, f"{_sample_name(first, imu, baro, mag)}.sensor_id")
+        elif diff_pressure_pa is None:
             raise ValueError(
                 "sensors() needs at least one of imu, baro, mag, airspeed, diff_pressure_pa"
             )
+        else:
+            sensor_id = 0
         if time_us is None:
             if not given:
                 raise ValueError("time_us is required when only diff_pressure_pa is given")
-            first_name, first = given[0]
-            for name, s in given[1:]:
-                if s.time_us != first.time_us:
-                    raise ValueError(
-                        f"{name}.time_us ({s.time_us}) differs from {first_name}.time_us "
-                        f"({first.time_us}); pass time_us explicitly"
-                    )
-            t = _time_us(first.time_us, f"{first_name}.time_us")
+            t = given[0].time_us
+            if type(t) is not int or not 0 <= t <= UINT64_MAX:
+                t = _time_us(t, f"{_sample_name(given[0], imu, baro, mag)}.time_us")
         else:
             t = _time_us(time_us, "time_us")
-        sensor_id = 0
-        if given:
-            first_name, first = given[0]
-            sensor_id = _uint8(first.sensor_id, f"{first_name}.sensor_id")
-            for name, s in given[1:]:
-                if s.sensor_id != first.sensor_id:
-                    raise ValueError(
-                        f"{name}.sensor_id ({s.sensor_id}) differs from {first_name}.sensor_id "
-                        f"({first.sensor_id}): HIL_SENSOR has one id field"
-                    )
 
         bits = 0
         acc = gyro = mag_g = [0.0, 0.0, 0.0]  # sent as zeros when their bits are clear
@@ -381,6 +379,37 @@ class Encoder:
             HIL_SENSOR, self._sensor_mav,
             t, *acc, *gyro, *mag_g, abs_hpa, diff_hpa, alt_m, temp_c, bits, sensor_id,
         )
+
+    @staticmethod
+    def _check_agree(
+        imu: ImuSample | None,
+        baro: BaroSample | None,
+        mag: MagSample | None,
+        airspeed: AirspeedSample | None,
+        check_time: bool,
+    ) -> None:
+        """Raise the ValueError that names the samples whose time (when ``check_time``) or
+        sensor id differs from the first one's."""
+        given: list[tuple[str, ImuSample | BaroSample | MagSample | AirspeedSample]] = [
+            (name, s)
+            for name, s in (("imu", imu), ("baro", baro), ("mag", mag), ("airspeed", airspeed))
+            if s is not None
+        ]
+        first_name, first = given[0]
+        if check_time:
+            for name, s in given[1:]:
+                if s.time_us != first.time_us:
+                    raise ValueError(
+                        f"{name}.time_us ({s.time_us}) differs from {first_name}.time_us "
+                        f"({first.time_us}); pass time_us explicitly"
+                    )
+        _uint8(first.sensor_id, f"{first_name}.sensor_id")
+        for name, s in given[1:]:
+            if s.sensor_id != first.sensor_id:
+                raise ValueError(
+                    f"{name}.sensor_id ({s.sensor_id}) differs from {first_name}.sensor_id "
+                    f"({first.sensor_id}): HIL_SENSOR has one id field"
+                )
 
     def gnss(self, fix: GnssFix) -> bytes:
         """One HIL_GPS frame (``time_usec`` = the fix's time of validity).
