@@ -916,24 +916,23 @@ class Flight:
     def _read_truth(self) -> Truth:
         raw = self._raw
         f_scale = FT_M / raw[_IMASS]  # lbf / slug = ft/s^2
+        # positional, in Truth's field order (keywords cost ~0.5 us at every step)
         return Truth(
-            time_us=self.time_us,
-            lat_rad=raw[_ILAT],
-            lon_rad=raw[_ILON],
-            alt_msl_m=raw[_IH],
-            v_ned_mps=np.array((raw[_IVN] * FT_M, raw[_IVE] * FT_M, raw[_IVD] * FT_M)),
-            q_nb=_euler_to_quat(raw[_IPHI], raw[_ITHETA], raw[_IPSI]),
-            omega_b_rps=np.array((raw[_IPI], raw[_IQI], raw[_IRI])),
-            specific_force_b_mps2=np.array(
-                (raw[_IFX] * f_scale, raw[_IFY] * f_scale, raw[_IFZ] * f_scale)
-            ),
-            static_pressure_pa=raw[_IPS] * PSF_PA,
-            temperature_k=raw[_ITR] * RANKINE_K,
-            airspeed_mps=raw[_IVT] * FT_M,
-            indicated_airspeed_mps=raw[_IVC] * FT_M,
-            alpha_rad=raw[_IALPHA],
-            beta_rad=raw[_IBETA],
-            wind_ned_mps=np.array((raw[_IWN] * FT_M, raw[_IWE] * FT_M, raw[_IWD] * FT_M)),
+            self.time_us,
+            raw[_ILAT],  # lat_rad
+            raw[_ILON],  # lon_rad
+            raw[_IH],  # alt_msl_m
+            np.array((raw[_IVN] * FT_M, raw[_IVE] * FT_M, raw[_IVD] * FT_M)),  # v_ned_mps
+            _euler_to_quat(raw[_IPHI], raw[_ITHETA], raw[_IPSI]),  # q_nb
+            np.array((raw[_IPI], raw[_IQI], raw[_IRI])),  # omega_b_rps
+            np.array((raw[_IFX] * f_scale, raw[_IFY] * f_scale, raw[_IFZ] * f_scale)),
+            raw[_IPS] * PSF_PA,  # static_pressure_pa
+            raw[_ITR] * RANKINE_K,  # temperature_k
+            raw[_IVT] * FT_M,  # airspeed_mps
+            raw[_IVC] * FT_M,  # indicated_airspeed_mps
+            raw[_IALPHA],
+            raw[_IBETA],
+            np.array((raw[_IWN] * FT_M, raw[_IWE] * FT_M, raw[_IWD] * FT_M)),  # wind_ned_mps
         )
 
     def _check(self) -> None:
