@@ -199,27 +199,21 @@ class ColumnChunks:
         """Every column, the chunks in order (then ``tail``, a last chunk not appended); empty
         dict when there is nothing. Each column is allocated once at its full length and
         filled chunk by chunk, so reading back a spilled hour needs the columns' size, not
-        twice that. Kept in memory, several chunks are replaced, one by one as they are
-        copied, by views of the columns returned, which are then read-only (shared with the
-        store)."""
+        twice that. Kept in memory, several chunks are replaced by views of the columns
+        returned, which are then read-only (shared with the store)."""
         rows = self.rows + (0 if tail is None else len(next(iter(tail.values()))))
         out: dict[str, NDArray[Any]] = {}
         start = 0
-        # kept in memory, each chunk is replaced by views of the columns as soon as it is
-        # copied, so its memory is freed at once: the columns of an hour need their own size
-        # at most plus one chunk, not twice their size
-        replace = self._file is None and len(self._kept) > 1
-        for i, chunk in enumerate(
-                itertools.chain(self._chunks(), [] if tail is None else [tail])):
+        for chunk in itertools.chain(self._chunks(), [] if tail is None else [tail]):
             n = len(next(iter(chunk.values())))
             for k, a in chunk.items():
                 if k not in out:
                     out[k] = np.empty((rows, *a.shape[1:]), dtype=a.dtype)
                 out[k][start:start + n] = a
-            if replace and i < len(self._kept):
-                self._kept[i] = {k: out[k][start:start + n] for k in chunk}
             start += n
-        if replace:
+        if self._file is None and len(self._kept) > 1:
+            # the chunks become views of the columns just built: an hour's run then holds its
+            # columns once, not twice (chunks + columns), from the first read on
             for a in out.values():
                 a.flags.writeable = False
             self._kept = [{k: a[:self.rows] for k, a in out.items()}]
