@@ -199,7 +199,8 @@ class ColumnChunks:
         """Every column, the chunks in order (then ``tail``, a last chunk not appended); empty
         dict when there is nothing. Each column is allocated once at its full length and
         filled chunk by chunk, so reading back a spilled hour needs the columns' size, not
-        twice that."""
+        twice that. Kept in memory, several chunks are replaced by views of the columns
+        returned, which are then read-only (shared with the store)."""
         rows = self.rows + (0 if tail is None else len(next(iter(tail.values()))))
         out: dict[str, NDArray[Any]] = {}
         start = 0
@@ -210,6 +211,12 @@ class ColumnChunks:
                     out[k] = np.empty((rows, *a.shape[1:]), dtype=a.dtype)
                 out[k][start:start + n] = a
             start += n
+        if self._file is None and len(self._kept) > 1:
+            # the chunks become views of the columns just built: an hour's run then holds its
+            # columns once, not twice (chunks + columns), from the first read on
+            for a in out.values():
+                a.flags.writeable = False
+            self._kept = [{k: a[:self.rows] for k, a in out.items()}]
         return out
 
     def close(self) -> None:

@@ -31,6 +31,10 @@ from pydantic import BaseModel, ConfigDict, Field
 from physconst import G0_MPS2
 from sim.plans import FlightPlan, Leg
 
+_PI = math.pi
+_TWO_PI = 2.0 * math.pi
+_RAD_3 = math.radians(3.0)  # the angle-of-attack guard's band
+
 
 def _wrap(angle_rad: float) -> float:
     """Wrap an angle to [-pi, pi)."""
@@ -260,11 +264,14 @@ class Guidance:
 
     def update(self, s: GuidanceInput) -> Controls:
         """One control step: advance the plan, return the commands to apply now."""
+        # Runs at every simulation step: the input is unpacked once and the clips are written
+        # out inline (same operations, same order, as _clip; a call costs more than the test).
         g = self.gains
-        dt = s.dt_s
-        v = max(s.airspeed_mps, 1.0)
-        ground_speed = math.hypot(s.v_north_mps, s.v_east_mps)
-        course = math.atan2(s.v_east_mps, s.v_north_mps) if ground_speed > 1.0 else s.psi_rad
+        (_, dt, _, _, alt, v_north, v_east, v_down, airspeed, phi, theta, psi, p, q, r, alpha,
+         beta, qbar) = s
+        v = 1.0 if 1.0 > airspeed else airspeed  # max(airspeed, 1.0), NaN included
+        ground_speed = math.hypot(v_north, v_east)
+        course = math.atan2(v_east, v_north) if ground_speed > 1.0 else psi
 
         leg = self._leg()
         if leg is not None and not self._leg_started:
@@ -276,8 +283,12 @@ class Guidance:
 
         # angle-of-attack guard: within 3 deg of alpha_max, bank and pull are cut back
         pitch_direct = leg is not None and leg.kind == "attitude" and leg.pitch_deg is not None
-        alpha_margin = g.alpha_max_rad - s.alpha_rad
-        protect = 0.0 if pitch_direct else _clip(1.0 - alpha_margin / math.radians(3.0), 0.0, 1.0)
+        alpha_margin = g.alpha_max_rad - alpha
+        if pitch_direct:
+            protect = 0.0
+        else:
+            x = 1.0 - alpha_margin / _RAD_3
+            protect = 0.0 if x < 0.0 else 1.0 if x > 1.0 else x
 
         # lateral: course error -> turn rate -> bank (coordinated turn: tan(phi) = V r / g)
         if course_err is None:
@@ -289,71 +300,77 @@ class Guidance:
                 limit = math.radians(abs(leg.bank_deg))
             elif leg is not None and leg.kind == "turn":
                 limit = g.default_turn_bank_rad
-            phi_cmd = _clip(math.atan(v * g.k_course * course_err / G0_MPS2), -limit, limit)
+            x = math.atan(v * g.k_course * course_err / G0_MPS2)
+            phi_cmd = -limit if x < -limit else limit if x > limit else x
             # the trimmed bank (propeller torque, asymmetric thrust) is "wings level"
             phi_cmd += self._trim.phi_rad
         phi_cmd *= 1.0 - 0.5 * protect
 
         # longitudinal: altitude -> climb rate -> pitch
-        hdot = -s.v_down_mps
-        speed_err = self.airspeed_target_mps - s.airspeed_mps
+        hdot = -v_down
+        speed_err = self.airspeed_target_mps - airspeed
         if pitch_direct:
             assert leg is not None and leg.pitch_deg is not None
             theta_cmd = math.radians(leg.pitch_deg)
         else:
-            hdot_cmd = _clip(
-                g.k_alt * (self.alt_target_m - s.alt_m), -self.climb_rate_mps, self.climb_rate_mps
-            )
+            climb = self.climb_rate_mps
+            x = g.k_alt * (self.alt_target_m - alt)
+            hdot_cmd = -climb if x < -climb else climb if x > climb else x
             hdot_err = hdot_cmd - hdot
-            gamma_ff = math.asin(_clip(hdot_cmd / v, -0.5, 0.5))
+            x = hdot_cmd / v
+            gamma_ff = math.asin(-0.5 if x < -0.5 else 0.5 if x > 0.5 else x)
             theta_unsat = self._trim.theta_rad + gamma_ff + g.k_hdot * hdot_err + self._i_hdot
             # speed guard: give up climb (or descent) rather than stall (or overspeed)
             under = max(0.0, speed_err - g.speed_guard_mps)
             over = max(0.0, -speed_err - 2.0 * g.speed_guard_mps)
             theta_unsat += g.k_speed_guard * (over - under)
-            theta_cmd = _clip(theta_unsat, g.pitch_min_rad, g.pitch_max_rad)
+            lo, hi = g.pitch_min_rad, g.pitch_max_rad
+            theta_cmd = lo if theta_unsat < lo else hi if theta_unsat > hi else theta_unsat
             if protect == 0.0 and (
                 theta_cmd == theta_unsat or (theta_cmd > theta_unsat) == (hdot_err > 0.0)
             ):
                 self._i_hdot += g.ki_hdot * hdot_err * dt
 
         # dynamic-pressure scheduling of the surface gains
-        sched = _clip(self._trim.qbar_pa / max(s.qbar_pa, 1.0), 0.5, 2.0)
+        x = self._trim.qbar_pa / (1.0 if 1.0 > qbar else qbar)  # / max(qbar, 1.0)
+        sched = 0.5 if x < 0.5 else 2.0 if x > 2.0 else x
         trim = self._trim.controls
 
         # roll: PI on bank error with roll-rate damping
-        phi_err = _wrap(phi_cmd - s.phi_rad)
-        aileron_unsat = trim.aileron + sched * (g.k_phi * phi_err - g.k_p * s.p_rps) + self._i_phi
-        aileron = _clip(aileron_unsat, -1.0, 1.0)
+        phi_err = (phi_cmd - phi + _PI) % _TWO_PI - _PI  # _wrap
+        aileron_unsat = trim.aileron + sched * (g.k_phi * phi_err - g.k_p * p) + self._i_phi
+        aileron = -1.0 if aileron_unsat < -1.0 else 1.0 if aileron_unsat > 1.0 else aileron_unsat
         if aileron == aileron_unsat:
             self._i_phi += sched * g.ki_phi * phi_err * dt
 
         # pitch: rate command with coordinated-turn feed-forward, PI to elevator
-        q_turn = G0_MPS2 / v * math.sin(s.phi_rad) * math.tan(_clip(s.phi_rad, -1.2, 1.2))
-        theta_err = theta_cmd - s.theta_rad
-        q_cmd = _clip(g.k_theta * theta_err, -g.max_q_rps, g.max_q_rps) + q_turn
+        sin_phi = math.sin(phi)
+        phi_c = -1.2 if phi < -1.2 else 1.2 if phi > 1.2 else phi
+        q_turn = G0_MPS2 / v * sin_phi * math.tan(phi_c)
+        theta_err = theta_cmd - theta
+        max_q = g.max_q_rps
+        x = g.k_theta * theta_err
+        q_cmd = (-max_q if x < -max_q else max_q if x > max_q else x) + q_turn
         if not pitch_direct and alpha_margin < 0.0:
             q_cmd = min(q_cmd, g.k_alpha * alpha_margin)
-        pull = sched * g.k_q * (q_cmd - s.q_rps) + self._i_theta
+        pull = sched * g.k_q * (q_cmd - q) + self._i_theta
         elevator_unsat = trim.elevator - pull
-        elevator = _clip(elevator_unsat, -1.0, 1.0)
+        elevator = (
+            -1.0 if elevator_unsat < -1.0 else 1.0 if elevator_unsat > 1.0 else elevator_unsat
+        )
         if elevator == elevator_unsat and (protect == 0.0 or theta_err < 0.0):
             self._i_theta += sched * g.ki_theta * theta_err * dt
 
         # yaw: sideslip PI and a yaw damper around the coordinated-turn yaw rate
-        r_turn = G0_MPS2 / v * math.sin(s.phi_rad) * math.cos(s.theta_rad)
-        rudder_unsat = (
-            trim.rudder
-            - sched * (g.k_beta * s.beta_rad - g.k_r * (s.r_rps - r_turn))
-            + self._i_beta
-        )
-        rudder = _clip(rudder_unsat, -1.0, 1.0)
+        r_turn = G0_MPS2 / v * sin_phi * math.cos(theta)
+        rudder_unsat = trim.rudder - sched * (g.k_beta * beta - g.k_r * (r - r_turn)) + self._i_beta
+        rudder = -1.0 if rudder_unsat < -1.0 else 1.0 if rudder_unsat > 1.0 else rudder_unsat
         if rudder == rudder_unsat:
-            self._i_beta -= sched * g.ki_beta * s.beta_rad * dt
+            self._i_beta -= sched * g.ki_beta * beta * dt
 
         # speed: throttle PI around the trim throttle
         throttle_unsat = trim.throttle + g.k_v * speed_err + self._i_v
-        throttle = _clip(throttle_unsat, 0.0, 1.0)
+        throttle = 0.0 if throttle_unsat < 0.0 else 1.0 if throttle_unsat > 1.0 else throttle_unsat
         if throttle == throttle_unsat or (throttle > throttle_unsat) == (speed_err > 0.0):
             self._i_v += g.ki_v * speed_err * dt
 

@@ -347,27 +347,30 @@ class ImuModel:
         fx, fy, fz, wx, wy, wz = u
         a00, a01, a02, a10, a11, a12, a20, a21, a22 = self._t_acc
         g00, g01, g02, g10, g11, g12, g20, g21, g22 = self._t_gyr
-        y = [
-            a00 * fx + a01 * fy + a02 * fz + e[0],
-            a10 * fx + a11 * fy + a12 * fz + e[1],
-            a20 * fx + a21 * fy + a22 * fz + e[2],
-            g00 * wx + g01 * wy + g02 * wz + e[3],
-            g10 * wx + g11 * wy + g12 * wz + e[4],
-            g20 * wx + g21 * wy + g22 * wz + e[5],
-        ]
-        ra, rg = self._range_acc, self._range_gyr
-        qa, qg = self._lsb_acc, self._lsb_gyr
-        for i in range(6):
-            r, q = (ra, qa) if i < 3 else (rg, qg)
-            v = y[i]
-            if v > r:
-                v = r
-            elif v < -r:
-                v = -r
-            if q > 0.0:
-                v = round(v / q) * q
-            y[i] = v
-        return y
+        e0, e1, e2, e3, e4, e5 = e
+        y0 = a00 * fx + a01 * fy + a02 * fz + e0
+        y1 = a10 * fx + a11 * fy + a12 * fz + e1
+        y2 = a20 * fx + a21 * fy + a22 * fz + e2
+        y3 = g00 * wx + g01 * wy + g02 * wz + e3
+        y4 = g10 * wx + g11 * wy + g12 * wz + e4
+        y5 = g20 * wx + g21 * wy + g22 * wz + e5
+        # saturate at the range, then quantise to the LSB (round half to even); written out
+        # per axis (a loop over the six costs ~1 us at every sample)
+        r = self._range_acc
+        y0 = r if y0 > r else -r if y0 < -r else y0
+        y1 = r if y1 > r else -r if y1 < -r else y1
+        y2 = r if y2 > r else -r if y2 < -r else y2
+        r = self._range_gyr
+        y3 = r if y3 > r else -r if y3 < -r else y3
+        y4 = r if y4 > r else -r if y4 < -r else y4
+        y5 = r if y5 > r else -r if y5 < -r else y5
+        q = self._lsb_acc
+        if q > 0.0:
+            y0, y1, y2 = round(y0 / q) * q, round(y1 / q) * q, round(y2 / q) * q
+        q = self._lsb_gyr
+        if q > 0.0:
+            y3, y4, y5 = round(y3 / q) * q, round(y4 / q) * q, round(y5 / q) * q
+        return [y0, y1, y2, y3, y4, y5]
 
     def measure6(self, u: NDArray[np.float64]) -> NDArray[np.float64]:
         """One IMU sample from the true interval-averaged input.

@@ -206,7 +206,10 @@ class SensorSuite:
             u = x
             self._prev = x
         elif self.imu_decimation == 1:
-            u = [(a + b) * 0.5 for a, b in zip(prev, x, strict=True)]
+            p0, p1, p2, p3, p4, p5 = prev
+            x0, x1, x2, x3, x4, x5 = x
+            u = [(p0 + x0) * 0.5, (p1 + x1) * 0.5, (p2 + x2) * 0.5,
+                 (p3 + x3) * 0.5, (p4 + x4) * 0.5, (p5 + x5) * 0.5]
             self._prev = x
         else:
             self._count += 1

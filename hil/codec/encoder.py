@@ -142,6 +142,8 @@ def _vec(value: ArrayLike, name: str, n: int = 3) -> list[float]:
 
 
 def _time_us(value: int, name: str) -> int:
+    if type(value) is int and 0 <= value <= UINT64_MAX:  # the usual case, without int()
+        return value
     try:
         t = int(value)
     except (TypeError, ValueError) as exc:
@@ -151,7 +153,15 @@ def _time_us(value: int, name: str) -> int:
     return t
 
 
+def _sample_name(sample: object, imu: object, baro: object, mag: object) -> str:
+    """Which argument of :meth:`Encoder.sensors` ``sample`` is (for error messages)."""
+    return "imu" if sample is imu else "baro" if sample is baro else (
+        "mag" if sample is mag else "airspeed")
+
+
 def _uint8(value: int, name: str) -> int:
+    if type(value) is int and 0 <= value <= UINT8_MAX:  # the usual case, without int()
+        return value
     v = int(value)
     if v != value or not 0 <= v <= UINT8_MAX:
         raise ValueError(f"{name} must be an integer in [0, 255], got {value!r}")
@@ -316,38 +326,30 @@ class Encoder:
             if diff_pressure_pa is not None:
                 raise ValueError("give airspeed or diff_pressure_pa, not both")
             diff_pressure_pa = airspeed.diff_pressure_pa
-        given: list[tuple[str, ImuSample | BaroSample | MagSample | AirspeedSample]] = [
-            (name, s)
-            for name, s in (("imu", imu), ("baro", baro), ("mag", mag), ("airspeed", airspeed))
-            if s is not None
-        ]
-        if not given and diff_pressure_pa is None:
+        given = [s for s in (imu, baro, mag, airspeed) if s is not None]
+        if given:
+            first = given[0]
+            # the usual case in one pass; a mismatch is reported by _check_agree
+            for s in given:
+                if s.time_us != first.time_us or s.sensor_id != first.sensor_id:
+                    self._check_agree(imu, baro, mag, airspeed, time_us is None)
+            sensor_id = first.sensor_id
+            if type(sensor_id) is not int or not 0 <= sensor_id <= UINT8_MAX:  # name on error
+                sensor_id = _uint8(sensor_id, f"{_sample_name(first, imu, baro, mag)}.sensor_id")
+        elif diff_pressure_pa is None:
             raise ValueError(
                 "sensors() needs at least one of imu, baro, mag, airspeed, diff_pressure_pa"
             )
+        else:
+            sensor_id = 0
         if time_us is None:
             if not given:
                 raise ValueError("time_us is required when only diff_pressure_pa is given")
-            first_name, first = given[0]
-            for name, s in given[1:]:
-                if s.time_us != first.time_us:
-                    raise ValueError(
-                        f"{name}.time_us ({s.time_us}) differs from {first_name}.time_us "
-                        f"({first.time_us}); pass time_us explicitly"
-                    )
-            t = _time_us(first.time_us, f"{first_name}.time_us")
+            t = given[0].time_us
+            if type(t) is not int or not 0 <= t <= UINT64_MAX:
+                t = _time_us(t, f"{_sample_name(given[0], imu, baro, mag)}.time_us")
         else:
             t = _time_us(time_us, "time_us")
-        sensor_id = 0
-        if given:
-            first_name, first = given[0]
-            sensor_id = _uint8(first.sensor_id, f"{first_name}.sensor_id")
-            for name, s in given[1:]:
-                if s.sensor_id != first.sensor_id:
-                    raise ValueError(
-                        f"{name}.sensor_id ({s.sensor_id}) differs from {first_name}.sensor_id "
-                        f"({first.sensor_id}): HIL_SENSOR has one id field"
-                    )
 
         bits = 0
         acc = gyro = mag_g = [0.0, 0.0, 0.0]  # sent as zeros when their bits are clear
@@ -382,6 +384,37 @@ class Encoder:
             t, *acc, *gyro, *mag_g, abs_hpa, diff_hpa, alt_m, temp_c, bits, sensor_id,
         )
 
+    @staticmethod
+    def _check_agree(
+        imu: ImuSample | None,
+        baro: BaroSample | None,
+        mag: MagSample | None,
+        airspeed: AirspeedSample | None,
+        check_time: bool,
+    ) -> None:
+        """Raise the ValueError that names the samples whose time (when ``check_time``) or
+        sensor id differs from the first one's."""
+        given: list[tuple[str, ImuSample | BaroSample | MagSample | AirspeedSample]] = [
+            (name, s)
+            for name, s in (("imu", imu), ("baro", baro), ("mag", mag), ("airspeed", airspeed))
+            if s is not None
+        ]
+        first_name, first = given[0]
+        if check_time:
+            for name, s in given[1:]:
+                if s.time_us != first.time_us:
+                    raise ValueError(
+                        f"{name}.time_us ({s.time_us}) differs from {first_name}.time_us "
+                        f"({first.time_us}); pass time_us explicitly"
+                    )
+        _uint8(first.sensor_id, f"{first_name}.sensor_id")
+        for name, s in given[1:]:
+            if s.sensor_id != first.sensor_id:
+                raise ValueError(
+                    f"{name}.sensor_id ({s.sensor_id}) differs from {first_name}.sensor_id "
+                    f"({first.sensor_id}): HIL_SENSOR has one id field"
+                )
+
     def gnss(self, fix: GnssFix) -> bytes:
         """One HIL_GPS frame (``time_usec`` = the fix's time of validity).
 
@@ -402,10 +435,10 @@ class Encoder:
             _finite(fix.alt_msl_m, "fix.alt_msl_m") * 1e3, INT32_MIN, INT32_MAX, "HIL_GPS.alt"
         )
         v = [x * 100.0 for x in _vec(fix.v_ned_mps, "fix.v_ned_mps")]
-        vn, ve, vd = (
-            self._int(x, INT16_MIN, INT16_MAX, f"HIL_GPS.{n}")
-            for x, n in zip(v, ("vn", "ve", "vd"), strict=True)
-        )
+        # field names as literals: formatted names would cost ~1 us a frame
+        vn = self._int(v[0], INT16_MIN, INT16_MAX, "HIL_GPS.vn")
+        ve = self._int(v[1], INT16_MIN, INT16_MAX, "HIL_GPS.ve")
+        vd = self._int(v[2], INT16_MIN, INT16_MAX, "HIL_GPS.vd")
         ground_cms = math.hypot(v[0], v[1])
         vel = self._int(ground_cms, 0, UINT16_MAX - 1, "HIL_GPS.vel")
         if ground_cms > 0.0:
@@ -451,34 +484,34 @@ class Encoder:
         t = _time_us(truth.time_us, "truth.time_us")
         q = _vec(truth.q_nb, "truth.q_nb", 4)
         w = _vec(truth.omega_b_rps, "truth.omega_b_rps")
+        # field names as literals: formatted names would cost ~1 us a frame
         m = "HIL_STATE_QUATERNION"
         lat_e7, lon_e7 = self._lat_lon_e7(truth.lat_rad, truth.lon_rad, "truth")
         alt_mm = self._int(
-            _finite(truth.alt_msl_m, "truth.alt_msl_m") * 1e3, INT32_MIN, INT32_MAX, f"{m}.alt"
+            _finite(truth.alt_msl_m, "truth.alt_msl_m") * 1e3, INT32_MIN, INT32_MAX,
+            "HIL_STATE_QUATERNION.alt",
         )
-        v = [x * 100.0 for x in _vec(truth.v_ned_mps, "truth.v_ned_mps")]
-        vx, vy, vz = (
-            self._int(x, INT16_MIN, INT16_MAX, f"{m}.{n}")
-            for x, n in zip(v, ("vx", "vy", "vz"), strict=True)
-        )
+        v0, v1, v2 = (x * 100.0 for x in _vec(truth.v_ned_mps, "truth.v_ned_mps"))
+        vx = self._int(v0, INT16_MIN, INT16_MAX, "HIL_STATE_QUATERNION.vx")
+        vy = self._int(v1, INT16_MIN, INT16_MAX, "HIL_STATE_QUATERNION.vy")
+        vz = self._int(v2, INT16_MIN, INT16_MAX, "HIL_STATE_QUATERNION.vz")
         ias = self._int(
             _finite(truth.indicated_airspeed_mps, "truth.indicated_airspeed_mps") * 100.0,
             0,
             UINT16_MAX,
-            f"{m}.ind_airspeed",
+            "HIL_STATE_QUATERNION.ind_airspeed",
         )
         tas = self._int(
             _finite(truth.airspeed_mps, "truth.airspeed_mps") * 100.0,
             0,
             UINT16_MAX,
-            f"{m}.true_airspeed",
+            "HIL_STATE_QUATERNION.true_airspeed",
         )
         f_b = _vec(truth.specific_force_b_mps2, "truth.specific_force_b_mps2")
-        f_mg = [x / (G0_MPS2 * 1e-3) for x in f_b]
-        xacc, yacc, zacc = (
-            self._int(x, INT16_MIN, INT16_MAX, f"{m}.{n}")
-            for x, n in zip(f_mg, ("xacc", "yacc", "zacc"), strict=True)
-        )
+        f0, f1, f2 = (x / (G0_MPS2 * 1e-3) for x in f_b)
+        xacc = self._int(f0, INT16_MIN, INT16_MAX, "HIL_STATE_QUATERNION.xacc")
+        yacc = self._int(f1, INT16_MIN, INT16_MAX, "HIL_STATE_QUATERNION.yacc")
+        zacc = self._int(f2, INT16_MIN, INT16_MAX, "HIL_STATE_QUATERNION.zacc")
         return self._pack(
             HIL_STATE_QUATERNION,
             self._truth_mav,
@@ -576,8 +609,10 @@ class Encoder:
 
     @staticmethod
     def _lat_lon_e7(lat_rad: float, lon_rad: float, owner: str) -> tuple[int, int]:
-        lat = _finite(lat_rad, f"{owner}.lat_rad")
-        lon = _finite(lon_rad, f"{owner}.lon_rad")
+        lat, lon = float(lat_rad), float(lon_rad)
+        if not (math.isfinite(lat) and math.isfinite(lon)):  # names formatted on error only
+            lat = _finite(lat, f"{owner}.lat_rad")
+            lon = _finite(lon, f"{owner}.lon_rad")
         if abs(lat) > math.pi / 2:
             raise ValueError(f"{owner}.lat_rad must be in [-pi/2, pi/2], got {lat!r}")
         # Longitude is periodic: normalise to [-180, 180) deg rather than reject.

@@ -126,3 +126,23 @@ def test_column_chunks_refuse_a_chunk_with_other_columns() -> None:
     assert chunks.rows == 3
     np.testing.assert_array_equal(chunks.columns({"a": np.full(2, 2.0), "b": np.zeros(2)})["a"],
                                   [0.0, 0.0, 0.0, 2.0, 2.0])
+
+
+def test_column_chunks_in_memory_are_kept_once_after_a_read() -> None:
+    """GIVEN three chunks kept in memory
+    WHEN the columns are read, another chunk appended and the columns read again
+    THEN both reads give every row in order, the first read's columns are read-only and the
+    store holds one set of columns (views of the first read), not the chunks besides."""
+    chunks = ColumnChunks()
+    for k in range(3):
+        chunks.append({"a": np.full(2, float(k)), "b": np.arange(4.0).reshape(2, 2) + k})
+    first = chunks.columns()
+    np.testing.assert_array_equal(first["a"], [0, 0, 1, 1, 2, 2])
+    assert not first["a"].flags.writeable
+    assert len(chunks._kept) == 1 and np.shares_memory(chunks._kept[0]["b"], first["b"])
+    chunks.append({"a": np.full(1, 3.0), "b": np.full((1, 2), 9.0)})
+    second = chunks.columns({"a": np.full(1, 4.0), "b": np.zeros((1, 2))})
+    np.testing.assert_array_equal(second["a"], [0, 0, 1, 1, 2, 2, 3, 4])
+    np.testing.assert_array_equal(second["b"][:6], first["b"])
+    np.testing.assert_array_equal(second["b"][6:], [[9.0, 9.0], [0.0, 0.0]])
+    assert chunks.rows == 7

@@ -411,3 +411,25 @@ def test_rejections_outside_windows() -> None:
                      baro_rejected=_steps(T50, [120.0]))
     out = event_metrics.rejections_outside(health, [(100.0, 130.0)], after_s=10.0)
     assert out == {"gnss_rejected": 2, "baro_rejected": 0}
+
+
+def test_nees_in_blocks_equals_nees_in_one_piece_and_reads_selected_rows() -> None:
+    """GIVEN random SPD 9x9 covariances (one singular, one with a NaN) for more samples than
+    one block holds
+    WHEN the NEES is computed block by block, with and without a row selection
+    THEN every value equals the one-piece computation bit for bit (each sample's NEES is its
+    own), and a selection reads exactly the selected covariances."""
+    rng = np.random.default_rng(7)
+    n = metrics.NEES_BLOCK_ROWS * 2 + 37
+    a = rng.normal(size=(n, 9, 9))
+    cov = a @ np.swapaxes(a, 1, 2) + 1e-3 * np.eye(9)
+    cov[5, 2, :] = cov[5, :, 2] = 0.0  # singular: a state held exactly
+    cov[11, 0, 0] = np.nan
+    e = rng.normal(size=(n, 9))
+    one_piece = metrics._nees_block(e, cov)
+    np.testing.assert_array_equal(metrics.nees(e, cov), one_piece)
+    assert np.isnan(one_piece[11]) and np.isfinite(one_piece[12])
+    rows = np.flatnonzero(rng.random(n) < 0.6)
+    np.testing.assert_array_equal(metrics.nees(e[rows], cov, rows), one_piece[rows])
+    with pytest.raises(ValueError, match="rows"):
+        metrics.nees(e[:3], cov, rows)
