@@ -51,6 +51,7 @@ _DIFF_PRESSURE = HilSensorField.DIFF_PRESSURE
 _NOT_IMU = _MAG | _ABS_PRESSURE | _DIFF_PRESSURE
 _array = np.array
 _F64 = np.float64
+_MG = G0_MPS2 * 1e-3  # MAVLink's mG, m/s^2
 
 
 def decode_hil_sensor(
@@ -147,21 +148,21 @@ def _accuracy_m(cm: int) -> float:
 def decode_hil_state_quaternion(msg: Any) -> Truth:
     """HIL_STATE_QUATERNION -> Truth (no pressure, temperature, angle of attack, sideslip or
     wind on the wire: NaN)."""
-    mg = G0_MPS2 * 1e-3
+    # (each vector as the array of its wire values times the scale, element by element)
     return Truth(
         time_us=int(msg.time_usec),
         lat_rad=msg.lat / DEGE7_PER_RAD,
         lon_rad=msg.lon / DEGE7_PER_RAD,
         alt_msl_m=msg.alt * 1e-3,
-        v_ned_mps=np.array([msg.vx, msg.vy, msg.vz], dtype=np.float64) * 1e-2,
-        q_nb=np.array(msg.attitude_quaternion, dtype=np.float64),
-        omega_b_rps=np.array([msg.rollspeed, msg.pitchspeed, msg.yawspeed], dtype=np.float64),
-        specific_force_b_mps2=np.array([msg.xacc, msg.yacc, msg.zacc], dtype=np.float64) * mg,
+        v_ned_mps=_array([msg.vx * 1e-2, msg.vy * 1e-2, msg.vz * 1e-2], _F64),
+        q_nb=_array(msg.attitude_quaternion, _F64),
+        omega_b_rps=_array([msg.rollspeed, msg.pitchspeed, msg.yawspeed], _F64),
+        specific_force_b_mps2=_array([msg.xacc * _MG, msg.yacc * _MG, msg.zacc * _MG], _F64),
         static_pressure_pa=math.nan,  # not in HIL_STATE_QUATERNION
         temperature_k=math.nan,  # not in HIL_STATE_QUATERNION
         airspeed_mps=msg.true_airspeed * 1e-2,
         indicated_airspeed_mps=msg.ind_airspeed * 1e-2,
         alpha_rad=math.nan,  # not in HIL_STATE_QUATERNION
         beta_rad=math.nan,  # not in HIL_STATE_QUATERNION
-        wind_ned_mps=np.full(3, math.nan),  # not in HIL_STATE_QUATERNION
+        wind_ned_mps=_array([math.nan, math.nan, math.nan], _F64),  # not in the message
     )
