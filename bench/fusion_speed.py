@@ -230,7 +230,7 @@ def breakdown(frames: list[bytes], n_imu: int, repeats: int) -> dict[str, Any]:
     each stage timed alone over the whole stream, best of ``repeats``)."""
     from hil.codec import Decoder
     from hil.codec.counters import DecoderCounters
-    from hil.codec.fast_frames import FAST_LAYOUTS
+    from hil.codec.fast_frames import unpack_fields
     from hil.codec.framing import FrameParser
     from sim.samples import Truth
 
@@ -240,11 +240,8 @@ def breakdown(frames: list[bytes], n_imu: int, repeats: int) -> dict[str, Any]:
             feed(f)
 
     def unpack() -> None:
-        get = FAST_LAYOUTS.get
         for f in frames:
-            layout = get(f[7] | (f[8] << 8) | (f[9] << 16))
-            if layout is not None:
-                layout.unpack(f)
+            unpack_fields(f, f[7] | (f[8] << 8) | (f[9] << 16))
 
     def decode() -> None:
         feed = Decoder().feed
