@@ -28,10 +28,18 @@ time. The 1-, 5- and 15-minute load averages are recorded: other jobs may share 
     python bench/fusion_speed.py --out bench/results/fusion_speed.json \
         [--duration 120] [--repeats 3] [--seed 1] [--gnss-bias on|off] [--airspeed on|off]
 
-With ``--airspeed on`` (default) the ``filter`` stream also carries pitot samples at 20 Hz
-(impact pressure of the truth's airspeed, 1 Pa noise): the air-data states are fused. The
-``decode+filter`` frames carry no air data (HIL_SENSOR ``diff_pressure`` comes with the
-simulator's pitot).
+Both streams hold the same sensor samples (the simulator's pitot at 50 Hz included:
+HIL_SENSOR ``diff_pressure``). ``--airspeed off`` drops the pitot samples from the ``filter``
+stream (the air-data states stay dormant there; the frames still carry them).
+``--layout NAME`` overrides the error-state layout the IMU preset's tuning picks (e.g.
+``ins16``: the issue-#15 target layout; default: the commands' ``ins35+air``).
+
+``--breakdown`` adds where the time of one IMU sample's worth of decode + filter goes (CPU
+time per IMU sample over the whole stream): the framing (:class:`hil.codec.framing.
+FrameParser`), the fast unpack (:mod:`hil.codec.fast_frames`), the rest of the decoder
+(dispatch and the SI sample objects: ``Decoder.feed`` minus the two), the filter on the
+decoded samples, and the filter's time split by module group from a pyinstrument profile
+(the profile's shares times the measured filter time).
 """
 
 from __future__ import annotations
@@ -60,26 +68,18 @@ def generate(duration_s: float, seed: int) -> tuple[list[Any], list[bytes], int]
     seed : int
         Scenario seed.
     """
-    import numpy as np
-
     from hil.pipeline import SimChain, SimSetup
-    from physconst.airdata import impact_pressure_pa
     from sim.samples import AirspeedSample, ImuSample
 
     setup = SimSetup.build(plan="racetrack", imu=IMU, gnss="modern", baro="ms5611",
                            mag="consumer", rate_hz=RATE_HZ, duration_s=duration_s, seed=seed)
     samples: list[Any] = []  # as emitted by the sensor suite
     frames: list[bytes] = []
-    rng = np.random.default_rng(seed)
     with SimChain(setup) as chain:
-        for k, step in enumerate(chain.steps()):
-            samples.extend(step.samples)
+        for step in chain.steps():
+            samples.extend(s for s in step.samples
+                           if AIRSPEED["on"] or not isinstance(s, AirspeedSample))
             frames.extend(frame for _t, frame in step.frames)
-            if AIRSPEED["on"] and k % PITOT_EVERY == 0:
-                tr = step.truth
-                qc = impact_pressure_pa(tr.airspeed_mps, tr.static_pressure_pa, tr.temperature_k)
-                samples.append(AirspeedSample(tr.time_us, qc + float(rng.normal(0.0, 1.0)),
-                                              tr.temperature_k))
     if chain.ended is not None:
         raise RuntimeError(f"flight ended early: {chain.ended}")
     n_imu = sum(isinstance(s, ImuSample) for s in samples)
@@ -87,10 +87,10 @@ def generate(duration_s: float, seed: int) -> tuple[list[Any], list[bytes], int]
 
 
 AIRSPEED = {"on": True}
-"""Whether the ``filter`` stream carries pitot samples (``--airspeed``): impact pressure of the
-truth's airspeed + 1 Pa noise at 20 Hz (the simulator's own pitot is not on this branch yet;
-the ``decode+filter`` frames carry no air data either way)."""
-PITOT_EVERY = 10  # one pitot sample per 10 IMU steps: 20 Hz
+"""Whether the ``filter`` stream keeps the simulator's pitot samples (``--airspeed``)."""
+
+LAYOUT: dict[str, str | None] = {"name": None}
+"""Error-state layout override (``--layout``); None: the tuning's choice."""
 
 GNSS_BIAS = {"on": False}
 """Whether the filter carries the GNSS position-bias states (``--gnss-bias``)."""
@@ -101,8 +101,11 @@ def _config(cov_rate_hz: float | None) -> Any:
 
     on = GNSS_BIAS["on"]
     cfg = filter_config_for_presets(IMU, "modern") if on else filter_config_for_imu(IMU)
-    return cfg.model_copy(update={"rates": cfg.rates.model_copy(
-        update={"covariance_rate_hz": cov_rate_hz})})
+    update: dict[str, Any] = {
+        "rates": cfg.rates.model_copy(update={"covariance_rate_hz": cov_rate_hz})}
+    if LAYOUT["name"] is not None:
+        update["state_layout"] = LAYOUT["name"]
+    return cfg.model_copy(update=update)
 
 
 def time_filter(samples: list[Any], cov_rate_hz: float | None) -> tuple[float, float, int]:
@@ -166,6 +169,112 @@ def profile_filter(samples: list[Any], top: int = 10) -> list[dict[str, Any]]:
     ] if total > 0 else []
 
 
+# Module groups of the filter's time (first match of a path fragment wins; the rest is the
+# filter's orchestration, numpy's Python wrappers and the interpreter)
+FILTER_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("INS mechanisation (strapdown, Earth terms)", ("/fusion/strapdown.py", "/fusion/earth.py",
+                                                     "/fusion/rotations.py")),
+    ("covariance propagation", ("/fusion/propagation.py", "/fusion/error_model.py")),
+    ("measurement updates (Kalman step, aiding models, feedback)",
+     ("/fusion/kalman.py", "/fusion/aiding/", "/fusion/feedback.py", "/fusion/airspeed_model.py",
+      "/fusion/wind_model.py")),
+    ("altitude channel", ("/fusion/altitude/", "/fusion/altitude_link.py")),
+    ("IMU screening", ("/fusion/screening.py",)),
+    ("estimate output", ("/fusion/estimate.py",)),
+    ("alignment", ("/fusion/alignment.py",)),
+    ("INS history, outage bookkeeping", ("/fusion/history.py", "/fusion/outage.py",
+                                          "/fusion/bridging/")),
+)
+OTHER_GROUP = "filter orchestration (fusion/filter.py) and the rest"
+
+
+def _cpu_s(fn: Any) -> float:
+    c0 = time.process_time()
+    fn()
+    return time.process_time() - c0
+
+
+def filter_shares(samples: list[Any]) -> dict[str, float]:
+    """Share of each :data:`FILTER_GROUPS` group in the own (self) time of one filter pass
+    (pyinstrument; covariance at 100 Hz)."""
+    from pyinstrument import Profiler
+
+    from fusion.filter import NavFilter
+
+    nav = NavFilter(_config(100.0))
+    prof = Profiler(interval=0.0002)
+    prof.start()
+    for s in samples:
+        nav.step(s)
+    root = prof.stop().root_frame()
+    own = dict.fromkeys([name for name, _ in FILTER_GROUPS] + [OTHER_GROUP], 0.0)
+
+    def walk(frame: Any, group: str) -> None:
+        path = frame.file_path or ""
+        if not frame.is_synthetic:
+            group = next((name for name, frags in FILTER_GROUPS
+                          if any(f in path for f in frags)),
+                         OTHER_GROUP if "/fusion/" in path else group)
+            own[group] += frame.total_self_time
+        for child in frame.children:
+            walk(child, group)
+
+    if root is not None:
+        walk(root, OTHER_GROUP)
+    total = sum(own.values())
+    return {k: v / total for k, v in own.items()} if total > 0 else own
+
+
+def breakdown(frames: list[bytes], n_imu: int, repeats: int) -> dict[str, Any]:
+    """Where the CPU time of decode + filter goes, us per IMU sample (covariance at 100 Hz;
+    each stage timed alone over the whole stream, best of ``repeats``)."""
+    from hil.codec import Decoder
+    from hil.codec.counters import DecoderCounters
+    from hil.codec.fast_frames import unpack_fields
+    from hil.codec.framing import FrameParser
+    from sim.samples import Truth
+
+    def framing() -> None:
+        feed = FrameParser(DecoderCounters()).feed
+        for f in frames:
+            feed(f)
+
+    def unpack() -> None:
+        for f in frames:
+            unpack_fields(f, f[7] | (f[8] << 8) | (f[9] << 16))
+
+    def decode() -> None:
+        feed = Decoder().feed
+        for f in frames:
+            feed(f)
+
+    dec = Decoder()
+    decoded = [d.sample for f in frames for d in dec.feed(f) if not isinstance(d.sample, Truth)]
+    us = 1e6 / n_imu
+    t_framing = min(_cpu_s(framing) for _ in range(repeats)) * us
+    t_unpack = min(_cpu_s(unpack) for _ in range(repeats)) * us
+    t_decode = min(_cpu_s(decode) for _ in range(repeats)) * us
+    t_filter = min(time_filter(decoded, 100.0)[0] for _ in range(repeats)) * us
+    t_both = min(time_decode_filter(frames, 100.0)[0] for _ in range(repeats)) * us
+    shares = filter_shares(decoded)
+    return {
+        "method": ("CPU us per IMU sample, each stage timed alone over the whole stream, best "
+                   "of repeats; the filter's groups are pyinstrument self-time shares times "
+                   "the measured filter time"),
+        "decoder": {
+            "framing (FrameParser.feed)": t_framing,
+            "fast unpack (fast_frames)": t_unpack,
+            "dispatch + SI sample objects (Decoder.feed minus the two above)":
+                t_decode - t_framing - t_unpack,
+            "total (Decoder.feed)": t_decode,
+        },
+        "filter": {**{k: v * t_filter for k, v in shares.items()}, "total (NavFilter.step)":
+                   t_filter},
+        "decode+filter (FusionRun.feed_frame)": t_both,
+        "decode+filter minus the two stages": t_both - t_decode - t_filter,
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -180,9 +289,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--airspeed", choices=("on", "off"), default="on",
                     help="on: the filter stream carries 20 Hz pitot samples (air data fused); "
                          "off: no air data (the air-data states stay dormant)")
+    ap.add_argument("--layout", default=None,
+                    help="error-state layout instead of the tuning's (e.g. ins16)")
+    ap.add_argument("--breakdown", action="store_true",
+                    help="also time each stage of decode + filter (see the module docstring)")
     args = ap.parse_args(argv)
     GNSS_BIAS["on"] = args.gnss_bias == "on"
     AIRSPEED["on"] = args.airspeed == "on"
+    LAYOUT["name"] = args.layout
     if args.duration <= 5 or args.repeats < 1:
         ap.error("--duration must be > 5 s and --repeats >= 1")
 
@@ -219,6 +333,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{cases[key]['realtime_factor_cpu']:.0f}x real time", flush=True)
 
     hot = [] if args.no_profile else profile_filter(samples)
+    split = breakdown(frames, n_imu, args.repeats) if args.breakdown else None
     main_case = cases["filter/cov_100hz"]
     from fusion.filter import NavFilter
 
@@ -247,6 +362,7 @@ def main(argv: list[str] | None = None) -> int:
         },
         "cases": cases,
         "profile_top10_filter_cov_100hz": hot,
+        "breakdown_cov_100hz": split,
         "machine": {
             "python": platform.python_version(), "numpy": np.__version__,
             "platform": platform.platform(), "cpu_count": os.cpu_count(),
@@ -256,6 +372,12 @@ def main(argv: list[str] | None = None) -> int:
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=1) + "\n")
+    if split is not None:
+        print("\nper IMU sample, CPU us (cov 100 Hz):")
+        for part in ("decoder", "filter"):
+            for k, v in split[part].items():
+                print(f"  {part:8s} {v:6.2f}  {k}")
+        print(f"  decode+filter {split['decode+filter (FusionRun.feed_frame)']:6.2f}")
     print("\ntop functions (self time, filter alone, cov 100 Hz):")
     for h in hot:
         print(f"  {h['self_percent']:5.1f} %  {h['function']}  {h['file']}")

@@ -92,6 +92,8 @@ from numpy.typing import NDArray
 from fusion import earth
 
 FloatArray = NDArray[np.float64]
+_fromiter = np.fromiter
+_F64 = np.float64
 
 LayoutName = Literal[
     "ins16", "ins16+gnss", "ins22", "ins22+gnss", "ins35", "ins35+gnss",
@@ -652,14 +654,12 @@ class ErrorModel:
             if len(self._phi_base) < 64:
                 self._phi_base[dt_s] = base
         phi = base.copy()
+        vals = self._fill(
+            lat_rad, alt_m, v_ned_mps, c_nb, f_n_mps2, f_b_mps2, omega_ib_b_rps, dt_s, 1.0, terms
+        )
         # put() replaces the identity on the diagonal entries of F: _fill adds it back
-        phi.put(
-            self._var_idx,
-            self._fill(
-                lat_rad, alt_m, v_ned_mps, c_nb, f_n_mps2, f_b_mps2, omega_ib_b_rps, dt_s, 1.0,
-                terms,
-            ),
-        )  # fmt: skip
+        # (fromiter: the same float64 values, without np.array's type discovery over the list)
+        phi.put(self._var_idx, _fromiter(vals, _F64, len(vals)))
         return phi
 
     def air_process_noise(self, dt_s: float, climb_rate_mps: float) -> tuple[float, float]:

@@ -17,6 +17,7 @@ campaigns, the live service and the benchmarks share every component:
 
 from __future__ import annotations
 
+import operator
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -315,6 +316,9 @@ def build_filter(config: FilterConfig, bridge: str = "none") -> NavFilter:
     return NavFilter(config, bridge=make_bridge(bridge, config.bridge))
 
 
+_sample_of = operator.attrgetter("sample")  # Decoded -> its sample
+
+
 class FusionRun:
     """Frames -> decoded samples -> one filter -> collected tracks.
 
@@ -365,7 +369,15 @@ class FusionRun:
         """Decode one frame (or a chunk of a byte stream) and fuse what it held."""
         decoded = self.decoder.feed(frame)
         self.samples += len(decoded)
-        return self.feed(d.sample for d in decoded)
+        col = self.collector
+        if col is not None:
+            return col.feed(self.nav, map(_sample_of, decoded))
+        out: list[NavEstimate] = []
+        step = self.nav.step
+        for d in decoded:  # as feed(), without a generator per frame
+            if not isinstance(d.sample, Truth):
+                out.extend(step(d.sample))
+        return out
 
     def __call__(self, time_us: int, frame: bytes) -> None:
         t0 = time.perf_counter()

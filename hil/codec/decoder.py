@@ -17,11 +17,11 @@ pymavlink, which also checks a configured signing key.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Any
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 from hil.codec.counters import DecoderCounters
-from hil.codec.fast_frames import unpack_fields
+from hil.codec.fast_frames import FAST_LAYOUTS
 from hil.codec.fc_messages import (
     SCALED_IMU_IDS,
     SCALED_PRESSURE_IDS,
@@ -58,9 +58,14 @@ _NOT_CLOCK_IDS = frozenset({
 })
 
 
-@dataclass(frozen=True, slots=True)
-class Decoded:
-    """One SI sample decoded from a MAVLink message, with where it came from."""
+_new_decoded = tuple.__new__  # Decoded(...) without the named tuple's Python-level __new__
+_Samples = list[Sample | Truth]
+_Handler = Callable[[Any, int, int, int], _Samples]
+
+
+class Decoded(NamedTuple):
+    """One SI sample decoded from a MAVLink message, with where it came from (a named tuple:
+    one is made per sample, and a tuple is the cheapest immutable record to make)."""
 
     sample: Sample | Truth
     system_id: int
@@ -111,6 +116,7 @@ class Decoder:
         self.counters = DecoderCounters()
         self._framer = FrameParser(self.counters)
         self._sources = SourceState(first_dt_s)
+        self._handlers = self._handler_table()
 
     # -- bytes -> messages --
     def parse(self, data: bytes, *, final: bool = False) -> list[Any]:
@@ -184,15 +190,16 @@ class Decoder:
         list of Decoded
             In stream order; one message may give several samples (HIL_SENSOR: IMU, mag, baro).
         """
-        out: list[Decoded] = []
         fast = self.mav.signing.secret_key is None
+        out: list[Decoded] = []
         for frame in self._framer.feed(data):
             if fast and frame[0] == MAGIC_V2 and frame[2] == 0:
                 msg_id = frame[7] | (frame[8] << 8) | (frame[9] << 16)
-                fields = unpack_fields(frame, msg_id)
-                if fields is not None:
+                layout = FAST_LAYOUTS.get(msg_id)
+                if layout is not None:
                     self.counters.frames_ok += 1
-                    out.extend(self._decode_fields(msg_id, frame[5], frame[6], fields))
+                    out.extend(self._decode_fields(msg_id, frame[5], frame[6],
+                                                   layout.unpack(frame)))
                     continue
             msg = self._decode_frame(frame)
             if msg is not None:
@@ -225,38 +232,58 @@ class Decoder:
     def _decode_fields(self, msg_id: int, sys_id: int, comp_id: int, msg: Any) -> list[Decoded]:
         """Samples of one message given as anything with its fields as attributes (a
         pymavlink message or a :mod:`hil.codec.fast_frames` named tuple)."""
-        samples: list[Sample | Truth]
-        if msg_id in (mavlink2.MAVLINK_MSG_ID_HIL_SENSOR, mavlink2.MAVLINK_MSG_ID_HIGHRES_IMU):
-            key = (sys_id, comp_id, msg_id, int(msg.id))
-            samples = decode_hil_sensor(msg, key, self._sources, self.counters)
-        elif msg_id == mavlink2.MAVLINK_MSG_ID_HIL_GPS:
-            samples = [decode_hil_gps(msg)]
-        elif msg_id == mavlink2.MAVLINK_MSG_ID_HIL_STATE_QUATERNION:
-            samples = [decode_hil_state_quaternion(msg)]
-        elif msg_id in SCALED_IMU_IDS:
-            key = (sys_id, comp_id, msg_id, SCALED_IMU_IDS[msg_id])
-            samples = decode_scaled_imu(msg, key, self._sources, self.counters)
-        elif msg_id == mavlink2.MAVLINK_MSG_ID_RAW_IMU:
-            key = (sys_id, comp_id, msg_id, int(msg.id))
-            samples = decode_raw_imu(
-                msg, key, self._sources, self.counters, self._raw_imu_scale
-            )
-        elif msg_id == mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT:
-            samples = [decode_gps_raw_int(msg)]
-        elif msg_id in SCALED_PRESSURE_IDS:
-            samples = [decode_scaled_pressure(msg, SCALED_PRESSURE_IDS[msg_id])]
-        elif msg_id == mavlink2.MAVLINK_MSG_ID_HIL_ACTUATOR_CONTROLS:
-            samples = [*decode_hil_actuator_controls(msg, self.counters)]
-        elif msg_id == mavlink2.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW:
-            samples = [*decode_servo_output_raw(
-                msg, (sys_id, comp_id), self.servo_map, self._sources, self.counters
-            )]
-        elif msg_id == mavlink2.MAVLINK_MSG_ID_RAW_RPM:
-            samples = [*decode_raw_rpm(msg, sys_id, self._sources, self.counters)]
-        else:
+        handler = self._handlers.get(msg_id)
+        if handler is None:
             self.counters.ignored_msgs += 1
             return []
-        if samples and msg_id not in _NOT_CLOCK_IDS:  # the system's clock, for RAW_RPM
+        samples = handler(msg, msg_id, sys_id, comp_id)
+        if not samples:
+            return []
+        if msg_id not in _NOT_CLOCK_IDS:  # the system's clock, for RAW_RPM
             self._sources.last_time_us[sys_id] = samples[-1].time_us
         self.counters.samples += len(samples)
-        return [Decoded(s, sys_id, comp_id, msg_id) for s in samples]
+        if len(samples) == 1:  # most messages
+            return [_new_decoded(Decoded, (samples[0], sys_id, comp_id, msg_id))]
+        return [_new_decoded(Decoded, (s, sys_id, comp_id, msg_id)) for s in samples]
+
+    def _handler_table(self) -> dict[int, _Handler]:
+        """Message id -> its decoder, as ``(msg, msg_id, sys_id, comp_id) -> samples``."""
+        sources, counters = self._sources, self.counters
+
+        def hil_sensor(msg: Any, msg_id: int, sys_id: int, comp_id: int) -> _Samples:
+            return decode_hil_sensor(msg, (sys_id, comp_id, msg_id, int(msg.id)), sources,
+                                     counters)
+
+        def scaled_imu(msg: Any, msg_id: int, sys_id: int, comp_id: int) -> _Samples:
+            key = (sys_id, comp_id, msg_id, SCALED_IMU_IDS[msg_id])
+            return decode_scaled_imu(msg, key, sources, counters)
+
+        def raw_imu(msg: Any, msg_id: int, sys_id: int, comp_id: int) -> _Samples:
+            key = (sys_id, comp_id, msg_id, int(msg.id))
+            return decode_raw_imu(msg, key, sources, counters, self._raw_imu_scale)
+
+        def scaled_pressure(msg: Any, msg_id: int, sys_id: int, comp_id: int) -> _Samples:
+            return [decode_scaled_pressure(msg, SCALED_PRESSURE_IDS[msg_id])]
+
+        def servo_output_raw(msg: Any, msg_id: int, sys_id: int, comp_id: int) -> _Samples:
+            return [*decode_servo_output_raw(msg, (sys_id, comp_id), self.servo_map, sources,
+                                             counters)]
+
+        ids = mavlink2
+        table: dict[int, _Handler] = {
+            ids.MAVLINK_MSG_ID_HIL_SENSOR: hil_sensor,
+            ids.MAVLINK_MSG_ID_HIGHRES_IMU: hil_sensor,
+            ids.MAVLINK_MSG_ID_HIL_GPS: lambda msg, *_: [decode_hil_gps(msg)],
+            ids.MAVLINK_MSG_ID_HIL_STATE_QUATERNION:
+                lambda msg, *_: [decode_hil_state_quaternion(msg)],
+            ids.MAVLINK_MSG_ID_RAW_IMU: raw_imu,
+            ids.MAVLINK_MSG_ID_GPS_RAW_INT: lambda msg, *_: [decode_gps_raw_int(msg)],
+            ids.MAVLINK_MSG_ID_HIL_ACTUATOR_CONTROLS:
+                lambda msg, *_: [*decode_hil_actuator_controls(msg, counters)],
+            ids.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW: servo_output_raw,
+            ids.MAVLINK_MSG_ID_RAW_RPM:
+                lambda msg, _id, sys_id, _c: [*decode_raw_rpm(msg, sys_id, sources, counters)],
+        }
+        table.update(dict.fromkeys(SCALED_IMU_IDS, scaled_imu))
+        table.update(dict.fromkeys(SCALED_PRESSURE_IDS, scaled_pressure))
+        return table

@@ -34,6 +34,7 @@ from hil.codec.wire import mavlink2
 from hil.codec.wire import mcrf4xx as _mcrf4xx
 
 __all__ = [
+    "FAST_LAYOUTS",
     "HIL_ACTUATOR_CONTROLS",
     "HIL_GPS",
     "HIL_SENSOR",
@@ -47,6 +48,7 @@ __all__ = [
 _MAGIC_V2: Final = 0xFD
 _HEADER: Final = struct.Struct("<BBBBBBBHB")
 _HEADER_LEN: Final = 10
+_tuple_new = tuple.__new__
 
 
 class FastLayout:
@@ -84,6 +86,7 @@ class FastLayout:
         self._wire_order = tuple(cls.fieldnames.index(n) for n in cls.ordered_fieldnames)
         self._arrays = any(n > 1 for _, n in self._plan)
         self._identity = not self._arrays and self._wire_order == tuple(range(len(lengths)))
+        self._pad = tuple(bytes(self._size - n) for n in range(self._size))  # by payload length
 
     def payload(self, *values: Any) -> bytes:
         """The untruncated payload of the fields in constructor order (arrays as sequences of
@@ -103,13 +106,13 @@ class FastLayout:
 
     def unpack(self, frame: bytes) -> Any:
         """The fields of a whole frame (header to CRC) of this message."""
-        end = _HEADER_LEN + frame[1]
-        if end - _HEADER_LEN >= self._size:
+        n = frame[1]
+        if n >= self._size:
             t = self._struct.unpack_from(frame, _HEADER_LEN)
         else:
-            t = self._struct.unpack(frame[_HEADER_LEN:end] + bytes(self._size - frame[1]))
-        if self._identity:
-            return self.fields._make(t)
+            t = self._struct.unpack(frame[_HEADER_LEN : _HEADER_LEN + n] + self._pad[n])
+        if self._identity:  # the struct gives exactly the fields: no length check needed
+            return _tuple_new(self.fields, t)
         return self.fields._make(
             [t[tip] if n == 1 else list(t[tip : tip + n]) for tip, n in self._plan]
         )
@@ -120,10 +123,11 @@ HIL_GPS: Final = FastLayout(mavlink2.MAVLink_hil_gps_message)
 HIL_STATE_QUATERNION: Final = FastLayout(mavlink2.MAVLink_hil_state_quaternion_message)
 HIL_ACTUATOR_CONTROLS: Final = FastLayout(mavlink2.MAVLink_hil_actuator_controls_message)
 RAW_RPM: Final = FastLayout(mavlink2.MAVLink_raw_rpm_message)
-_LAYOUTS: Final = {
+FAST_LAYOUTS: Final = {
     x.msg_id: x for x in (HIL_SENSOR, HIL_GPS, HIL_STATE_QUATERNION, HIL_ACTUATOR_CONTROLS,
                           RAW_RPM)
 }
+"""Message id -> layout of the fast-path messages."""
 
 
 def pack_frame(
@@ -164,5 +168,5 @@ def unpack_fields(frame: bytes, msg_id: int) -> Sequence[Any] | None:
     msg_id : int
         Its message id.
     """
-    layout = _LAYOUTS.get(msg_id)
+    layout = FAST_LAYOUTS.get(msg_id)
     return None if layout is None else layout.unpack(frame)

@@ -28,6 +28,11 @@ MAGIC_V1: Final = 0xFE
 _HEADER_LEN_V1: Final = 6
 _MAGIC_RE: Final = re.compile(b"[\xfd\xfe]")
 _EXTRA_BYTE: Final = tuple(bytes((x,)) for x in range(256))
+_FRAME_OVERHEAD: Final = HEADER_LEN + CRC_LEN
+# CRC_EXTRA as the byte the CRC takes, by message id (the ids of the dialect's messages)
+_EXTRA_BYTE_OF_ID: Final = {
+    i: _EXTRA_BYTE[x] for i in mavlink2.mavlink_map if (x := crc_extra(i)) is not None
+}
 
 
 class _Scan(Enum):
@@ -88,6 +93,8 @@ class FrameParser:
             Whole frames (header to signature) in stream order.
         """
         buf = self._buf
+        if not buf and type(data) is bytes and self._whole_frame(data):
+            return [data]  # the common case (one unsigned frame per call), without the scan
         buf += data
         out: list[bytes] = []
         n = len(buf)
@@ -113,6 +120,17 @@ class FrameParser:
             i += size
         del buf[:i]
         return out
+
+    @staticmethod
+    def _whole_frame(data: bytes) -> bool:
+        """``data`` is exactly one CRC-valid, unsigned MAVLink 2 frame of a known id, which
+        the scan of :meth:`feed` would return as it is, counting nothing."""
+        n = len(data)
+        if n < _FRAME_OVERHEAD or data[0] != MAGIC_V2 or data[2] or n != data[1] + _FRAME_OVERHEAD:
+            return False
+        extra = _EXTRA_BYTE_OF_ID.get(data[7] | (data[8] << 8) | (data[9] << 16))
+        return extra is not None and (
+            data[-2] | (data[-1] << 8)) == mcrf4xx(extra, mcrf4xx(data[1:-2]))
 
     def reset(self) -> None:
         """Forget a partial frame (the stream restarted); its bytes count as garbage."""

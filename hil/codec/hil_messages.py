@@ -41,6 +41,18 @@ from sim.samples import (
 
 __all__ = ["decode_hil_gps", "decode_hil_sensor", "decode_hil_state_quaternion"]
 
+# the bits as plain ints (no class attribute look-up per message on the IMU-rate path)
+_SIM_RESET = HilSensorField.SIM_RESET
+_TEMPERATURE = HilSensorField.TEMPERATURE
+_IMU = HilSensorField.IMU
+_MAG = HilSensorField.MAG
+_ABS_PRESSURE = HilSensorField.ABS_PRESSURE
+_DIFF_PRESSURE = HilSensorField.DIFF_PRESSURE
+_NOT_IMU = _MAG | _ABS_PRESSURE | _DIFF_PRESSURE
+_array = np.array
+_F64 = np.float64
+_MG = G0_MPS2 * 1e-3  # MAVLink's mG, m/s^2
+
 
 def decode_hil_sensor(
     msg: Any, key: SourceKey, sources: SourceState, counters: DecoderCounters
@@ -67,90 +79,90 @@ def decode_hil_sensor(
     t = int(msg.time_usec)
     sensor_id = key[3]
     out: list[Sample | Truth] = []
-    if bits & HilSensorField.SIM_RESET:
+    if bits & _SIM_RESET:
         counters.sim_resets += 1
         sources.restart(key)
-    if bits & HilSensorField.TEMPERATURE:
+    if bits & _TEMPERATURE:
         sources.last_temperature_k[key] = float(msg.temperature) + KELVIN_AT_0_CELSIUS
     temperature_k = sources.last_temperature_k.get(key, math.nan)
-    imu_bits = bits & HilSensorField.IMU
-    if imu_bits == HilSensorField.IMU:
+    imu_bits = bits & _IMU
+    if imu_bits == _IMU:
         dt = sources.imu_dt_s(key, t, counters)
         if dt is not None:
             out.append(
-                ImuSample(
-                    time_us=t,
-                    dt_s=dt,
-                    specific_force_b_mps2=np.array(
-                        [msg.xacc, msg.yacc, msg.zacc], dtype=np.float64
-                    ),
-                    angular_rate_b_rps=np.array(
-                        [msg.xgyro, msg.ygyro, msg.zgyro], dtype=np.float64
-                    ),
-                    temperature_k=temperature_k,
-                    sensor_id=sensor_id,
-                )
+                ImuSample(t, dt, _array([msg.xacc, msg.yacc, msg.zacc], _F64),
+                          _array([msg.xgyro, msg.ygyro, msg.zgyro], _F64), temperature_k,
+                          sensor_id)
             )
     elif imu_bits:
         counters.incomplete_fields += 1
-    mag_bits = bits & HilSensorField.MAG
-    if mag_bits == HilSensorField.MAG:
+    if bits & _NOT_IMU:  # mag, baro and pitot: at lower rates than the IMU
+        _decode_slow_fields(msg, bits, t, temperature_k, sensor_id, counters, out)
+    return out
+
+
+def _decode_slow_fields(msg: Any, bits: int, t: int, temperature_k: float, sensor_id: int,
+                        counters: DecoderCounters, out: list[Sample | Truth]) -> None:
+    """The MagSample, BaroSample and AirspeedSample of a HIL_SENSOR / HIGHRES_IMU, as its
+    bits say, appended to ``out``."""
+    mag_bits = bits & _MAG
+    if mag_bits == _MAG:
         field_g = np.array([msg.xmag, msg.ymag, msg.zmag], dtype=np.float64)
         out.append(MagSample(t, field_g * TESLA_PER_GAUSS, sensor_id))
     elif mag_bits:
         counters.incomplete_fields += 1
-    if bits & HilSensorField.ABS_PRESSURE:
+    if bits & _ABS_PRESSURE:
         out.append(
             BaroSample(t, float(msg.abs_pressure) * PA_PER_HPA, temperature_k, sensor_id)
         )
-    if bits & HilSensorField.DIFF_PRESSURE:
+    if bits & _DIFF_PRESSURE:
         dp_pa = float(msg.diff_pressure) * PA_PER_HPA
         if math.isfinite(dp_pa):
             out.append(AirspeedSample(t, dp_pa, temperature_k, sensor_id))
         else:
             counters.bad_diff_pressure += 1
-    return out
 
 
 def decode_hil_gps(msg: Any) -> GnssFix:
     """HIL_GPS -> GnssFix (accuracies NaN when unknown; no speed accuracy on the wire)."""
-
-    def accuracy_m(cm: int) -> float:
-        return math.nan if cm == UINT16_MAX else cm * 1e-2
-
     return GnssFix(
-        time_us=int(msg.time_usec),
-        lat_rad=msg.lat / DEGE7_PER_RAD,
-        lon_rad=msg.lon / DEGE7_PER_RAD,
-        alt_msl_m=msg.alt * 1e-3,
-        v_ned_mps=np.array([msg.vn, msg.ve, msg.vd], dtype=np.float64) * 1e-2,
-        eph_m=accuracy_m(msg.eph),
-        epv_m=accuracy_m(msg.epv),
-        speed_accuracy_mps=math.nan,  # HIL_GPS has no speed accuracy field
-        fix_type=int(msg.fix_type),
-        satellites_visible=int(msg.satellites_visible),
-        sensor_id=int(msg.id),
+        int(msg.time_usec),
+        msg.lat / DEGE7_PER_RAD,
+        msg.lon / DEGE7_PER_RAD,
+        msg.alt * 1e-3,
+        _array([msg.vn * 1e-2, msg.ve * 1e-2, msg.vd * 1e-2], _F64),  # as (array of cm/s) * 1e-2
+        _accuracy_m(msg.eph),
+        _accuracy_m(msg.epv),
+        math.nan,  # speed accuracy: HIL_GPS has no such field
+        int(msg.fix_type),
+        int(msg.satellites_visible),
+        int(msg.id),
     )
+
+
+def _accuracy_m(cm: int) -> float:
+    """HIL_GPS eph / epv, cm (UINT16_MAX: unknown) -> m (NaN: unknown)."""
+    return math.nan if cm == UINT16_MAX else cm * 1e-2
 
 
 def decode_hil_state_quaternion(msg: Any) -> Truth:
     """HIL_STATE_QUATERNION -> Truth (no pressure, temperature, angle of attack, sideslip or
     wind on the wire: NaN)."""
-    mg = G0_MPS2 * 1e-3
+    # (each vector as the array of its wire values times the scale, element by element)
     return Truth(
         time_us=int(msg.time_usec),
         lat_rad=msg.lat / DEGE7_PER_RAD,
         lon_rad=msg.lon / DEGE7_PER_RAD,
         alt_msl_m=msg.alt * 1e-3,
-        v_ned_mps=np.array([msg.vx, msg.vy, msg.vz], dtype=np.float64) * 1e-2,
-        q_nb=np.array(msg.attitude_quaternion, dtype=np.float64),
-        omega_b_rps=np.array([msg.rollspeed, msg.pitchspeed, msg.yawspeed], dtype=np.float64),
-        specific_force_b_mps2=np.array([msg.xacc, msg.yacc, msg.zacc], dtype=np.float64) * mg,
+        v_ned_mps=_array([msg.vx * 1e-2, msg.vy * 1e-2, msg.vz * 1e-2], _F64),
+        q_nb=_array(msg.attitude_quaternion, _F64),
+        omega_b_rps=_array([msg.rollspeed, msg.pitchspeed, msg.yawspeed], _F64),
+        specific_force_b_mps2=_array([msg.xacc * _MG, msg.yacc * _MG, msg.zacc * _MG], _F64),
         static_pressure_pa=math.nan,  # not in HIL_STATE_QUATERNION
         temperature_k=math.nan,  # not in HIL_STATE_QUATERNION
         airspeed_mps=msg.true_airspeed * 1e-2,
         indicated_airspeed_mps=msg.ind_airspeed * 1e-2,
         alpha_rad=math.nan,  # not in HIL_STATE_QUATERNION
         beta_rad=math.nan,  # not in HIL_STATE_QUATERNION
-        wind_ned_mps=np.full(3, math.nan),  # not in HIL_STATE_QUATERNION
+        wind_ned_mps=_array([math.nan, math.nan, math.nan], _F64),  # not in the message
     )

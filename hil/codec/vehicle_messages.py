@@ -29,6 +29,7 @@ RAW_RPM (339)
 from __future__ import annotations
 
 import math
+import operator
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -51,6 +52,9 @@ ControlName = Literal[
     "roll", "pitch", "yaw", "throttle", "flaps", "spoilers", "airbrakes", "landing_gear"
 ]
 _N_REQUIRED = 4  # roll, pitch, yaw, throttle: a sample without them is not a control state
+_LOW = tuple(control_range(i)[0] for i in range(N_CONTROLS))
+_HIGH = tuple(control_range(i)[1] for i in range(N_CONTROLS))
+_le = operator.le
 
 
 class ServoChannel(BaseModel):
@@ -142,7 +146,10 @@ def decode_hil_actuator_controls(
     msg: Any, counters: DecoderCounters
 ) -> list[ActuatorSample]:
     """HIL_ACTUATOR_CONTROLS -> ActuatorSample (see the module docstring for bad values)."""
-    raw = [float(x) for x in msg.controls]
+    raw = list(map(float, msg.controls))
+    if all(map(_le, _LOW, raw)) and all(map(_le, raw, _HIGH)) and len(raw) == N_CONTROLS:
+        # all finite and in range (NaN fails both comparisons): every value kept as it is
+        return [ActuatorSample(int(msg.time_usec), tuple(raw))]
     if not all(math.isfinite(x) for x in raw[:_N_REQUIRED]):
         counters.controls_invalid += 1
         return []

@@ -185,6 +185,23 @@ def _flight_frames(rng: random.Random, n: int) -> list[bytes]:
     return frames
 
 
+def _damaged(rng: random.Random, frames: list[bytes], p_garbage: float) -> list[bytes]:
+    """Each frame: one byte changed (p 0.1), cut short (0.05), garbage before it
+    (``p_garbage``), or intact."""
+    out = []
+    for f in frames:
+        b = bytearray(f)
+        r = rng.random()
+        if r < 0.1:
+            b[rng.randrange(len(b))] = rng.randrange(256)
+        elif r < 0.15:
+            b = b[: rng.randrange(1, len(b))]
+        elif r < 0.15 + p_garbage:
+            b = bytearray(rng.randbytes(rng.randrange(1, 40))) + b
+        out.append(bytes(b))
+    return out
+
+
 def test_decoder_fast_path_equals_pymavlink_on_a_clean_stream() -> None:
     frames = _flight_frames(random.Random(1), 400)
     _decode_both(frames)
@@ -210,23 +227,40 @@ def test_decoder_fast_path_equals_pymavlink_on_signed_frames() -> None:
     _decode_both(signed + frames, key=key)  # key: unsigned frames refused, counted alike
 
 
+@pytest.mark.parametrize("name", sorted(FIELDS))
+@settings(max_examples=150, deadline=None)
+@given(data=st.data(), hdr=header,
+       change=st.one_of(st.none(), st.tuples(st.integers(0, 300), u8)))
+def test_decoder_on_single_frames_equals_pymavlink(name: str, data: st.DataObject,
+                                                   hdr: tuple[int, int, int],
+                                                   change: tuple[int, int] | None) -> None:
+    """One frame per ``feed`` (the framing's whole-frame shortcut, then the fast unpack):
+    random field values and header, optionally one byte of the first frame changed (its CRC,
+    length, flags or id then no longer hold, or they do by chance): the same samples and
+    counters as pymavlink's path."""
+    _layout, cls, strategy = FIELDS[name]
+    frames = [_pymavlink_frame(cls, data.draw(strategy), hdr) for _ in range(3)]
+    if change is not None:
+        pos, byte = change
+        b = bytearray(frames[0])
+        b[pos % len(b)] = byte
+        frames[0] = bytes(b)
+    _decode_both(frames)
+
+
+@pytest.mark.parametrize("seed", [6, 7])
+def test_decoder_fast_path_equals_pymavlink_frame_by_frame_when_damaged(seed: int) -> None:
+    """Damaged frames fed one per call (as datagrams arrive): cut ones leave bytes in the
+    parser, so the next call takes the scan, not the whole-frame shortcut; same result."""
+    rng = random.Random(seed)
+    _decode_both(_damaged(rng, _flight_frames(rng, 300), p_garbage=0.0))
+
+
 @pytest.mark.parametrize("seed", [3, 4, 5])
 def test_decoder_fast_path_equals_pymavlink_on_damaged_streams(seed: int) -> None:
     """Byte mutations, cuts and garbage: the same samples survive, the same drops are counted."""
     rng = random.Random(seed)
-    frames = _flight_frames(rng, 300)
-    damaged = []
-    for f in frames:
-        b = bytearray(f)
-        r = rng.random()
-        if r < 0.1:
-            b[rng.randrange(len(b))] = rng.randrange(256)
-        elif r < 0.15:
-            b = b[: rng.randrange(1, len(b))]
-        elif r < 0.2:
-            b = bytearray(rng.randbytes(rng.randrange(1, 40))) + b
-        damaged.append(bytes(b))
-    stream = b"".join(damaged)
+    stream = b"".join(_damaged(rng, _flight_frames(rng, 300), p_garbage=0.05))
     cuts = sorted(rng.sample(range(1, len(stream)), 50))
     chunks = [stream[a:b] for a, b in zip([0, *cuts], [*cuts, len(stream)], strict=True)]
     _decode_both(chunks)

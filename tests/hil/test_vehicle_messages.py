@@ -8,9 +8,12 @@ ports), RAW_RPM stamping with its system's latest time, and the link roles' sour
 from __future__ import annotations
 
 import math
+import struct
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from pydantic import ValidationError
 
 from hil.codec import (
@@ -141,6 +144,34 @@ def test_non_finite_unused_slot_becomes_zero_and_is_counted() -> None:
     assert isinstance(d.sample, ActuatorSample)
     assert d.sample.controls == _f32((0.1, 0.2, 0.3, 0.4)) + (0.0,) * 12
     assert (dec.counters.controls_clipped, dec.counters.controls_invalid) == (1, 0)
+
+
+_control = st.one_of(st.floats(-1.0, 1.0, width=32), st.floats(width=32),
+                     st.sampled_from([0.0, -0.0, 1.0, -1.0, 1.0000001, math.nan, math.inf]))
+
+
+@settings(max_examples=300, deadline=None)
+@given(raw=st.lists(_control, min_size=16, max_size=16))
+def test_controls_follow_the_documented_rules(raw: list[float]) -> None:
+    """Any 16 values (in range, out of range, NaN, infinite): the sample and the counters are
+    the module docstring's rules, applied one value at a time."""
+    dec = Decoder()
+    got = dec.feed(_hac(raw))
+    wire = [float(np.float32(x)) for x in raw]
+    if not all(math.isfinite(x) for x in wire[:4]):
+        assert got == [] and dec.counters.controls_invalid == 1
+        return
+    want, clipped = [], False
+    for i, x in enumerate(wire):
+        lo, hi = (0.0, 1.0) if i == 3 else (-1.0, 1.0)  # throttle [0, 1]
+        y = 0.0 if not math.isfinite(x) else min(max(x, lo), hi)
+        clipped |= not math.isfinite(x) or y != x
+        want.append(y)
+    (d,) = got
+    assert isinstance(d.sample, ActuatorSample)
+    assert [struct.pack("<d", v) for v in d.sample.controls] == [
+        struct.pack("<d", v) for v in want]  # bit for bit (the sign of a zero too)
+    assert (dec.counters.controls_clipped, dec.counters.controls_invalid) == (int(clipped), 0)
 
 
 # ------------------------------------------------------------------------------ RAW_RPM
