@@ -93,6 +93,16 @@ def child(case: str, data_path: str, run: bool) -> None:
                 feed_frame(f)
 
 
+def _describe(tree: Path) -> dict[str, Any]:
+    """The counted tree without machine paths: this checkout or another one, and its commit
+    (None for a tree that is not a git work tree, e.g. a ``git archive``)."""
+    git = subprocess.run(["git", "-C", str(tree), "rev-parse", "--short", "HEAD"],
+                         capture_output=True, text=True, check=False)
+    commit = git.stdout.strip() if git.returncode == 0 else None
+    same = tree == HERE.parent.resolve()
+    return {"tree": "." if same else "another checkout", "tree_commit": commit}
+
+
 def _count(tree: Path, case: str, data_path: str, run: bool) -> int:
     env = {**os.environ, "PYTHONPATH": str(tree), "OPENBLAS_NUM_THREADS": "1"}
     cmd = ["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
@@ -129,7 +139,7 @@ def main() -> int:
 
     samples, frames, n_imu = fusion_speed.generate(args.duration, 1)
     result: dict[str, Any] = {
-        "benchmark": "instruction_count", "tree": str(tree), "duration_s": args.duration,
+        "benchmark": "instruction_count", **_describe(tree), "duration_s": args.duration,
         "imu_samples": n_imu, "frames_per_decode_case": args.frames,
         "method": "valgrind cachegrind I refs, (with loop - without loop) / count", "cases": {},
     }
