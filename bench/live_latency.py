@@ -20,7 +20,13 @@ What is measured (all on one machine, so every process reads the same CLOCK_MONO
    IMU time is ``T``: UDP hop, the fusion's reader thread and queue, decode, filter, the bus
    queue and publisher thread, JSON, the router hop (routed only) and the subscriber's
    callback (JSON decode).
-   Estimates are published at the bus's 25 Hz (of the filter's 50 Hz outputs).
+   Estimates are published at the bus's 25 Hz (of the filter's 50 Hz outputs). The fusion
+   runs under :func:`fusion_main`, which stamps each estimate's stages inside the fusion
+   process (``stages`` in the JSON: UDP + link receive, reader -> filter thread, decode +
+   filter, payload, JSON, enqueue, publisher-thread wake-up, Zenoh ``put``, put -> each
+   subscriber's callback). ``--base REV`` (a git revision or a source tree) makes this part
+   an A/B: the fusion of REV and of this tree alternately, ``--rounds`` runs each, order
+   flipped every round, with the same simulator, subscribers and router code.
 2. **The two socket hops alone**, for a split: (a) UDP: a child process sends HIL_SENSOR
    frames through :class:`hil.link.MavlinkLink` at 200 Hz carrying their monotonic send
    time, this process receives them on a ``udpin`` link; (b) Zenoh: a child process publishes
@@ -55,7 +61,8 @@ each part are recorded. Run from the repository root:
 
     python bench/live_latency.py --out bench/results/live_latency.json
 
-(``--parts latency,hops`` for the routed / p2p comparison alone, ~3 min.)
+(``--parts latency,hops`` for the routed / p2p comparison alone, ~3 min;
+``--parts latency --base 42eb08f --rounds 3 --duration 30`` for an A/B, ~5 min.)
 """
 
 from __future__ import annotations
@@ -120,10 +127,27 @@ def hilnav(*args: str, log: Path) -> subprocess.Popen[bytes]:
         env={**os.environ, "COLUMNS": "200"})
 
 
-def this_script(*args: str, log: Path) -> subprocess.Popen[bytes]:
+def this_script(*args: str, log: Path, code: Path | None = None) -> subprocess.Popen[bytes]:
+    """This script as a child; ``code``: import hilnav from that tree instead of this one."""
+    env = None if code is None else {**os.environ, "PYTHONPATH": str(code)}
     return subprocess.Popen(
         [sys.executable, str(Path(__file__).resolve()), *args], stdout=log.open("wb"),
-        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
+        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True, env=env)
+
+
+@contextlib.contextmanager
+def base_tree(rev: str | None) -> Iterator[Path | None]:
+    """The repository's tree at ``rev`` in a temporary directory (None: no base; a directory:
+    that tree as it is)."""
+    if rev is None or Path(rev).is_dir():
+        yield None if rev is None else Path(rev).resolve()
+        return
+    root = Path(__file__).resolve().parent.parent
+    with tempfile.TemporaryDirectory(prefix="hilnav_base_") as tmp:
+        archive = subprocess.run(["git", "archive", rev], cwd=root, check=True,
+                                 capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
+        yield Path(tmp)
 
 
 @contextlib.contextmanager
@@ -274,6 +298,91 @@ def zenoh_hop_main(args: argparse.Namespace) -> int:
     return 0
 
 
+def fusion_main(argv: list[str]) -> int:
+    """Child: ``hilnav fusion ARGS`` with time stamps of the estimate path's stages.
+
+    ``--trace FILE`` (first) names where the stamps go at exit; the rest are ``hilnav fusion``'s
+    arguments. Stamped (``time.monotonic_ns()``, wrapped around the service's own methods, so
+    the same stamps work on a base revision's code): a HIL_SENSOR message returned by the
+    input link's ``recv`` (reader thread), the filter thread starting on it (``_handle``), an
+    estimate accepted by ``Bus.publish_estimate`` (entry, payload built, JSON encoded,
+    return), the publisher thread handing it to Zenoh (``Bus._send`` entry and return; in
+    publication order). Cost: one clock read and a list append per stamp (< 1 us).
+    """
+    import hil
+    from hil.bus import Bus, Topic
+    from hil.link import MavlinkLink
+    from hil.service import FusionService
+    from scenarios.cli.app import app
+
+    trace_path = Path(argv[1])
+    clock = time.monotonic_ns
+    rx: list[tuple[int, int]] = []  # (HIL_SENSOR time_usec, link.recv returned)
+    start: list[tuple[int, int]] = []  # (HIL_SENSOR time_usec, filter thread starts on it)
+    pub: list[tuple[int, int, int]] = []  # (estimate time_us, publish entry, return)
+    put: list[tuple[int, int]] = []  # (publisher thread: _send entry, return) per estimate
+
+    recv, handle = MavlinkLink.recv, FusionService._handle
+    publish_estimate, send = Bus.publish_estimate, Bus._send
+
+    def traced_recv(self: Any, timeout: float = 0.0) -> list[Any]:
+        out = recv(self, timeout)
+        now = clock()
+        rx.extend((int(m.time_usec), now) for m in out if m.get_msgId() == _HIL_SENSOR_ID)
+        return out
+
+    def traced_handle(self: Any, msg: Any) -> Any:
+        if msg.get_msgId() == _HIL_SENSOR_ID:
+            start.append((int(msg.time_usec), clock()))
+        return handle(self, msg)
+
+    def traced_publish_estimate(self: Any, est: Any) -> bool:
+        t0 = clock()
+        ok = publish_estimate(self, est)
+        if ok:
+            pub.append((int(est.time_us), t0, clock()))
+        return ok
+
+    def traced_send(self: Any, session: Any, batch: Any) -> None:
+        t0 = clock()
+        send(self, session, batch)
+        t1 = clock()
+        put.extend((t0, t1) for topic, _, _ in batch if topic is Topic.ESTIMATE)
+
+    import hil.bus.session as session_module
+
+    build_estimate, encode = session_module.estimate_payload, session_module.encode
+    built: list[tuple[int, int]] = []  # (estimate payload built, JSON encoded) per estimate
+
+    def traced_estimate_payload(est: Any) -> dict[str, Any]:
+        payload = build_estimate(est)
+        built.append((clock(), 0))
+        return payload
+
+    def traced_encode(payload: Any) -> bytes:
+        data = encode(payload)
+        if built and built[-1][1] == 0:
+            built[-1] = (built[-1][0], clock())
+        return data
+
+    session_module.estimate_payload = traced_estimate_payload
+    session_module.encode = traced_encode
+    MavlinkLink.recv = traced_recv  # type: ignore[method-assign]
+    FusionService._handle = traced_handle  # type: ignore[method-assign]
+    Bus.publish_estimate = traced_publish_estimate  # type: ignore[method-assign]
+    Bus._send = traced_send  # type: ignore[method-assign]
+    code = 0
+    try:
+        app(argv[2:], prog_name="hilnav")
+    except SystemExit as exc:
+        code = int(exc.code or 0)
+    finally:
+        trace_path.write_text(json.dumps({"code_from": str(Path(hil.__file__).parent.parent),
+                                          "rx": rx, "start": start, "pub": pub, "put": put,
+                                          "built": built}))
+    return code
+
+
 def subscriber_main(args: argparse.Namespace) -> int:
     """Child: stamp each ``fusion/estimate`` arrival (routed client or direct peer)."""
     from hil.bus import Bus, Message, Topic
@@ -309,9 +418,14 @@ def _wait_files(paths: list[Path], procs: list[subprocess.Popen[bytes]], timeout
         time.sleep(0.05)
 
 
-def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path) -> dict[str, Any]:
-    """Part 1 and 3: end-to-end latency (routed and p2p, same run) and CPU per process at 1x."""
-    vehicle = "lat"
+def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path, *,
+                    code: Path | None = None, tag: str = "lat") -> dict[str, Any]:
+    """Part 1 and 3: end-to-end latency (routed and p2p, same run), the fusion's stages, and
+    CPU per process at 1x. ``code``: the fusion runs that tree's hilnav (the A/B base)."""
+    vehicle = tag
+    tmp = tmp / tag
+    tmp.mkdir()
+    trace_file = tmp / "fusion_trace.json"
     port = free_port()
     listen = f"tcp/127.0.0.1:{free_tcp_port()}"
     stamps_file = tmp / "stamps.json"
@@ -319,10 +433,11 @@ def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path) -> d
     arrival_files = {mode: tmp / f"arrivals_{mode}.json" for mode in subs}
     load_before = load()
     with children() as procs:
-        fusion = hilnav("fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
-                        "--zenoh-listen", listen, "--vehicle", vehicle, "--out",
-                        str(tmp / "lat_fusion"), "--idle-exit", "2", "--settle", "10",
-                        log=tmp / "lat_fusion.log")
+        fusion = this_script("--role", "fusion", "--trace", str(trace_file), "fusion",
+                             "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
+                             "--zenoh-listen", listen, "--vehicle", vehicle, "--out",
+                             str(tmp / "lat_fusion"), "--idle-exit", "2", "--settle", "10",
+                             log=tmp / "lat_fusion.log", code=code)
         procs.append(fusion)
         sub_procs = {}
         for mode, (ep, peer) in subs.items():
@@ -362,6 +477,9 @@ def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path) -> d
         out[mode] = {"estimates_received": len(arrivals),
                      "estimates_matched": len(lat_by_time[mode]),
                      "end_to_end": stats_ms(list(lat_by_time[mode].values()))}
+    arrivals_by_mode = {mode: dict(json.loads(arrival_files[mode].read_text())) for mode in subs}
+    out["stages"] = fusion_stages(json.loads(trace_file.read_text()), send_ns,
+                                  arrivals_by_mode)
     common = sorted(set(lat_by_time["routed"]) & set(lat_by_time["p2p"]))
     out["estimates_received_by_both"] = len(common)
     out["routed_minus_p2p_per_estimate"] = stats_ms(
@@ -384,6 +502,30 @@ def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path) -> d
         "load_after": load(),
     }
     return out
+
+
+def fusion_stages(trace: dict[str, Any], send_ns: dict[int, int],
+                  arrivals: dict[str, dict[int, int]]) -> dict[str, Any]:
+    """Where each estimate's time went, stage by stage (ms; see :func:`fusion_main`)."""
+    rx = {int(t): ns for t, ns in reversed(trace["rx"])}  # first stamp of each IMU time
+    start = {int(t): ns for t, ns in reversed(trace["start"])}
+    names = ["udp_and_link_recv", "reader_to_filter_thread", "decode_filter_to_publish",
+             "publish_call_to_payload_built", "payload_to_json_encoded",
+             "json_to_enqueued_and_return", "bus_thread_wakeup", "zenoh_put_call"]
+    names += [f"put_to_{mode}_callback" for mode in arrivals]
+    stages: dict[str, list[int]] = {n: [] for n in names}
+    for (t, p0, p1), (b0, b1), (q0, q1) in zip(trace["pub"], trace["built"], trace["put"],
+                                               strict=False):
+        if t not in send_ns or t not in rx or t not in start:
+            continue
+        marks = [send_ns[t], rx[t], start[t], p0, b0, b1, p1, q0, q1]
+        for name, a, b in zip(names, marks, marks[1:], strict=False):
+            stages[name].append(b - a)
+        for mode, arrived in arrivals.items():
+            if t in arrived:
+                stages[f"put_to_{mode}_callback"].append(arrived[t] - q0)
+    return {"code_from": trace.get("code_from"), "estimates_published": len(trace["pub"]),
+            **{name: stats_ms(v) for name, v in stages.items()}}
 
 
 def measure_udp_hop(count: int, tmp: Path) -> dict[str, Any]:
@@ -563,6 +705,34 @@ def replay_run(endpoint: str, tlog: Path, speed: float, tmp: Path) -> dict[str, 
     }
 
 
+def latency_ab(endpoint: str, args: argparse.Namespace, code: Path | None, tmp: Path
+               ) -> dict[str, Any]:
+    """Part 1 as an A/B: base and new fusion alternately (order flipped each round), same
+    simulator, subscribers and router; per run and the median over the runs of each."""
+    runs: list[dict[str, Any]] = []
+    for r in range(args.rounds):
+        order = [("new", None), ("base", code)]
+        for variant, tree in order if r % 2 == 0 else order[::-1]:
+            print(f"1x latency run, {variant} (round {r + 1}) ...", flush=True)
+            run = measure_latency(endpoint, args.duration, args.seed, tmp, code=tree,
+                                  tag=f"{variant}{r}")
+            runs.append({"variant": variant, "round": r, **run})
+    summary: dict[str, Any] = {}
+    for variant in ("base", "new"):
+        mine = [x for x in runs if x["variant"] == variant]
+        summary[variant] = {
+            f"{mode}_{q}": round(float(np.median([x[mode]["end_to_end"][q] for x in mine])), 4)
+            for mode in ("routed", "p2p") for q in ("median_ms", "p99_ms")}
+        summary[variant]["stage_medians_ms"] = {
+            name: round(float(np.median([x["stages"][name]["median_ms"] for x in mine])), 4)
+            for name, v in mine[0]["stages"].items() if isinstance(v, dict) and v.get("n")}
+        summary[variant]["stage_p99s_ms"] = {
+            name: round(float(np.median([x["stages"][name]["p99_ms"] for x in mine])), 4)
+            for name, v in mine[0]["stages"].items() if isinstance(v, dict) and v.get("n")}
+    return {"base": args.base, "rounds": args.rounds, "duration_s": args.duration,
+            "summary": summary, "runs": runs}
+
+
 # ------------------------------------------------------------------------------ main
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__,
@@ -589,7 +759,13 @@ def main() -> int:
                     help="simulated seconds per sweep run")
     ap.add_argument("--parts", default="latency,hops,sweep,lockstep,capacity",
                     help="parts to run, comma separated")
+    ap.add_argument("--base", help="A/B: the latency part alternates the fusion of this git "
+                    "revision or source tree (base) and of this tree (new), --rounds times "
+                    "each")
+    ap.add_argument("--rounds", type=int, default=3, help="A/B rounds (with --base)")
     ap.add_argument("--out", type=Path, default=Path("bench/results/live_latency.json"))
+    if sys.argv[1:3] == ["--role", "fusion"]:
+        return fusion_main(sys.argv[3:])
     args = ap.parse_args()
     if args.role == "sender":
         return sender_main(args)
@@ -621,10 +797,14 @@ def main() -> int:
             zenoh_router() as endpoint:
         tmp = Path(tmpdir)
         parts = set(args.parts.split(","))
-        if "latency" in parts:
+        if "latency" in parts and args.base is None:
             print("1x latency run ...", flush=True)
             result["latency_1x"] = measure_latency(endpoint, args.duration, args.seed, tmp)
             print(json.dumps(result["latency_1x"], indent=1), flush=True)
+        if "latency" in parts and args.base is not None:
+            with base_tree(args.base) as code:
+                result["latency_ab"] = latency_ab(endpoint, args, code, tmp)
+            print(json.dumps(result["latency_ab"]["summary"], indent=1), flush=True)
         if "hops" in parts:
             print("socket hops ...", flush=True)
             udp = measure_udp_hop(1000, tmp)
@@ -679,6 +859,9 @@ def main() -> int:
     result["meets_targets"] = {"zero_loss_speed": best is not None and best >= 25.0}
     for mode in ("routed", "p2p"):
         lat = result.get("latency_1x", {}).get(mode, {}).get("end_to_end", {})
+        if "latency_ab" in result:
+            ab = result["latency_ab"]["summary"]["new"]
+            lat = {q: ab[f"{mode}_{q}"] for q in ("median_ms", "p99_ms")}
         result["meets_targets"][f"{mode}_median"] = lat.get("median_ms", math.inf) <= 1.0
         result["meets_targets"][f"{mode}_p99"] = lat.get("p99_ms", math.inf) <= 3.0
     result["load_end"] = load()
