@@ -56,6 +56,11 @@ What is measured (all on one machine, so every process reads the same CLOCK_MONO
    JSBSim) at 25x and 50x, to see the fusion's limit when the simulator cannot reach the
    speed.
 
+6. **zenoh-python publisher options** (``--parts zenoh-options``, no hilnav code): a direct
+   peer hop put -> callback with congestion control DROP / BLOCK, ``express`` and
+   ``priority`` interleaved sample by sample, and 1,000 back-to-back puts per option into a
+   subscriber whose callback takes 0.2 ms (how many arrive; the put time each).
+
 The machine has 2 cores and other jobs may run on it: the load averages before and after
 each part are recorded. Run from the repository root:
 
@@ -276,6 +281,65 @@ def raw_zenoh_main(args: argparse.Namespace) -> int:
             pub.put(str(time.monotonic_ns()))
             time.sleep(0.04)
         time.sleep(0.3)
+    finally:
+        session.close()
+    return 0
+
+
+def _zenoh_peer_config(*, connect: str | None = None, listen: str | None = None) -> Any:
+    import zenoh
+
+    cfg: dict[str, Any] = {"mode": "peer", "scouting": {"multicast": {"enabled": False},
+                                                        "gossip": {"enabled": False}}}
+    if connect is not None:
+        cfg["connect"] = {"endpoints": [connect]}
+    if listen is not None:
+        cfg["listen"] = {"endpoints": [listen]}
+    return zenoh.Config.from_json5(json.dumps(cfg))
+
+
+def _publisher_options() -> dict[str, dict[str, Any]]:
+    """The zenoh-python publisher options compared (hil.bus uses ``drop``)."""
+    import zenoh
+
+    drop, block = zenoh.CongestionControl.DROP, zenoh.CongestionControl.BLOCK
+    return {
+        "drop": {"congestion_control": drop},
+        "drop_express": {"congestion_control": drop, "express": True},
+        "drop_express_interactive_high": {"congestion_control": drop, "express": True,
+                                          "priority": zenoh.Priority.INTERACTIVE_HIGH},
+        "block": {"congestion_control": block},
+        "block_express": {"congestion_control": block, "express": True},
+    }
+
+
+def zenoh_options_main(args: argparse.Namespace) -> int:
+    """Child: a Zenoh peer listening on ``--url`` that (1) puts its monotonic time on one
+    publisher per option in turn, 25 Hz each, ``--count`` rounds, then (2) bursts 1,000
+    back-to-back 700-byte puts per option, and prints each burst's put time."""
+    import zenoh
+
+    session = zenoh.open(_zenoh_peer_config(listen=args.url))
+    try:
+        pubs = {name: session.declare_publisher(f"bench/opt/{name}", **kw)
+                for name, kw in _publisher_options().items()}
+        bursts = {name: session.declare_publisher(f"bench/burst/{name}", **kw)
+                  for name, kw in _publisher_options().items()}
+        time.sleep(2.0)
+        for _ in range(args.count):
+            for pub in pubs.values():
+                pub.put(str(time.monotonic_ns()))
+                time.sleep(0.04 / len(pubs))
+        payload = b"x" * 700
+        put_us = {}
+        for name, pub in bursts.items():
+            t0 = time.perf_counter()
+            for _ in range(1000):
+                pub.put(payload)
+            put_us[name] = round((time.perf_counter() - t0) / 1000 * 1e6, 2)
+            time.sleep(1.0)
+        time.sleep(0.5)
+        print(json.dumps(put_us))
     finally:
         session.close()
     return 0
@@ -599,6 +663,54 @@ def measure_raw_udp(count: int, tmp: Path) -> dict[str, Any]:
             "rate_hz": 200.0, **stats_ms(lat)}
 
 
+def measure_zenoh_options(count: int, tmp: Path, *, callback_s: float = 0.0002
+                          ) -> dict[str, Any]:
+    """Part 6: zenoh-python publisher options on a direct peer hop (no hilnav code): latency
+    put -> callback with the options interleaved sample by sample (same load for each), and
+    how many of 1,000 back-to-back puts arrive at a subscriber whose callback takes
+    ``callback_s`` (a slow consumer: Python work per sample)."""
+    import zenoh
+
+    names = list(_publisher_options())
+    lat: dict[str, list[int]] = {n: [] for n in names}
+    burst: dict[str, int] = dict.fromkeys(names, 0)
+
+    def on_sample(sample: Any) -> None:
+        now = time.monotonic_ns()
+        _, kind, name = str(sample.key_expr).split("/")
+        if kind == "opt":
+            lat[name].append(now - int(sample.payload.to_bytes()))
+        else:
+            burst[name] += 1
+            time.sleep(callback_s)
+
+    listen = f"tcp/127.0.0.1:{free_tcp_port()}"
+    load_before = load()
+    with children() as procs:
+        child = this_script("--role", "zenoh-options", "--url", listen, "--count", str(count),
+                            log=tmp / "zenoh_options.log")
+        procs.append(child)
+        time.sleep(0.5)
+        session = zenoh.open(_zenoh_peer_config(connect=listen))
+        try:
+            session.declare_subscriber("bench/*/*", on_sample)
+            child.wait(_START_TIMEOUT_S + count * 0.05 + 60.0)
+            time.sleep(1.0)
+        finally:
+            session.close()
+    put_us = json.loads((tmp / "zenoh_options.log").read_text().strip().splitlines()[-1])
+    return {
+        "what": "zenoh-python put -> direct peer's callback (child -> this process), options "
+                "interleaved; burst: 1,000 back-to-back 700-byte puts, subscriber callback "
+                f"sleeping {callback_s * 1e3:g} ms",
+        "latency": {n: stats_ms(v) for n, v in lat.items()},
+        "burst_arrived_of_1000": burst,
+        "burst_put_us_each": put_us,
+        "load_before": load_before,
+        "load_after": load(),
+    }
+
+
 def measure_raw_zenoh(endpoint: str, count: int, tmp: Path) -> dict[str, Any]:
     """Calibration: plain zenoh-python put -> router -> subscriber between two processes."""
     import zenoh
@@ -739,7 +851,7 @@ def main() -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--role", default="bench",
                     choices=["bench", "sender", "udp-hop", "zenoh-hop", "replay", "raw-udp",
-                             "raw-zenoh", "subscriber"],
+                             "raw-zenoh", "subscriber", "zenoh-options"],
                     help=argparse.SUPPRESS)
     ap.add_argument("--peer", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--max-wall", type=float, default=300.0, help=argparse.SUPPRESS)
@@ -781,6 +893,8 @@ def main() -> int:
         return raw_zenoh_main(args)
     if args.role == "subscriber":
         return subscriber_main(args)
+    if args.role == "zenoh-options":
+        return zenoh_options_main(args)
 
     from hil.router import zenoh_router
 
@@ -818,6 +932,10 @@ def main() -> int:
                 result["hops"]["fusion_internal_median_ms_estimate"] = round(
                     e2e["median_ms"] - udp["median_ms"] - zen["median_ms"], 4)
             print(json.dumps(result["hops"], indent=1), flush=True)
+        if "zenoh-options" in parts:
+            print("zenoh publisher options ...", flush=True)
+            result["zenoh_options"] = measure_zenoh_options(300, tmp)
+            print(json.dumps(result["zenoh_options"], indent=1), flush=True)
         if "sweep" in parts:
             sweep = []
             for speed in (float(s) for s in args.speeds.split(",")):
