@@ -87,16 +87,27 @@ def _fin(x: Any, name: str) -> float:
     return f
 
 
+def _floats(a: Any) -> list[float]:
+    """``np.asarray(a, float64).reshape(-1).tolist()``, straight from a 1-D float64 array (the
+    filter's vectors) without the conversions: the estimate is built on the live path, where
+    each numpy call costs tens of microseconds (issue 15, bench/README.md "Live path")."""
+    if type(a) is np.ndarray and a.ndim == 1 and a.dtype == np.float64:
+        return a.tolist()
+    return np.asarray(a, dtype=np.float64).reshape(-1).tolist()
+
+
 def _vec(a: Any, n: int | None, name: str, *, finite: bool = True) -> list[Any]:
     try:
-        v = np.asarray(a, dtype=np.float64).reshape(-1).tolist()
+        v = _floats(a)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a numeric vector, got {a!r}") from None
     if n is not None and len(v) != n:
         raise ValueError(f"{name} must have {n} elements, got shape {np.shape(a)}")
     # element-wise in Python: faster than numpy on 3- and 4-vectors
-    if finite and not all(math.isfinite(x) for x in v):
-        raise ValueError(f"{name} must be finite, got {v}")
+    if finite:
+        if not all(map(math.isfinite, v)):
+            raise ValueError(f"{name} must be finite, got {v}")
+        return v
     return [x if math.isfinite(x) else None for x in v]
 
 
@@ -122,7 +133,9 @@ def _opt_vec(obj: Any, name: str, n: int, *, scale: float = 1.0) -> list[Any] | 
     a = getattr(obj, name, None)
     if a is None:
         return None
-    return _vec(np.asarray(a, dtype=np.float64) * scale, n, name, finite=False)
+    if scale != 1.0:  # x * 1.0 == x for every float: skip the array it would make
+        a = np.asarray(a, dtype=np.float64) * scale
+    return _vec(a, n, name, finite=False)
 
 
 def _opt_num(obj: Any, name: str) -> float | None:
@@ -258,18 +271,21 @@ def _sigmas(p_diag: Any) -> tuple[list[Any] | None, list[Any] | None, list[Any] 
 
     Every layout of ``fusion.error_model`` starts with position N/E/D (m^2), velocity (m/s)^2
     and attitude (rad^2): the first nine entries are read, the rest (biases, scale factors) is
-    the filter's business.
+    the filter's business. Negative variances read as 0; NaN and inf give None.
     """
     if p_diag is None:
         return None, None, None
-    p = np.asarray(p_diag, dtype=np.float64).reshape(-1)
-    if p.size < 9:
-        raise ValueError(f"estimate.P_diag must have at least 9 entries, got {p.size}")
-    sd = np.sqrt(np.maximum(p[:9], 0.0))
+    p = _floats(p_diag)
+    if len(p) < 9:
+        raise ValueError(f"estimate.P_diag must have at least 9 entries, got {len(p)}")
+    # scalar math, the same IEEE operations as np.sqrt(np.maximum(p, 0)) and np.degrees;
+    # np.maximum(x, 0) is x when x > 0 or NaN, else 0.0 (so -0.0 becomes 0.0)
+    sd = [math.sqrt(x) if x > 0.0 or x != x else 0.0 for x in p[:9]]
+    att = [math.degrees(x) for x in sd[6:9]]
     return (
-        _vec(sd[0:3], 3, "pos_sigma", finite=False),
-        _vec(sd[3:6], 3, "vel_sigma", finite=False),
-        _vec(np.degrees(sd[6:9]), 3, "att_sigma", finite=False),
+        [x if math.isfinite(x) else None for x in sd[0:3]],
+        [x if math.isfinite(x) else None for x in sd[3:6]],
+        [x if math.isfinite(x) else None for x in att],
     )
 
 

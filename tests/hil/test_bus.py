@@ -7,6 +7,7 @@ on elapsed time.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 import time
@@ -222,6 +223,40 @@ def test_estimate_payload_units_and_non_finite_values() -> None:
     assert d["yaw_deg"] == pytest.approx(30.0)
     assert d["pos_sigma_ned_m"] == pytest.approx([2.0, 3.0, 4.0])
     assert d["gyro_bias_b_rps"] is None
+
+
+_EDGE_VALUES = [0.0, -0.0, 5e-324, -5e-324, 1e-300, -1e-300, 1.0, -1.0, 1e300, -1e300,
+                math.inf, -math.inf, math.nan]
+
+
+def test_estimate_payload_fast_path_gives_the_bytes_of_the_numpy_formulation() -> None:
+    """GIVEN estimates with random and edge values (-0.0, subnormals, +-inf, NaN) in the
+    variances and biases WHEN their payload is encoded THEN the bytes are those of the same
+    values given as lists (the generic numpy conversion), and the sigmas are exactly
+    ``np.sqrt(np.maximum(P, 0))`` (``np.degrees`` for attitude), non-finite as null."""
+    rng = np.random.default_rng(15)
+    base = real_estimate()
+    for i in range(300):
+        if i % 3 == 0:
+            p_diag = rng.choice(_EDGE_VALUES, 16)
+            bias = rng.choice(_EDGE_VALUES, 3)
+        else:
+            p_diag = rng.normal(0.0, 1.0, 16) * 10.0 ** rng.integers(-9, 9, 16)
+            bias = rng.normal(0.0, 1e-3, 3)
+        est = dataclasses.replace(base, P_diag=p_diag, accel_bias_b_mps2=bias,
+                                  v_ned_mps=rng.normal(0.0, 30.0, 3),
+                                  euler_rad=rng.uniform(-3.0, 3.0, 3))
+        as_lists = dataclasses.replace(
+            est, P_diag=p_diag.tolist(), accel_bias_b_mps2=bias.tolist(),
+            v_ned_mps=est.v_ned_mps.tolist(), q_nb=est.q_nb.tolist(),
+            euler_rad=est.euler_rad.tolist(), gyro_bias_b_rps=est.gyro_bias_b_rps.tolist())
+        got = estimate_payload(est)
+        assert encode(got) == encode(estimate_payload(as_lists))
+        sd = np.sqrt(np.maximum(p_diag[:9], 0.0))
+        want = [[x if math.isfinite(x) else None for x in a.tolist()]
+                for a in (sd[0:3], sd[3:6], np.degrees(sd[6:9]))]
+        sigmas = [got["pos_sigma_ned_m"], got["vel_sigma_ned_mps"], got["att_sigma_deg"]]
+        assert encode({"s": sigmas}) == encode({"s": want})  # bytes: -0.0 is not 0.0
 
 
 def test_error_payload_is_estimate_minus_truth() -> None:
