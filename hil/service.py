@@ -431,10 +431,10 @@ class FusionService:
                 continue
             ests = self.fusion.feed([item])
             self._advance_processed(item.time_us)
+            for est in ests:  # before the innovations: the estimate's latency counts most
+                self._on_estimate(est)
             if self.nav.innovations:
                 self._on_innovations()
-            for est in ests:
-                self._on_estimate(est)
             new.extend(ests)
         return new
 
@@ -457,6 +457,9 @@ class FusionService:
                 self.stats.innovations += 1
 
     def _on_estimate(self, est: NavEstimate) -> None:
+        # published first: everything else here waits, the subscribers do not (issue 15)
+        if self._bus is not None and est.mode != "initializing":
+            self._bus.publish_estimate(est)
         self.stats.estimates += 1
         self.last_estimate = est
         self._recent[est.time_us] = est
@@ -472,10 +475,9 @@ class FusionService:
                                                ev.detail)
         if est.mode == "initializing":
             return
-        if self._bus is not None:
-            self._bus.publish_estimate(est)
-            if self._bus.due(Topic.STATUS, est.time_us):  # counters only when it is sent
-                self._bus.publish_status(est, links=self.link_counters())
+        if self._bus is not None and self._bus.due(Topic.STATUS, est.time_us):
+            # counters only when it is sent
+            self._bus.publish_status(est, links=self.link_counters())
         if self.companion is not None and est.time_us >= self._next_companion_us:
             kind = self.options.companion_kind
             frame = (self.companion.gps_input(est) if kind == "gps_input"
