@@ -60,6 +60,9 @@ What is measured (all on one machine, so every process reads the same CLOCK_MONO
    peer hop put -> callback with congestion control DROP / BLOCK, ``express`` and
    ``priority`` interleaved sample by sample, and 1,000 back-to-back puts per option into a
    subscriber whose callback takes 0.2 ms (how many arrive; the put time each).
+7. **Link receive** (``--parts link-recv``): ``MavlinkLink.recv`` of one HIL_SENSOR frame on
+   the fusion's input role, light records (``fast_msg_ids``) vs pymavlink's decode,
+   alternately in this process.
 
 The machine has 2 cores and other jobs may run on it: the load averages before and after
 each part are recorded. Run from the repository root:
@@ -613,6 +616,45 @@ def measure_udp_hop(count: int, tmp: Path) -> dict[str, Any]:
             "rate_hz": 200.0, **stats_ms(lat)}
 
 
+def measure_link_recv(count: int, pause_s: float = 0.005) -> dict[str, Any]:
+    """Part 7: ``MavlinkLink.recv`` of one HIL_SENSOR datagram on the fusion's input role,
+    with the fast records (``fast_msg_ids``, as ``hilnav fusion`` opens it) and with
+    pymavlink's decode, alternately on the same frames in this process: wall time of the
+    ``recv(0)`` call that returns the frame (which was sent ``pause_s`` earlier, so the
+    call runs as cold as it does at 200 Hz)."""
+    import socket
+
+    from hil.codec import Encoder
+    from hil.link import FAST_MSG_IDS, MavlinkLink
+    from hil.service import input_role
+    from sim.samples import ImuSample
+
+    enc = Encoder()
+    frames = [enc.sensors(ImuSample(4000 * (k + 1), 0.004, np.array([0.5, -0.25, -9.75]),
+                                    np.array([0.01, 0.02, -0.03]))) for k in range(count)]
+    out: dict[str, list[int]] = {"fast_records": [], "pymavlink_decode": []}
+    with MavlinkLink("udpin:127.0.0.1:0", input_role(), fast_msg_ids=FAST_MSG_IDS) as fast, \
+            MavlinkLink("udpin:127.0.0.1:0", input_role()) as slow, \
+            socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        links = {"fast_records": fast, "pymavlink_decode": slow}
+        for k, frame in enumerate(frames):
+            order = list(links) if k % 2 == 0 else list(links)[::-1]
+            for name in order:
+                sock.sendto(frame, links[name].local_address)
+                time.sleep(pause_s)
+                t0 = time.perf_counter_ns()
+                got = links[name].recv(0.0)
+                t1 = time.perf_counter_ns()
+                if len(got) == 1:
+                    out[name].append(t1 - t0)
+    result: dict[str, Any] = {"what": "MavlinkLink.recv(0) returning one HIL_SENSOR frame sent "
+                              f"{pause_s * 1e3:g} ms earlier, input role, this process",
+                              **{name: stats_ms(v) for name, v in out.items()}}
+    result["fast_over_pymavlink_median"] = round(
+        result["fast_records"]["median_ms"] / result["pymavlink_decode"]["median_ms"], 3)
+    return result
+
+
 def measure_zenoh_hop(endpoint: str, count: int, tmp: Path, *, p2p: bool = False
                       ) -> dict[str, Any]:
     """Part 2b/c: one Bus publish -> (router ->) subscriber hop between two processes."""
@@ -932,6 +974,10 @@ def main() -> int:
                 result["hops"]["fusion_internal_median_ms_estimate"] = round(
                     e2e["median_ms"] - udp["median_ms"] - zen["median_ms"], 4)
             print(json.dumps(result["hops"], indent=1), flush=True)
+        if "link-recv" in parts:
+            print("link receive, fast records vs pymavlink ...", flush=True)
+            result["link_recv"] = measure_link_recv(2000) | {"load_before": load()}
+            print(json.dumps(result["link_recv"], indent=1), flush=True)
         if "zenoh-options" in parts:
             print("zenoh publisher options ...", flush=True)
             result["zenoh_options"] = measure_zenoh_options(300, tmp)

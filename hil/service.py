@@ -82,6 +82,7 @@ from hil.bus import BusAccess, Topic
 from hil.codec import TRUTH_COMPONENT_ID, mavlink2
 from hil.codec.wire import STANDARD_MODES_DIALECT
 from hil.link import (
+    FAST_MSG_IDS,
     FC_SENSOR_MSG_IDS,
     HIL_MSG_IDS,
     LOCKSTEP_CUSTOM_MODE,
@@ -364,7 +365,7 @@ class FusionService:
         self._links["mavlink"] = stack.enter_context(
             MavlinkLink(o.mavlink, input_role(None if o.source is None
                                               else parse_source(o.source)),
-                        signer=self._signer(0)))
+                        signer=self._signer(0), fast_msg_ids=FAST_MSG_IDS))
         if o.gcs is not None:
             self.shadow = ShadowEncoder(o.shadow_system_id)
             self.vehicle = ShadowVehicle(self.shadow, airspeed_enabled=o.airspeed != "off")

@@ -48,7 +48,9 @@ Receive pipeline (every frame is counted in exactly one place; see :class:`LinkC
     4. Message id: HEARTBEAT is always accepted from an accepted source (peer detection);
        other ids must be in :attr:`LinkRole.accept_msg_ids`.
     5. Decode with the dialect; accepted messages are returned in arrival order. Nothing
-       accepted is ever dropped or reordered by the link.
+       accepted is ever dropped or reordered by the link. Unsigned frames of the ids given in
+       ``fast_msg_ids`` come back as light records with the same fields
+       (:mod:`hil.link.fast_messages`; the fusion's input).
 
 Sending
     :meth:`MavlinkLink.send` takes whole MAVLink 2 frames, e.g. from
@@ -72,15 +74,17 @@ A link is not thread-safe: one thread owns it.
 
 Modules
     ``roles`` (:class:`LinkRole`, message id sets, the lockstep constants), ``counters``
-    (:class:`LinkCounters`), ``transport`` (:class:`LinkUrl`, UDP / TCP / serial byte
-    transports), ``endpoint`` (:class:`MavlinkLink`). The framing (:class:`FrameParser`, no
-    I/O) is :mod:`hil.codec.framing`, shared with the decoder.
+    (:class:`LinkCounters`), ``fast_messages`` (records of high-rate frames), ``transport``
+    (:class:`LinkUrl`, UDP / TCP / serial byte transports), ``endpoint``
+    (:class:`MavlinkLink`). The framing (:class:`FrameParser`, no I/O) is
+    :mod:`hil.codec.framing`, shared with the decoder.
     Signing lives in :mod:`hil.signing`.
 """
 
 from hil.codec.framing import FrameParser
 from hil.link.counters import LinkCounters
 from hil.link.endpoint import MavlinkLink
+from hil.link.fast_messages import FAST_MSG_IDS
 from hil.link.roles import (
     FC_SENSOR_MSG_IDS,
     HIL_MSG_IDS,
@@ -91,6 +95,7 @@ from hil.link.roles import (
 from hil.link.transport import LinkUrl
 
 __all__ = [
+    "FAST_MSG_IDS",
     "FC_SENSOR_MSG_IDS",
     "HIL_MSG_IDS",
     "LOCKSTEP_CUSTOM_MODE",
