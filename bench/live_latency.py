@@ -97,6 +97,7 @@ _CLK_TCK = os.sysconf("SC_CLK_TCK")
 _SENT = re.compile(
     r"sent (\d+)/(\d+) frames, ([\d.]+) s simulated in ([\d.]+) s \(([\d.]+)x real time")
 _START_TIMEOUT_S = 90.0
+_ROOT = Path(__file__).resolve().parent.parent
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -150,9 +151,8 @@ def base_tree(rev: str | None) -> Iterator[Path | None]:
     if rev is None or Path(rev).is_dir():
         yield None if rev is None else Path(rev).resolve()
         return
-    root = Path(__file__).resolve().parent.parent
     with tempfile.TemporaryDirectory(prefix="hilnav_base_") as tmp:
-        archive = subprocess.run(["git", "archive", rev], cwd=root, check=True,
+        archive = subprocess.run(["git", "archive", rev], cwd=_ROOT, check=True,
                                  capture_output=True).stdout
         subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
         yield Path(tmp)
@@ -545,8 +545,12 @@ def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path, *,
                      "estimates_matched": len(lat_by_time[mode]),
                      "end_to_end": stats_ms(list(lat_by_time[mode].values()))}
     arrivals_by_mode = {mode: dict(json.loads(arrival_files[mode].read_text())) for mode in subs}
-    out["stages"] = fusion_stages(json.loads(trace_file.read_text()), send_ns,
-                                  arrivals_by_mode)
+    trace = json.loads(trace_file.read_text())
+    ran = Path(trace["code_from"]).resolve()
+    if (code is not None and ran != code.resolve()) or (code is None and ran != _ROOT):
+        raise RuntimeError(f"the fusion ran the code in {ran}, not the tree asked for")
+    trace["code_from"] = "base tree" if code is not None else "this tree"
+    out["stages"] = fusion_stages(trace, send_ns, arrivals_by_mode)
     common = sorted(set(lat_by_time["routed"]) & set(lat_by_time["p2p"]))
     out["estimates_received_by_both"] = len(common)
     out["routed_minus_p2p_per_estimate"] = stats_ms(
@@ -883,7 +887,8 @@ def latency_ab(endpoint: str, args: argparse.Namespace, code: Path | None, tmp: 
         summary[variant]["stage_p99s_ms"] = {
             name: round(float(np.median([x["stages"][name]["p99_ms"] for x in mine])), 4)
             for name, v in mine[0]["stages"].items() if isinstance(v, dict) and v.get("n")}
-    return {"base": args.base, "rounds": args.rounds, "duration_s": args.duration,
+    base = "a source tree (directory)" if Path(args.base).is_dir() else args.base
+    return {"base": base, "rounds": args.rounds, "duration_s": args.duration,
             "summary": summary, "runs": runs}
 
 
