@@ -28,6 +28,7 @@ from __future__ import annotations
 import struct
 from collections import namedtuple
 from collections.abc import Callable, Sequence
+from operator import itemgetter
 from typing import Any, Final
 
 from hil.codec.wire import mavlink2
@@ -90,6 +91,11 @@ class FastLayout:
         self._wire_order = tuple(cls.fieldnames.index(n) for n in cls.ordered_fieldnames)
         self._arrays = any(n > 1 for _, n in self._plan)
         self._identity = not self._arrays and self._wire_order == tuple(range(len(lengths)))
+        # constructor field i is struct value orders[i] when there are no arrays
+        self._reorder: Callable[[tuple[Any, ...]], tuple[Any, ...]] | None = (
+            None if self._arrays or len(self._plan) < 2  # (one index: not a tuple)
+            else itemgetter(*(tip for tip, _ in self._plan))
+        )
         self._pad = tuple(bytes(self._size - n) for n in range(self._size))  # by payload length
         self.wire_fields: tuple[str, ...] = tuple(cls.ordered_fieldnames)
         self.pack_wire_order: Callable[..., bytes] = self._struct.pack
@@ -126,6 +132,8 @@ class FastLayout:
             t = self._struct.unpack(frame[_HEADER_LEN : _HEADER_LEN + n] + self._pad[n])
         if self._identity:  # the struct gives exactly the fields: no length check needed
             return _tuple_new(self.fields, t)
+        if self._reorder is not None:  # no arrays: the fields are the struct's values reordered
+            return _tuple_new(self.fields, self._reorder(t))
         return self.fields._make(
             [t[tip] if n == 1 else list(t[tip : tip + n]) for tip, n in self._plan]
         )

@@ -33,13 +33,19 @@ from sim.samples import (
     AirspeedSample,
     BaroSample,
     GnssFix,
-    ImuSample,
     MagSample,
     Sample,
     Truth,
 )
+from sim.samples import make_gnss_fix as _make_gnss_fix
+from sim.samples import make_imu_sample as _make_imu_sample
 
-__all__ = ["decode_hil_gps", "decode_hil_sensor", "decode_hil_state_quaternion"]
+__all__ = [
+    "decode_hil_gps",
+    "decode_hil_sensor",
+    "decode_hil_sensor_fields",
+    "decode_hil_state_quaternion",
+]
 
 # the bits as plain ints (no class attribute look-up per message on the IMU-rate path)
 _SIM_RESET = HilSensorField.SIM_RESET
@@ -75,9 +81,25 @@ def decode_hil_sensor(
     -------
     list of ImuSample, MagSample, BaroSample, AirspeedSample
     """
-    bits = int(msg.fields_updated)
-    t = int(msg.time_usec)
-    sensor_id = key[3]
+    return _decode_sensor(msg, int(msg.time_usec), int(msg.fields_updated),
+                          (msg.xacc, msg.yacc, msg.zacc), (msg.xgyro, msg.ygyro, msg.zgyro),
+                          key, sources, counters)
+
+
+def decode_hil_sensor_fields(
+    fields: Any, key: SourceKey, sources: SourceState, counters: DecoderCounters
+) -> list[Sample | Truth]:
+    """:func:`decode_hil_sensor` of a HIL_SENSOR's fields as
+    :data:`hil.codec.fast_frames.HIL_SENSOR` unpacks them (a named tuple whose order is the
+    wire order: time, 3 accel, 3 gyro, ..., ``fields_updated``, ``id``; the integers are
+    already ints), read by position."""
+    return _decode_sensor(fields, fields[0], fields[14], fields[1:4], fields[4:7], key, sources,
+                          counters)
+
+
+def _decode_sensor(msg: Any, t: int, bits: int, acc: tuple[float, float, float],
+                   gyro: tuple[float, float, float], key: SourceKey, sources: SourceState,
+                   counters: DecoderCounters) -> list[Sample | Truth]:
     out: list[Sample | Truth] = []
     if bits & _SIM_RESET:
         counters.sim_resets += 1
@@ -89,15 +111,12 @@ def decode_hil_sensor(
     if imu_bits == _IMU:
         dt = sources.imu_dt_s(key, t, counters)
         if dt is not None:
-            out.append(
-                ImuSample(t, dt, _array([msg.xacc, msg.yacc, msg.zacc], _F64),
-                          _array([msg.xgyro, msg.ygyro, msg.zgyro], _F64), temperature_k,
-                          sensor_id)
-            )
+            out.append(_make_imu_sample(t, dt, _array(acc, _F64), _array(gyro, _F64),
+                                        temperature_k, key[3]))
     elif imu_bits:
         counters.incomplete_fields += 1
     if bits & _NOT_IMU:  # mag, baro and pitot: at lower rates than the IMU
-        _decode_slow_fields(msg, bits, t, temperature_k, sensor_id, counters, out)
+        _decode_slow_fields(msg, bits, t, temperature_k, key[3], counters, out)
     return out
 
 
@@ -125,12 +144,12 @@ def _decode_slow_fields(msg: Any, bits: int, t: int, temperature_k: float, senso
 
 def decode_hil_gps(msg: Any) -> GnssFix:
     """HIL_GPS -> GnssFix (accuracies NaN when unknown; no speed accuracy on the wire)."""
-    return GnssFix(
+    return _make_gnss_fix(
         int(msg.time_usec),
         msg.lat / DEGE7_PER_RAD,
         msg.lon / DEGE7_PER_RAD,
         msg.alt * 1e-3,
-        _array([msg.vn * 1e-2, msg.ve * 1e-2, msg.vd * 1e-2], _F64),  # as (array of cm/s) * 1e-2
+        _array((msg.vn * 1e-2, msg.ve * 1e-2, msg.vd * 1e-2), _F64),  # (cm/s) * 1e-2 each
         _accuracy_m(msg.eph),
         _accuracy_m(msg.epv),
         math.nan,  # speed accuracy: HIL_GPS has no such field

@@ -139,7 +139,9 @@ def _sample_key(sample: Any) -> tuple[Any, ...]:
     out = []
     for f in dataclasses.fields(sample):
         v = getattr(sample, f.name)
-        out.append(repr(np.asarray(v).tolist()) if isinstance(v, np.ndarray) else repr(v))
+        # vectors: their values, and that they are float64 arrays of the same shape
+        out.append(repr((type(v).__name__, v.dtype.str, v.shape, v.tolist()))
+                   if isinstance(v, np.ndarray) else repr(v))
     return (type(sample).__name__, *out)
 
 
