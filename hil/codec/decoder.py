@@ -35,7 +35,7 @@ from hil.codec.framing import FrameParser
 from hil.codec.hil_messages import (
     decode_hil_gps,
     decode_hil_sensor,
-    decode_hil_sensor_fields,
+    decode_hil_sensor_values,
     decode_hil_state_quaternion,
 )
 from hil.codec.sources import DEFAULT_FIRST_IMU_DT_S, SourceState
@@ -58,6 +58,12 @@ _NOT_CLOCK_IDS = frozenset({
     mavlink2.MAVLINK_MSG_ID_RAW_RPM,
 })
 
+
+# The fast HIL_SENSOR decode reads its unpacked fields by position.
+if FAST_LAYOUTS[mavlink2.MAVLINK_MSG_ID_HIL_SENSOR].fields._fields[:7] + (
+        FAST_LAYOUTS[mavlink2.MAVLINK_MSG_ID_HIL_SENSOR].fields._fields[14:]) != (
+        "time_usec", "xacc", "yacc", "zacc", "xgyro", "ygyro", "zgyro", "fields_updated", "id"):
+    raise ImportError("HIL_SENSOR's field order changed in the dialect")
 
 _new_decoded = tuple.__new__  # Decoded(...) without the named tuple's Python-level __new__
 _Samples = list[Sample | Truth]
@@ -260,9 +266,11 @@ class Decoder:
         def hil_sensor(frame: bytes) -> list[Decoded]:
             fields = unpack_sensor(frame)
             sys_id, comp_id = frame[5], frame[6]
-            return wrap(decode_hil_sensor_fields(fields, (sys_id, comp_id, sensor_id, fields[15]),
-                                                 sources, counters),
-                        sensor_id, sys_id, comp_id)
+            # wire order = field order: time, 3 accel, 3 gyro, ..., fields_updated, id
+            samples = decode_hil_sensor_values(
+                fields, fields[0], fields[14], fields[1:4], fields[4:7],
+                (sys_id, comp_id, sensor_id, fields[15]), sources, counters)
+            return wrap(samples, sensor_id, sys_id, comp_id)
 
         def through_handler(msg_id: int, layout: FastLayout) -> Callable[[bytes], list[Decoded]]:
             unpack, handler = layout.unpack, self._handlers[msg_id]

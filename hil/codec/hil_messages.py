@@ -14,6 +14,7 @@ HIL_GPS -> GnssFix; HIL_STATE_QUATERNION -> Truth (from any component: filtering
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -43,7 +44,7 @@ from sim.samples import make_imu_sample as _make_imu_sample
 __all__ = [
     "decode_hil_gps",
     "decode_hil_sensor",
-    "decode_hil_sensor_fields",
+    "decode_hil_sensor_values",
     "decode_hil_state_quaternion",
 ]
 
@@ -81,25 +82,18 @@ def decode_hil_sensor(
     -------
     list of ImuSample, MagSample, BaroSample, AirspeedSample
     """
-    return _decode_sensor(msg, int(msg.time_usec), int(msg.fields_updated),
-                          (msg.xacc, msg.yacc, msg.zacc), (msg.xgyro, msg.ygyro, msg.zgyro),
-                          key, sources, counters)
+    return decode_hil_sensor_values(
+        msg, int(msg.time_usec), int(msg.fields_updated), (msg.xacc, msg.yacc, msg.zacc),
+        (msg.xgyro, msg.ygyro, msg.zgyro), key, sources, counters)
 
 
-def decode_hil_sensor_fields(
-    fields: Any, key: SourceKey, sources: SourceState, counters: DecoderCounters
+def decode_hil_sensor_values(
+    msg: Any, t: int, bits: int, acc: Sequence[float], gyro: Sequence[float], key: SourceKey,
+    sources: SourceState, counters: DecoderCounters,
 ) -> list[Sample | Truth]:
-    """:func:`decode_hil_sensor` of a HIL_SENSOR's fields as
-    :data:`hil.codec.fast_frames.HIL_SENSOR` unpacks them (a named tuple whose order is the
-    wire order: time, 3 accel, 3 gyro, ..., ``fields_updated``, ``id``; the integers are
-    already ints), read by position."""
-    return _decode_sensor(fields, fields[0], fields[14], fields[1:4], fields[4:7], key, sources,
-                          counters)
-
-
-def _decode_sensor(msg: Any, t: int, bits: int, acc: tuple[float, float, float],
-                   gyro: tuple[float, float, float], key: SourceKey, sources: SourceState,
-                   counters: DecoderCounters) -> list[Sample | Truth]:
+    """:func:`decode_hil_sensor` with the time, ``fields_updated`` (ints) and the accel and
+    gyro triples already read (the fast path slices them off the unpacked fields); the
+    other fields are read from ``msg`` when its bits say so."""
     out: list[Sample | Truth] = []
     if bits & _SIM_RESET:
         counters.sim_resets += 1
