@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import pickle
 from typing import Any
 
 import numpy as np
@@ -24,9 +25,11 @@ def test_a_made_sample_is_the_constructed_one(cls: type, make: Any, args: tuple[
     built = cls(*args)
     with pytest.raises(dataclasses.FrozenInstanceError):
         made.time_us = 0
+    assert dataclasses.replace(made, time_us=7).time_us == 7
     assert type(made) is cls
     fields = dataclasses.fields(built)
     assert len(fields) == len(args)  # every field given: a new field must be added to the maker
     for f, arg in zip(fields, args, strict=True):
         assert getattr(made, f.name) is arg is getattr(built, f.name)
     assert repr(made) == repr(built)
+    assert repr(pickle.loads(pickle.dumps(made))) == repr(built)
