@@ -8,8 +8,10 @@ Each case runs twice under ``valgrind --tool=cachegrind --cache-sim=no``, once w
 and once without (same imports, same input built), and reports the difference divided by the
 number of frames / IMU samples: the interpreter's start-up and the input cancel out. Cases:
 
+- ``encode_hil_sensor_imu``, ``encode_hil_gps``: ``Encoder.sensors`` (IMU fields) /
+  ``Encoder.gnss`` per frame over ``--frames`` samples (made in the set-up);
 - ``decode_hil_sensor_imu``, ``decode_hil_sensor_all``, ``decode_hil_gps``: ``Decoder.feed``
-  per frame over ``--frames`` frames as :mod:`bench.codec_speed` builds them;
+  per frame over ``--frames`` frames of the same samples;
 - ``filter``: ``NavFilter.step`` over a ``--duration`` s racetrack stream
   (:func:`bench.fusion_speed.generate`, covariance at 100 Hz, the tuning's layout);
 - ``decode+filter``: :meth:`hil.pipeline.FusionRun.feed_frame` over the frames of that stream.
@@ -35,36 +37,53 @@ from pathlib import Path
 from typing import Any
 
 HERE = Path(__file__).resolve().parent
-CASES = ("decode_hil_sensor_imu", "decode_hil_sensor_all", "decode_hil_gps", "filter",
-         "decode+filter")
+CASES = ("encode_hil_sensor_imu", "encode_hil_gps", "decode_hil_sensor_imu",
+         "decode_hil_sensor_all", "decode_hil_gps", "filter", "decode+filter")
+_PER_FRAME = ("encode_", "decode_hil")
 
 
-def _decode_frames(kind: str, n: int) -> list[bytes]:
+def _encode_inputs(kind: str, n: int) -> tuple[str, list[tuple[Any, ...]], dict[str, Any]]:
+    """The case's ``Encoder`` method, its positional arguments for each frame, its keywords."""
     import math
 
     import numpy as np
 
-    from hil.codec import Encoder
     from sim.samples import BaroSample, GnssFix, ImuSample, MagSample
 
-    enc = Encoder()
     rng = np.random.default_rng(1)
     imu = [ImuSample(1000 + 5000 * i, 0.005, rng.normal(size=3), rng.normal(size=3))
            for i in range(n)]
-    if kind == "decode_hil_sensor_imu":
-        return [enc.sensors(s) for s in imu]
-    if kind == "decode_hil_sensor_all":
-        return [enc.sensors(s, BaroSample(s.time_us, 95_000.0, 280.0),
-                            MagSample(s.time_us, np.array([2e-5, 1e-6, 4e-5])),
-                            diff_pressure_pa=600.0) for s in imu]
-    return [enc.gnss(GnssFix(s.time_us, 0.8, 0.1, 500.0, np.array([50.0, -3.0, 0.5]), 1.5, 2.5,
-                             math.nan, 3, 12)) for s in imu]
+    if kind.endswith("hil_sensor_imu"):
+        return "sensors", [(s,) for s in imu], {}
+    if kind.endswith("hil_sensor_all"):
+        return "sensors", [(s, BaroSample(s.time_us, 95_000.0, 280.0),
+                            MagSample(s.time_us, np.array([2e-5, 1e-6, 4e-5]))) for s in imu], {
+            "diff_pressure_pa": 600.0}
+    return "gnss", [(GnssFix(s.time_us, 0.8, 0.1, 500.0, np.array([50.0, -3.0, 0.5]), 1.5, 2.5,
+                             math.nan, 3, 12),) for s in imu], {}
+
+
+def _decode_frames(kind: str, n: int) -> list[bytes]:
+    from hil.codec import Encoder
+
+    method, args, kwargs = _encode_inputs(kind, n)
+    encode = getattr(Encoder(), method)
+    return [encode(*a, **kwargs) for a in args]
 
 
 def child(case: str, data_path: str, run: bool) -> None:
     """The counted process: build the input, run the loop if ``run``."""
     with open(data_path, "rb") as fh:
         data = pickle.load(fh)
+    if case.startswith("encode_"):
+        from hil.codec import Encoder
+
+        method, args, kwargs = _encode_inputs(case, data["frames"])
+        encode = getattr(Encoder(), method)
+        if run:
+            for a in args:
+                encode(*a, **kwargs)
+        return
     if case.startswith("decode_hil"):
         from hil.codec import Decoder
 
@@ -148,10 +167,10 @@ def main() -> int:
         with open(data_path, "wb") as fh:
             pickle.dump({"samples": samples, "stream_frames": frames, "frames": args.frames}, fh)
         for case in cases:
-            per = args.frames if case.startswith("decode_hil") else n_imu
+            per = args.frames if case.startswith(_PER_FRAME) else n_imu
             diff = (_count(tree, case, data_path, True)
                     - _count(tree, case, data_path, False))
-            unit = "frame" if case.startswith("decode_hil") else "imu_sample"
+            unit = "frame" if case.startswith(_PER_FRAME) else "imu_sample"
             result["cases"][case] = {f"instructions_per_{unit}": diff / per}
             print(f"{case:24s} {diff / per:10.0f} instructions per {unit}", flush=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)

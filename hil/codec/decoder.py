@@ -21,7 +21,7 @@ from collections.abc import Callable
 from typing import Any, NamedTuple
 
 from hil.codec.counters import DecoderCounters
-from hil.codec.fast_frames import FAST_LAYOUTS
+from hil.codec.fast_frames import FAST_LAYOUTS, FastLayout
 from hil.codec.fc_messages import (
     SCALED_IMU_IDS,
     SCALED_PRESSURE_IDS,
@@ -35,6 +35,7 @@ from hil.codec.framing import FrameParser
 from hil.codec.hil_messages import (
     decode_hil_gps,
     decode_hil_sensor,
+    decode_hil_sensor_values,
     decode_hil_state_quaternion,
 )
 from hil.codec.sources import DEFAULT_FIRST_IMU_DT_S, SourceState
@@ -57,6 +58,12 @@ _NOT_CLOCK_IDS = frozenset({
     mavlink2.MAVLINK_MSG_ID_RAW_RPM,
 })
 
+
+# The fast HIL_SENSOR decode reads its unpacked fields by position.
+if FAST_LAYOUTS[mavlink2.MAVLINK_MSG_ID_HIL_SENSOR].fields._fields[:7] + (
+        FAST_LAYOUTS[mavlink2.MAVLINK_MSG_ID_HIL_SENSOR].fields._fields[14:]) != (
+        "time_usec", "xacc", "yacc", "zacc", "xgyro", "ygyro", "zgyro", "fields_updated", "id"):
+    raise ImportError("HIL_SENSOR's field order changed in the dialect")
 
 _new_decoded = tuple.__new__  # Decoded(...) without the named tuple's Python-level __new__
 _Samples = list[Sample | Truth]
@@ -117,6 +124,7 @@ class Decoder:
         self._framer = FrameParser(self.counters)
         self._sources = SourceState(first_dt_s)
         self._handlers = self._handler_table()
+        self._fast = self._fast_table()
 
     # -- bytes -> messages --
     def parse(self, data: bytes, *, final: bool = False) -> list[Any]:
@@ -194,12 +202,10 @@ class Decoder:
         out: list[Decoded] = []
         for frame in self._framer.feed(data):
             if fast and frame[0] == MAGIC_V2 and frame[2] == 0:
-                msg_id = frame[7] | (frame[8] << 8) | (frame[9] << 16)
-                layout = FAST_LAYOUTS.get(msg_id)
-                if layout is not None:
+                fast_decode = self._fast.get(frame[7] | (frame[8] << 8) | (frame[9] << 16))
+                if fast_decode is not None:
                     self.counters.frames_ok += 1
-                    out.extend(self._decode_fields(msg_id, frame[5], frame[6],
-                                                   layout.unpack(frame)))
+                    out.extend(fast_decode(frame))
                     continue
             msg = self._decode_frame(frame)
             if msg is not None:
@@ -236,7 +242,10 @@ class Decoder:
         if handler is None:
             self.counters.ignored_msgs += 1
             return []
-        samples = handler(msg, msg_id, sys_id, comp_id)
+        return self._wrap(handler(msg, msg_id, sys_id, comp_id), msg_id, sys_id, comp_id)
+
+    def _wrap(self, samples: _Samples, msg_id: int, sys_id: int, comp_id: int) -> list[Decoded]:
+        """The samples of one message as :class:`Decoded`, counted; the system's clock."""
         if not samples:
             return []
         if msg_id not in _NOT_CLOCK_IDS:  # the system's clock, for RAW_RPM
@@ -245,6 +254,32 @@ class Decoder:
         if len(samples) == 1:  # most messages
             return [_new_decoded(Decoded, (samples[0], sys_id, comp_id, msg_id))]
         return [_new_decoded(Decoded, (s, sys_id, comp_id, msg_id)) for s in samples]
+
+    def _fast_table(self) -> dict[int, Callable[[bytes], list[Decoded]]]:
+        """Message id -> decoder of an unsigned MAVLink 2 frame (CRC checked) of the
+        :mod:`hil.codec.fast_frames` messages, through their fast unpack: HIL_SENSOR straight
+        to its samples, the others through their handler."""
+        sources, counters, wrap = self._sources, self.counters, self._wrap
+        sensor_id = mavlink2.MAVLINK_MSG_ID_HIL_SENSOR
+        unpack_sensor = FAST_LAYOUTS[sensor_id].unpack
+
+        def hil_sensor(frame: bytes) -> list[Decoded]:
+            fields = unpack_sensor(frame)
+            sys_id, comp_id = frame[5], frame[6]
+            # wire order = field order: time, 3 accel, 3 gyro, ..., fields_updated, id
+            samples = decode_hil_sensor_values(
+                fields, fields[0], fields[14], fields[1:4], fields[4:7],
+                (sys_id, comp_id, sensor_id, fields[15]), sources, counters)
+            return wrap(samples, sensor_id, sys_id, comp_id)
+
+        def through_handler(msg_id: int, layout: FastLayout) -> Callable[[bytes], list[Decoded]]:
+            unpack, handler = layout.unpack, self._handlers[msg_id]
+            return lambda frame: wrap(handler(unpack(frame), msg_id, frame[5], frame[6]),
+                                      msg_id, frame[5], frame[6])
+
+        table = {i: through_handler(i, layout) for i, layout in FAST_LAYOUTS.items()}
+        table[sensor_id] = hil_sensor
+        return table
 
     def _handler_table(self) -> dict[int, _Handler]:
         """Message id -> its decoder, as ``(msg, msg_id, sys_id, comp_id) -> samples``."""

@@ -117,6 +117,21 @@ _ISA_LAPSE_KPM: Final = -ISA_L0_KPM
 _ISA_EXPONENT: Final = 0.190263  # R * L / (g0 * M) for dry air
 
 _N_CONTROLS: Final = 16  # HIL_ACTUATOR_CONTROLS.controls
+_ndarray = np.ndarray
+_F64: Final = np.dtype(np.float64)
+_SHAPE3: Final = (3,)
+_HALF_PI: Final = math.pi / 2
+_F32_MAX: Final = FLOAT32_MAX
+_IMU_BITS: Final = HilSensorField.IMU
+_MAG_BITS: Final = HilSensorField.MAG
+_BARO_BITS: Final = HilSensorField.BARO
+_DIFF_PRESSURE_BIT: Final = HilSensorField.DIFF_PRESSURE
+_HIL_SENSOR_PAYLOAD: Final = HIL_SENSOR.pack_fields
+_HIL_GPS_PAYLOAD: Final = HIL_GPS.pack_wire_order
+if HIL_GPS.wire_fields != ("time_usec", "lat", "lon", "alt", "eph", "epv", "vel", "vn", "ve", "vd",
+                           "cog", "fix_type", "satellites_visible", "id", "yaw"):
+    raise ImportError(f"HIL_GPS wire order changed in the dialect: {HIL_GPS.wire_fields}")
+
 _HIL_ARMED_MODE: Final = int(
     mavlink2.MAV_MODE_FLAG_SAFETY_ARMED | mavlink2.MAV_MODE_FLAG_HIL_ENABLED
 )
@@ -326,13 +341,17 @@ class Encoder:
             if diff_pressure_pa is not None:
                 raise ValueError("give airspeed or diff_pressure_pa, not both")
             diff_pressure_pa = airspeed.diff_pressure_pa
-        given = [s for s in (imu, baro, mag, airspeed) if s is not None]
-        if given:
-            first = given[0]
+        first: ImuSample | BaroSample | MagSample | AirspeedSample | None
+        if baro is None and mag is None and airspeed is None:
+            first = imu  # the IMU-rate frame: one sample, nothing to agree with
+        else:
+            given = [s for s in (imu, baro, mag, airspeed) if s is not None]
+            first = given[0] if given else None
             # the usual case in one pass; a mismatch is reported by _check_agree
             for s in given:
-                if s.time_us != first.time_us or s.sensor_id != first.sensor_id:
+                if s.time_us != given[0].time_us or s.sensor_id != given[0].sensor_id:
                     self._check_agree(imu, baro, mag, airspeed, time_us is None)
+        if first is not None:
             sensor_id = first.sensor_id
             if type(sensor_id) is not int or not 0 <= sensor_id <= UINT8_MAX:  # name on error
                 sensor_id = _uint8(sensor_id, f"{_sample_name(first, imu, baro, mag)}.sensor_id")
@@ -343,27 +362,38 @@ class Encoder:
         else:
             sensor_id = 0
         if time_us is None:
-            if not given:
+            if first is None:
                 raise ValueError("time_us is required when only diff_pressure_pa is given")
-            t = given[0].time_us
+            t = first.time_us
             if type(t) is not int or not 0 <= t <= UINT64_MAX:
-                t = _time_us(t, f"{_sample_name(given[0], imu, baro, mag)}.time_us")
+                t = _time_us(t, f"{_sample_name(first, imu, baro, mag)}.time_us")
         else:
             t = _time_us(time_us, "time_us")
 
         bits = 0
-        acc = gyro = mag_g = [0.0, 0.0, 0.0]  # sent as zeros when their bits are clear
+        ax = ay = az = gx = gy = gz = mx = my = mz = 0.0  # sent as zeros when their bits are clear
         abs_hpa = diff_hpa = alt_m = temp_c = 0.0
         if imu is not None:
-            f = _vec(imu.specific_force_b_mps2, "imu.specific_force_b_mps2")
-            w = _vec(imu.angular_rate_b_rps, "imu.angular_rate_b_rps")
-            acc = self._f32_vec(f, ("xacc", "yacc", "zacc"), "HIL_SENSOR")
-            gyro = self._f32_vec(w, ("xgyro", "ygyro", "zgyro"), "HIL_SENSOR")
-            bits |= HilSensorField.IMU
+            f = imu.specific_force_b_mps2
+            w = imu.angular_rate_b_rps
+            # A float64 (3,) array each, finite and within float32's range (NaN fails every
+            # comparison): sent as they are. Anything else takes the checked path, which
+            # raises or clips (and counts) exactly as it always did.
+            if (type(f) is _ndarray and type(w) is _ndarray and f.dtype is _F64
+                    and w.dtype is _F64 and f.shape == _SHAPE3 and w.shape == _SHAPE3):
+                ax, ay, az = f.tolist()
+                gx, gy, gz = w.tolist()
+                if not (-_F32_MAX <= ax <= _F32_MAX and -_F32_MAX <= ay <= _F32_MAX
+                        and -_F32_MAX <= az <= _F32_MAX and -_F32_MAX <= gx <= _F32_MAX
+                        and -_F32_MAX <= gy <= _F32_MAX and -_F32_MAX <= gz <= _F32_MAX):
+                    ax, ay, az, gx, gy, gz = self._imu_checked(f, w)
+            else:
+                ax, ay, az, gx, gy, gz = self._imu_checked(f, w)
+            bits = _IMU_BITS
         if mag is not None:
             b_gauss = [x / TESLA_PER_GAUSS for x in _vec(mag.field_b_tesla, "mag.field_b_tesla")]
-            mag_g = self._f32_vec(b_gauss, ("xmag", "ymag", "zmag"), "HIL_SENSOR")
-            bits |= HilSensorField.MAG
+            mx, my, mz = self._f32_vec(b_gauss, ("xmag", "ymag", "zmag"), "HIL_SENSOR")
+            bits |= _MAG_BITS
         if baro is not None:
             p = _finite(baro.pressure_pa, "baro.pressure_pa")
             if p <= 0.0:
@@ -372,17 +402,31 @@ class Encoder:
             abs_hpa = self._f32(p / PA_PER_HPA, "HIL_SENSOR.abs_pressure")
             alt_m = _isa_pressure_altitude_m(p)
             temp_c = self._f32(temp_k - KELVIN_AT_0_CELSIUS, "HIL_SENSOR.temperature")
-            bits |= HilSensorField.BARO
+            bits |= _BARO_BITS
         if diff_pressure_pa is not None:
             diff_hpa = self._f32(
                 _finite(diff_pressure_pa, "diff_pressure_pa") / PA_PER_HPA,
                 "HIL_SENSOR.diff_pressure",
             )
-            bits |= HilSensorField.DIFF_PRESSURE
-        return self._pack(
-            HIL_SENSOR, self._sensor_mav,
-            t, *acc, *gyro, *mag_g, abs_hpa, diff_hpa, alt_m, temp_c, bits, sensor_id,
+            bits |= _DIFF_PRESSURE_BIT
+        mav = self._sensor_mav
+        seq = mav.seq
+        mav.seq = (seq + 1) % 256  # as MAVLink.send() would
+        return pack_frame(
+            HIL_SENSOR,
+            _HIL_SENSOR_PAYLOAD(t, ax, ay, az, gx, gy, gz, mx, my, mz, abs_hpa, diff_hpa, alt_m,
+                                temp_c, bits, sensor_id),
+            seq, self.system_id, self.sensor_component_id,
         )
+
+    def _imu_checked(self, f: ArrayLike, w: ArrayLike) -> list[float]:
+        """An IMU sample's specific force and angular rate, checked (finite, shape (3,)) and
+        clipped to float32's range (counted), as six floats."""
+        acc = self._f32_vec(_vec(f, "imu.specific_force_b_mps2"), ("xacc", "yacc", "zacc"),
+                            "HIL_SENSOR")
+        gyro = self._f32_vec(_vec(w, "imu.angular_rate_b_rps"), ("xgyro", "ygyro", "zgyro"),
+                             "HIL_SENSOR")
+        return [*acc, *gyro]
 
     @staticmethod
     def _check_agree(
@@ -429,43 +473,70 @@ class Encoder:
         bytes
             One MAVLink 2 frame from the sensor component.
         """
-        t = _time_us(fix.time_us, "fix.time_us")
+        t = fix.time_us
+        if type(t) is not int or not 0 <= t <= UINT64_MAX:
+            t = _time_us(t, "fix.time_us")
         lat_e7, lon_e7 = self._lat_lon_e7(fix.lat_rad, fix.lon_rad, "fix")
-        alt_mm = self._int(
-            _finite(fix.alt_msl_m, "fix.alt_msl_m") * 1e3, INT32_MIN, INT32_MAX, "HIL_GPS.alt"
-        )
-        v = [x * 100.0 for x in _vec(fix.v_ned_mps, "fix.v_ned_mps")]
-        # field names as literals: formatted names would cost ~1 us a frame
-        vn = self._int(v[0], INT16_MIN, INT16_MAX, "HIL_GPS.vn")
-        ve = self._int(v[1], INT16_MIN, INT16_MAX, "HIL_GPS.ve")
-        vd = self._int(v[2], INT16_MIN, INT16_MAX, "HIL_GPS.vd")
-        ground_cms = math.hypot(v[0], v[1])
-        vel = self._int(ground_cms, 0, UINT16_MAX - 1, "HIL_GPS.vel")
+        # Each check below admits only values the checked path (after ``else``) would send
+        # unchanged; anything else (non-finite, out of range, not a float) takes that path,
+        # which raises or clips (and counts) as it always did.
+        alt = fix.alt_msl_m
+        if type(alt) is float and INT32_MIN <= (alt_mm1 := alt * 1e3) <= INT32_MAX:
+            alt_mm = round(alt_mm1)
+        else:
+            alt_mm = self._int(_finite(alt, "fix.alt_msl_m") * 1e3, INT32_MIN, INT32_MAX,
+                               "HIL_GPS.alt")
+        v = fix.v_ned_mps
+        if type(v) is _ndarray and v.dtype is _F64 and v.shape == _SHAPE3:
+            v0, v1, v2 = v.tolist()
+        else:
+            v0, v1, v2 = _vec(v, "fix.v_ned_mps")
+        v0 *= 100.0
+        v1 *= 100.0
+        v2 *= 100.0
+        if (INT16_MIN <= v0 <= INT16_MAX and INT16_MIN <= v1 <= INT16_MAX
+                and INT16_MIN <= v2 <= INT16_MAX):
+            vn, ve, vd = round(v0), round(v1), round(v2)
+        else:
+            _vec(v, "fix.v_ned_mps")  # a non-finite value raises here
+            # field names as literals: formatted names would cost ~1 us a frame
+            vn = self._int(v0, INT16_MIN, INT16_MAX, "HIL_GPS.vn")
+            ve = self._int(v1, INT16_MIN, INT16_MAX, "HIL_GPS.ve")
+            vd = self._int(v2, INT16_MIN, INT16_MAX, "HIL_GPS.vd")
+        ground_cms = math.hypot(v0, v1)
+        vel = (round(ground_cms) if ground_cms <= UINT16_MAX - 1
+               else self._int(ground_cms, 0, UINT16_MAX - 1, "HIL_GPS.vel"))
         if ground_cms > 0.0:
-            cog_deg = math.degrees(math.atan2(v[1], v[0])) % 360.0
+            cog_deg = math.degrees(math.atan2(v1, v0)) % 360.0
             cog = round(cog_deg * 100.0) % 36000
         else:
             cog = UINT16_MAX
-        eph = self._accuracy_cm(fix.eph_m, "fix.eph_m", "HIL_GPS.eph")
-        epv = self._accuracy_cm(fix.epv_m, "fix.epv_m", "HIL_GPS.epv")
-        return self._pack(
+        eph_m, epv_m = fix.eph_m, fix.epv_m
+        if (type(eph_m) is float and type(epv_m) is float
+                and 0.0 <= (eph1 := eph_m * 100.0) <= UINT16_MAX - 1
+                and 0.0 <= (epv1 := epv_m * 100.0) <= UINT16_MAX - 1):
+            eph, epv = round(eph1), round(epv1)
+        else:
+            eph = self._accuracy_cm(eph_m, "fix.eph_m", "HIL_GPS.eph")
+            epv = self._accuracy_cm(epv_m, "fix.epv_m", "HIL_GPS.epv")
+        fix_type, sats, sensor_id = fix.fix_type, fix.satellites_visible, fix.sensor_id
+        if not (type(fix_type) is int and 0 <= fix_type <= UINT8_MAX and type(sats) is int
+                and 0 <= sats <= UINT8_MAX and type(sensor_id) is int
+                and 0 <= sensor_id <= UINT8_MAX):
+            fix_type = _uint8(fix_type, "fix.fix_type")
+            sats = _uint8(sats, "fix.satellites_visible")
+            sensor_id = _uint8(sensor_id, "fix.sensor_id")
+        mav = self._sensor_mav
+        seq = mav.seq
+        mav.seq = (seq + 1) % 256  # as MAVLink.send() would
+        return pack_frame(
             HIL_GPS,
-            self._sensor_mav,
-            t,
-            _uint8(fix.fix_type, "fix.fix_type"),
-            lat_e7,
-            lon_e7,
-            alt_mm,
-            eph,
-            epv,
-            vel,
-            vn,
-            ve,
-            vd,
-            cog,
-            _uint8(fix.satellites_visible, "fix.satellites_visible"),
-            _uint8(fix.sensor_id, "fix.sensor_id"),
-            0,  # yaw: 0 = unknown (no dual-antenna heading in GnssFix)
+            _HIL_GPS_PAYLOAD(  # wire order (checked against the dialect on import)
+                t, lat_e7, lon_e7, alt_mm, eph, epv, vel, vn, ve, vd, cog, fix_type, sats,
+                sensor_id,
+                0,  # yaw: 0 = unknown (no dual-antenna heading in GnssFix)
+            ),
+            seq, self.system_id, self.sensor_component_id,
         )
 
     def truth(self, truth: Truth) -> bytes:
@@ -609,11 +680,12 @@ class Encoder:
 
     @staticmethod
     def _lat_lon_e7(lat_rad: float, lon_rad: float, owner: str) -> tuple[int, int]:
-        lat, lon = float(lat_rad), float(lon_rad)
-        if not (math.isfinite(lat) and math.isfinite(lon)):  # names formatted on error only
+        lat = lat_rad if type(lat_rad) is float else float(lat_rad)
+        lon = lon_rad if type(lon_rad) is float else float(lon_rad)
+        if not (-math.inf < lat < math.inf and -math.inf < lon < math.inf):  # names on error
             lat = _finite(lat, f"{owner}.lat_rad")
             lon = _finite(lon, f"{owner}.lon_rad")
-        if abs(lat) > math.pi / 2:
+        if not -_HALF_PI <= lat <= _HALF_PI:
             raise ValueError(f"{owner}.lat_rad must be in [-pi/2, pi/2], got {lat!r}")
         # Longitude is periodic: normalise to [-180, 180) deg rather than reject.
         lon = (lon + math.pi) % (2.0 * math.pi) - math.pi

@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import struct
 from collections import namedtuple
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from operator import itemgetter
 from typing import Any, Final
 
 from hil.codec.wire import mavlink2
@@ -62,6 +63,10 @@ class FastLayout:
     Attributes
     ----------
     msg_id : int
+    wire_fields : tuple of str
+        Field names in wire order (pymavlink's ``ordered_fieldnames``).
+    pack_fields : callable
+        Field values (constructor order) -> the untruncated payload, as :meth:`payload`.
     fields : type
         Named tuple (a ``collections.namedtuple``) of the message's fields in pymavlink's
         constructor order.
@@ -86,7 +91,21 @@ class FastLayout:
         self._wire_order = tuple(cls.fieldnames.index(n) for n in cls.ordered_fieldnames)
         self._arrays = any(n > 1 for _, n in self._plan)
         self._identity = not self._arrays and self._wire_order == tuple(range(len(lengths)))
+        # constructor field i is struct value orders[i] when there are no arrays
+        self._reorder: Callable[[tuple[Any, ...]], tuple[Any, ...]] | None = (
+            None if self._arrays or len(self._plan) < 2  # (one index: not a tuple)
+            else itemgetter(*(tip for tip, _ in self._plan))
+        )
         self._pad = tuple(bytes(self._size - n) for n in range(self._size))  # by payload length
+        self.wire_fields: tuple[str, ...] = tuple(cls.ordered_fieldnames)
+        self.pack_wire_order: Callable[..., bytes] = self._struct.pack
+        """Field values in wire order (:attr:`wire_fields`, no arrays) -> the untruncated
+        payload: :meth:`payload` without its reordering."""
+        self.pack_fields: Callable[..., bytes] = (
+            self._struct.pack if self._identity else self.payload
+        )
+        """:meth:`payload` itself, or the ``struct`` call it makes when the wire order is the
+        field order (no Python call around it)."""
 
     def payload(self, *values: Any) -> bytes:
         """The untruncated payload of the fields in constructor order (arrays as sequences of
@@ -113,6 +132,8 @@ class FastLayout:
             t = self._struct.unpack(frame[_HEADER_LEN : _HEADER_LEN + n] + self._pad[n])
         if self._identity:  # the struct gives exactly the fields: no length check needed
             return _tuple_new(self.fields, t)
+        if self._reorder is not None:  # no arrays: the fields are the struct's values reordered
+            return _tuple_new(self.fields, self._reorder(t))
         return self.fields._make(
             [t[tip] if n == 1 else list(t[tip : tip + n]) for tip, n in self._plan]
         )
@@ -150,11 +171,11 @@ def pack_frame(
     """
     body = payload.rstrip(b"\x00") or payload[:1]
     msg_id = layout.msg_id
-    header = _HEADER.pack(
+    frame = _HEADER.pack(
         _MAGIC_V2, len(body), 0, 0, seq, system_id, component_id, msg_id & 0xFFFF, msg_id >> 16
-    )
-    crc = _mcrf4xx(layout.crc_extra_byte, _mcrf4xx(body, _mcrf4xx(header[1:])))
-    return b"".join((header, body, crc.to_bytes(2, "little")))
+    ) + body
+    # one CRC call over header (without the magic), payload and CRC_EXTRA: cheaper than three
+    return frame + _mcrf4xx(frame[1:] + layout.crc_extra_byte).to_bytes(2, "little")
 
 
 def unpack_fields(frame: bytes, msg_id: int) -> Sequence[Any] | None:

@@ -14,6 +14,7 @@ HIL_GPS -> GnssFix; HIL_STATE_QUATERNION -> Truth (from any component: filtering
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -33,13 +34,19 @@ from sim.samples import (
     AirspeedSample,
     BaroSample,
     GnssFix,
-    ImuSample,
     MagSample,
     Sample,
     Truth,
 )
+from sim.samples import make_gnss_fix as _make_gnss_fix
+from sim.samples import make_imu_sample as _make_imu_sample
 
-__all__ = ["decode_hil_gps", "decode_hil_sensor", "decode_hil_state_quaternion"]
+__all__ = [
+    "decode_hil_gps",
+    "decode_hil_sensor",
+    "decode_hil_sensor_values",
+    "decode_hil_state_quaternion",
+]
 
 # the bits as plain ints (no class attribute look-up per message on the IMU-rate path)
 _SIM_RESET = HilSensorField.SIM_RESET
@@ -75,9 +82,18 @@ def decode_hil_sensor(
     -------
     list of ImuSample, MagSample, BaroSample, AirspeedSample
     """
-    bits = int(msg.fields_updated)
-    t = int(msg.time_usec)
-    sensor_id = key[3]
+    return decode_hil_sensor_values(
+        msg, int(msg.time_usec), int(msg.fields_updated), (msg.xacc, msg.yacc, msg.zacc),
+        (msg.xgyro, msg.ygyro, msg.zgyro), key, sources, counters)
+
+
+def decode_hil_sensor_values(
+    msg: Any, t: int, bits: int, acc: Sequence[float], gyro: Sequence[float], key: SourceKey,
+    sources: SourceState, counters: DecoderCounters,
+) -> list[Sample | Truth]:
+    """:func:`decode_hil_sensor` with the time, ``fields_updated`` (ints) and the accel and
+    gyro triples already read (the fast path slices them off the unpacked fields); the
+    other fields are read from ``msg`` when its bits say so."""
     out: list[Sample | Truth] = []
     if bits & _SIM_RESET:
         counters.sim_resets += 1
@@ -89,15 +105,12 @@ def decode_hil_sensor(
     if imu_bits == _IMU:
         dt = sources.imu_dt_s(key, t, counters)
         if dt is not None:
-            out.append(
-                ImuSample(t, dt, _array([msg.xacc, msg.yacc, msg.zacc], _F64),
-                          _array([msg.xgyro, msg.ygyro, msg.zgyro], _F64), temperature_k,
-                          sensor_id)
-            )
+            out.append(_make_imu_sample(t, dt, _array(acc, _F64), _array(gyro, _F64),
+                                        temperature_k, key[3]))
     elif imu_bits:
         counters.incomplete_fields += 1
     if bits & _NOT_IMU:  # mag, baro and pitot: at lower rates than the IMU
-        _decode_slow_fields(msg, bits, t, temperature_k, sensor_id, counters, out)
+        _decode_slow_fields(msg, bits, t, temperature_k, key[3], counters, out)
     return out
 
 
@@ -125,12 +138,12 @@ def _decode_slow_fields(msg: Any, bits: int, t: int, temperature_k: float, senso
 
 def decode_hil_gps(msg: Any) -> GnssFix:
     """HIL_GPS -> GnssFix (accuracies NaN when unknown; no speed accuracy on the wire)."""
-    return GnssFix(
+    return _make_gnss_fix(
         int(msg.time_usec),
         msg.lat / DEGE7_PER_RAD,
         msg.lon / DEGE7_PER_RAD,
         msg.alt * 1e-3,
-        _array([msg.vn * 1e-2, msg.ve * 1e-2, msg.vd * 1e-2], _F64),  # as (array of cm/s) * 1e-2
+        _array((msg.vn * 1e-2, msg.ve * 1e-2, msg.vd * 1e-2), _F64),  # (cm/s) * 1e-2 each
         _accuracy_m(msg.eph),
         _accuracy_m(msg.epv),
         math.nan,  # speed accuracy: HIL_GPS has no such field

@@ -139,7 +139,9 @@ def _sample_key(sample: Any) -> tuple[Any, ...]:
     out = []
     for f in dataclasses.fields(sample):
         v = getattr(sample, f.name)
-        out.append(repr(np.asarray(v).tolist()) if isinstance(v, np.ndarray) else repr(v))
+        # vectors: their values, and that they are float64 arrays of the same shape
+        out.append(repr((type(v).__name__, v.dtype.str, v.shape, v.tolist()))
+                   if isinstance(v, np.ndarray) else repr(v))
     return (type(sample).__name__, *out)
 
 
@@ -264,3 +266,53 @@ def test_decoder_fast_path_equals_pymavlink_on_damaged_streams(seed: int) -> Non
     cuts = sorted(rng.sample(range(1, len(stream)), 50))
     chunks = [stream[a:b] for a, b in zip([0, *cuts], [*cuts, len(stream)], strict=True)]
     _decode_both(chunks)
+
+
+# -- the encoder: plain float64 inputs (its guarded fast checks) == the checked path --
+
+# Finite values of every size, the float32 and int16 edges, NaN and infinities.
+f64 = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
+                st.sampled_from([3.4028234663852886e38, 3.5e38, -3.5e38, 327.67, 327.675,
+                                 -327.68, -327.685, 0.0, -0.0, 655.34, 655.345]))
+
+
+def _outcome(encode: Any) -> tuple[Any, ...]:
+    """(bytes, saturations) of one encode, or its error message."""
+    enc = Encoder()
+    try:
+        return encode(enc), dict(enc.saturations)
+    except ValueError as err:
+        return ("ValueError", str(err))
+
+
+@settings(max_examples=300, deadline=None)
+@given(t=st.one_of(u64, st.integers(-5, -1)), sid=st.integers(-1, 256),
+       f=st.lists(f64, min_size=3, max_size=3), w=st.lists(f64, min_size=3, max_size=3))
+def test_encoder_sensors_plain_arrays_equal_the_checked_path(
+        t: int, sid: int, f: list[float], w: list[float]) -> None:
+    """An IMU frame from float64 arrays (the guarded fast checks) has the bytes, the
+    saturation counts and the errors of the same values given as lists (the checked path)."""
+    fast = _outcome(lambda e: e.sensors(ImuSample(t, 0.005, np.array(f), np.array(w), 288.0,
+                                                  sid)))
+    checked = _outcome(lambda e: e.sensors(ImuSample(t, 0.005, list(f), list(w), 288.0,  # type: ignore[arg-type]
+                                                     sid)))
+    assert _bits(fast) == _bits(checked)
+
+
+@settings(max_examples=300, deadline=None)
+@given(lat=f64, lon=f64, alt=f64, v=st.lists(f64, min_size=3, max_size=3), eph=f64, epv=f64,
+       ids=st.tuples(st.integers(-1, 256), st.integers(-1, 256), st.integers(-1, 256)))
+def test_encoder_gnss_plain_floats_equal_the_checked_path(
+        lat: float, lon: float, alt: float, v: list[float], eph: float, epv: float,
+        ids: tuple[int, int, int]) -> None:
+    """A HIL_GPS frame from plain floats and a float64 array (the guarded fast checks) has
+    the bytes, saturation counts and errors of the same values as numpy scalars and a list
+    (the checked path)."""
+    fix_type, sats, sid = ids
+    fast = _outcome(lambda e: e.gnss(GnssFix(7, lat, lon, alt, np.array(v), eph, epv,
+                                             math.nan, fix_type, sats, sid)))
+    n = np.float64
+    checked = _outcome(lambda e: e.gnss(GnssFix(
+        7, n(lat), n(lon), n(alt), list(v), n(eph), n(epv),  # type: ignore[arg-type]
+        math.nan, fix_type, sats, sid)))
+    assert _bits(fast) == _bits(checked)
