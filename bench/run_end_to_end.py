@@ -151,6 +151,7 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
 
     def enter(self: Any) -> Any:
         chain = chain_enter(self)
+        assert chain.flight is not None
         chain.flight._fdm = TimedFdm(chain.flight._fdm)
         return chain
 
