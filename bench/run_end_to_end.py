@@ -33,6 +33,10 @@ cost ~1 us per JSBSim step, so this child's total is a little above the plain ru
     python bench/run_end_to_end.py --duration 3600 --skip-bare \\
         --out bench/results/run_end_to_end_1h.json
 
+``--base REV`` adds ``ab``: the whole ``hilnav run`` child of revision REV (``git archive``
+into a temporary folder, first on ``PYTHONPATH``) and of this tree, alternately,
+``--ab-rounds`` times each, so a before / after ratio holds on a loaded machine.
+
 The scenario (default ``turning-60s-outages``, 200 Hz) keeps its seed, sensors and plan; its
 outage events are replaced by one 60 s outage every 120 s from 120 s on, so a long run has
 outages throughout.
@@ -86,13 +90,15 @@ def time_jsbsim_bare(scenario_path: Path) -> tuple[float, int]:
         return time.process_time() - t0, n
 
 
-def time_hilnav_run(scenario_path: Path, out: Path) -> dict[str, Any]:
-    """Run ``hilnav run --quiet`` as a child; its CPU, wall time, peak RSS and summary."""
+def time_hilnav_run(scenario_path: Path, out: Path, tree: Path = ROOT) -> dict[str, Any]:
+    """Run ``hilnav run --quiet`` as a child (the code of ``tree``, first on ``PYTHONPATH``);
+    its CPU, wall time, peak RSS and summary."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     cmd = [sys.executable, "-m", "scenarios.cli", "run", str(scenario_path), "--out", str(out),
            "--quiet"]
+    env = {**os.environ, "PYTHONPATH": str(tree)}
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
+    proc = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True, check=False)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode not in (0, 1):  # 1: criteria failed, still a complete run
@@ -229,6 +235,23 @@ def time_phases(scenario_path: Path, out: Path) -> dict[str, Any]:
             "share": {k: v / total for k, v in split.items()}}
 
 
+def time_ab(scenario_path: Path, base: str, rounds: int, folder: Path) -> dict[str, Any]:
+    """``hilnav run`` of git revision ``base`` (exported with ``git archive``) and of this tree,
+    alternately, ``rounds`` times each; CPU seconds of each child and the ratio of the bests."""
+    tree = folder / "base"
+    tree.mkdir()
+    archive = subprocess.run(["git", "archive", base], cwd=ROOT, check=True,
+                             capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(tree)], input=archive, check=True)
+    cpu: dict[str, list[float]] = {"before": [], "after": []}
+    for k in range(rounds):
+        for key, src in (("before", tree), ("after", ROOT)):
+            run = time_hilnav_run(scenario_path, folder / f"ab-{key}-{k}", src)
+            cpu[key].append(run["cpu_s"])
+    return {"base": base, "rounds": rounds, "cpu_s": cpu,
+            "after_over_before_best": min(cpu["after"]) / min(cpu["before"])}
+
+
 def main() -> None:
     if len(sys.argv) == 5 and sys.argv[1] == "--child-phases":
         sys.path.insert(0, str(ROOT))
@@ -241,6 +264,9 @@ def main() -> None:
     ap.add_argument("--skip-bare", action="store_true", help="only the hilnav run (memory)")
     ap.add_argument("--skip-phases", action="store_true",
                     help="no phase-timed second run (the split of the CPU seconds)")
+    ap.add_argument("--base", help="git revision: also time its hilnav run alternately with "
+                                   "this tree's (--ab-rounds each)")
+    ap.add_argument("--ab-rounds", type=int, default=2)
     ap.add_argument("--out", type=Path, default=ROOT / "bench/results/run_end_to_end.json")
     args = ap.parse_args()
     from scenarios.schema import load_scenario
@@ -255,6 +281,7 @@ def main() -> None:
         bare_cpu, steps = (None, 0) if args.skip_bare else time_jsbsim_bare(scn_path)
         run = time_hilnav_run(scn_path, folder / "run")
         phases = None if args.skip_phases else time_phases(scn_path, folder / "phases")
+        ab = None if args.base is None else time_ab(scn_path, args.base, args.ab_rounds, folder)
     result: dict[str, Any] = {
         "benchmark": "run_end_to_end",
         "python": platform.python_version(),
@@ -274,6 +301,8 @@ def main() -> None:
                                  "realtime_factor": args.duration / bare_cpu}
         result["run_over_bare_cpu_ratio"] = run["cpu_s"] / bare_cpu
         result["run_inside_over_bare_ratio"] = run["summary_wall_s"] / bare_cpu
+    if ab is not None:
+        result["ab"] = ab
     if phases is not None:
         result["phases"] = phases
         if bare_cpu is not None:
