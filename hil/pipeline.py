@@ -258,9 +258,9 @@ class SimChain:
                 return
 
 
-#: Steps per batch of a lockstep flight (:func:`fly`): 1 s of simulated time at 200 Hz. In one
-#: A/B run of ``hilnav run`` (bench/run_end_to_end.py's scenario, 200 s) batches of 200 steps
-#: took ~25 % less CPU than step by step; 50 gained less, 1000 no more (bench/README.md).
+#: Steps per batch of a lockstep flight (:func:`fly`): 1 s of simulated time at 200 Hz. The
+#: size comes from an ad-hoc sweep (50 gained less, 1000 no more; not a committed result); the
+#: committed A/B of ``hilnav run`` with it is in bench/README.md (0.64x the CPU of 42eb08f).
 LOCKSTEP_BATCH = 200
 
 @dataclass(frozen=True)
