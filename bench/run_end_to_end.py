@@ -15,9 +15,27 @@ The ratio ``hilnav_run cpu / jsbsim_bare cpu`` is the issue-15 figure (target <=
 RSS of a 3600 s run is the memory figure (target < 500 MB). The load average is recorded
 before and after.
 
+``phases`` (unless ``--skip-phases``): where each CPU second of the run goes, from a second
+child that runs the same ``hilnav run`` command in-process (``app([...])``) with CPU timers
+(``process_time``) around its parts: ``interpreter_start`` (CPU before the first line of the
+child), ``cli_import`` (``scenarios.cli.app``), ``setup`` (the command up to the flight:
+the imports of the runner, pipeline and report modules, scenario load, filter build),
+``flight`` split into ``jsbsim_run``
+(JSBSim's ``run()`` alone, the clock read around each call), ``decode_filter`` (the
+:class:`hil.pipeline.FusionRun` sink: decode + filter + collector), ``tlog_write`` and
+``sim_chain_python`` (the rest of the flight: adapter, guidance, sensor models, encode, the
+pipeline's loop), ``scoring`` (``score`` minus its reports), ``reports`` (JUnit, plots, HTML,
+and the import of their modules: matplotlib)
+and ``exit`` (the child's CPU after the command returned: interpreter teardown). The timers
+cost ~1 us per JSBSim step, so this child's total is a little above the plain run's.
+
     python bench/run_end_to_end.py --duration 300 --out bench/results/run_end_to_end.json
     python bench/run_end_to_end.py --duration 3600 --skip-bare \\
         --out bench/results/run_end_to_end_1h.json
+
+``--base REV`` adds ``ab``: the whole ``hilnav run`` child of revision REV (``git archive``
+into a temporary folder, first on ``PYTHONPATH``) and of this tree, alternately,
+``--ab-rounds`` times each, so a before / after ratio holds on a loaded machine.
 
 The scenario (default ``turning-60s-outages``, 200 Hz) keeps its seed, sensors and plan; its
 outage events are replaced by one 60 s outage every 120 s from 120 s on, so a long run has
@@ -38,17 +56,14 @@ import time
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from scenarios.schema import load_scenario
-from sim.flight import Flight
-
 ROOT = Path(__file__).resolve().parent.parent
 LIBRARY = ROOT / "scenarios" / "library"
 
 
 def scenario_copy(source: Path, duration_s: float, folder: Path) -> Path:
     """The scenario YAML with ``duration_s`` and one 60 s GNSS outage every 120 s."""
+    import yaml
+
     doc: dict[str, Any] = yaml.safe_load(source.read_text(encoding="utf-8"))
     doc["duration_s"] = duration_s
     starts = range(120, int(duration_s) - 60, 120)
@@ -61,6 +76,9 @@ def scenario_copy(source: Path, duration_s: float, folder: Path) -> Path:
 def time_jsbsim_bare(scenario_path: Path) -> tuple[float, int]:
     """CPU seconds of JSBSim's ``run()`` alone (controls frozen at trim) over the scenario's
     duration at its rate, and the number of steps."""
+    from scenarios.schema import load_scenario
+    from sim.flight import Flight
+
     scn = load_scenario(scenario_path)
     cfg = scn.flight_config()
     n = round(scn.duration_s * cfg.rate_hz)
@@ -72,13 +90,15 @@ def time_jsbsim_bare(scenario_path: Path) -> tuple[float, int]:
         return time.process_time() - t0, n
 
 
-def time_hilnav_run(scenario_path: Path, out: Path) -> dict[str, Any]:
-    """Run ``hilnav run --quiet`` as a child; its CPU, wall time, peak RSS and summary."""
+def time_hilnav_run(scenario_path: Path, out: Path, tree: Path = ROOT) -> dict[str, Any]:
+    """Run ``hilnav run --quiet`` as a child (the code of ``tree``, first on ``PYTHONPATH``);
+    its CPU, wall time, peak RSS and summary."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     cmd = [sys.executable, "-m", "scenarios.cli", "run", str(scenario_path), "--out", str(out),
            "--quiet"]
+    env = {**os.environ, "PYTHONPATH": str(tree)}
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
+    proc = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True, check=False)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode not in (0, 1):  # 1: criteria failed, still a complete run
@@ -97,14 +117,160 @@ def time_hilnav_run(scenario_path: Path, out: Path) -> dict[str, Any]:
     }
 
 
+def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
+    """The phase-timed ``hilnav run`` (see the module docstring); runs in the child."""
+    cpu = time.process_time
+    t_start = cpu()
+    import scenarios.cli.app as cli_app
+
+    t_cli = cpu()
+    import hil.pipeline
+    import scenarios.runner
+
+    acc: dict[str, float] = {"jsbsim_run": 0.0, "decode_filter": 0.0, "tlog_write": 0.0,
+                             "flight": 0.0, "score_total": 0.0, "reports": 0.0}
+    marks: dict[str, float] = {}
+
+    def timed(key: str, fn: Any) -> Any:
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            t0 = cpu()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                acc[key] += cpu() - t0
+        return wrapper
+
+    class TimedFdm:  # JSBSim's FGFDMExec with run() timed
+        def __init__(self, fdm: Any) -> None:
+            self._fdm = fdm
+
+        def run(self) -> Any:
+            t0 = cpu()
+            result = self._fdm.run()
+            acc["jsbsim_run"] += cpu() - t0
+            return result
+
+        def __getattr__(self, name: str) -> Any:
+            return getattr(self._fdm, name)
+
+    chain_enter = hil.pipeline.SimChain.__enter__
+
+    def enter(self: Any) -> Any:
+        chain = chain_enter(self)
+        assert chain.flight is not None
+        chain.flight._fdm = TimedFdm(chain.flight._fdm)
+        return chain
+
+    simulate = scenarios.runner.simulate
+
+    def timed_simulate(*args: Any, **kwargs: Any) -> Any:
+        marks.setdefault("flight_start", cpu())
+        return timed("flight", simulate)(*args, **kwargs)
+
+    hil.pipeline.SimChain.__enter__ = enter  # type: ignore[method-assign]
+    hil.pipeline.FusionRun.__call__ = timed(  # type: ignore[method-assign]
+        "decode_filter", hil.pipeline.FusionRun.__call__)
+    scenarios.runner.TlogWriter.write = timed(  # type: ignore[method-assign]
+        "tlog_write", scenarios.runner.TlogWriter.write)
+    scenarios.runner.simulate = timed_simulate
+    score = scenarios.runner.score
+
+    def timed_score(*args: Any, **kwargs: Any) -> Any:
+        t0 = cpu()
+        # the report modules (matplotlib) are imported by score() itself in a plain run
+        import scenarios.html
+        import scenarios.junit
+        import scenarios.report
+
+        for module, name in ((scenarios.report, "write_plots"), (scenarios.html, "write_html"),
+                             (scenarios.junit, "write_junit")):
+            setattr(module, name, timed("reports", getattr(module, name)))
+        acc["reports"] += cpu() - t0
+        return score(*args, **kwargs)
+
+    scenarios.runner.score = timed("score_total", timed_score)
+    code = 0
+    try:
+        cli_app.app(["run", str(scenario_path), "--out", str(out), "--quiet"])
+    except SystemExit as exc:
+        code = int(exc.code or 0)
+    t_end = cpu()
+    flight_start = marks.get("flight_start", t_end)
+    split = {
+        "interpreter_start": t_start,
+        "cli_import": t_cli - t_start,
+        "setup": flight_start - t_cli,
+        "jsbsim_run": acc["jsbsim_run"],
+        "sim_chain_python": acc["flight"] - acc["jsbsim_run"] - acc["decode_filter"]
+        - acc["tlog_write"],
+        "decode_filter": acc["decode_filter"],
+        "tlog_write": acc["tlog_write"],
+        "scoring": acc["score_total"] - acc["reports"],
+        "reports": acc["reports"],
+    }
+    split["other"] = t_end - sum(split.values())
+    phases_json.write_text(json.dumps({"exit_code": code, "cpu_s_at_return": t_end,
+                                       "cpu_s": split}), encoding="utf-8")
+
+
+def time_phases(scenario_path: Path, out: Path) -> dict[str, Any]:
+    """Run the phase-timed child; its split (CPU s) with ``exit`` = its whole CPU minus the
+    CPU at the command's return."""
+    phases_json = out.parent / "phases.json"
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--child-phases", str(scenario_path),
+           str(out), str(phases_json)]
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode != 0 or not phases_json.is_file():
+        sys.exit(f"phase-timed run failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
+    child = json.loads(phases_json.read_text(encoding="utf-8"))
+    if child["exit_code"] not in (0, 1):
+        sys.exit(f"phase-timed hilnav run exited {child['exit_code']}:\n{proc.stderr[-2000:]}")
+    total = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    split: dict[str, float] = child["cpu_s"]
+    split["exit"] = total - child["cpu_s_at_return"]
+    return {"command": "python bench/run_end_to_end.py --child-phases SCENARIO DIR JSON",
+            "cpu_s_total": total, "cpu_s": split,
+            "share": {k: v / total for k, v in split.items()}}
+
+
+def time_ab(scenario_path: Path, base: str, rounds: int, folder: Path) -> dict[str, Any]:
+    """``hilnav run`` of git revision ``base`` (exported with ``git archive``) and of this tree,
+    alternately, ``rounds`` times each; CPU seconds of each child and the ratio of the bests."""
+    tree = folder / "base"
+    tree.mkdir()
+    archive = subprocess.run(["git", "archive", base], cwd=ROOT, check=True,
+                             capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(tree)], input=archive, check=True)
+    cpu: dict[str, list[float]] = {"before": [], "after": []}
+    for k in range(rounds):
+        for key, src in (("before", tree), ("after", ROOT)):
+            run = time_hilnav_run(scenario_path, folder / f"ab-{key}-{k}", src)
+            cpu[key].append(run["cpu_s"])
+    return {"base": base, "rounds": rounds, "cpu_s": cpu,
+            "after_over_before_best": min(cpu["after"]) / min(cpu["before"])}
+
+
 def main() -> None:
+    if len(sys.argv) == 5 and sys.argv[1] == "--child-phases":
+        sys.path.insert(0, str(ROOT))
+        _child_phases(Path(sys.argv[2]), Path(sys.argv[3]), Path(sys.argv[4]))
+        return
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scenario", default="turning-60s-outages", help="library scenario name")
     ap.add_argument("--duration", type=float, default=300.0, help="simulated seconds")
     ap.add_argument("--skip-bare", action="store_true", help="only the hilnav run (memory)")
+    ap.add_argument("--skip-phases", action="store_true",
+                    help="no phase-timed second run (the split of the CPU seconds)")
+    ap.add_argument("--base", help="git revision: also time its hilnav run alternately with "
+                                   "this tree's (--ab-rounds each)")
+    ap.add_argument("--ab-rounds", type=int, default=2)
     ap.add_argument("--out", type=Path, default=ROOT / "bench/results/run_end_to_end.json")
     args = ap.parse_args()
+    from scenarios.schema import load_scenario
+
     if args.duration < 60:
         sys.exit("--duration must be >= 60 s")
     load_before = os.getloadavg()[0]
@@ -114,6 +280,8 @@ def main() -> None:
         rate_hz = load_scenario(scn_path).flight_config().rate_hz
         bare_cpu, steps = (None, 0) if args.skip_bare else time_jsbsim_bare(scn_path)
         run = time_hilnav_run(scn_path, folder / "run")
+        phases = None if args.skip_phases else time_phases(scn_path, folder / "phases")
+        ab = None if args.base is None else time_ab(scn_path, args.base, args.ab_rounds, folder)
     result: dict[str, Any] = {
         "benchmark": "run_end_to_end",
         "python": platform.python_version(),
@@ -133,6 +301,12 @@ def main() -> None:
                                  "realtime_factor": args.duration / bare_cpu}
         result["run_over_bare_cpu_ratio"] = run["cpu_s"] / bare_cpu
         result["run_inside_over_bare_ratio"] = run["summary_wall_s"] / bare_cpu
+    if ab is not None:
+        result["ab"] = ab
+    if phases is not None:
+        result["phases"] = phases
+        if bare_cpu is not None:
+            result["phases"]["over_bare"] = {k: v / bare_cpu for k, v in phases["cpu_s"].items()}
     result["targets"] = {"run_over_bare_cpu_ratio_max": 3.0, "peak_rss_mb_max_1h": 500.0}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")

@@ -200,3 +200,49 @@ def test_the_default_aircraft_streams_airspeed_and_without_a_pitot_nothing_else_
 
     others = [key(s) for s in with_pitot if not isinstance(s, AirspeedSample)]
     assert others == [key(s) for s in without]
+
+
+def _stalling_setup() -> SimSetup:
+    """A flight that stalls within its duration (pitch held at 25 deg, 50 Hz)."""
+    from sim import presets
+    from sim.flight import FlightConfig
+    from sim.plans import FlightPlan, Leg
+
+    plan = FlightPlan(
+        name="stall",
+        legs=(Leg(kind="attitude", pitch_deg=25.0, duration_s=600.0, airspeed_mps=20.0),),
+    )
+    return SimSetup(flight=FlightConfig(rate_hz=50.0, stall_alpha_deg=14.0), plan=plan,
+                    sensors=presets.suite_config(), duration_s=600.0, seed=3)
+
+
+def test_batched_steps_fly_the_same_steps_up_to_the_end_of_the_flight() -> None:
+    """GIVEN a flight that stalls WHEN its chain steps one by one, in batches of 7, and when
+    :func:`fly` sinks it in batches of 1 and 64 THEN every step (truth, samples as sent,
+    frames) and every sunk frame is the same, the flight ends at the same step for the same
+    reason, and the batch must be at least 1."""
+    setup = _stalling_setup()
+
+    def stepped(batch: int) -> tuple[list[tuple[object, ...]], str, int]:
+        with SimChain(setup) as chain:
+            out = [(s.truth.time_us, s.truth.lat_rad, tuple(s.truth.v_ned_mps), s.frames,
+                    [type(x).__name__ for x in s.sensed]) for s in chain.steps(batch=batch)]
+            with pytest.raises(ValueError, match="batch"):
+                next(chain.steps(batch=0))
+        assert chain.ended is not None
+        return out, chain.ended.reason, chain.time_us
+
+    one, seven = stepped(1), stepped(7)
+    assert "stall" in one[1] and len(one[0]) > 100
+    assert len(one[0]) % 7 != 0  # the flight ends inside a batch
+    assert seven == one
+
+    def sunk(batch: int) -> tuple[list[tuple[int, bytes]], int, float]:
+        frames: list[tuple[int, bytes]] = []
+        report = fly(setup, lambda t, f: frames.append((t, f)), batch=batch)
+        assert report.ended is not None and report.frames == len(frames)
+        return frames, report.frames, report.sim_duration_s
+
+    by_one = sunk(1)
+    assert by_one == sunk(64)
+    assert [f for _, f in by_one[0]] == [f for s in one[0] for _, f in s[3]]
