@@ -273,13 +273,15 @@ def profile_filter(samples: list[Any], top: int = 10) -> list[dict[str, Any]]:
 
 
 # Module groups of the filter's time (first match of a path fragment wins; the rest is the
-# filter's orchestration, numpy's Python wrappers and the interpreter)
+# filter's orchestration, numpy's Python wrappers and the interpreter). Inside the call tree of
+# an aiding source (AIDING_GROUPS) everything but the covariance propagation (a flush before
+# the update) counts to that source's update: its model, the Kalman step, the feedback.
 FILTER_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("INS mechanisation (strapdown, Earth terms)", ("/fusion/strapdown.py", "/fusion/earth.py",
                                                      "/fusion/rotations.py")),
     ("covariance propagation", ("/fusion/propagation.py", "/fusion/error_model.py")),
-    ("measurement updates (Kalman step, aiding models, feedback)",
-     ("/fusion/kalman.py", "/fusion/aiding/", "/fusion/feedback.py", "/fusion/airspeed_model.py",
+    ("measurement updates outside an aiding source (Kalman step, feedback)",
+     ("/fusion/kalman.py", "/fusion/feedback.py", "/fusion/airspeed_model.py",
       "/fusion/wind_model.py")),
     ("altitude channel", ("/fusion/altitude/", "/fusion/altitude_link.py")),
     ("IMU screening", ("/fusion/screening.py",)),
@@ -288,7 +290,17 @@ FILTER_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("INS history, outage bookkeeping", ("/fusion/history.py", "/fusion/outage.py",
                                           "/fusion/bridging/")),
 )
+AIDING_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("GNSS update (model, Kalman step, feedback)", ("/fusion/aiding/gnss.py",
+                                                    "/fusion/aiding/pseudo_gnss.py")),
+    ("baro update", ("/fusion/aiding/baro.py",)),
+    ("magnetometer update", ("/fusion/aiding/mag.py",)),
+    ("air-data updates (TAS, sideslip, pitot monitor)", ("/fusion/aiding/airspeed.py",
+                                                         "/fusion/aiding/pitot_monitor.py")),
+    ("zero-motion detection and updates", ("/fusion/aiding/zero_motion.py",)),
+)
 OTHER_GROUP = "filter orchestration (fusion/filter.py) and the rest"
+_PROPAGATION = FILTER_GROUPS[1]
 
 
 def _cpu_s(fn: Any) -> float:
@@ -298,8 +310,8 @@ def _cpu_s(fn: Any) -> float:
 
 
 def filter_shares(samples: list[Any]) -> dict[str, float]:
-    """Share of each :data:`FILTER_GROUPS` group in the own (self) time of one filter pass
-    (pyinstrument; covariance at 100 Hz)."""
+    """Share of each group (:data:`FILTER_GROUPS`, :data:`AIDING_GROUPS`) in the own (self)
+    time of one filter pass (pyinstrument; covariance at 100 Hz)."""
     from pyinstrument import Profiler
 
     from fusion.filter import NavFilter
@@ -310,20 +322,29 @@ def filter_shares(samples: list[Any]) -> dict[str, float]:
     for s in samples:
         nav.step(s)
     root = prof.stop().root_frame()
-    own = dict.fromkeys([name for name, _ in FILTER_GROUPS] + [OTHER_GROUP], 0.0)
+    names = [n for n, _ in FILTER_GROUPS] + [n for n, _ in AIDING_GROUPS] + [OTHER_GROUP]
+    own = dict.fromkeys(names, 0.0)
 
-    def walk(frame: Any, group: str) -> None:
+    def match(path: str, groups: tuple[tuple[str, tuple[str, ...]], ...]) -> str | None:
+        return next((name for name, frags in groups if any(f in path for f in frags)), None)
+
+    def walk(frame: Any, group: str, aiding: str | None) -> None:
         path = frame.file_path or ""
         if not frame.is_synthetic:
-            group = next((name for name, frags in FILTER_GROUPS
-                          if any(f in path for f in frags)),
-                         OTHER_GROUP if "/fusion/" in path else group)
+            aiding = match(path, AIDING_GROUPS) or aiding
+            if any(f in path for f in _PROPAGATION[1]):
+                group = _PROPAGATION[0]
+            elif aiding is not None:
+                group = aiding
+            else:
+                group = match(path, FILTER_GROUPS) or (OTHER_GROUP if "/fusion/" in path
+                                                       else group)
             own[group] += frame.total_self_time
         for child in frame.children:
-            walk(child, group)
+            walk(child, group, aiding)
 
     if root is not None:
-        walk(root, OTHER_GROUP)
+        walk(root, OTHER_GROUP, None)
     total = sum(own.values())
     return {k: v / total for k, v in own.items()} if total > 0 else own
 
