@@ -18,12 +18,13 @@ are zero-mean processes: their estimates decay (:meth:`CovariancePropagator.prop
 the baro factor, :func:`decay_gnss_bias`).
 
 Speed without changing a bit: ``(Phi P) Phi^T`` takes ``Phi^T`` as a C-contiguous copy (layouts
-of 22 states and more), so the GEMM runs without a transposed operand (about twice as fast for
-40 states). The two calls can sum a column of the result in different orders only in the
-kernel's edge tile of output columns (the last ``n mod 8`` or so, all >= 16 for every layout);
-those columns are the rows of ``Phi`` past the nine navigation states, which hold one nonzero
-(the diagonal) and so give one exact product whatever the order. ``bench/fusion_speed.py --ab`` checks the estimates' bytes
-against the previous code.
+of 22 states and more), so the GEMM runs without a transposed operand (the pair of GEMMs ~7 %
+faster at 43 states on the filter's own matrices, ``bench/fusion_speed.py --gemm``). The two
+calls can sum a column of the result in different orders only in the kernel's edge tile of
+output columns (the last ``n mod 8`` or so, all >= 16 for every layout); those columns are the
+rows of ``Phi`` past the nine navigation states, which hold one nonzero (the diagonal) and so
+give one exact product whatever the order. ``bench/fusion_speed.py --ab`` checks the estimates'
+bytes against the previous code.
 """
 
 from __future__ import annotations
@@ -45,8 +46,8 @@ Vec3 = tuple[float, float, float]
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
 _TWO_RATE = 2.0 * earth.RATE
 # From this many error states on, Phi^T goes to the GEMM as a contiguous copy (measured on the
-# project's machine: 16 and 21 states gain nothing or lose, 22 and more gain, 43 halves the
-# second GEMM; bench/README.md, "Navigation filter speed")
+# project's machine: 16 and 21 states gain nothing or lose, 22 and more gain; bench/README.md,
+# "Navigation filter speed")
 _COPY_PHI_T_MIN_STATES = 22
 _dot = np.dot
 
@@ -192,8 +193,8 @@ class CovariancePropagator:
         # P = Phi P Phi^T + Q  (Q diagonal: white sensor noise and Gauss-Markov driving noise)
         # (np.dot: the same GEMMs as @, with less dispatch overhead on these small matrices;
         # Phi^T as a C-contiguous copy for the larger layouts: OpenBLAS's no-transpose GEMM is
-        # ~2x faster there than its transposed-operand one, and bit for bit the same on this
-        # Phi (module docstring); up to 21 states the copy costs what it saves)
+        # faster there than its transposed-operand one, and bit for bit the same on this Phi
+        # (module docstring); up to 21 states the copy costs what it saves)
         PhiT = Phi.T.copy() if self._copy_phi_t else Phi.T
         P = _dot(_dot(Phi, self.P), PhiT)
         P += model.process_noise(T)
