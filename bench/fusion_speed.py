@@ -34,6 +34,9 @@ stream (the air-data states stay dormant there; the frames still carry them).
 ``--layout NAME`` overrides the error-state layout the IMU preset's tuning picks (e.g.
 ``ins16``: the issue-#15 target layout; default: the commands' ``ins35+air``).
 
+``--gemm`` adds the propagation's ``(Phi P) Phi^T`` timed with ``Phi^T`` as the transposed view
+and as a C-contiguous copy, alternating in this process on the filter's own matrices.
+
 ``--breakdown`` adds where the time of one IMU sample's worth of decode + filter goes (CPU
 time per IMU sample over the whole stream): the framing (:class:`hil.codec.framing.
 FrameParser`), the fast unpack (:mod:`hil.codec.fast_frames`), the rest of the decoder
@@ -237,6 +240,52 @@ def ab_compare(base_rev: str, samples: list[Any], n_imu: int, rounds: int, repea
     }
 
 
+def gemm_variants(samples: list[Any], rounds: int = 300, calls: int = 20) -> dict[str, Any]:
+    """``(Phi P) Phi^T`` on the filter's own matrices (P after one pass over ``samples``, Phi
+    at its last INS state over 10 ms) with ``Phi^T`` as the transposed view and as a
+    C-contiguous copy (:mod:`fusion.propagation`): CPU us per call, best of ``rounds`` rounds
+    of ``calls`` calls alternating the two in this process, and whether the results are
+    equal bit for bit."""
+    import numpy as np
+
+    from fusion.filter import NavFilter
+    from fusion.rotations import dcm_from_quat
+
+    nav = NavFilter(_config(100.0))
+    for s in samples:
+        nav.step(s)
+    ins, cov = nav.ins_state, nav._cov
+    assert ins is not None
+    lat, _, h, v, q = ins
+    Phi = cov.model.first_order_transition(lat, h, v, dcm_from_quat(q), cov.f_n, 0.01,
+                                           (0.1, 0.2, -9.8), (0.01, -0.02, 0.03))
+    P = cov.P.copy()
+    dot = np.dot
+
+    def view() -> Any:
+        return dot(dot(Phi, P), Phi.T)
+
+    def copy() -> Any:
+        return dot(dot(Phi, P), Phi.T.copy())
+
+    best = {"view": float("inf"), "copy": float("inf")}
+    for _ in range(rounds):
+        for name, fn in (("view", view), ("copy", copy)):
+            c0 = time.perf_counter()
+            for _ in range(calls):
+                fn()
+            best[name] = min(best[name], (time.perf_counter() - c0) / calls)
+    a, b = view(), copy()
+    return {
+        "error_states": int(P.shape[0]),
+        "method": (f"best of {rounds} rounds of {calls} calls, view and copy alternating, "
+                   "wall us per call of (Phi P) Phi^T"),
+        "us_per_call_transposed_view": 1e6 * best["view"],
+        "us_per_call_contiguous_copy": 1e6 * best["copy"],
+        "bit_identical": bool(np.array_equal(a.view(np.int64), b.view(np.int64))),
+    }
+
+
 def profile_filter(samples: list[Any], top: int = 10) -> list[dict[str, Any]]:
     """Top ``top`` functions by own (self) time of one filter pass (pyinstrument; a function
     called from several places is summed)."""
@@ -421,6 +470,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="time the filter of git revision REV against this tree, alternating "
                          "(see the module docstring); only that, with the digests")
     ap.add_argument("--rounds", type=int, default=6, help="--ab: alternations")
+    ap.add_argument("--gemm", action="store_true",
+                    help="also time (Phi P) Phi^T with Phi^T as view and as contiguous copy "
+                         "on the filter's own matrices (gemm_variants)")
     if argv is None and len(sys.argv) == 3 and sys.argv[1] == "--ab-child":
         _ab_child(sys.argv[2])
         return 0
@@ -494,6 +546,12 @@ def main(argv: list[str] | None = None) -> int:
 
     hot = [] if args.no_profile else profile_filter(samples)
     split = breakdown(frames, n_imu, args.repeats) if args.breakdown else None
+    gemm = gemm_variants(samples) if args.gemm else None
+    if gemm is not None:
+        print(f"(Phi P) Phi^T, {gemm['error_states']} states: transposed view "
+              f"{gemm['us_per_call_transposed_view']:.2f} us, contiguous copy "
+              f"{gemm['us_per_call_contiguous_copy']:.2f} us; bit-identical "
+              f"{gemm['bit_identical']}", flush=True)
     main_case = cases["filter/cov_100hz"]
     from fusion.filter import NavFilter
 
@@ -519,6 +577,7 @@ def main(argv: list[str] | None = None) -> int:
         "cases": cases,
         "profile_top10_filter_cov_100hz": hot,
         "breakdown_cov_100hz": split,
+        "propagation_gemm": gemm,
         "machine": {**machine, "load_average_at_start": list(load_start),
                     "load_average_at_end": list(os.getloadavg())},
     }
