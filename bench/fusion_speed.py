@@ -34,21 +34,39 @@ stream (the air-data states stay dormant there; the frames still carry them).
 ``--layout NAME`` overrides the error-state layout the IMU preset's tuning picks (e.g.
 ``ins16``: the issue-#15 target layout; default: the commands' ``ins35+air``).
 
+``--gemm`` adds the propagation's ``(Phi P) Phi^T`` timed with ``Phi^T`` as the transposed view
+and as a C-contiguous copy, alternating in this process on the filter's own matrices.
+
 ``--breakdown`` adds where the time of one IMU sample's worth of decode + filter goes (CPU
 time per IMU sample over the whole stream): the framing (:class:`hil.codec.framing.
 FrameParser`), the fast unpack (:mod:`hil.codec.fast_frames`), the rest of the decoder
 (dispatch and the SI sample objects: ``Decoder.feed`` minus the two), the filter on the
 decoded samples, and the filter's time split by module group from a pyinstrument profile
 (the profile's shares times the measured filter time).
+
+Bit identity: ``digest_filter_cov_100hz`` is a SHA-256 over every estimate of one filter pass
+(each array field's bytes, every other field's ``repr``: exact for floats), the innovations of
+every step and the final covariance's bytes; two trees agree on it only if their estimates are
+bit for bit the same. ``--ab REV`` times the filter of git revision ``REV`` (a ``git archive``
+of it in a temporary folder, first on ``PYTHONPATH`` of a child process) against this tree on
+the same stream, alternating the two in child processes ``--rounds`` times (order swapped every
+round) so that both see the same machine load, and records both digests:
+
+    python bench/fusion_speed.py --ab 42eb08f [--rounds 6] [--layout ins16 | --gnss-bias on] \
+        --out bench/results/fusion_speed_ab_....json
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
+import pickle
 import platform
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -134,6 +152,140 @@ def time_decode_filter(frames: list[bytes], cov_rate_hz: float | None) -> tuple[
     return time.process_time() - c0, time.perf_counter() - w0, n_out
 
 
+def digest_filter(samples: list[Any], cov_rate_hz: float | None) -> str:
+    """SHA-256 of one filter pass: every estimate (array fields by their bytes, the others by
+    ``repr``, exact for floats), every step's innovations and the final covariance."""
+    import dataclasses
+
+    import numpy as np
+
+    from fusion.filter import NavFilter
+
+    nav = NavFilter(_config(cov_rate_hz))
+    h = hashlib.sha256()
+
+    def feed(value: Any) -> None:
+        if isinstance(value, np.ndarray):
+            h.update(value.tobytes())
+        elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+            for f in dataclasses.fields(value):
+                feed(getattr(value, f.name))
+        elif isinstance(value, tuple | list):
+            for v in value:
+                feed(v)
+        else:
+            h.update(repr(value).encode())
+        h.update(b"|")
+
+    for s in samples:
+        feed(nav.step(s))
+        feed(nav.innovations)
+    feed(nav.covariance)
+    return h.hexdigest()
+
+
+def _ab_child(stream_path: str) -> None:
+    """The timed process of ``--ab``: one filter pass (covariance at 100 Hz) of the pickled
+    stream with the code first on ``PYTHONPATH``; prints JSON (CPU us per IMU sample, digest)."""
+    with open(stream_path, "rb") as fh:
+        data = pickle.load(fh)
+    LAYOUT["name"], GNSS_BIAS["on"] = data["layout"], data["gnss_bias"]
+    samples, n_imu = data["samples"], data["imu_samples"]
+    cpu = min(time_filter(samples, 100.0)[0] for _ in range(data["repeats"]))
+    print(json.dumps({"cpu_us_per_imu_sample": 1e6 * cpu / n_imu,
+                      "digest": digest_filter(samples, 100.0)}))
+
+
+def ab_compare(base_rev: str, samples: list[Any], n_imu: int, rounds: int, repeats: int
+               ) -> dict[str, Any]:
+    """The filter of ``base_rev`` against this tree's, alternating child processes on the same
+    stream (see the module docstring)."""
+    root = Path(__file__).resolve().parent.parent
+    with tempfile.TemporaryDirectory() as tmp:
+        base = Path(tmp) / "base"
+        base.mkdir()
+        archive = subprocess.run(["git", "archive", base_rev], cwd=root, check=True,
+                                 capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(base)], input=archive, check=True)
+        stream = Path(tmp) / "stream.pkl"
+        with open(stream, "wb") as fh:
+            pickle.dump({"samples": samples, "imu_samples": n_imu, "layout": LAYOUT["name"],
+                         "gnss_bias": GNSS_BIAS["on"], "repeats": repeats}, fh)
+        trees = {"base": base, "this": root}
+        runs: dict[str, list[dict[str, Any]]] = {"base": [], "this": []}
+        for r in range(rounds):
+            for name in (("base", "this") if r % 2 == 0 else ("this", "base")):
+                env = {**os.environ, "PYTHONPATH": str(trees[name]), "OPENBLAS_NUM_THREADS": "1",
+                       "OMP_NUM_THREADS": "1"}
+                out = subprocess.run([sys.executable, str(Path(__file__).resolve()),
+                                      "--ab-child", str(stream)], cwd=trees[name], env=env,
+                                     check=True, capture_output=True, text=True).stdout
+                runs[name].append(json.loads(out.strip().splitlines()[-1]))
+                print(f"round {r} {name:4s} {runs[name][-1]['cpu_us_per_imu_sample']:6.1f} us",
+                      flush=True)
+    best = {k: min(x["cpu_us_per_imu_sample"] for x in v) for k, v in runs.items()}
+    digests = {k: sorted({x["digest"] for x in v}) for k, v in runs.items()}
+    return {
+        "base_rev": base_rev,
+        "method": ("filter/cov_100hz, CPU us per IMU sample; child processes alternating base "
+                   "and this tree on one pickled stream, order swapped every round; best of "
+                   "each child's repeats, then best over the rounds"),
+        "rounds": rounds,
+        "cpu_us_per_imu_sample": best,
+        "this_over_base": best["this"] / best["base"],
+        "all_cpu_us_per_imu_sample": {k: [x["cpu_us_per_imu_sample"] for x in v]
+                                      for k, v in runs.items()},
+        "digests": digests,
+        "bit_identical": digests["base"] == digests["this"] and len(digests["this"]) == 1,
+    }
+
+
+def gemm_variants(samples: list[Any], rounds: int = 300, calls: int = 20) -> dict[str, Any]:
+    """``(Phi P) Phi^T`` on the filter's own matrices (P after one pass over ``samples``, Phi
+    at its last INS state over 10 ms) with ``Phi^T`` as the transposed view and as a
+    C-contiguous copy (:mod:`fusion.propagation`): CPU us per call, best of ``rounds`` rounds
+    of ``calls`` calls alternating the two in this process, and whether the results are
+    equal bit for bit."""
+    import numpy as np
+
+    from fusion.filter import NavFilter
+    from fusion.rotations import dcm_from_quat
+
+    nav = NavFilter(_config(100.0))
+    for s in samples:
+        nav.step(s)
+    ins, cov = nav.ins_state, nav._cov
+    assert ins is not None
+    lat, _, h, v, q = ins
+    Phi = cov.model.first_order_transition(lat, h, v, dcm_from_quat(q), cov.f_n, 0.01,
+                                           (0.1, 0.2, -9.8), (0.01, -0.02, 0.03))
+    P = cov.P.copy()
+    dot = np.dot
+
+    def view() -> Any:
+        return dot(dot(Phi, P), Phi.T)
+
+    def copy() -> Any:
+        return dot(dot(Phi, P), Phi.T.copy())
+
+    best = {"view": float("inf"), "copy": float("inf")}
+    for _ in range(rounds):
+        for name, fn in (("view", view), ("copy", copy)):
+            c0 = time.perf_counter()
+            for _ in range(calls):
+                fn()
+            best[name] = min(best[name], (time.perf_counter() - c0) / calls)
+    a, b = view(), copy()
+    return {
+        "error_states": int(P.shape[0]),
+        "method": (f"best of {rounds} rounds of {calls} calls, view and copy alternating, "
+                   "wall us per call of (Phi P) Phi^T"),
+        "us_per_call_transposed_view": 1e6 * best["view"],
+        "us_per_call_contiguous_copy": 1e6 * best["copy"],
+        "bit_identical": bool(np.array_equal(a.view(np.int64), b.view(np.int64))),
+    }
+
+
 def profile_filter(samples: list[Any], top: int = 10) -> list[dict[str, Any]]:
     """Top ``top`` functions by own (self) time of one filter pass (pyinstrument; a function
     called from several places is summed)."""
@@ -170,13 +322,15 @@ def profile_filter(samples: list[Any], top: int = 10) -> list[dict[str, Any]]:
 
 
 # Module groups of the filter's time (first match of a path fragment wins; the rest is the
-# filter's orchestration, numpy's Python wrappers and the interpreter)
+# filter's orchestration, numpy's Python wrappers and the interpreter). Inside the call tree of
+# an aiding source (AIDING_GROUPS) everything but the covariance propagation (a flush before
+# the update) counts to that source's update: its model, the Kalman step, the feedback.
 FILTER_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("INS mechanisation (strapdown, Earth terms)", ("/fusion/strapdown.py", "/fusion/earth.py",
                                                      "/fusion/rotations.py")),
     ("covariance propagation", ("/fusion/propagation.py", "/fusion/error_model.py")),
-    ("measurement updates (Kalman step, aiding models, feedback)",
-     ("/fusion/kalman.py", "/fusion/aiding/", "/fusion/feedback.py", "/fusion/airspeed_model.py",
+    ("measurement updates outside an aiding source (Kalman step, feedback)",
+     ("/fusion/kalman.py", "/fusion/feedback.py", "/fusion/airspeed_model.py",
       "/fusion/wind_model.py")),
     ("altitude channel", ("/fusion/altitude/", "/fusion/altitude_link.py")),
     ("IMU screening", ("/fusion/screening.py",)),
@@ -185,7 +339,17 @@ FILTER_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("INS history, outage bookkeeping", ("/fusion/history.py", "/fusion/outage.py",
                                           "/fusion/bridging/")),
 )
+AIDING_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("GNSS update (model, Kalman step, feedback)", ("/fusion/aiding/gnss.py",
+                                                    "/fusion/aiding/pseudo_gnss.py")),
+    ("baro update", ("/fusion/aiding/baro.py",)),
+    ("magnetometer update", ("/fusion/aiding/mag.py",)),
+    ("air-data updates (TAS, sideslip, pitot monitor)", ("/fusion/aiding/airspeed.py",
+                                                         "/fusion/aiding/pitot_monitor.py")),
+    ("zero-motion detection and updates", ("/fusion/aiding/zero_motion.py",)),
+)
 OTHER_GROUP = "filter orchestration (fusion/filter.py) and the rest"
+_PROPAGATION = FILTER_GROUPS[1]
 
 
 def _cpu_s(fn: Any) -> float:
@@ -195,8 +359,8 @@ def _cpu_s(fn: Any) -> float:
 
 
 def filter_shares(samples: list[Any]) -> dict[str, float]:
-    """Share of each :data:`FILTER_GROUPS` group in the own (self) time of one filter pass
-    (pyinstrument; covariance at 100 Hz)."""
+    """Share of each group (:data:`FILTER_GROUPS`, :data:`AIDING_GROUPS`) in the own (self)
+    time of one filter pass (pyinstrument; covariance at 100 Hz)."""
     from pyinstrument import Profiler
 
     from fusion.filter import NavFilter
@@ -207,20 +371,29 @@ def filter_shares(samples: list[Any]) -> dict[str, float]:
     for s in samples:
         nav.step(s)
     root = prof.stop().root_frame()
-    own = dict.fromkeys([name for name, _ in FILTER_GROUPS] + [OTHER_GROUP], 0.0)
+    names = [n for n, _ in FILTER_GROUPS] + [n for n, _ in AIDING_GROUPS] + [OTHER_GROUP]
+    own = dict.fromkeys(names, 0.0)
 
-    def walk(frame: Any, group: str) -> None:
+    def match(path: str, groups: tuple[tuple[str, tuple[str, ...]], ...]) -> str | None:
+        return next((name for name, frags in groups if any(f in path for f in frags)), None)
+
+    def walk(frame: Any, group: str, aiding: str | None) -> None:
         path = frame.file_path or ""
         if not frame.is_synthetic:
-            group = next((name for name, frags in FILTER_GROUPS
-                          if any(f in path for f in frags)),
-                         OTHER_GROUP if "/fusion/" in path else group)
+            aiding = match(path, AIDING_GROUPS) or aiding
+            if any(f in path for f in _PROPAGATION[1]):
+                group = _PROPAGATION[0]
+            elif aiding is not None:
+                group = aiding
+            else:
+                group = match(path, FILTER_GROUPS) or (OTHER_GROUP if "/fusion/" in path
+                                                       else group)
             own[group] += frame.total_self_time
         for child in frame.children:
-            walk(child, group)
+            walk(child, group, aiding)
 
     if root is not None:
-        walk(root, OTHER_GROUP)
+        walk(root, OTHER_GROUP, None)
     total = sum(own.values())
     return {k: v / total for k, v in own.items()} if total > 0 else own
 
@@ -293,12 +466,22 @@ def main(argv: list[str] | None = None) -> int:
                     help="error-state layout instead of the tuning's (e.g. ins16)")
     ap.add_argument("--breakdown", action="store_true",
                     help="also time each stage of decode + filter (see the module docstring)")
+    ap.add_argument("--ab", metavar="REV", default=None,
+                    help="time the filter of git revision REV against this tree, alternating "
+                         "(see the module docstring); only that, with the digests")
+    ap.add_argument("--rounds", type=int, default=6, help="--ab: alternations")
+    ap.add_argument("--gemm", action="store_true",
+                    help="also time (Phi P) Phi^T with Phi^T as view and as contiguous copy "
+                         "on the filter's own matrices (gemm_variants)")
+    if argv is None and len(sys.argv) == 3 and sys.argv[1] == "--ab-child":
+        _ab_child(sys.argv[2])
+        return 0
     args = ap.parse_args(argv)
     GNSS_BIAS["on"] = args.gnss_bias == "on"
     AIRSPEED["on"] = args.airspeed == "on"
     LAYOUT["name"] = args.layout
-    if args.duration <= 5 or args.repeats < 1:
-        ap.error("--duration must be > 5 s and --repeats >= 1")
+    if args.duration <= 5 or args.repeats < 1 or args.rounds < 1:
+        ap.error("--duration must be > 5 s, --repeats and --rounds >= 1")
 
     import numpy as np
 
@@ -309,6 +492,35 @@ def main(argv: list[str] | None = None) -> int:
     print(f"generated {len(samples)} samples ({n_imu} IMU), {len(frames)} frames in "
           f"{gen_s:.1f} s", flush=True)
     sim_s = n_imu / RATE_HZ
+    machine = {
+        "python": platform.python_version(), "numpy": np.__version__,
+        "platform": platform.platform(), "cpu_count": os.cpu_count(),
+        "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS", "default"),
+    }
+    stream = {
+        "plan": "racetrack", "seed": args.seed, "duration_s": args.duration,
+        "imu_rate_hz": RATE_HZ, "gnss_rate_hz": 5.0, "baro_rate_hz": 50.0,
+        "mag_rate_hz": 50.0, "imu_samples": n_imu, "samples": len(samples),
+        "frames": len(frames), "generate_wall_s": gen_s,
+    }
+    if args.ab is not None:
+        from fusion.filter import NavFilter
+
+        layout = NavFilter(_config(100.0)).layout
+        ab = ab_compare(args.ab, samples, n_imu, args.rounds, args.repeats)
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps({
+            "benchmark": "fusion_speed_ab", "imu": IMU, "state_layout": layout.name,
+            "error_states": layout.n, "airspeed_samples_in_filter_stream": AIRSPEED["on"],
+            "stream": stream, "repeats": args.repeats, **ab,
+            "machine": {**machine, "load_average_at_start": list(load_start),
+                        "load_average_at_end": list(os.getloadavg())},
+        }, indent=1) + "\n")
+        b, t = ab["cpu_us_per_imu_sample"]["base"], ab["cpu_us_per_imu_sample"]["this"]
+        print(f"{layout.name}: base {b:.1f} us, this {t:.1f} us per IMU sample "
+              f"({t / b:.3f}x); bit-identical: {ab['bit_identical']}; load "
+              f"{list(load_start)} -> {list(os.getloadavg())}; -> {args.out}")
+        return 0
 
     cases: dict[str, Any] = {}
     for cov_name, cov in (("cov_100hz", 100.0), ("cov_every_sample", None)):
@@ -334,6 +546,12 @@ def main(argv: list[str] | None = None) -> int:
 
     hot = [] if args.no_profile else profile_filter(samples)
     split = breakdown(frames, n_imu, args.repeats) if args.breakdown else None
+    gemm = gemm_variants(samples) if args.gemm else None
+    if gemm is not None:
+        print(f"(Phi P) Phi^T, {gemm['error_states']} states: transposed view "
+              f"{gemm['us_per_call_transposed_view']:.2f} us, contiguous copy "
+              f"{gemm['us_per_call_contiguous_copy']:.2f} us; bit-identical "
+              f"{gemm['bit_identical']}", flush=True)
     main_case = cases["filter/cov_100hz"]
     from fusion.filter import NavFilter
 
@@ -344,12 +562,8 @@ def main(argv: list[str] | None = None) -> int:
         "state_layout": layout.name,
         "error_states": layout.n,
         "airspeed_samples_in_filter_stream": AIRSPEED["on"],
-        "stream": {
-            "plan": "racetrack", "seed": args.seed, "duration_s": args.duration,
-            "imu_rate_hz": RATE_HZ, "gnss_rate_hz": 5.0, "baro_rate_hz": 50.0,
-            "mag_rate_hz": 50.0, "imu_samples": n_imu, "samples": len(samples),
-            "frames": len(frames), "generate_wall_s": gen_s,
-        },
+        "stream": stream,
+        "digest_filter_cov_100hz": digest_filter(samples, 100.0),
         "method": ("best of repeats; fresh NavFilter per pass (alignment included); "
                    "us per IMU sample = time / IMU samples; realtime factor = simulated s / "
                    "CPU s"),
@@ -363,12 +577,9 @@ def main(argv: list[str] | None = None) -> int:
         "cases": cases,
         "profile_top10_filter_cov_100hz": hot,
         "breakdown_cov_100hz": split,
-        "machine": {
-            "python": platform.python_version(), "numpy": np.__version__,
-            "platform": platform.platform(), "cpu_count": os.cpu_count(),
-            "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS", "default"),
-            "load_average_at_start": list(load_start), "load_average_at_end": list(os.getloadavg()),
-        },
+        "propagation_gemm": gemm,
+        "machine": {**machine, "load_average_at_start": list(load_start),
+                    "load_average_at_end": list(os.getloadavg())},
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=1) + "\n")

@@ -2,7 +2,8 @@
 counted by valgrind: a load-independent before/after measure for a shared machine.
 
     python bench/instruction_count.py --out bench/results/instruction_count.json \
-        [--tree DIR] [--duration 20] [--frames 4000] [--only CASE,...]
+        [--tree DIR] [--duration 20] [--frames 4000] [--only CASE,...] \
+        [--layout NAME] [--gnss-bias on|off]
 
 Each case runs twice under ``valgrind --tool=cachegrind --cache-sim=no``, once with its loop
 and once without (same imports, same input built), and reports the difference divided by the
@@ -13,7 +14,8 @@ number of frames / IMU samples: the interpreter's start-up and the input cancel 
 - ``decode_hil_sensor_imu``, ``decode_hil_sensor_all``, ``decode_hil_gps``: ``Decoder.feed``
   per frame over ``--frames`` frames of the same samples;
 - ``filter``: ``NavFilter.step`` over a ``--duration`` s racetrack stream
-  (:func:`bench.fusion_speed.generate`, covariance at 100 Hz, the tuning's layout);
+  (:func:`bench.fusion_speed.generate`, covariance at 100 Hz, the tuning's layout, or
+  ``--layout`` / ``--gnss-bias`` as in :mod:`bench.fusion_speed`);
 - ``decode+filter``: :meth:`hil.pipeline.FusionRun.feed_frame` over the frames of that stream.
 
 ``--tree DIR`` counts the code of another checkout (e.g. ``git worktree`` or ``git archive`` of
@@ -99,6 +101,8 @@ def child(case: str, data_path: str, run: bool) -> None:
     from fusion.filter import NavFilter
     from hil.pipeline import FusionRun
 
+    fusion_speed.LAYOUT["name"] = data.get("layout")
+    fusion_speed.GNSS_BIAS["on"] = data.get("gnss_bias", False)
     cfg = fusion_speed._config(100.0)
     if case == "filter":
         step = NavFilter(cfg).step
@@ -145,6 +149,10 @@ def main() -> int:
     ap.add_argument("--frames", type=int, default=4000, help="frames per decode case")
     ap.add_argument("--only", default=None, help="comma-separated cases (default: all)")
     ap.add_argument("--out", type=Path, default=Path("bench/results/instruction_count.json"))
+    ap.add_argument("--layout", default=None, help="filter cases: error-state layout (e.g. ins16)")
+    ap.add_argument("--gnss-bias", choices=("on", "off"), default="off",
+                    help="filter cases: the filter as tuned for the modern receiver (as in "
+                         "bench/fusion_speed.py)")
     args = ap.parse_args()
     cases = CASES if args.only is None else tuple(args.only.split(","))
     if bad := [c for c in cases if c not in CASES]:
@@ -160,12 +168,14 @@ def main() -> int:
     result: dict[str, Any] = {
         "benchmark": "instruction_count", **_describe(tree), "duration_s": args.duration,
         "imu_samples": n_imu, "frames_per_decode_case": args.frames,
+        "filter_layout": args.layout, "filter_gnss_bias": args.gnss_bias,
         "method": "valgrind cachegrind I refs, (with loop - without loop) / count", "cases": {},
     }
     with tempfile.TemporaryDirectory() as tmp:
         data_path = str(Path(tmp) / "stream.pkl")
         with open(data_path, "wb") as fh:
-            pickle.dump({"samples": samples, "stream_frames": frames, "frames": args.frames}, fh)
+            pickle.dump({"samples": samples, "stream_frames": frames, "frames": args.frames,
+                         "layout": args.layout, "gnss_bias": args.gnss_bias == "on"}, fh)
         for case in cases:
             per = args.frames if case.startswith(_PER_FRAME) else n_imu
             diff = (_count(tree, case, data_path, True)

@@ -84,6 +84,7 @@ from __future__ import annotations
 import math
 import typing
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -116,6 +117,8 @@ class StateLayout:
     :data:`INS16`, :data:`INS22`, :data:`INS35` and the same three with the GNSS
     position-bias block appended (:data:`INS16_GNSS`, :data:`INS22_GNSS`, :data:`INS35_GNSS`);
     :func:`layout_for` picks one by name, and the name always says which blocks are present.
+    The offsets and ``has_*`` flags are computed once per layout (``cached_property``: the
+    filter reads them at every update).
     """
 
     name: LayoutName
@@ -141,103 +144,103 @@ class StateLayout:
             raise ValueError(f"layout {self.name!r} has no {what}")
         return int(block.start)
 
-    @property
+    @cached_property
     def POS(self) -> int:
         """Offset of the position block."""
         return int(self.pos.start)
 
-    @property
+    @cached_property
     def VEL(self) -> int:
         """Offset of the velocity block."""
         return int(self.vel.start)
 
-    @property
+    @cached_property
     def ATT(self) -> int:
         """Offset of the attitude block."""
         return int(self.att.start)
 
-    @property
+    @cached_property
     def BA(self) -> int:
         """Offset of the accelerometer-bias block."""
         return int(self.ba.start)
 
-    @property
+    @cached_property
     def BG(self) -> int:
         """Offset of the gyro-bias block."""
         return int(self.bg.start)
 
-    @property
+    @cached_property
     def BARO(self) -> int:
         """Offset of the baro-bias state."""
         return int(self.baro.start)
 
-    @property
+    @cached_property
     def GNSS(self) -> int:
         """Offset of the GNSS position-bias block (ValueError if the layout has none)."""
         return self._optional_offset(self.gnss, "GNSS position-bias states")
 
-    @property
+    @cached_property
     def SA(self) -> int:
         """Offset of the accelerometer scale-factor block (ValueError if the layout has none)."""
         return self._optional_offset(self.sa, "scale-factor states")
 
-    @property
+    @cached_property
     def SG(self) -> int:
         """Offset of the gyro scale-factor block (ValueError if the layout has none)."""
         return self._optional_offset(self.sg, "scale-factor states")
 
-    @property
+    @cached_property
     def MA(self) -> int:
         """Offset of the accelerometer misalignment block (ValueError if the layout has none)."""
         return self._optional_offset(self.ma, "misalignment states")
 
-    @property
+    @cached_property
     def MG(self) -> int:
         """Offset of the gyro misalignment block (ValueError if the layout has none)."""
         return self._optional_offset(self.mg, "misalignment states")
 
-    @property
+    @cached_property
     def BS(self) -> int:
         """Offset of the baro scale-factor state (ValueError if the layout has none)."""
         return self._optional_offset(self.bs, "baro scale-factor state")
 
-    @property
+    @cached_property
     def WIND(self) -> int:
         """Offset of the wind block (North, East; ValueError if the layout has none)."""
         return self._optional_offset(self.air, "air-data states")
 
-    @property
+    @cached_property
     def ASPD_SCALE(self) -> int:
         """Offset of the airspeed scale-factor state (ValueError if the layout has none)."""
         return self._optional_offset(self.air, "air-data states") + 2
 
-    @property
+    @cached_property
     def GUST(self) -> int:
         """Offset of the gust block (North, East; ValueError if the layout has none)."""
         return self._optional_offset(self.air, "air-data states") + 3
 
-    @property
+    @cached_property
     def has_air(self) -> bool:
         """The layout carries the wind and airspeed-scale states (``+air``)."""
         return self.air is not None
 
-    @property
+    @cached_property
     def has_baro_scale(self) -> bool:
         """The layout carries the baro scale-factor state (``ins35``)."""
         return self.bs is not None
 
-    @property
+    @cached_property
     def has_misalignment(self) -> bool:
         """The layout carries the accelerometer and gyro misalignment blocks (``ins35``)."""
         return self.ma is not None
 
-    @property
+    @cached_property
     def has_scale_factors(self) -> bool:
         """The layout carries the accelerometer and gyro scale-factor blocks (``ins22``,
         ``ins35``)."""
         return self.sa is not None
 
-    @property
+    @cached_property
     def has_gnss_bias(self) -> bool:
         """The layout carries the GNSS position-bias block (``+gnss``)."""
         return self.gnss is not None
