@@ -130,14 +130,18 @@ def errors(estimate: Track, truth: Track, *, block_rows: int = ERRORS_BLOCK_ROWS
     if block_rows < 1:
         raise ValueError("block_rows must be >= 1")
     t_all = estimate.time_s
-    keep = (t_all >= truth.time_s[0]) & (t_all <= truth.time_s[-1])
-    every = bool(np.all(keep))  # the usual case: no copy of an hour's 9x9 covariances
-    rows = None if every else np.flatnonzero(keep)
-    t = t_all if every else t_all[keep]
+    kept = np.flatnonzero((t_all >= truth.time_s[0]) & (t_all <= truth.time_s[-1]))
+    # the usual case, estimates in time order, keeps one run of them: slices (views), no copy
+    # of an hour's 9x9 covariances; otherwise the kept rows are gathered
+    run = kept.size == 0 or int(kept[-1]) - int(kept[0]) + 1 == kept.size
+    keep: slice | NDArray[np.intp] = (
+        slice(int(kept[0]), int(kept[-1]) + 1) if kept.size and run
+        else slice(0, 0) if run else kept)  # fmt: skip
+    t = t_all[keep]
     n = t.shape[0]
     att_unwrapped = [np.unwrap(truth.euler_rad[:, k]) for k in range(3)]
-    sigma = None if estimate.sigma is None else estimate.sigma if every else estimate.sigma[keep]
-    cov = None if estimate.cov is None else estimate.cov if every else estimate.cov[keep]
+    sigma = None if estimate.sigma is None else estimate.sigma[keep]
+    cov = None if estimate.cov is None else estimate.cov[keep]
     pos = np.empty((n, 3))
     vel = np.empty((n, 3))
     att = np.empty((n, 3))
@@ -147,7 +151,7 @@ def errors(estimate: Track, truth: Track, *, block_rows: int = ERRORS_BLOCK_ROWS
     att_sigma = None if sigma is None else np.empty((n, 3))
     for a in range(0, n, block_rows):
         b = min(a + block_rows, n)
-        sel = slice(a, b) if rows is None else rows[a:b]
+        sel = slice(keep.start + a, keep.start + b) if isinstance(keep, slice) else kept[a:b]
         _errors_block(estimate, truth, att_unwrapped, t[a:b], sel,
                       None if sigma is None else sigma[a:b], None if cov is None else cov[a:b],
                       (pos[a:b], vel[a:b], att[a:b], tilt[a:b], lat_deg[a:b], lon_deg[a:b],

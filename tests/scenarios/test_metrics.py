@@ -475,5 +475,17 @@ def test_errors_in_blocks_equal_errors_in_one_piece(with_cov: bool) -> None:
     i = int(np.flatnonzero(est.time_s == whole.time_s[k])[0])
     alt_t = np.interp(whole.time_s[k], truth.time_s, truth.alt_m)
     assert whole.pos_ned_m[k, 2] == -(est.alt_m[i] - alt_t)
+    if with_cov:  # estimates in time order: the covariances are a view, never a copy
+        assert np.shares_memory(whole.cov, est.cov)
+    # an estimate outside the truth's span in the middle: the kept rows are gathered
+    order = np.r_[1:500, 0, 500:est.time_s.size]
+    assert est.time_s[0] < truth.time_s[0]
+    shuffled = Track(*(None if a is None else a[order] for a in (
+        est.time_s, est.lat_rad, est.lon_rad, est.alt_m, est.v_ned_mps, est.euler_rad,
+        est.sigma, est.cov)))  # fmt: skip
+    gathered = metrics.errors(shuffled, truth, block_rows=7)
+    for name in ("time_s", "pos_ned_m", "tilt_rad", "att_sigma_rad", "cov"):
+        np.testing.assert_array_equal(getattr(gathered, name), getattr(whole, name),
+                                      err_msg=name)
     with pytest.raises(ValueError, match="block_rows"):
         metrics.errors(est, truth, block_rows=0)
