@@ -9,7 +9,6 @@ service's scorecard and the benches.
 from __future__ import annotations
 
 import io
-import itertools
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
@@ -144,10 +143,14 @@ class ColumnChunks:
     """Named column arrays, appended a chunk at a time, kept in memory or spilled to a file.
 
     A chunk is a dict of arrays with the same first dimension (rows) and the same keys, in the
-    same order, every time. With ``spill_dir`` every chunk is written at once to an anonymous
-    temporary file in that folder (unlinked at creation: nothing is left behind, even after a
-    crash), so what stays in memory is constant however long the run; otherwise the chunks
-    stay in memory in their compact form.
+    same order, every time. In memory, every chunk is copied at once into one array per column
+    that grows by doubling its capacity (the capacity not yet filled is never touched, so it
+    takes no resident memory), and :meth:`columns` returns read-only views of the rows filled:
+    the columns are held once, never as chunks *and* columns (an hour's ~160 MB would
+    otherwise be twice that while the scorer reads them). With ``spill_dir`` every chunk is
+    written at once to an anonymous temporary file in that folder (unlinked at creation:
+    nothing is left behind, even after a crash), so what stays in memory is constant however
+    long the run.
 
     Parameters
     ----------
@@ -157,7 +160,7 @@ class ColumnChunks:
     def __init__(self, spill_dir: Path | None = None) -> None:
         self.spill_dir = spill_dir
         self._keys: tuple[str, ...] | None = None
-        self._kept: list[dict[str, NDArray[Any]]] = []
+        self._held: dict[str, NDArray[Any]] = {}
         self._file: IO[bytes] | None = None
         self._n_chunks = 0
         self.rows = 0
@@ -170,23 +173,36 @@ class ColumnChunks:
             self._keys = keys
         elif keys != self._keys:
             raise ValueError(f"chunk columns {keys} differ from the first chunk's {self._keys}")
-        self.rows += len(chunk[keys[0]])
+        n = len(chunk[keys[0]])
         self.nbytes += sum(a.nbytes for a in chunk.values())
         self._n_chunks += 1
         if self.spill_dir is None:
-            self._kept.append(chunk)
+            self._hold(chunk, n)
+            self.rows += n
             return
+        self.rows += n
         if self._file is None:
             self.spill_dir.mkdir(parents=True, exist_ok=True)
             self._file = tempfile.TemporaryFile(dir=self.spill_dir, prefix=".hilnav-tracks-")
         for key in keys:
             np.save(self._file, chunk[key], allow_pickle=False)
 
+    def _hold(self, chunk: dict[str, NDArray[Any]], n: int) -> None:
+        """Copy ``chunk`` behind the rows held, doubling the capacity when it is full (views
+        handed out before keep the old arrays, unchanged)."""
+        end = self.rows + n
+        for k, a in chunk.items():
+            held = self._held.get(k)
+            if held is None or held.shape[0] < end:
+                grown = np.empty((max(end, 2 * (0 if held is None else held.shape[0])),
+                                  *a.shape[1:]), dtype=a.dtype)
+                if held is not None:
+                    grown[:self.rows] = held[:self.rows]
+                self._held[k] = held = grown
+            held[self.rows:end] = a
+
     def _chunks(self) -> Iterator[dict[str, NDArray[Any]]]:
-        if self._file is None:
-            yield from self._kept
-            return
-        assert self._keys is not None
+        assert self._keys is not None and self._file is not None
         self._file.flush()
         self._file.seek(0)
         try:
@@ -195,28 +211,27 @@ class ColumnChunks:
         finally:
             self._file.seek(0, io.SEEK_END)
 
-    def columns(self, tail: dict[str, NDArray[Any]] | None = None) -> dict[str, NDArray[Any]]:
-        """Every column, the chunks in order (then ``tail``, a last chunk not appended); empty
-        dict when there is nothing. Each column is allocated once at its full length and
-        filled chunk by chunk, so reading back a spilled hour needs the columns' size, not
-        twice that. Kept in memory, several chunks are replaced by views of the columns
-        returned, which are then read-only (shared with the store)."""
-        rows = self.rows + (0 if tail is None else len(next(iter(tail.values()))))
-        out: dict[str, NDArray[Any]] = {}
+    def columns(self) -> dict[str, NDArray[Any]]:
+        """Every column, the chunks in order; empty dict when there is nothing. In memory:
+        read-only views of the columns held (no copy). Spilled: each column is allocated once
+        at its full length and filled chunk by chunk from the file, so reading back a spilled
+        hour needs the columns' size, not twice that."""
+        if self._keys is None:
+            return {}
+        if self._file is None:
+            out = {k: a[:self.rows] for k, a in self._held.items()}
+            for a in out.values():
+                a.flags.writeable = False  # shared with the store
+            return out
+        out = {}
         start = 0
-        for chunk in itertools.chain(self._chunks(), [] if tail is None else [tail]):
+        for chunk in self._chunks():
             n = len(next(iter(chunk.values())))
             for k, a in chunk.items():
                 if k not in out:
-                    out[k] = np.empty((rows, *a.shape[1:]), dtype=a.dtype)
+                    out[k] = np.empty((self.rows, *a.shape[1:]), dtype=a.dtype)
                 out[k][start:start + n] = a
             start += n
-        if self._file is None and len(self._kept) > 1:
-            # the chunks become views of the columns just built: an hour's run then holds its
-            # columns once, not twice (chunks + columns), from the first read on
-            for a in out.values():
-                a.flags.writeable = False
-            self._kept = [{k: a[:self.rows] for k, a in out.items()}]
         return out
 
     def close(self) -> None:
@@ -311,11 +326,14 @@ class _Stream:
             self.pending = []
 
     def columns(self) -> dict[str, NDArray[Any]]:
-        """Every column (cached until the next object arrives); {} when empty."""
+        """Every column (cached until the next object arrives); {} when empty. The objects
+        pending are compacted into the store first (a short chunk)."""
         n = len(self)
         if self._cache is None or self._cache[0] != n:
-            tail = self._compact(self.pending) if self.pending else None
-            cols = self.chunks.columns(tail)
+            if self.pending:
+                self.chunks.append(self._compact(self.pending))
+                self.pending = []
+            cols = self.chunks.columns()
             for a in cols.values():
                 a.flags.writeable = False  # shared by every track built from them
             self._cache = (n, cols)
@@ -449,7 +467,10 @@ class Collector:
         if self.n_truths < 2:
             raise ValueError("the log holds no truth (HIL_STATE_QUATERNION) to score against")
         c = self._tru.columns()
-        order = np.argsort(c["time_us"], kind="stable")  # as sorted(): ties keep arrival order
+        t = c["time_us"]
+        if t.size < 2 or bool(np.all(t[1:] >= t[:-1])):
+            return c  # the usual case: already in order, no copy of an hour's truth
+        order = np.argsort(t, kind="stable")  # as sorted(): ties keep arrival order
         return {k: v[order] for k, v in c.items()}
 
     def end_s(self) -> float:

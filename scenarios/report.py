@@ -1,6 +1,11 @@
 """Plots of a run: ground track estimate vs truth with the outage segments marked, errors vs
 time with outage (and event) windows shaded and the filter's 3-sigma envelopes, and drift vs
 time into each outage; plus the drift comparison of several methods for ``hilnav compare``.
+
+Long runs are drawn from a subset of their samples that gives the same picture
+(:func:`envelope_indices` for curves against time, :func:`path_indices` for ground tracks):
+an hour at 50 Hz is 180,000 samples, a plot is ~1,000 pixels wide, and matplotlib would
+otherwise hold every sample several times over while it draws.
 """
 
 from __future__ import annotations
@@ -21,6 +26,93 @@ from scenarios.event_metrics import EventWindow
 from scenarios.metrics import Errors, Window
 
 EventLike = EventWindow | Mapping[str, Any]
+
+#: Time bins per pixel column of the figure in :func:`envelope_indices` (at least one bin per
+#: pixel column of any axes in it).
+BINS_PER_PIXEL = 2
+#: Ground-track cells per pixel (:func:`path_indices`): a dropped sample is within half a pixel
+#: of the drawn path.
+CELLS_PER_PIXEL = 2
+
+
+def envelope_indices(time_s: np.ndarray, *series: np.ndarray, bins: int) -> np.ndarray:
+    """Indices of the samples that draw the same curves as all samples at ``bins`` columns.
+
+    The time span is cut into ``bins`` equal bins; in each, the first and the last sample and
+    the minimum and the maximum of every one of ``series`` are kept (the "M4" aggregation of
+    Jugel et al., VLDB 2014), so no spike and no extreme is lost and every line drawn between
+    neighbouring bins is there; non-finite samples are all kept (a gap stays a gap). With at
+    least one bin per pixel column the picture is the same as the full curve's.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (N,)
+        Non-decreasing times (otherwise every index is returned).
+    *series : ndarray, shape (N,)
+        The values plotted against ``time_s`` (a curve, or both edges of a band).
+    bins : int
+
+    Returns
+    -------
+    ndarray of int, shape (M,)
+        Increasing indices; ``arange(N)`` when ``N <= 4 * bins`` (nothing to gain).
+    """
+    if bins < 1:
+        raise ValueError("bins must be >= 1")
+    t = np.asarray(time_s, dtype=float)
+    n = t.size
+    span = float(t[-1] - t[0]) if n else 0.0
+    if n <= 4 * bins or not (np.isfinite(span) and span > 0.0) or np.any(np.diff(t) < 0.0):
+        return np.arange(n)
+    b = np.minimum(((t - t[0]) * (bins / span)).astype(np.int64), bins - 1)
+    starts = np.flatnonzero(np.r_[True, b[1:] != b[:-1]])
+    counts = np.diff(np.r_[starts, n])
+    keep = [starts, starts + counts - 1]
+    for v in series:
+        v = np.asarray(v, dtype=float)
+        finite = np.isfinite(v)
+        keep.append(np.flatnonzero(~finite))
+        for reduce, fill in ((np.minimum, np.inf), (np.maximum, -np.inf)):
+            w = np.where(finite, v, fill)
+            extreme = np.repeat(reduce.reduceat(w, starts), counts)
+            hits = np.flatnonzero(w == extreme)
+            keep.append(hits[np.searchsorted(hits, starts)])  # the first extreme of each bin
+    return np.unique(np.concatenate(keep))
+
+
+def path_indices(x: np.ndarray, y: np.ndarray, cell: float) -> np.ndarray:
+    """Indices of the samples that draw the same path ``(x, y)`` to within ``cell``.
+
+    The plane is cut into square cells of side ``cell``; of every run of consecutive samples
+    in the same cell the first and the last are kept (and the path's ends), so each dropped
+    sample lies in the cell of a kept neighbour: the drawn path is within one cell of the
+    full one. Non-finite samples are all kept.
+
+    Returns
+    -------
+    ndarray of int, shape (M,)
+        Increasing indices (all of them when ``cell`` is not positive and finite).
+    """
+    n = np.size(x)
+    if n < 3 or not (np.isfinite(cell) and cell > 0.0):
+        return np.arange(n)
+    with np.errstate(invalid="ignore"):
+        cx = np.floor((np.asarray(x) - np.nanmin(x)) / cell)
+        cy = np.floor((np.asarray(y) - np.nanmin(y)) / cell)
+    same = (cx[1:] == cx[:-1]) & (cy[1:] == cy[:-1])  # False where either is NaN
+    moved = np.r_[True, ~same] | np.r_[~same, True]  # first or last of its run
+    return np.flatnonzero(moved)
+
+
+def _path_cell(fig: Figure, dpi: float, *xy: np.ndarray) -> float:
+    """Data units of a :func:`path_indices` cell for an equal-aspect plot of ``xy`` arrays."""
+    width_px = min(fig.get_figwidth(), fig.get_figheight()) * dpi
+    extent = max((float(np.nanmax(a) - np.nanmin(a)) for a in xy if np.size(a)), default=0.0)
+    return extent / (CELLS_PER_PIXEL * width_px)
+
+
+def _bins(fig: Figure, dpi: float) -> int:
+    return int(BINS_PER_PIXEL * fig.get_figwidth() * dpi)
 
 
 def _local_ne(track: Track, lat0: float, lon0: float, h0: float) -> tuple[np.ndarray, np.ndarray]:
@@ -60,17 +152,24 @@ def plot_ground_track(estimate: Track, truth: Track, outages: list[Window], path
     lat0, lon0, h0 = truth.lat_rad[0], truth.lon_rad[0], truth.alt_m[0]
     n_t, e_t = _local_ne(truth, lat0, lon0, h0)
     n_e, e_e = _local_ne(estimate, lat0, lon0, h0)
+    dpi = 110
     fig, ax = _subplots(figsize=(7, 7))
-    ax.plot(e_t, n_t, color="k", lw=1.2, label=reference_label)
-    ax.plot(e_e, n_e, color="tab:blue", lw=0.9, label="estimate")
+    cell = _path_cell(fig, dpi, e_t, n_t, e_e, n_e)
+
+    def draw(east: np.ndarray, north: np.ndarray, **kwargs: Any) -> None:
+        k = path_indices(east, north, cell)
+        ax.plot(east[k], north[k], **kwargs)
+
+    draw(e_t, n_t, color="k", lw=1.2, label=reference_label)
+    draw(e_e, n_e, color="tab:blue", lw=0.9, label="estimate")
     for i, w in enumerate(outages):
         m = w.mask(estimate.time_s)
-        ax.plot(e_e[m], n_e[m], color="tab:red", lw=1.6,
-                label="estimate during outage" if i == 0 else None)
+        draw(e_e[m], n_e[m], color="tab:red", lw=1.6,
+             label="estimate during outage" if i == 0 else None)
         mt = w.mask(truth.time_s)
         if np.any(mt):
-            ax.plot(e_t[mt], n_t[mt], color="tab:orange", lw=2.4, alpha=0.5,
-                    label=f"{reference_label} during outage" if i == 0 else None)
+            draw(e_t[mt], n_t[mt], color="tab:orange", lw=2.4, alpha=0.5,
+                 label=f"{reference_label} during outage" if i == 0 else None)
             k0, k1 = np.flatnonzero(mt)[[0, -1]]
             ax.plot(e_t[k0], n_t[k0], "o", color="tab:red", ms=5,
                     label="outage start" if i == 0 else None)
@@ -86,7 +185,7 @@ def plot_ground_track(estimate: Track, truth: Track, outages: list[Window], path
     ax.legend(loc="best")
     ax.set_title("Ground track")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=dpi)
 
 
 def plot_errors(err: Errors, outages: list[Window], path: Path, *,
@@ -104,14 +203,19 @@ def plot_errors(err: Errors, outages: list[Window], path: Path, *,
          np.degrees(1.0)),
     )
     t = err.time_s
+    bins = _bins(fig, 100)
     for row, (title, data, names, sig, col0, scale) in enumerate(groups):
         for k in range(3):
             ax = axes[row, k]
-            ax.plot(t, data[:, k] * scale, lw=0.8, color="tab:blue", label="error")
+            y = data[:, k] * scale
+            s3 = None if sig is None else 3.0 * sig[:, col0 + k] * scale
+            i = envelope_indices(t, y, bins=bins) if s3 is None else envelope_indices(
+                t, y, s3, -s3, bins=bins)
+            ax.plot(t[i], y[i], lw=0.8, color="tab:blue", label="error")
             _shade(ax, outages, evs)
-            if sig is not None:
-                s3 = 3.0 * sig[:, col0 + k] * scale
-                ax.fill_between(t, -s3, s3, color="tab:gray", alpha=0.25, label="±3σ")
+            if s3 is not None:
+                ax.fill_between(t[i], -s3[i], s3[i], color="tab:gray", alpha=0.25,
+                                label="±3σ")
             ax.set_title(f"{names[k]} {title}", fontsize=9)
             ax.grid(alpha=0.3)
     axes[0, 0].legend(loc="upper left", fontsize=8)
@@ -129,19 +233,28 @@ def plot_horizontal_vertical(err: Errors, outages: list[Window], path: Path, *,
     :func:`scenarios.metrics.horizontal_bound_3sigma`, the vertical one ±3 s_D."""
     evs = _events(events)
     fig, (a1, a2) = _subplots(2, 1, figsize=(11, 6), sharex=True)
-    a1.plot(err.time_s, err.horizontal_m, lw=0.9, label="horizontal error")
-    if err.sigma is not None:
-        a1.fill_between(err.time_s, 0.0, metrics.horizontal_bound_3sigma(err.sigma),
-                        color="tab:gray", alpha=0.25, lw=0.0, label="3σ bound (99.73 %)")
+    bins = _bins(fig, 100)
+    t, h = err.time_s, err.horizontal_m
+    bound = None if err.sigma is None else metrics.horizontal_bound_3sigma(err.sigma)
+    i = envelope_indices(t, h, bins=bins) if bound is None else envelope_indices(
+        t, h, bound, bins=bins)
+    a1.plot(t[i], h[i], lw=0.9, label="horizontal error")
+    if bound is not None:
+        a1.fill_between(t[i], 0.0, bound[i], color="tab:gray", alpha=0.25, lw=0.0,
+                        label="3σ bound (99.73 %)")
     _shade(a1, outages, evs)
     a1.set_ylabel("horizontal error (m)")
     a1.set_ylim(bottom=0.0)
     a1.legend(loc="upper left", fontsize=8)
     a1.grid(alpha=0.3)
-    a2.plot(err.time_s, -err.pos_ned_m[:, 2], lw=0.9, label="height error")
-    if err.sigma is not None:
-        s3 = 3.0 * err.sigma[:, 2]
-        a2.fill_between(err.time_s, -s3, s3, color="tab:gray", alpha=0.25, lw=0.0, label="±3σ")
+    up = -err.pos_ned_m[:, 2]
+    s3 = None if err.sigma is None else 3.0 * err.sigma[:, 2]
+    i = envelope_indices(t, up, bins=bins) if s3 is None else envelope_indices(
+        t, up, s3, -s3, bins=bins)
+    a2.plot(t[i], up[i], lw=0.9, label="height error")
+    if s3 is not None:
+        a2.fill_between(t[i], -s3[i], s3[i], color="tab:gray", alpha=0.25, lw=0.0,
+                        label="±3σ")
     _shade(a2, outages, evs)
     a2.set_ylabel("height error (m)")
     a2.set_xlabel("time (s)")
@@ -247,10 +360,14 @@ def plot_side_by_side(truth: Track, hilnav: Track, hilnav_err: Errors, autopilot
     grid = fig.add_gridspec(2, 2, width_ratios=(1.0, 1.4))
     ax_t = fig.add_subplot(grid[:, 0])
     lat0, lon0, h0 = truth.lat_rad[0], truth.lon_rad[0], truth.alt_m[0]
-    for track, label, color, lw in ((truth, "truth", "k", 1.4), (hilnav, "hilnav", "tab:blue",
-                                     0.9), (autopilot_track, autopilot, "tab:green", 0.9)):
-        n, e = _local_ne(track, lat0, lon0, h0)
-        ax_t.plot(e, n, color=color, lw=lw, label=label)
+    tracks = ((truth, "truth", "k", 1.4), (hilnav, "hilnav", "tab:blue", 0.9),
+              (autopilot_track, autopilot, "tab:green", 0.9))
+    ne = [_local_ne(track, lat0, lon0, h0) for track, *_ in tracks]
+    # the track panel is ~6.2 x 7 in, close to the 7 in _path_cell takes: cells ~half a pixel
+    cell = _path_cell(fig, 100, *(a for n_e in ne for a in n_e))
+    for (n, e), (_track, label, color, lw) in zip(ne, tracks, strict=True):
+        k = path_indices(e, n, cell)
+        ax_t.plot(e[k], n[k], color=color, lw=lw, label=label)
     ax_t.set_xlabel("east (m)")
     ax_t.set_ylabel("north (m)")
     ax_t.set_aspect("equal", adjustable="datalim")
@@ -261,8 +378,10 @@ def plot_side_by_side(truth: Track, hilnav: Track, hilnav_err: Errors, autopilot
     a2 = fig.add_subplot(grid[1, 1], sharex=a1)
     for err, label, color in ((hilnav_err, "hilnav", "tab:blue"),
                               (autopilot_err, autopilot, "tab:green")):
-        a1.plot(err.time_s, err.horizontal_m, lw=0.9, color=color, label=label)
-        a2.plot(err.time_s, -err.pos_ned_m[:, 2], lw=0.9, color=color, label=label)
+        t, h, up = err.time_s, err.horizontal_m, -err.pos_ned_m[:, 2]
+        i = envelope_indices(t, h, up, bins=_bins(fig, 100))
+        a1.plot(t[i], h[i], lw=0.9, color=color, label=label)
+        a2.plot(t[i], up[i], lw=0.9, color=color, label=label)
     for ax, label in ((a1, "horizontal error (m)"), (a2, "height error (m)")):
         _shade(ax, outages)
         ax.set_ylabel(label)

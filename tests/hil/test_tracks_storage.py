@@ -109,7 +109,7 @@ def test_a_spilling_collector_holds_at_most_one_chunk_of_objects(
     assert most < 64
     assert col.n_estimates > 1500 and col.n_truths > 1500
     for stream in (col._est, col._tru, col._fix):
-        assert stream.chunks._kept == []
+        assert stream.chunks._held == {}
     assert col.compact_nbytes > 1500 * (8 + 1 + 9 * 8 + 9 * 8 + 81 * 8 + 4 * 8 + 10 * 8)
     assert list(spill.iterdir()) == []
     with pytest.raises(ValueError, match="keep_objects"):
@@ -120,29 +120,35 @@ def test_a_spilling_collector_holds_at_most_one_chunk_of_objects(
 
 def test_column_chunks_refuse_a_chunk_with_other_columns() -> None:
     chunks = ColumnChunks()
+    assert chunks.columns() == {}
     chunks.append({"a": np.zeros(3), "b": np.ones(3)})
     with pytest.raises(ValueError, match="differ"):
         chunks.append({"b": np.ones(3), "a": np.zeros(3)})
     assert chunks.rows == 3
-    np.testing.assert_array_equal(chunks.columns({"a": np.full(2, 2.0), "b": np.zeros(2)})["a"],
-                                  [0.0, 0.0, 0.0, 2.0, 2.0])
+    chunks.append({"a": np.full(2, 2.0), "b": np.zeros(2)})
+    np.testing.assert_array_equal(chunks.columns()["a"], [0.0, 0.0, 0.0, 2.0, 2.0])
 
 
-def test_column_chunks_in_memory_are_kept_once_after_a_read() -> None:
+def test_column_chunks_in_memory_are_held_once() -> None:
     """GIVEN three chunks kept in memory
-    WHEN the columns are read, another chunk appended and the columns read again
-    THEN both reads give every row in order, the first read's columns are read-only and the
-    store holds one set of columns (views of the first read), not the chunks besides."""
+    WHEN the columns are read, more chunks appended (the store grows) and the columns read
+    again
+    THEN both reads give every row in order, read-only views of the one array per column the
+    store holds (no copy), and the first read is unchanged by what came after."""
     chunks = ColumnChunks()
     for k in range(3):
         chunks.append({"a": np.full(2, float(k)), "b": np.arange(4.0).reshape(2, 2) + k})
     first = chunks.columns()
     np.testing.assert_array_equal(first["a"], [0, 0, 1, 1, 2, 2])
     assert not first["a"].flags.writeable
-    assert len(chunks._kept) == 1 and np.shares_memory(chunks._kept[0]["b"], first["b"])
-    chunks.append({"a": np.full(1, 3.0), "b": np.full((1, 2), 9.0)})
-    second = chunks.columns({"a": np.full(1, 4.0), "b": np.zeros((1, 2))})
-    np.testing.assert_array_equal(second["a"], [0, 0, 1, 1, 2, 2, 3, 4])
-    np.testing.assert_array_equal(second["b"][:6], first["b"])
-    np.testing.assert_array_equal(second["b"][6:], [[9.0, 9.0], [0.0, 0.0]])
-    assert chunks.rows == 7
+    assert np.shares_memory(chunks._held["b"], first["b"])
+    kept = first["b"].copy()
+    for k in range(5):
+        chunks.append({"a": np.full(1, 3.0 + k), "b": np.full((1, 2), 9.0 + k)})
+    second = chunks.columns()
+    np.testing.assert_array_equal(second["a"], [0, 0, 1, 1, 2, 2, 3, 4, 5, 6, 7])
+    np.testing.assert_array_equal(second["b"][:6], kept)
+    np.testing.assert_array_equal(second["b"][6:, 0], [9.0, 10.0, 11.0, 12.0, 13.0])
+    np.testing.assert_array_equal(first["b"], kept)
+    assert np.shares_memory(chunks._held["b"], second["b"])
+    assert chunks.rows == 11

@@ -433,3 +433,59 @@ def test_nees_in_blocks_equals_nees_in_one_piece_and_reads_selected_rows() -> No
     np.testing.assert_array_equal(metrics.nees(e[rows], cov, rows), one_piece[rows])
     with pytest.raises(ValueError, match="rows"):
         metrics.nees(e[:3], cov, rows)
+
+
+def _random_tracks(n_est: int, n_truth: int, *, with_cov: bool) -> tuple[Track, Track]:
+    """Estimate and truth tracks of random (but plausible) values; the estimate starts before
+    and ends after the truth, so some estimates are dropped."""
+    rng = np.random.default_rng(11)
+    tp = np.sort(rng.uniform(0.0, 100.0, n_truth))
+    t = np.sort(rng.uniform(-1.0, 101.0, n_est))
+    yaw_t = np.cumsum(rng.normal(0.0, 0.3, n_truth))  # wraps past +-pi several times
+    truth = Track(tp, 0.8 + rng.normal(0.0, 1e-4, n_truth), 0.14 + rng.normal(0.0, 1e-4, n_truth),
+                  1000.0 + rng.normal(0.0, 5.0, n_truth), rng.normal(0.0, 30.0, (n_truth, 3)),
+                  np.column_stack([rng.normal(0.0, 0.3, n_truth), rng.normal(0.0, 0.2, n_truth),
+                                   np.angle(np.exp(1j * yaw_t))]))  # fmt: skip
+    a = rng.normal(size=(n_est, 9, 9))
+    cov = a @ np.swapaxes(a, 1, 2) + 1e-3 * np.eye(9) if with_cov else None
+    sigma = np.abs(rng.normal(1.0, 0.3, (n_est, 9)))
+    est = Track(t, 0.8 + rng.normal(0.0, 1e-4, n_est), 0.14 + rng.normal(0.0, 1e-4, n_est),
+                1000.0 + rng.normal(0.0, 5.0, n_est), rng.normal(0.0, 30.0, (n_est, 3)),
+                rng.uniform(-np.pi, np.pi, (n_est, 3)) * [0.5, 0.4, 1.0], sigma=sigma, cov=cov)
+    return est, truth
+
+
+@pytest.mark.parametrize("with_cov", [True, False])
+def test_errors_in_blocks_equal_errors_in_one_piece(with_cov: bool) -> None:
+    """GIVEN estimate and truth tracks (yaw wrapping, estimates outside the truth's span)
+    WHEN errors() runs in blocks of 7, of 256 and in one block
+    THEN every output array is the same bit for bit (each sample's error is its own; the
+    truth's attitude is unwrapped once, whole)."""
+    est, truth = _random_tracks(1000, 700, with_cov=with_cov)
+    whole = metrics.errors(est, truth, block_rows=10**6)
+    assert 0 < whole.time_s.size < est.time_s.size  # some dropped: the selection path
+    for block_rows in (7, 256):
+        part = metrics.errors(est, truth, block_rows=block_rows)
+        for name in ("time_s", "pos_ned_m", "vel_ned_mps", "att_rad", "lat_deg", "lon_deg",
+                     "sigma", "tilt_rad", "cov", "att_sigma_rad"):
+            np.testing.assert_array_equal(getattr(part, name), getattr(whole, name),
+                                          err_msg=name)
+    # and the one-block result is the estimate minus truth it always was
+    k = 500
+    i = int(np.flatnonzero(est.time_s == whole.time_s[k])[0])
+    alt_t = np.interp(whole.time_s[k], truth.time_s, truth.alt_m)
+    assert whole.pos_ned_m[k, 2] == -(est.alt_m[i] - alt_t)
+    if with_cov:  # estimates in time order: the covariances are a view, never a copy
+        assert np.shares_memory(whole.cov, est.cov)
+    # an estimate outside the truth's span in the middle: the kept rows are gathered
+    order = np.r_[1:500, 0, 500:est.time_s.size]
+    assert est.time_s[0] < truth.time_s[0]
+    shuffled = Track(*(None if a is None else a[order] for a in (
+        est.time_s, est.lat_rad, est.lon_rad, est.alt_m, est.v_ned_mps, est.euler_rad,
+        est.sigma, est.cov)))  # fmt: skip
+    gathered = metrics.errors(shuffled, truth, block_rows=7)
+    for name in ("time_s", "pos_ned_m", "tilt_rad", "att_sigma_rad", "cov"):
+        np.testing.assert_array_equal(getattr(gathered, name), getattr(whole, name),
+                                      err_msg=name)
+    with pytest.raises(ValueError, match="block_rows"):
+        metrics.errors(est, truth, block_rows=0)

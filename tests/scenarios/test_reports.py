@@ -309,3 +309,51 @@ def test_replay_writes_what_it_wrote_before_and_the_series_match_the_filter(
 def res_info(s: dict[str, Any]) -> RunInfo:
     return RunInfo(s["scenario"], s["seed"], s["sim_duration_s"], s["wall_s"], s["bridge"],
                    s["altitude"])
+
+
+def test_envelope_decimation_keeps_every_bins_extremes_spikes_and_gaps() -> None:
+    """GIVEN an hour-long noisy curve at 50 Hz with one-sample spikes and a NaN gap
+    WHEN it is decimated for 400 time bins
+    THEN at most first / last / min / max of each series per bin are kept, and in every bin
+    the kept samples reach the same minimum and maximum as all of them (so do the spikes and
+    the band's edges), the ends and the gap are kept, and a short curve is kept whole."""
+    rng = np.random.default_rng(3)
+    n, bins = 180_000, 400
+    t = np.arange(n) / 50.0
+    y = np.cumsum(rng.normal(0.0, 0.1, n))
+    spikes = rng.choice(n, 25, replace=False)
+    y[spikes] += rng.choice([-50.0, 50.0], spikes.size)
+    y[1000:1010] = np.nan
+    band = 3.0 + np.abs(np.sin(t / 100.0))
+    k = report.envelope_indices(t, y, band, -band, bins=bins)
+    assert np.all(np.diff(k) > 0)
+    assert k.size <= bins * (2 + 2 * 3) + 10
+    assert k[0] == 0 and k[-1] == n - 1
+    assert set(spikes.tolist()) <= set(k.tolist())
+    assert set(range(1000, 1010)) <= set(k.tolist())
+    b = np.minimum((t * (bins / t[-1])).astype(int), bins - 1)
+    for v in (y, band, -band):
+        for j in range(bins):
+            all_j, kept_j = v[b == j], v[k][b[k] == j]
+            assert np.nanmin(kept_j) == np.nanmin(all_j) and np.nanmax(kept_j) == np.nanmax(all_j)
+    np.testing.assert_array_equal(report.envelope_indices(t[:1600], y[:1600], bins=bins),
+                                  np.arange(1600))
+
+
+def test_path_decimation_stays_within_a_cell_of_the_full_path() -> None:
+    """GIVEN a wandering ground track of 20,000 samples
+    WHEN it is decimated with cells of 5 m
+    THEN every dropped sample is within one cell diagonal of the segment between the kept
+    samples around it, the ends are kept, and far fewer samples are drawn."""
+    rng = np.random.default_rng(5)
+    heading = np.cumsum(rng.normal(0.0, 0.02, 20_000))
+    x, y = np.cumsum(np.cos(heading)), np.cumsum(np.sin(heading))
+    cell = 5.0
+    k = report.path_indices(x, y, cell)
+    assert k[0] == 0 and k[-1] == x.size - 1 and k.size < x.size / 2
+    nxt = np.searchsorted(k, np.arange(x.size))  # the kept sample at or after each one
+    for j in np.setdiff1d(np.arange(x.size), k):
+        a, c = k[nxt[j] - 1], k[nxt[j]]
+        p, q, r = np.array([x[a], y[a]]), np.array([x[c], y[c]]), np.array([x[j], y[j]])
+        u = np.clip(np.dot(r - p, q - p) / max(np.dot(q - p, q - p), 1e-300), 0.0, 1.0)
+        assert np.linalg.norm(r - (p + u * (q - p))) <= cell * np.sqrt(2.0)
