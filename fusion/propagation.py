@@ -16,15 +16,6 @@ learned and fight every GNSS fix. Their covariance is that of a random constant 
 walk for the same reason (:mod:`fusion.error_model`). The baro bias and the GNSS position bias
 are zero-mean processes: their estimates decay (:meth:`CovariancePropagator.propagate` returns
 the baro factor, :func:`decay_gnss_bias`).
-
-Speed without changing a bit: ``(Phi P) Phi^T`` takes ``Phi^T`` as a C-contiguous copy (layouts
-of 22 states and more), so the GEMM runs without a transposed operand (the pair of GEMMs ~7 %
-faster at 43 states on the filter's own matrices, ``bench/fusion_speed.py --gemm``). The two
-calls can sum a column of the result in different orders only in the kernel's edge tile of
-output columns (the last ``n mod 8`` or so, all >= 16 for every layout); those columns are the
-rows of ``Phi`` past the nine navigation states, which hold one nonzero (the diagonal) and so
-give one exact product whatever the order. ``bench/fusion_speed.py --ab`` checks the estimates'
-bytes against the previous code.
 """
 
 from __future__ import annotations
@@ -45,10 +36,6 @@ FloatArray = NDArray[np.float64]
 Vec3 = tuple[float, float, float]
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
 _TWO_RATE = 2.0 * earth.RATE
-# From this many error states on, Phi^T goes to the GEMM as a contiguous copy (measured on the
-# project's machine: 16 and 21 states gain nothing or lose, 22 and more gain; bench/README.md,
-# "Navigation filter speed")
-_COPY_PHI_T_MIN_STATES = 22
 _dot = np.dot
 
 
@@ -96,7 +83,6 @@ class CovariancePropagator:
         self.layout = lay = model.layout
         self.period_s = period_s
         self._scale = lay.has_scale_factors
-        self._copy_phi_t = lay.n >= _COPY_PHI_T_MIN_STATES
         self._gap_accel_sigma = imu.gap_accel_sigma_mps2
         self._gap_rate_sigma = imu.gap_rate_sigma_rps
         self._tau_baro = baro_bias_tau_s
@@ -191,12 +177,10 @@ class CovariancePropagator:
         model = self.model
         Phi = model.first_order_transition(lat, h, v, c_nb, f_n, T, f_b, w_b, lt)
         # P = Phi P Phi^T + Q  (Q diagonal: white sensor noise and Gauss-Markov driving noise)
-        # (np.dot: the same GEMMs as @, with less dispatch overhead on these small matrices;
-        # Phi^T as a C-contiguous copy for the larger layouts: OpenBLAS's no-transpose GEMM is
-        # faster there than its transposed-operand one, and bit for bit the same on this Phi
-        # (module docstring); up to 21 states the copy costs what it saves)
-        PhiT = Phi.T.copy() if self._copy_phi_t else Phi.T
-        P = _dot(_dot(Phi, self.P), PhiT)
+        # (np.dot: the same GEMMs as @, with less dispatch overhead on these small matrices.
+        # Phi^T stays a transposed view: a contiguous copy is ~7 % faster at 43 states but its
+        # bit identity rests on how one BLAS build tiles its kernel; bench/README.md)
+        P = _dot(_dot(Phi, self.P), Phi.T)
         P += model.process_noise(T)
         a = self.air_offset
         if a is not None:

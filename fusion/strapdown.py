@@ -31,13 +31,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from math import cos as _cos
-from math import isfinite as _isfinite
 from math import sin as _sin
 from math import sqrt as _sqrt
 from typing import NamedTuple
 
 import numpy as np
-from numpy.linalg import _umath_linalg
 from numpy.typing import ArrayLike, NDArray
 
 from fusion import earth
@@ -107,7 +105,6 @@ _GH2 = 3.0 / (earth.A * earth.A)
 _RATE = earth.RATE
 _TWELFTH = 1.0 / 12.0
 _tuple_new = tuple.__new__  # InsState(...) without the Python-level namedtuple __new__ frame
-_inv_kernel = _umath_linalg.inv  # the gufunc np.linalg.inv calls (sensor_inverse)
 
 
 def update(
@@ -338,14 +335,7 @@ def sensor_inverse(scale: Sequence[float], misalignment: Sequence[float]) -> tup
         [m10, 1.0 + scale[1], m12],
         [m20, m21, 1.0 + scale[2]],
     ])  # fmt: skip
-    # numpy.linalg.inv's own LAPACK kernel without its wrapper (argument checks, errstate):
-    # the same result bit for bit, in about 40 % of the time on a 3x3 (this runs at every
-    # feedback of a misalignment layout). A singular matrix comes out non-finite: it then goes
-    # through np.linalg.inv for the same LinAlgError as before.
-    inv = _inv_kernel(t, signature="d->d").ravel().tolist()
-    if not _isfinite(sum(inv)):
-        inv = np.linalg.inv(t).ravel().tolist()
-    return tuple(inv)
+    return tuple(np.linalg.inv(t).ravel().tolist())
 
 
 def coast(state: InsState, gap_s: float) -> InsState:
