@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from operator import itemgetter
 from typing import Any, NamedTuple
 
 from hil.codec.counters import DecoderCounters
@@ -33,7 +34,9 @@ from hil.codec.fc_messages import (
 )
 from hil.codec.framing import FrameParser
 from hil.codec.hil_messages import (
+    HIL_GPS_VALUES,
     decode_hil_gps,
+    decode_hil_gps_values,
     decode_hil_sensor,
     decode_hil_sensor_values,
     decode_hil_state_quaternion,
@@ -272,6 +275,16 @@ class Decoder:
                 (sys_id, comp_id, sensor_id, fields[15]), sources, counters)
             return wrap(samples, sensor_id, sys_id, comp_id)
 
+        gps_id = mavlink2.MAVLINK_MSG_ID_HIL_GPS
+        gps_layout = FAST_LAYOUTS[gps_id]
+        unpack_gps = gps_layout.unpack_wire
+        # HIL_GPS has no array field: its wire values are the named fields, picked by name
+        pick_gps = itemgetter(*(gps_layout.wire_fields.index(n) for n in HIL_GPS_VALUES))
+
+        def hil_gps(frame: bytes) -> list[Decoded]:
+            fix = decode_hil_gps_values(*pick_gps(unpack_gps(frame)))
+            return wrap([fix], gps_id, frame[5], frame[6])
+
         def through_handler(msg_id: int, layout: FastLayout) -> Callable[[bytes], list[Decoded]]:
             unpack, handler = layout.unpack, self._handlers[msg_id]
             return lambda frame: wrap(handler(unpack(frame), msg_id, frame[5], frame[6]),
@@ -279,6 +292,7 @@ class Decoder:
 
         table = {i: through_handler(i, layout) for i, layout in FAST_LAYOUTS.items()}
         table[sensor_id] = hil_sensor
+        table[gps_id] = hil_gps
         return table
 
     def _handler_table(self) -> dict[int, _Handler]:

@@ -123,13 +123,17 @@ class FastLayout:
                 flat.append(v)
         return self._struct.pack(*flat)
 
-    def unpack(self, frame: bytes) -> Any:
-        """The fields of a whole frame (header to CRC) of this message."""
+    def unpack_wire(self, frame: bytes) -> tuple[Any, ...]:
+        """The struct's values of a whole frame (header to CRC) of this message, in wire order
+        (:attr:`wire_fields`, arrays flattened); a truncated payload is zero-filled."""
         n = frame[1]
         if n >= self._size:
-            t = self._struct.unpack_from(frame, _HEADER_LEN)
-        else:
-            t = self._struct.unpack(frame[_HEADER_LEN : _HEADER_LEN + n] + self._pad[n])
+            return self._struct.unpack_from(frame, _HEADER_LEN)
+        return self._struct.unpack(frame[_HEADER_LEN : _HEADER_LEN + n] + self._pad[n])
+
+    def unpack(self, frame: bytes) -> Any:
+        """The fields of a whole frame (header to CRC) of this message."""
+        t = self.unpack_wire(frame)
         if self._identity:  # the struct gives exactly the fields: no length check needed
             return _tuple_new(self.fields, t)
         if self._reorder is not None:  # no arrays: the fields are the struct's values reordered

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Final
 
 import numpy as np
 
@@ -42,7 +42,9 @@ from sim.samples import make_gnss_fix as _make_gnss_fix
 from sim.samples import make_imu_sample as _make_imu_sample
 
 __all__ = [
+    "HIL_GPS_VALUES",
     "decode_hil_gps",
+    "decode_hil_gps_values",
     "decode_hil_sensor",
     "decode_hil_sensor_values",
     "decode_hil_state_quaternion",
@@ -138,18 +140,34 @@ def _decode_slow_fields(msg: Any, bits: int, t: int, temperature_k: float, senso
 
 def decode_hil_gps(msg: Any) -> GnssFix:
     """HIL_GPS -> GnssFix (accuracies NaN when unknown; no speed accuracy on the wire)."""
+    return decode_hil_gps_values(
+        msg.time_usec, msg.lat, msg.lon, msg.alt, msg.eph, msg.epv, msg.vn, msg.ve, msg.vd,
+        msg.fix_type, msg.satellites_visible, msg.id)
+
+
+HIL_GPS_VALUES: Final = ("time_usec", "lat", "lon", "alt", "eph", "epv", "vn", "ve", "vd",
+                         "fix_type", "satellites_visible", "id")
+"""The HIL_GPS fields :func:`decode_hil_gps_values` takes, in its order."""
+
+
+def decode_hil_gps_values(
+    time_usec: int, lat: int, lon: int, alt: int, eph: int, epv: int, vn: int, ve: int, vd: int,
+    fix_type: int, satellites_visible: int, sensor_id: int,
+) -> GnssFix:
+    """:func:`decode_hil_gps` from the wire values of :data:`HIL_GPS_VALUES` (the fast path
+    picks them off the unpacked payload in one call)."""
     return _make_gnss_fix(
-        int(msg.time_usec),
-        msg.lat / DEGE7_PER_RAD,
-        msg.lon / DEGE7_PER_RAD,
-        msg.alt * 1e-3,
-        _array((msg.vn * 1e-2, msg.ve * 1e-2, msg.vd * 1e-2), _F64),  # (cm/s) * 1e-2 each
-        _accuracy_m(msg.eph),
-        _accuracy_m(msg.epv),
+        int(time_usec),
+        lat / DEGE7_PER_RAD,
+        lon / DEGE7_PER_RAD,
+        alt * 1e-3,
+        _array((vn * 1e-2, ve * 1e-2, vd * 1e-2), _F64),  # (cm/s) * 1e-2 each
+        _accuracy_m(eph),
+        _accuracy_m(epv),
         math.nan,  # speed accuracy: HIL_GPS has no such field
-        int(msg.fix_type),
-        int(msg.satellites_visible),
-        int(msg.id),
+        int(fix_type),
+        int(satellites_visible),
+        int(sensor_id),
     )
 
 
