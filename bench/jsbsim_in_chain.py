@@ -28,10 +28,10 @@ import gc
 import json
 import os
 import platform
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -41,24 +41,12 @@ from sim.flight import Flight, FlightConfig
 from sim.plans import load_plan
 
 ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:  # bench.sim_throughput
+    sys.path.insert(0, str(ROOT))
+
+from bench.sim_throughput import TimedRun  # noqa: E402
+
 TOUCH_MB = (0.5, 1.0, 2.0, 4.0, 16.0)
-
-
-class _TimedRun:
-    """JSBSim's FGFDMExec with its ``run()`` timed (CPU seconds summed in ``cpu_s``)."""
-
-    def __init__(self, fdm: Any) -> None:
-        self._fdm = fdm
-        self.cpu_s = 0.0
-
-    def run(self) -> Any:
-        t0 = time.process_time()
-        result = self._fdm.run()
-        self.cpu_s += time.process_time() - t0
-        return result
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._fdm, name)
 
 
 def _controls(flight: Flight) -> tuple[float, ...]:
@@ -104,7 +92,7 @@ def bare(cfg: FlightConfig, plan: str, n: int,
 
 def adapter(cfg: FlightConfig, plan: str, n: int) -> float:
     with Flight(cfg, load_plan(plan)) as flight:
-        timed = _TimedRun(flight._fdm)
+        timed = TimedRun(flight._fdm)
         flight._fdm = timed
         for _ in range(n):
             flight.step()
@@ -117,7 +105,7 @@ def chain(cfg: FlightConfig, plan: str, n: int, *, batch: int = 1, gc_off: bool 
                      duration_s=n / cfg.rate_hz, seed=1)
     with SimChain(setup) as sim:
         assert sim.flight is not None
-        timed = _TimedRun(sim.flight._fdm)
+        timed = TimedRun(sim.flight._fdm)
         sim.flight._fdm = timed
         if gc_off:
             gc.disable()

@@ -96,7 +96,7 @@ def _loop_us(fn: Callable[[], object], n: int) -> float:
     return (time.process_time() - t0) / n * 1e6
 
 
-class _TimedRun:
+class TimedRun:
     """JSBSim's FGFDMExec with its ``run()`` timed (CPU seconds summed in ``cpu_s``)."""
 
     def __init__(self, fdm: Any) -> None:
@@ -120,7 +120,7 @@ def time_jsbsim_in_chain(cfg: FlightConfig, plan_name: str, duration_s: float) -
                      duration_s=duration_s, seed=1)
     with SimChain(setup) as chain:
         assert chain.flight is not None
-        timed = _TimedRun(chain.flight._fdm)
+        timed = TimedRun(chain.flight._fdm)
         chain.flight._fdm = timed  # the bench measures the library underneath the adapter
         for _ in chain.steps():
             pass
@@ -131,7 +131,7 @@ def time_jsbsim_bare_timed(cfg: FlightConfig, plan_name: str, duration_s: float)
     """The bare loop with the clock read around each ``run()`` as in
     :func:`time_jsbsim_in_chain`: its reference (the clock reads cost a few us per call)."""
     with Flight(cfg, load_plan(plan_name)) as flight:
-        timed = _TimedRun(flight._fdm)
+        timed = TimedRun(flight._fdm)
         for _ in range(round(duration_s * cfg.rate_hz)):
             timed.run()
         return timed.cpu_s
