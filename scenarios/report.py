@@ -94,7 +94,8 @@ def path_indices(x: np.ndarray, y: np.ndarray, cell: float) -> np.ndarray:
         Increasing indices (all of them when ``cell`` is not positive and finite).
     """
     n = np.size(x)
-    if n < 3 or not (np.isfinite(cell) and cell > 0.0):
+    if (n < 3 or not (np.isfinite(cell) and cell > 0.0)
+            or not (np.isfinite(x).any() and np.isfinite(y).any())):
         return np.arange(n)
     with np.errstate(invalid="ignore"):
         cx = np.floor((np.asarray(x) - np.nanmin(x)) / cell)
@@ -107,7 +108,8 @@ def path_indices(x: np.ndarray, y: np.ndarray, cell: float) -> np.ndarray:
 def _path_cell(fig: Figure, dpi: float, *xy: np.ndarray) -> float:
     """Data units of a :func:`path_indices` cell for an equal-aspect plot of ``xy`` arrays."""
     width_px = min(fig.get_figwidth(), fig.get_figheight()) * dpi
-    extent = max((float(np.nanmax(a) - np.nanmin(a)) for a in xy if np.size(a)), default=0.0)
+    extent = max((float(np.nanmax(a) - np.nanmin(a)) for a in xy if np.isfinite(a).any()),
+                 default=0.0)  # (an all-NaN track, e.g. a log without positions: no extent)
     return extent / (CELLS_PER_PIXEL * width_px)
 
 

@@ -357,3 +357,14 @@ def test_path_decimation_stays_within_a_cell_of_the_full_path() -> None:
         p, q, r = np.array([x[a], y[a]]), np.array([x[c], y[c]]), np.array([x[j], y[j]])
         u = np.clip(np.dot(r - p, q - p) / max(np.dot(q - p, q - p), 1e-300), 0.0, 1.0)
         assert np.linalg.norm(r - (p + u * (q - p))) <= cell * np.sqrt(2.0)
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_path_decimation_of_a_track_without_positions_keeps_every_sample_quietly() -> None:
+    """GIVEN a ground track whose east or north is NaN throughout (a log without positions)
+    WHEN it is decimated
+    THEN every sample is kept and numpy warns about nothing."""
+    x = np.full(100, np.nan)
+    y = np.linspace(0.0, 99.0, 100)
+    assert np.array_equal(report.path_indices(x, y, 1.0), np.arange(100))
+    assert np.array_equal(report.path_indices(y, x, 1.0), np.arange(100))
