@@ -9,6 +9,7 @@ fused result is rounded once instead of twice), and no builtin ``sin`` / ``cos``
 the two calls CPython's ``math`` makes). ``optional=True``: without a C compiler ``pip install``
 still succeeds and ``fusion.strapdown`` runs its Python reference (same numbers, slower)."""
 
+import platform
 import sys
 
 from setuptools import Extension, setup
@@ -18,6 +19,10 @@ if sys.platform == "win32":
     _FLAGS = ["/O2", "/fp:precise"]
 else:
     _FLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math", "-fno-builtin-sin", "-fno-builtin-cos"]
+    if platform.machine().lower() in {"i386", "i486", "i586", "i686", "x86"}:
+        # 32-bit x86 computes in the x87's 80-bit registers: round every operation to double as
+        # CPython does (it stores each result in a float object) instead of keeping 80 bits
+        _FLAGS.append("-fexcess-precision=standard")
 
 setup(
     ext_modules=[
