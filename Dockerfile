@@ -13,14 +13,21 @@ ENV PYTHONDONTWRITEBYTECODE=1 \
     PIP_DISABLE_PIP_VERSION_CHECK=1
 
 WORKDIR /src
+# a C compiler for the compiled INS kernel (fusion/_strapdown.c, README "Compiled INS kernel");
+# without it pip would silently install the slower, bit-identical Python reference only
+RUN apt-get update \
+    && apt-get install -y --no-install-recommends gcc libc6-dev \
+    && rm -rf /var/lib/apt/lists/*
 # the package sources only (no tests, benches, outputs); the wheels of jsbsim, eclipse-zenoh,
 # numpy, scipy... come from PyPI, the aircraft data ships inside the jsbsim wheel
-COPY pyproject.toml README.md ./
+COPY pyproject.toml setup.py README.md ./
 COPY sim ./sim
 COPY hil ./hil
 COPY fusion ./fusion
 COPY scenarios ./scenarios
+COPY physconst ./physconst
 RUN pip install . \
+    && (cd / && python -c "import fusion._strapdown") \
     && useradd --create-home --uid 10001 hilnav \
     && mkdir -p /data \
     && chown hilnav /data

@@ -21,18 +21,26 @@ The increments come from the IMU samples with the filter's sensor-error estimate
 (:func:`increments`, :func:`increments_scaled`); over a gap without IMU data the INS coasts at
 constant velocity (:func:`coast`).
 
-The hot loop runs at up to 400 Hz in pure Python, so it works on plain floats and tuples
-(numpy's per-call overhead would dominate on 3-vectors; the quaternion products and the
-rotation-vector quaternion of :mod:`fusion.rotations` are written out inline here for the same
-reason). Accuracy: errors are third order in the step (see ``tests/test_strapdown.py``: an
-analytic coordinated turn and climb is reproduced to centimetres over minutes at 50-400 Hz)."""
+The hot loop runs at up to 400 Hz, so it works on plain floats and tuples (numpy's per-call
+overhead would dominate on 3-vectors; the quaternion products and the rotation-vector quaternion
+of :mod:`fusion.rotations` are written out inline here for the same reason). The functions
+written here (:func:`update_python`, :func:`increments_python`, ...) are the reference; the names
+the filter calls (:data:`update`, :data:`increments`, ...) are the same functions compiled
+(``fusion/_strapdown.c``, bit for bit the same results) when the package was built with a C
+compiler, and these Python functions otherwise (:data:`KERNEL` says which; the environment
+variable ``HILNAV_KERNEL=python`` forces the reference).
+
+Accuracy: errors are third order in the step (see ``tests/test_strapdown.py``: an analytic
+coordinated turn and climb is reproduced to centimetres over minutes at 50-400 Hz)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import os
+from collections.abc import Callable, Sequence
 from math import cos as _cos
 from math import sin as _sin
 from math import sqrt as _sqrt
+from types import ModuleType
 from typing import NamedTuple
 
 import numpy as np
@@ -107,7 +115,7 @@ _TWELFTH = 1.0 / 12.0
 _tuple_new = tuple.__new__  # InsState(...) without the Python-level namedtuple __new__ frame
 
 
-def update(
+def update_python(
     state: InsState,
     dtheta_b: Sequence[float],
     dv_b: Sequence[float],
@@ -115,7 +123,7 @@ def update(
     dv_prev_b: Sequence[float],
     dt_s: float,
 ) -> InsState:
-    """Advance the INS over one IMU interval.
+    """Advance the INS over one IMU interval (the Python reference of :data:`update`).
 
     Parameters
     ----------
@@ -246,7 +254,7 @@ def update(
     )  # fmt: skip
 
 
-def increments(
+def increments_python(
     fw: Sequence[float], dt_s: float, accel_bias_b_mps2: Sequence[float],
     gyro_bias_b_rps: Sequence[float],
 ) -> tuple[Vec3, Vec3]:  # fmt: skip
@@ -275,12 +283,12 @@ def increments(
     )
 
 
-def increments_scaled(
+def increments_scaled_python(
     fw: Sequence[float], dt_s: float, accel_bias_b_mps2: Sequence[float],
     gyro_bias_b_rps: Sequence[float], accel_scale_b: Sequence[float],
     gyro_scale_b: Sequence[float],
 ) -> tuple[Vec3, Vec3]:  # fmt: skip
-    """:func:`increments` with scale-factor errors too (``f~ = (1 + s_a) f + b_a``,
+    """:func:`increments_python` with scale-factor errors too (``f~ = (1 + s_a) f + b_a``,
     ``omega~ = (1 + s_g) omega + b_g``); ``accel_scale_b`` / ``gyro_scale_b`` are the
     dimensionless scale-factor estimates."""
     fx, fy, fz, wx, wy, wz = fw
@@ -299,12 +307,12 @@ def increments_scaled(
     )
 
 
-def increments_compensated(
+def increments_compensated_python(
     fw: Sequence[float], dt_s: float, accel_bias_b_mps2: Sequence[float],
     gyro_bias_b_rps: Sequence[float], accel_inverse: Sequence[float],
     gyro_inverse: Sequence[float],
 ) -> tuple[Vec3, Vec3]:  # fmt: skip
-    """:func:`increments` through the full first-order sensor model
+    """:func:`increments_python` through the full first-order sensor model
     ``f~ = (I + diag(s_a) + M_a) f + b_a`` (likewise the gyro): ``accel_inverse`` /
     ``gyro_inverse`` are ``(I + diag(s) + M)^-1`` row-major (9 floats each, see
     :func:`sensor_inverse`)."""
@@ -336,6 +344,62 @@ def sensor_inverse(scale: Sequence[float], misalignment: Sequence[float]) -> tup
         [m20, m21, 1.0 + scale[2]],
     ])  # fmt: skip
     return tuple(np.linalg.inv(t).ravel().tolist())
+
+
+# ---- compiled kernel -----------------------------------------------------------------------
+# fusion/_strapdown.c is these four functions in C, operation for operation (built by
+# `pip install` when a C compiler is there; README, "Compiled INS kernel"). Its results are bit
+# for bit the Python's (tests/fusion/test_strapdown_kernel.py); inputs it does not take (ints,
+# numpy scalars, other sequences) go to the Python reference unchanged.
+_UpdateFn = Callable[
+    [InsState, Sequence[float], Sequence[float], Sequence[float], Sequence[float], float],
+    InsState,
+]
+_IncrementsFn = Callable[
+    [Sequence[float], float, Sequence[float], Sequence[float]], tuple[Vec3, Vec3]
+]
+_Increments6Fn = Callable[
+    [Sequence[float], float, Sequence[float], Sequence[float], Sequence[float], Sequence[float]],
+    tuple[Vec3, Vec3],
+]
+
+#: Environment variable that makes the module use the Python reference: ``python``.
+KERNEL_ENV = "HILNAV_KERNEL"
+
+
+def _load_kernel() -> ModuleType | None:
+    try:
+        from fusion import _strapdown
+    except ImportError:  # built without a C compiler: the Python reference, same numbers
+        return None
+    _strapdown.bind(
+        InsState,
+        (update_python, increments_python, increments_scaled_python,
+         increments_compensated_python),
+        (_E2, _A, _ONE_MINUS_E2, _GE, _KS, _GH1, _GH1S, _GH2, _RATE, _TWELFTH),
+    )  # fmt: skip
+    return _strapdown
+
+
+_compiled = _load_kernel()  # bound even when not used (tests compare it with the reference)
+_kernel = None if os.environ.get(KERNEL_ENV, "").strip().lower() == "python" else _compiled
+#: Which implementation :data:`update` and the ``increments*`` functions are: ``"c"`` (the
+#: compiled kernel) or ``"python"`` (the reference; no compiler at install time, or
+#: ``HILNAV_KERNEL=python``).
+KERNEL = "python" if _kernel is None else "c"
+#: Advance the INS over one IMU interval: :func:`update_python` (see there), compiled when
+#: :data:`KERNEL` is ``"c"``.
+update: _UpdateFn = update_python if _kernel is None else _kernel.update
+#: :func:`increments_python`, compiled when :data:`KERNEL` is ``"c"``.
+increments: _IncrementsFn = increments_python if _kernel is None else _kernel.increments
+#: :func:`increments_scaled_python`, compiled when :data:`KERNEL` is ``"c"``.
+increments_scaled: _Increments6Fn = (
+    increments_scaled_python if _kernel is None else _kernel.increments_scaled
+)
+#: :func:`increments_compensated_python`, compiled when :data:`KERNEL` is ``"c"``.
+increments_compensated: _Increments6Fn = (
+    increments_compensated_python if _kernel is None else _kernel.increments_compensated
+)
 
 
 def coast(state: InsState, gap_s: float) -> InsState:
