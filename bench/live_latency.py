@@ -63,6 +63,12 @@ What is measured (all on one machine, so every process reads the same CLOCK_MONO
 7. **Link receive** (``--parts link-recv``): ``MavlinkLink.recv`` of one HIL_SENSOR frame on
    the fusion's input role, light records (``fast_msg_ids``) vs pymavlink's decode,
    alternately in this process.
+8. **Zenoh transports and subscriber handlers** (``--parts zenoh-transport``, no hilnav code):
+   a direct peer hop put -> subscriber on TCP loopback and on a Unix socket
+   (``unixsock-stream/``), each with Zenoh's default and its low-latency unicast transport
+   (``transport/unicast/lowlatency``, QoS off, both ends), and at the subscriber a callback vs
+   a ``FifoChannel`` drained by a thread blocking in ``recv()``: eight variants interleaved
+   sample by sample in one run, ``--count`` samples each.
 
 The machine has 2 cores and other jobs may run on it: the load averages before and after
 each part are recorded. Run from the repository root:
@@ -289,7 +295,10 @@ def raw_zenoh_main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _zenoh_peer_config(*, connect: str | None = None, listen: str | None = None) -> Any:
+def _zenoh_peer_config(*, connect: str | None = None, listen: str | None = None,
+                       low_latency: bool = False) -> Any:
+    """A direct peer's config; ``low_latency``: Zenoh's low-latency unicast transport (no tx
+    batching queue and no QoS priorities; both ends of a link must agree)."""
     import zenoh
 
     cfg: dict[str, Any] = {"mode": "peer", "scouting": {"multicast": {"enabled": False},
@@ -298,6 +307,8 @@ def _zenoh_peer_config(*, connect: str | None = None, listen: str | None = None)
         cfg["connect"] = {"endpoints": [connect]}
     if listen is not None:
         cfg["listen"] = {"endpoints": [listen]}
+    if low_latency:
+        cfg["transport"] = {"unicast": {"lowlatency": True, "qos": {"enabled": False}}}
     return zenoh.Config.from_json5(json.dumps(cfg))
 
 
@@ -757,6 +768,113 @@ def measure_zenoh_options(count: int, tmp: Path, *, callback_s: float = 0.0002
     }
 
 
+def _transport_variants(tmp: Path) -> dict[str, tuple[str, bool]]:
+    """Part 8's direct-peer links: name -> (listen locator, Zenoh low-latency transport)."""
+    return {
+        "tcp": (f"tcp/127.0.0.1:{free_tcp_port()}", False),
+        "tcp_lowlatency": (f"tcp/127.0.0.1:{free_tcp_port()}", True),
+        "unixsock": (f"unixsock-stream/{tmp / 'zt_unix.sock'}", False),
+        "unixsock_lowlatency": (f"unixsock-stream/{tmp / 'zt_unix_ll.sock'}", True),
+    }
+
+
+_HANDLERS = ("callback", "fifo_recv")
+_PROBE_BYTES = 700  # about one fusion/estimate sample
+
+
+def zenoh_transport_main(args: argparse.Namespace) -> int:
+    """Child: one Zenoh peer session per transport variant, each listening on its locator
+    (``--url`` = JSON of :func:`_transport_variants`); puts its monotonic time, padded to an
+    estimate's size, on every (variant, handler) key in turn, 25 Hz per key, ``--count``
+    rounds."""
+    import zenoh
+
+    variants = json.loads(args.url)
+    sessions = {name: zenoh.open(_zenoh_peer_config(low_latency=ll, listen=ep))
+                for name, (ep, ll) in variants.items()}
+    try:
+        pubs = [(s.declare_publisher(f"bench/tr/{name}/{h}",
+                                     congestion_control=zenoh.CongestionControl.DROP))
+                for name, s in sessions.items() for h in _HANDLERS]
+        time.sleep(3.0)
+        for _ in range(args.count):
+            for pub in pubs:
+                stamp = str(time.monotonic_ns()).encode()
+                pub.put(stamp + b" " * (_PROBE_BYTES - len(stamp)))
+                time.sleep(0.04 / len(pubs))
+        time.sleep(0.5)
+    finally:
+        for s in sessions.values():
+            s.close()
+    return 0
+
+
+def measure_zenoh_transport(count: int, tmp: Path) -> dict[str, Any]:
+    """Part 8: a direct Zenoh peer hop, put -> subscriber, on TCP loopback and a Unix socket,
+    each with Zenoh's default and its low-latency unicast transport, and at the subscriber a
+    callback vs a ``FifoChannel`` drained by a thread blocking in ``recv()``; all eight
+    interleaved sample by sample in one run (same load for each). No hilnav code."""
+    import threading
+
+    import zenoh
+
+    variants = _transport_variants(tmp)
+    lat: dict[str, list[int]] = {f"{n}/{h}": [] for n in variants for h in _HANDLERS}
+
+    def stamp(name: str, raw: bytes, now: int) -> None:
+        lat[name].append(now - int(raw.split(b" ", 1)[0]))
+
+    def on_sample(name: str) -> Any:
+        def cb(sample: Any) -> None:
+            stamp(name, sample.payload.to_bytes(), time.monotonic_ns())
+        return cb
+
+    def drain(name: str, sub: Any) -> None:
+        try:
+            while True:
+                sample = sub.recv()
+                stamp(name, sample.payload.to_bytes(), time.monotonic_ns())
+        except zenoh.ZError:
+            return  # the subscriber was undeclared
+
+    load_before = load()
+    sessions = []
+    threads = []
+    with children() as procs:
+        child = this_script("--role", "zenoh-transport", "--url", json.dumps(
+            {n: list(v) for n, v in variants.items()}), "--count", str(count),
+            log=tmp / "zenoh_transport.log")
+        procs.append(child)
+        time.sleep(1.5)
+        try:
+            for name, (ep, ll) in variants.items():
+                s = zenoh.open(_zenoh_peer_config(low_latency=ll, connect=ep))
+                sessions.append(s)
+                s.declare_subscriber(f"bench/tr/{name}/callback",
+                                     on_sample(f"{name}/callback"))
+                sub = s.declare_subscriber(f"bench/tr/{name}/fifo_recv",
+                                           zenoh.handlers.FifoChannel(256))
+                t = threading.Thread(target=drain, args=(f"{name}/fifo_recv", sub),
+                                     daemon=True)
+                t.start()
+                threads.append(t)
+            child.wait(_START_TIMEOUT_S + count * 0.05 + 60.0)
+            time.sleep(0.5)
+        finally:
+            for s in sessions:
+                s.close()
+    for t in threads:
+        t.join(timeout=2.0)
+    return {
+        "what": "zenoh-python put -> direct peer (child -> this process), 700-byte samples at "
+                "25 Hz per variant, all variants interleaved; lowlatency = transport/unicast/"
+                "lowlatency true + qos disabled on both ends",
+        "latency": {n: stats_ms(v) for n, v in lat.items()},
+        "load_before": load_before,
+        "load_after": load(),
+    }
+
+
 def measure_raw_zenoh(endpoint: str, count: int, tmp: Path) -> dict[str, Any]:
     """Calibration: plain zenoh-python put -> router -> subscriber between two processes."""
     import zenoh
@@ -898,7 +1016,7 @@ def main() -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--role", default="bench",
                     choices=["bench", "sender", "udp-hop", "zenoh-hop", "replay", "raw-udp",
-                             "raw-zenoh", "subscriber", "zenoh-options"],
+                             "raw-zenoh", "subscriber", "zenoh-options", "zenoh-transport"],
                     help=argparse.SUPPRESS)
     ap.add_argument("--peer", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--max-wall", type=float, default=300.0, help=argparse.SUPPRESS)
@@ -942,6 +1060,8 @@ def main() -> int:
         return subscriber_main(args)
     if args.role == "zenoh-options":
         return zenoh_options_main(args)
+    if args.role == "zenoh-transport":
+        return zenoh_transport_main(args)
 
     from hil.router import zenoh_router
 
@@ -987,6 +1107,10 @@ def main() -> int:
             print("zenoh publisher options ...", flush=True)
             result["zenoh_options"] = measure_zenoh_options(300, tmp)
             print(json.dumps(result["zenoh_options"], indent=1), flush=True)
+        if "zenoh-transport" in parts:
+            print("zenoh transports and subscriber handlers ...", flush=True)
+            result["zenoh_transport"] = measure_zenoh_transport(args.count, tmp)
+            print(json.dumps(result["zenoh_transport"], indent=1), flush=True)
         if "sweep" in parts:
             sweep = []
             for speed in (float(s) for s in args.speeds.split(",")):
