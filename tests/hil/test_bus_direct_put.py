@@ -1,0 +1,107 @@
+"""The bus puts from the caller's thread when idle, and loses nothing in a burst (issue 15).
+
+GIVEN a bus whose ``publish`` hands a sample to Zenoh itself when nothing is queued or being
+sent (``BLOCK``), else queues it for the publisher thread (``DROP``),
+WHEN 2,000 estimates are published back to back to a direct peer whose callback is slow
+(0.1 ms per sample, so the two paths alternate as the queue fills and empties),
+THEN every sample arrives exactly once and in publication order, and no counter shows a drop;
+and a sample published from an idle bus is sent from the caller's thread.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any
+
+from hil.bus import Bus, BusConfig, Message, Topic
+from hil.bus.keys import PUBLISHED_TOPICS
+from hil.router import free_tcp_port
+
+
+def _wait(predicate: Any, timeout_s: float) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.01)
+    return bool(predicate())
+
+
+def _peers(low_latency: bool) -> tuple[str, BusConfig, BusConfig]:
+    listen = f"tcp/127.0.0.1:{free_tcp_port()}"
+    pub_cfg = BusConfig(rates_hz=dict.fromkeys(PUBLISHED_TOPICS), low_latency=low_latency)
+    return listen, pub_cfg, BusConfig(low_latency=low_latency)
+
+
+def test_a_burst_to_a_slow_direct_peer_arrives_whole_and_in_order() -> None:
+    listen, pub_cfg, sub_cfg = _peers(low_latency=False)
+    got: list[int] = []
+
+    def on_estimate(m: Message) -> None:
+        time.sleep(0.0001)
+        if m.payload is not None:
+            got.append(int(m.payload["time_us"]))
+
+    with Bus(None, vehicle="burst", mode="peer", listen=listen, config=pub_cfg) as pub, \
+            Bus(listen, vehicle="burst", mode="peer", config=sub_cfg) as sub:
+        sub.subscribe(Topic.ESTIMATE, on_estimate)
+        assert sub.wait_connected(10.0)
+        assert _wait(lambda: pub.has_subscribers(Topic.ESTIMATE), 10.0)
+        n = 2000
+        for t in range(n):
+            pub.publish(Topic.ESTIMATE, {"time_us": t})
+        assert _wait(lambda: len(got) >= n, 20.0), f"{len(got)} of {n} arrived"
+        time.sleep(0.1)  # a duplicate would show up now
+        st = pub.stats()
+    assert got == list(range(n))
+    assert (st.enqueued, st.published) == (n, n)
+    assert (st.dropped_queue_full, st.put_errors, st.queued) == (0, 0, 0)
+
+
+def test_an_idle_bus_puts_from_the_callers_thread_on_the_low_latency_transport() -> None:
+    listen, pub_cfg, sub_cfg = _peers(low_latency=True)
+    got: list[int] = []
+    putters: list[str] = []
+    with Bus(None, vehicle="idle", mode="peer", listen=listen, config=pub_cfg) as pub, \
+            Bus(listen, vehicle="idle", mode="peer", config=sub_cfg) as sub:
+        sub.subscribe(Topic.ESTIMATE, lambda m: got.append(int(m.payload["time_us"]))
+                      if m.payload else None)
+        assert sub.wait_connected(10.0)
+        assert _wait(lambda: pub.has_subscribers(Topic.ESTIMATE), 10.0)
+        send = pub._send
+
+        def spy(*args: Any) -> None:
+            putters.append(threading.current_thread().name)
+            send(*args)
+
+        pub._send = spy  # type: ignore[method-assign]
+        for t in range(5):
+            pub.publish(Topic.ESTIMATE, {"time_us": t})
+            assert _wait(lambda t=t: len(got) == t + 1, 10.0)
+    assert got == list(range(5))
+    assert putters == [threading.current_thread().name] * 5
+
+
+def test_without_direct_put_every_sample_goes_through_the_publisher_thread() -> None:
+    listen, pub_cfg, sub_cfg = _peers(low_latency=False)
+    pub_cfg = pub_cfg.model_copy(update={"direct_put": False})
+    got: list[int] = []
+    putters: list[str] = []
+    with Bus(None, vehicle="queued", mode="peer", listen=listen, config=pub_cfg) as pub, \
+            Bus(listen, vehicle="queued", mode="peer", config=sub_cfg) as sub:
+        sub.subscribe(Topic.ESTIMATE, lambda m: got.append(int(m.payload["time_us"]))
+                      if m.payload else None)
+        assert sub.wait_connected(10.0)
+        assert _wait(lambda: pub.has_subscribers(Topic.ESTIMATE), 10.0)
+        send = pub._send
+
+        def spy(*args: Any) -> None:
+            putters.append(threading.current_thread().name)
+            send(*args)
+
+        pub._send = spy  # type: ignore[method-assign]
+        for t in range(3):
+            pub.publish(Topic.ESTIMATE, {"time_us": t})
+            assert _wait(lambda t=t: len(got) == t + 1, 10.0)
+    assert putters == ["hilnav-bus-queued"] * 3
