@@ -384,8 +384,9 @@ def fusion_main(argv: list[str]) -> int:
     the same stamps work on a base revision's code): a HIL_SENSOR message returned by the
     input link's ``recv`` (reader thread), the filter thread starting on it (``_handle``), an
     estimate accepted by ``Bus.publish_estimate`` (entry, payload built, JSON encoded,
-    return), the publisher thread handing it to Zenoh (``Bus._send`` entry and return; in
-    publication order). Cost: one clock read and a list append per stamp (< 1 us).
+    return), the publisher thread, or since issue 15 the caller's thread when the bus is idle,
+    handing it to Zenoh (``Bus._send`` entry and return; in publication order). Cost: one
+    clock read and a list append per stamp (< 1 us).
     """
     import hil
     from hil.bus import Bus, Topic
@@ -421,9 +422,9 @@ def fusion_main(argv: list[str]) -> int:
             pub.append((int(est.time_us), t0, clock()))
         return ok
 
-    def traced_send(self: Any, session: Any, batch: Any) -> None:
+    def traced_send(self: Any, session: Any, batch: Any, *args: Any) -> None:
         t0 = clock()
-        send(self, session, batch)
+        send(self, session, batch, *args)
         t1 = clock()
         put.extend((t0, t1) for topic, _, _ in batch if topic is Topic.ESTIMATE)
 
@@ -448,7 +449,7 @@ def fusion_main(argv: list[str]) -> int:
     MavlinkLink.recv = traced_recv  # type: ignore[method-assign]
     FusionService._handle = traced_handle  # type: ignore[method-assign]
     Bus.publish_estimate = traced_publish_estimate  # type: ignore[method-assign]
-    Bus._send = traced_send  # type: ignore[method-assign]
+    Bus._send = traced_send  # type: ignore[method-assign,assignment]
     code = 0
     try:
         app(argv[2:], prog_name="hilnav")
@@ -594,19 +595,30 @@ def fusion_stages(trace: dict[str, Any], send_ns: dict[int, int],
     names = ["udp_and_link_recv", "reader_to_filter_thread", "decode_filter_to_publish",
              "publish_call_to_payload_built", "payload_to_json_encoded",
              "json_to_enqueued_and_return", "bus_thread_wakeup", "zenoh_put_call"]
+    # an estimate put by the filter's own thread (the bus idle, issue 15): JSON encoded ->
+    # the put starts, instead of the enqueue and the publisher thread's wake-up
+    direct = ["json_to_direct_put_call"]
     names += [f"put_to_{mode}_callback" for mode in arrivals]
-    stages: dict[str, list[int]] = {n: [] for n in names}
+    stages: dict[str, list[int]] = {n: [] for n in names + direct}
+    n_direct = 0
     for (t, p0, p1), (b0, b1), (q0, q1) in zip(trace["pub"], trace["built"], trace["put"],
                                                strict=False):
         if t not in send_ns or t not in rx or t not in start:
             continue
-        marks = [send_ns[t], rx[t], start[t], p0, b0, b1, p1, q0, q1]
-        for name, a, b in zip(names, marks, marks[1:], strict=False):
+        if q0 < p1:  # put inside the publish call
+            n_direct += 1
+            marks = [send_ns[t], rx[t], start[t], p0, b0, b1, q0, q1]
+            steps = [*names[:5], "json_to_direct_put_call", "zenoh_put_call"]
+        else:
+            marks = [send_ns[t], rx[t], start[t], p0, b0, b1, p1, q0, q1]
+            steps = names[:8]
+        for name, a, b in zip(steps, marks, marks[1:], strict=False):
             stages[name].append(b - a)
         for mode, arrived in arrivals.items():
             if t in arrived:
                 stages[f"put_to_{mode}_callback"].append(arrived[t] - q0)
     return {"code_from": trace.get("code_from"), "estimates_published": len(trace["pub"]),
+            "estimates_put_by_the_filter_thread": n_direct,
             **{name: stats_ms(v) for name, v in stages.items()}}
 
 
