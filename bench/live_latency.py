@@ -464,7 +464,7 @@ def fusion_main(argv: list[str]) -> int:
 
 def subscriber_main(args: argparse.Namespace) -> int:
     """Child: stamp each ``fusion/estimate`` arrival (routed client or direct peer)."""
-    from hil.bus import Bus, Message, Topic
+    from hil.bus import Bus, BusConfig, Message, Topic
 
     arrivals: list[tuple[int, int]] = []  # (estimate time_us, arrival ns)
 
@@ -473,7 +473,8 @@ def subscriber_main(args: argparse.Namespace) -> int:
         if m.payload is not None:
             arrivals.append((int(m.payload["time_us"]), now))
 
-    with Bus(args.zenoh, vehicle=args.vehicle, mode="peer" if args.peer else "client") as bus:
+    with Bus(args.zenoh, vehicle=args.vehicle, mode="peer" if args.peer else "client",
+             config=BusConfig(low_latency=args.low_latency)) as bus:
         bus.subscribe(Topic.ESTIMATE, on_estimate)
         if not bus.wait_connected(_START_TIMEOUT_S):
             return 1
@@ -498,9 +499,12 @@ def _wait_files(paths: list[Path], procs: list[subprocess.Popen[bytes]], timeout
 
 
 def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path, *,
-                    code: Path | None = None, tag: str = "lat") -> dict[str, Any]:
+                    code: Path | None = None, tag: str = "lat", low_latency: bool = False,
+                    sub_low_latency: bool = False) -> dict[str, Any]:
     """Part 1 and 3: end-to-end latency (routed and p2p, same run), the fusion's stages, and
-    CPU per process at 1x. ``code``: the fusion runs that tree's hilnav (the A/B base)."""
+    CPU per process at 1x. ``code``: the fusion runs that tree's hilnav (the A/B base).
+    ``low_latency``: the fusion asks for Zenoh's low-latency transport (the subscribers ask
+    with ``--low-latency`` when ``sub_low_latency``)."""
     vehicle = tag
     tmp = tmp / tag
     tmp.mkdir()
@@ -516,12 +520,14 @@ def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path, *,
                              "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
                              "--zenoh-listen", listen, "--vehicle", vehicle, "--out",
                              str(tmp / "lat_fusion"), "--idle-exit", "2", "--settle", "10",
+                             *(["--zenoh-low-latency"] if low_latency else []),
                              log=tmp / "lat_fusion.log", code=code)
         procs.append(fusion)
         sub_procs = {}
         for mode, (ep, peer) in subs.items():
             sub_procs[mode] = this_script(
                 "--role", "subscriber", "--zenoh", ep, *(["--peer"] if peer else []),
+                *(["--low-latency"] if sub_low_latency else []),
                 "--vehicle", vehicle, "--stamps", str(arrival_files[mode]), "--max-wall",
                 str(_START_TIMEOUT_S + duration_s + 60.0), log=tmp / f"lat_sub_{mode}.log")
             procs.append(sub_procs[mode])
@@ -548,7 +554,9 @@ def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path, *,
     send_ns = {int(t): int(ns) for t, ns in sent["stamps"]}
     summary = json.loads((tmp / "lat_fusion" / "summary.json").read_text())
     window = w1 - w0
-    out: dict[str, Any] = {"sim_duration_s": duration_s, "speed": 1.0, "imu_rate_hz": 200.0}
+    out: dict[str, Any] = {"sim_duration_s": duration_s, "speed": 1.0, "imu_rate_hz": 200.0,
+                           "fusion_low_latency": low_latency,
+                           "subscribers_low_latency": sub_low_latency}
     lat_by_time: dict[str, dict[int, int]] = {}
     for mode in subs:
         arrivals = json.loads(arrival_files[mode].read_text())
@@ -1003,7 +1011,9 @@ def latency_ab(endpoint: str, args: argparse.Namespace, code: Path | None, tmp: 
         for variant, tree in order if r % 2 == 0 else order[::-1]:
             print(f"1x latency run, {variant} (round {r + 1}) ...", flush=True)
             run = measure_latency(endpoint, args.duration, args.seed, tmp, code=tree,
-                                  tag=f"{variant}{r}")
+                                  tag=f"{variant}{r}",
+                                  low_latency=args.low_latency and variant == "new",
+                                  sub_low_latency=args.low_latency)
             runs.append({"variant": variant, "round": r, **run})
     summary: dict[str, Any] = {}
     for variant in ("base", "new"):
@@ -1052,6 +1062,11 @@ def main() -> int:
                     "revision or source tree (base) and of this tree (new), --rounds times "
                     "each")
     ap.add_argument("--rounds", type=int, default=3, help="A/B rounds (with --base)")
+    ap.add_argument("--low-latency", action="store_true",
+                    help="the fusion (with --base: the new one only) runs with "
+                    "--zenoh-low-latency; the subscribers always ask for the low-latency "
+                    "transport then (a link falls back to the default one unless both ends "
+                    "ask)")
     ap.add_argument("--out", type=Path, default=Path("bench/results/live_latency.json"))
     if sys.argv[1:3] == ["--role", "fusion"]:
         return fusion_main(sys.argv[3:])
@@ -1092,7 +1107,9 @@ def main() -> int:
         parts = set(args.parts.split(","))
         if "latency" in parts and args.base is None:
             print("1x latency run ...", flush=True)
-            result["latency_1x"] = measure_latency(endpoint, args.duration, args.seed, tmp)
+            result["latency_1x"] = measure_latency(
+                endpoint, args.duration, args.seed, tmp, low_latency=args.low_latency,
+                sub_low_latency=args.low_latency)
             print(json.dumps(result["latency_1x"], indent=1), flush=True)
         if "latency" in parts and args.base is not None:
             with base_tree(args.base) as code:

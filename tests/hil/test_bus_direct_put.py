@@ -105,3 +105,14 @@ def test_without_direct_put_every_sample_goes_through_the_publisher_thread() -> 
             pub.publish(Topic.ESTIMATE, {"time_us": t})
             assert _wait(lambda t=t: len(got) == t + 1, 10.0)
     assert putters == ["hilnav-bus-queued"] * 3
+
+
+def test_low_latency_asks_zenoh_for_its_low_latency_transport_with_qos_off() -> None:
+    def transport(bus: Bus) -> tuple[str, str]:
+        cfg = bus._zenoh_config()
+        return (cfg.get_json("transport/unicast/lowlatency"),
+                cfg.get_json("transport/unicast/qos/enabled"))
+
+    assert transport(Bus(None, mode="peer", config=BusConfig(low_latency=True))) == (
+        "true", "false")
+    assert transport(Bus(None, mode="peer")) == ("false", "true")  # Zenoh's defaults
