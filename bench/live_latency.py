@@ -463,10 +463,24 @@ def fusion_main(argv: list[str]) -> int:
 
 
 def subscriber_main(args: argparse.Namespace) -> int:
-    """Child: stamp each ``fusion/estimate`` arrival (routed client or direct peer)."""
+    """Child: stamp each ``fusion/estimate`` arrival (routed client or direct peer) in the
+    callback, after ``hil.bus`` decoded its JSON (as ``hilnav monitor`` gets it), and also when
+    the sample reaches ``hil.bus``'s decode (``message_from_sample``; side file ``.raw``)."""
+    import hil.bus.session as session_module
     from hil.bus import Bus, BusConfig, Message, Topic
 
     arrivals: list[tuple[int, int]] = []  # (estimate time_us, arrival ns)
+    decoded: list[tuple[int, int]] = []  # (estimate time_us, ns when handed to JSON decode)
+    decode = session_module.message_from_sample
+
+    def traced_decode(key_expr: str, raw: bytes) -> Message:
+        now = time.monotonic_ns()
+        m = decode(key_expr, raw)
+        if m.payload is not None and "time_us" in m.payload:
+            decoded.append((int(m.payload["time_us"]), now))
+        return m
+
+    session_module.message_from_sample = traced_decode
 
     def on_estimate(m: Message) -> None:
         now = time.monotonic_ns()
@@ -484,6 +498,7 @@ def subscriber_main(args: argparse.Namespace) -> int:
             time.sleep(0.2)
             if arrivals and time.monotonic_ns() - arrivals[-1][1] > 3e9:
                 break  # the flight is over
+    Path(args.stamps + ".raw").write_text(json.dumps(decoded))
     Path(args.stamps).write_text(json.dumps(arrivals))
     return 0
 
@@ -561,9 +576,13 @@ def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path, *,
     for mode in subs:
         arrivals = json.loads(arrival_files[mode].read_text())
         lat_by_time[mode] = {int(t): ns - send_ns[t] for t, ns in arrivals if t in send_ns}
+        raw = json.loads(Path(str(arrival_files[mode]) + ".raw").read_text())
         out[mode] = {"estimates_received": len(arrivals),
                      "estimates_matched": len(lat_by_time[mode]),
-                     "end_to_end": stats_ms(list(lat_by_time[mode].values()))}
+                     "end_to_end": stats_ms(list(lat_by_time[mode].values())),
+                     # the same path, stamped before the subscriber's JSON decode
+                     "end_to_end_before_json_decode": stats_ms(
+                         [ns - send_ns[t] for t, ns in raw if t in send_ns])}
     arrivals_by_mode = {mode: dict(json.loads(arrival_files[mode].read_text())) for mode in subs}
     trace = json.loads(trace_file.read_text())
     ran = Path(trace["code_from"]).resolve()
@@ -1020,6 +1039,10 @@ def latency_ab(endpoint: str, args: argparse.Namespace, code: Path | None, tmp: 
         mine = [x for x in runs if x["variant"] == variant]
         summary[variant] = {
             f"{mode}_{q}": round(float(np.median([x[mode]["end_to_end"][q] for x in mine])), 4)
+            for mode in ("routed", "p2p") for q in ("median_ms", "p99_ms")}
+        summary[variant] |= {
+            f"{mode}_before_json_decode_{q}": round(float(np.median(
+                [x[mode]["end_to_end_before_json_decode"][q] for x in mine])), 4)
             for mode in ("routed", "p2p") for q in ("median_ms", "p99_ms")}
         summary[variant]["stage_medians_ms"] = {
             name: round(float(np.median([x["stages"][name]["median_ms"] for x in mine])), 4)
