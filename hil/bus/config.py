@@ -50,10 +50,6 @@ class BusConfig(pydantic.BaseModel):
         by the thread that puts it. A link runs it only when *both* ends ask for it (a direct
         peer, or a router and its client); otherwise the two ends settle on the default
         transport, silently. Off by default.
-    direct_put : bool
-        Let :meth:`Bus.publish` hand a sample to Zenoh from the caller's thread when nothing
-        is queued or being sent (one thread hand-off less; ``BLOCK`` congestion control, see
-        :mod:`hil.bus.session`); False: every sample goes through the publisher thread.
     """
 
     model_config = pydantic.ConfigDict(frozen=True, extra="forbid")
@@ -63,7 +59,6 @@ class BusConfig(pydantic.BaseModel):
     connect_timeout_s: float = pydantic.Field(default=1.0, gt=0.0, le=60.0)
     retry_s: float = pydantic.Field(default=0.5, ge=0.0, le=60.0)
     low_latency: bool = False
-    direct_put: bool = True
 
     @pydantic.field_validator("rates_hz")
     @classmethod

@@ -1,18 +1,16 @@
 """The Zenoh session of one hilnav process: non-blocking publishing, subscriptions, liveliness,
 the configuration queryable.
 
-Publishing does not wait for the network (the caller is the filter loop): :meth:`Bus.publish`
-rate-limits per topic and serialises; then, when nothing is queued and nothing is being sent, it
-hands the sample to Zenoh itself (one thread hand-off less, issue 15), through a publisher
-declared with congestion control ``BLOCK`` so that Zenoh never drops it (a put returns as soon
-as Zenoh has queued the sample; it waits only while Zenoh's transmit queue is full, i.e. a
-subscriber stopped reading). Otherwise it appends to a bounded queue that a publisher thread
-drains into Zenoh publishers declared with ``DROP``: a burst never makes the caller wait. One
-send token (``_sending``) orders the two paths, so samples leave in publication order. A full
-queue drops its *oldest* message (the freshest estimate matters most) and counts it;
-:meth:`Bus.stats` reports every counter. (An earlier direct put with ``DROP`` lost samples in
-bursts, e.g. innovations of a lockstep run at ``--speed 1000``; ``BLOCK`` on the direct path
-does not: ``tests/hil/test_bus_direct_put.py``.)
+Publishing never blocks the caller (the filter loop): :meth:`Bus.publish` rate-limits per topic,
+serialises, and appends to a bounded queue that a publisher thread drains into Zenoh publishers
+declared with congestion control ``DROP``. A full queue drops its *oldest* message (the freshest
+estimate matters most) and counts it; :meth:`Bus.stats` reports every counter. (Putting
+straight from the caller's thread when nothing is queued was tried twice for latency, issue
+15: with ``DROP`` bursts lost samples (innovations of a lockstep run at ``--speed 1000``);
+with ``BLOCK`` and one send token ordering the two paths nothing was lost, but the put then
+took 0.23-0.38 ms in the filter's thread against 0.07 ms in the publisher thread, so the
+estimate reached a direct subscriber no sooner (bench/README.md, "Live path, session 13");
+reverted both times.)
 
 Connection: the default is a Zenoh *client* that connects to a router (``hilnav up``'s in-process
 router, see :mod:`hil.router`, or zenohd). A Zenoh (1.10) client cannot open a session while no
@@ -177,8 +175,6 @@ class Bus:
         self._queue: deque[tuple[Topic, str, bytes]] = deque()
         self._declarations: list[Declaration] = []
         self._publishers: dict[str, zenoh.Publisher] = {}
-        self._direct: dict[str, zenoh.Publisher] = {}  # BLOCK publishers of direct puts
-        self._sending = False  # the send token: a put to Zenoh is under way (either path)
         self._session: zenoh.Session | None = None
         self._thread: threading.Thread | None = None
         self._first_attempt = threading.Event()
@@ -238,13 +234,12 @@ class Bus:
             declarations = list(self._declarations)
         for d in declarations:
             d.undeclare()
-        for p in [*self._publishers.values(), *self._direct.values()]:
+        for p in self._publishers.values():
             try:
                 p.undeclare()
             except zenoh.ZError:
                 pass
         self._publishers.clear()
-        self._direct.clear()
         if self._session is not None:
             self._session.close()
 
@@ -330,29 +325,7 @@ class Bus:
                 self._c["decimated"] += 1
             return False
         data = encode(payload)
-        if not self._put_now(topic, self._keys[topic], data):
-            self._enqueue(topic, self._keys[topic], data)
-        return True
-
-    def _put_now(self, topic: Topic, key_expr: str, data: bytes) -> bool:
-        """Put from the caller's thread when nothing is queued or being sent; False: not
-        done (queue it). Counted like a queued message that the publisher thread sent."""
-        if not self.config.direct_put:
-            return False
-        with self._cond:
-            session = self._session
-            if self._queue or self._sending or self._stopping or session is None:
-                return False
-            self._sending = True
-            self._c["enqueued"] += 1
-        try:
-            self._send(session, [(topic, key_expr, data)], self._direct,
-                       zenoh.CongestionControl.BLOCK)
-        finally:
-            with self._cond:
-                self._sending = False
-                if self._queue or self._stopping:
-                    self._cond.notify()
+        self._enqueue(topic, self._keys[topic], data)
         return True
 
     def _enqueue(self, topic: Topic, key_expr: str, data: bytes) -> None:
@@ -677,30 +650,21 @@ class Bus:
             self._connected = up
         return up
 
-    def _publisher(
-        self,
-        session: zenoh.Session,
-        topic: Topic,
-        key_expr: str,
-        publishers: dict[str, zenoh.Publisher] | None = None,
-        congestion: zenoh.CongestionControl = zenoh.CongestionControl.DROP,
-    ) -> zenoh.Publisher:
-        """The publisher of ``key_expr`` in ``publishers`` (default: the publisher thread's,
-        ``DROP``: a slow link must never stall the thread, and so the queue)."""
-        publishers = self._publishers if publishers is None else publishers
-        pub = publishers.get(key_expr)
+    def _publisher(self, session: zenoh.Session, topic: Topic, key_expr: str) -> zenoh.Publisher:
+        pub = self._publishers.get(key_expr)
         if pub is None:
             with self._lock:
-                pub = publishers.get(key_expr)
+                pub = self._publishers.get(key_expr)
                 if pub is None:
                     pub = session.declare_publisher(
                         key_expr,
                         encoding=zenoh.Encoding.APPLICATION_JSON.with_schema(
                             SCHEMAS[topic]["title"]
                         ),
-                        congestion_control=congestion,
+                        # a slow link must never stall the publisher thread (and so the queue)
+                        congestion_control=zenoh.CongestionControl.DROP,
                     )
-                    publishers[key_expr] = pub
+                    self._publishers[key_expr] = pub
         return pub
 
     def has_subscribers(self, topic: Topic) -> bool:
@@ -719,19 +683,12 @@ class Bus:
         # the stub says bool, the runtime returns a MatchingStatus with `.matching`
         return bool(getattr(status, "matching", status))
 
-    def _send(
-        self,
-        session: zenoh.Session,
-        batch: Sequence[tuple[Topic, str, bytes]],
-        publishers: dict[str, zenoh.Publisher] | None = None,
-        congestion: zenoh.CongestionControl = zenoh.CongestionControl.DROP,
-    ) -> None:
+    def _send(self, session: zenoh.Session, batch: Sequence[tuple[Topic, str, bytes]]) -> None:
         sent = errors = 0
         for topic, key_expr, data in batch:
             try:
                 tag = None if self._auth is None else self._auth.tag(key_expr, data)
-                pub = self._publisher(session, topic, key_expr, publishers, congestion)
-                pub.put(data, attachment=tag)
+                self._publisher(session, topic, key_expr).put(data, attachment=tag)
                 sent += 1
             except zenoh.ZError as exc:
                 errors += 1
@@ -757,14 +714,8 @@ class Bus:
                         self._cond.wait_for(lambda: self._stopping, timeout=self.config.retry_s)
                     continue
             with self._cond:
-                self._cond.wait_for(lambda: (self._queue and not self._sending) or self._stopping,
-                                    timeout=check_every_s)
-                if self._stopping:  # let a direct put under way finish first
-                    self._cond.wait_for(lambda: not self._sending, timeout=1.0)
-                batch: deque[tuple[Topic, str, bytes]] = deque()
-                if not self._sending:
-                    batch, self._queue = self._queue, deque()
-                    self._sending = bool(batch)
+                self._cond.wait_for(lambda: self._queue or self._stopping, timeout=check_every_s)
+                batch, self._queue = self._queue, deque()
                 stopping = self._stopping
             now = time.monotonic()
             if now >= next_check:
@@ -777,9 +728,6 @@ class Bus:
                     with self._lock:
                         self._c["put_errors"] += len(batch)
                         self.last_error = f"{type(exc).__name__}: {exc}"
-                finally:
-                    with self._cond:
-                        self._sending = False
             if stopping:
                 break
         self._first_attempt.set()
