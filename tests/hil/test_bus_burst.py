@@ -4,13 +4,16 @@ GIVEN a bus whose ``publish`` queues samples for its publisher thread (Zenoh ``D
 WHEN 2,000 estimates are published back to back to a direct peer whose callback is slow
 (0.1 ms per sample),
 THEN every sample arrives exactly once and in publication order, and no counter shows a drop;
-and ``BusConfig(low_latency=True)`` gives Zenoh the two keys of its low-latency transport.
+and ``BusConfig(low_latency=True)`` gives Zenoh the two keys of its low-latency transport,
+which falls back to the default transport when the other end did not ask.
 """
 
 from __future__ import annotations
 
 import time
 from typing import Any
+
+import pytest
 
 from hil.bus import Bus, BusConfig, Message, Topic
 from hil.bus.keys import PUBLISHED_TOPICS
@@ -66,3 +69,21 @@ def test_low_latency_asks_zenoh_for_its_low_latency_transport_with_qos_off() -> 
     assert transport(Bus(None, mode="peer", config=BusConfig(low_latency=True))) == (
         "true", "false")
     assert transport(Bus(None, mode="peer")) == ("false", "true")  # Zenoh's defaults
+
+
+@pytest.mark.parametrize(("pub_ll", "sub_ll"), [(True, False), (False, True)])
+def test_a_low_latency_peer_still_talks_to_one_that_did_not_ask(pub_ll: bool,
+                                                                 sub_ll: bool) -> None:
+    """Both ends must ask; when one does not, the link falls back to Zenoh's default transport
+    (so a fusion with ``--zenoh-low-latency`` serves every subscriber)."""
+    listen, pub_cfg, _ = _peers(low_latency=pub_ll)
+    got: list[int] = []
+    with Bus(None, vehicle="mixed", mode="peer", listen=listen, config=pub_cfg) as pub, \
+            Bus(listen, vehicle="mixed", mode="peer",
+                config=BusConfig(low_latency=sub_ll)) as sub:
+        sub.subscribe(Topic.ESTIMATE, lambda m: got.append(int(m.payload["time_us"]))
+                      if m.payload else None)
+        assert sub.wait_connected(10.0)
+        assert _wait(lambda: pub.has_subscribers(Topic.ESTIMATE), 10.0)
+        pub.publish(Topic.ESTIMATE, {"time_us": 7})
+        assert _wait(lambda: got == [7], 10.0), got
