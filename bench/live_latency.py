@@ -26,7 +26,10 @@ What is measured (all on one machine, so every process reads the same CLOCK_MONO
    filter, payload, JSON, enqueue, publisher-thread wake-up, Zenoh ``put``, put -> each
    subscriber's callback). ``--base REV`` (a git revision or a source tree) makes this part
    an A/B: the fusion of REV and of this tree alternately, ``--rounds`` runs each, order
-   flipped every round, with the same simulator, subscribers and router code.
+   flipped every round, with the same simulator, subscribers and router code. ``--low-latency``
+   starts the fusion (with ``--base``: this tree's only) with ``--zenoh-low-latency`` and
+   makes both subscribers ask for Zenoh's low-latency transport. The subscribers also stamp
+   each estimate when it reaches ``hil.bus``'s JSON decode (``end_to_end_before_json_decode``).
 2. **The two socket hops alone**, for a split: (a) UDP: a child process sends HIL_SENSOR
    frames through :class:`hil.link.MavlinkLink` at 200 Hz carrying their monotonic send
    time, this process receives them on a ``udpin`` link; (b) Zenoh: a child process publishes
