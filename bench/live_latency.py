@@ -26,7 +26,10 @@ What is measured (all on one machine, so every process reads the same CLOCK_MONO
    filter, payload, JSON, enqueue, publisher-thread wake-up, Zenoh ``put``, put -> each
    subscriber's callback). ``--base REV`` (a git revision or a source tree) makes this part
    an A/B: the fusion of REV and of this tree alternately, ``--rounds`` runs each, order
-   flipped every round, with the same simulator, subscribers and router code.
+   flipped every round, with the same simulator, subscribers and router code. ``--low-latency``
+   starts the fusion (with ``--base``: this tree's only) with ``--zenoh-low-latency`` and
+   makes both subscribers ask for Zenoh's low-latency transport. The subscribers also stamp
+   each estimate when it reaches ``hil.bus``'s JSON decode (``end_to_end_before_json_decode``).
 2. **The two socket hops alone**, for a split: (a) UDP: a child process sends HIL_SENSOR
    frames through :class:`hil.link.MavlinkLink` at 200 Hz carrying their monotonic send
    time, this process receives them on a ``udpin`` link; (b) Zenoh: a child process publishes
@@ -63,6 +66,12 @@ What is measured (all on one machine, so every process reads the same CLOCK_MONO
 7. **Link receive** (``--parts link-recv``): ``MavlinkLink.recv`` of one HIL_SENSOR frame on
    the fusion's input role, light records (``fast_msg_ids``) vs pymavlink's decode,
    alternately in this process.
+8. **Zenoh transports and subscriber handlers** (``--parts zenoh-transport``, no hilnav code):
+   a direct peer hop put -> subscriber on TCP loopback and on a Unix socket
+   (``unixsock-stream/``), each with Zenoh's default and its low-latency unicast transport
+   (``transport/unicast/lowlatency``, QoS off, both ends), and at the subscriber a callback vs
+   a ``FifoChannel`` drained by a thread blocking in ``recv()``: eight variants interleaved
+   sample by sample in one run, ``--count`` samples each.
 
 The machine has 2 cores and other jobs may run on it: the load averages before and after
 each part are recorded. Run from the repository root:
@@ -289,7 +298,10 @@ def raw_zenoh_main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _zenoh_peer_config(*, connect: str | None = None, listen: str | None = None) -> Any:
+def _zenoh_peer_config(*, connect: str | None = None, listen: str | None = None,
+                       low_latency: bool = False) -> Any:
+    """A direct peer's config; ``low_latency``: Zenoh's low-latency unicast transport (no tx
+    batching queue and no QoS priorities; both ends of a link must agree)."""
     import zenoh
 
     cfg: dict[str, Any] = {"mode": "peer", "scouting": {"multicast": {"enabled": False},
@@ -298,6 +310,8 @@ def _zenoh_peer_config(*, connect: str | None = None, listen: str | None = None)
         cfg["connect"] = {"endpoints": [connect]}
     if listen is not None:
         cfg["listen"] = {"endpoints": [listen]}
+    if low_latency:
+        cfg["transport"] = {"unicast": {"lowlatency": True, "qos": {"enabled": False}}}
     return zenoh.Config.from_json5(json.dumps(cfg))
 
 
@@ -373,8 +387,9 @@ def fusion_main(argv: list[str]) -> int:
     the same stamps work on a base revision's code): a HIL_SENSOR message returned by the
     input link's ``recv`` (reader thread), the filter thread starting on it (``_handle``), an
     estimate accepted by ``Bus.publish_estimate`` (entry, payload built, JSON encoded,
-    return), the publisher thread handing it to Zenoh (``Bus._send`` entry and return; in
-    publication order). Cost: one clock read and a list append per stamp (< 1 us).
+    return), the publisher thread, or since issue 15 the caller's thread when the bus is idle,
+    handing it to Zenoh (``Bus._send`` entry and return; in publication order). Cost: one
+    clock read and a list append per stamp (< 1 us).
     """
     import hil
     from hil.bus import Bus, Topic
@@ -410,9 +425,9 @@ def fusion_main(argv: list[str]) -> int:
             pub.append((int(est.time_us), t0, clock()))
         return ok
 
-    def traced_send(self: Any, session: Any, batch: Any) -> None:
+    def traced_send(self: Any, session: Any, batch: Any, *args: Any) -> None:
         t0 = clock()
-        send(self, session, batch)
+        send(self, session, batch, *args)
         t1 = clock()
         put.extend((t0, t1) for topic, _, _ in batch if topic is Topic.ESTIMATE)
 
@@ -437,7 +452,7 @@ def fusion_main(argv: list[str]) -> int:
     MavlinkLink.recv = traced_recv  # type: ignore[method-assign]
     FusionService._handle = traced_handle  # type: ignore[method-assign]
     Bus.publish_estimate = traced_publish_estimate  # type: ignore[method-assign]
-    Bus._send = traced_send  # type: ignore[method-assign]
+    Bus._send = traced_send  # type: ignore[method-assign,assignment]
     code = 0
     try:
         app(argv[2:], prog_name="hilnav")
@@ -451,17 +466,32 @@ def fusion_main(argv: list[str]) -> int:
 
 
 def subscriber_main(args: argparse.Namespace) -> int:
-    """Child: stamp each ``fusion/estimate`` arrival (routed client or direct peer)."""
-    from hil.bus import Bus, Message, Topic
+    """Child: stamp each ``fusion/estimate`` arrival (routed client or direct peer) in the
+    callback, after ``hil.bus`` decoded its JSON (as ``hilnav monitor`` gets it), and also when
+    the sample reaches ``hil.bus``'s decode (``message_from_sample``; side file ``.raw``)."""
+    import hil.bus.session as session_module
+    from hil.bus import Bus, BusConfig, Message, Topic
 
     arrivals: list[tuple[int, int]] = []  # (estimate time_us, arrival ns)
+    decoded: list[tuple[int, int]] = []  # (estimate time_us, ns when handed to JSON decode)
+    decode = session_module.message_from_sample
+
+    def traced_decode(key_expr: str, raw: bytes) -> Message:
+        now = time.monotonic_ns()
+        m = decode(key_expr, raw)
+        if m.payload is not None and "time_us" in m.payload:
+            decoded.append((int(m.payload["time_us"]), now))
+        return m
+
+    session_module.message_from_sample = traced_decode
 
     def on_estimate(m: Message) -> None:
         now = time.monotonic_ns()
         if m.payload is not None:
             arrivals.append((int(m.payload["time_us"]), now))
 
-    with Bus(args.zenoh, vehicle=args.vehicle, mode="peer" if args.peer else "client") as bus:
+    with Bus(args.zenoh, vehicle=args.vehicle, mode="peer" if args.peer else "client",
+             config=BusConfig(low_latency=args.low_latency)) as bus:
         bus.subscribe(Topic.ESTIMATE, on_estimate)
         if not bus.wait_connected(_START_TIMEOUT_S):
             return 1
@@ -471,6 +501,7 @@ def subscriber_main(args: argparse.Namespace) -> int:
             time.sleep(0.2)
             if arrivals and time.monotonic_ns() - arrivals[-1][1] > 3e9:
                 break  # the flight is over
+    Path(args.stamps + ".raw").write_text(json.dumps(decoded))
     Path(args.stamps).write_text(json.dumps(arrivals))
     return 0
 
@@ -486,9 +517,12 @@ def _wait_files(paths: list[Path], procs: list[subprocess.Popen[bytes]], timeout
 
 
 def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path, *,
-                    code: Path | None = None, tag: str = "lat") -> dict[str, Any]:
+                    code: Path | None = None, tag: str = "lat", low_latency: bool = False,
+                    sub_low_latency: bool = False) -> dict[str, Any]:
     """Part 1 and 3: end-to-end latency (routed and p2p, same run), the fusion's stages, and
-    CPU per process at 1x. ``code``: the fusion runs that tree's hilnav (the A/B base)."""
+    CPU per process at 1x. ``code``: the fusion runs that tree's hilnav (the A/B base).
+    ``low_latency``: the fusion asks for Zenoh's low-latency transport (the subscribers ask
+    with ``--low-latency`` when ``sub_low_latency``)."""
     vehicle = tag
     tmp = tmp / tag
     tmp.mkdir()
@@ -504,12 +538,14 @@ def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path, *,
                              "--mavlink", f"udpin:127.0.0.1:{port}", "--zenoh", endpoint,
                              "--zenoh-listen", listen, "--vehicle", vehicle, "--out",
                              str(tmp / "lat_fusion"), "--idle-exit", "2", "--settle", "10",
+                             *(["--zenoh-low-latency"] if low_latency else []),
                              log=tmp / "lat_fusion.log", code=code)
         procs.append(fusion)
         sub_procs = {}
         for mode, (ep, peer) in subs.items():
             sub_procs[mode] = this_script(
                 "--role", "subscriber", "--zenoh", ep, *(["--peer"] if peer else []),
+                *(["--low-latency"] if sub_low_latency else []),
                 "--vehicle", vehicle, "--stamps", str(arrival_files[mode]), "--max-wall",
                 str(_START_TIMEOUT_S + duration_s + 60.0), log=tmp / f"lat_sub_{mode}.log")
             procs.append(sub_procs[mode])
@@ -536,14 +572,20 @@ def measure_latency(endpoint: str, duration_s: float, seed: int, tmp: Path, *,
     send_ns = {int(t): int(ns) for t, ns in sent["stamps"]}
     summary = json.loads((tmp / "lat_fusion" / "summary.json").read_text())
     window = w1 - w0
-    out: dict[str, Any] = {"sim_duration_s": duration_s, "speed": 1.0, "imu_rate_hz": 200.0}
+    out: dict[str, Any] = {"sim_duration_s": duration_s, "speed": 1.0, "imu_rate_hz": 200.0,
+                           "fusion_low_latency": low_latency,
+                           "subscribers_low_latency": sub_low_latency}
     lat_by_time: dict[str, dict[int, int]] = {}
     for mode in subs:
         arrivals = json.loads(arrival_files[mode].read_text())
         lat_by_time[mode] = {int(t): ns - send_ns[t] for t, ns in arrivals if t in send_ns}
+        raw = json.loads(Path(str(arrival_files[mode]) + ".raw").read_text())
         out[mode] = {"estimates_received": len(arrivals),
                      "estimates_matched": len(lat_by_time[mode]),
-                     "end_to_end": stats_ms(list(lat_by_time[mode].values()))}
+                     "end_to_end": stats_ms(list(lat_by_time[mode].values())),
+                     # the same path, stamped before the subscriber's JSON decode
+                     "end_to_end_before_json_decode": stats_ms(
+                         [ns - send_ns[t] for t, ns in raw if t in send_ns])}
     arrivals_by_mode = {mode: dict(json.loads(arrival_files[mode].read_text())) for mode in subs}
     trace = json.loads(trace_file.read_text())
     ran = Path(trace["code_from"]).resolve()
@@ -583,19 +625,30 @@ def fusion_stages(trace: dict[str, Any], send_ns: dict[int, int],
     names = ["udp_and_link_recv", "reader_to_filter_thread", "decode_filter_to_publish",
              "publish_call_to_payload_built", "payload_to_json_encoded",
              "json_to_enqueued_and_return", "bus_thread_wakeup", "zenoh_put_call"]
+    # an estimate put by the filter's own thread (the bus idle, issue 15): JSON encoded ->
+    # the put starts, instead of the enqueue and the publisher thread's wake-up
+    direct = ["json_to_direct_put_call"]
     names += [f"put_to_{mode}_callback" for mode in arrivals]
-    stages: dict[str, list[int]] = {n: [] for n in names}
+    stages: dict[str, list[int]] = {n: [] for n in names + direct}
+    n_direct = 0
     for (t, p0, p1), (b0, b1), (q0, q1) in zip(trace["pub"], trace["built"], trace["put"],
                                                strict=False):
         if t not in send_ns or t not in rx or t not in start:
             continue
-        marks = [send_ns[t], rx[t], start[t], p0, b0, b1, p1, q0, q1]
-        for name, a, b in zip(names, marks, marks[1:], strict=False):
+        if q0 < p1:  # put inside the publish call
+            n_direct += 1
+            marks = [send_ns[t], rx[t], start[t], p0, b0, b1, q0, q1]
+            steps = [*names[:5], "json_to_direct_put_call", "zenoh_put_call"]
+        else:
+            marks = [send_ns[t], rx[t], start[t], p0, b0, b1, p1, q0, q1]
+            steps = names[:8]
+        for name, a, b in zip(steps, marks, marks[1:], strict=False):
             stages[name].append(b - a)
         for mode, arrived in arrivals.items():
             if t in arrived:
                 stages[f"put_to_{mode}_callback"].append(arrived[t] - q0)
     return {"code_from": trace.get("code_from"), "estimates_published": len(trace["pub"]),
+            "estimates_put_by_the_filter_thread": n_direct,
             **{name: stats_ms(v) for name, v in stages.items()}}
 
 
@@ -757,6 +810,113 @@ def measure_zenoh_options(count: int, tmp: Path, *, callback_s: float = 0.0002
     }
 
 
+def _transport_variants(tmp: Path) -> dict[str, tuple[str, bool]]:
+    """Part 8's direct-peer links: name -> (listen locator, Zenoh low-latency transport)."""
+    return {
+        "tcp": (f"tcp/127.0.0.1:{free_tcp_port()}", False),
+        "tcp_lowlatency": (f"tcp/127.0.0.1:{free_tcp_port()}", True),
+        "unixsock": (f"unixsock-stream/{tmp / 'zt_unix.sock'}", False),
+        "unixsock_lowlatency": (f"unixsock-stream/{tmp / 'zt_unix_ll.sock'}", True),
+    }
+
+
+_HANDLERS = ("callback", "fifo_recv")
+_PROBE_BYTES = 700  # about one fusion/estimate sample
+
+
+def zenoh_transport_main(args: argparse.Namespace) -> int:
+    """Child: one Zenoh peer session per transport variant, each listening on its locator
+    (``--url`` = JSON of :func:`_transport_variants`); puts its monotonic time, padded to an
+    estimate's size, on every (variant, handler) key in turn, 25 Hz per key, ``--count``
+    rounds."""
+    import zenoh
+
+    variants = json.loads(args.url)
+    sessions = {name: zenoh.open(_zenoh_peer_config(low_latency=ll, listen=ep))
+                for name, (ep, ll) in variants.items()}
+    try:
+        pubs = [(s.declare_publisher(f"bench/tr/{name}/{h}",
+                                     congestion_control=zenoh.CongestionControl.DROP))
+                for name, s in sessions.items() for h in _HANDLERS]
+        time.sleep(3.0)
+        for _ in range(args.count):
+            for pub in pubs:
+                stamp = str(time.monotonic_ns()).encode()
+                pub.put(stamp + b" " * (_PROBE_BYTES - len(stamp)))
+                time.sleep(0.04 / len(pubs))
+        time.sleep(0.5)
+    finally:
+        for s in sessions.values():
+            s.close()
+    return 0
+
+
+def measure_zenoh_transport(count: int, tmp: Path) -> dict[str, Any]:
+    """Part 8: a direct Zenoh peer hop, put -> subscriber, on TCP loopback and a Unix socket,
+    each with Zenoh's default and its low-latency unicast transport, and at the subscriber a
+    callback vs a ``FifoChannel`` drained by a thread blocking in ``recv()``; all eight
+    interleaved sample by sample in one run (same load for each). No hilnav code."""
+    import threading
+
+    import zenoh
+
+    variants = _transport_variants(tmp)
+    lat: dict[str, list[int]] = {f"{n}/{h}": [] for n in variants for h in _HANDLERS}
+
+    def stamp(name: str, raw: bytes, now: int) -> None:
+        lat[name].append(now - int(raw.split(b" ", 1)[0]))
+
+    def on_sample(name: str) -> Any:
+        def cb(sample: Any) -> None:
+            stamp(name, sample.payload.to_bytes(), time.monotonic_ns())
+        return cb
+
+    def drain(name: str, sub: Any) -> None:
+        try:
+            while True:
+                sample = sub.recv()
+                stamp(name, sample.payload.to_bytes(), time.monotonic_ns())
+        except zenoh.ZError:
+            return  # the subscriber was undeclared
+
+    load_before = load()
+    sessions = []
+    threads = []
+    with children() as procs:
+        child = this_script("--role", "zenoh-transport", "--url", json.dumps(
+            {n: list(v) for n, v in variants.items()}), "--count", str(count),
+            log=tmp / "zenoh_transport.log")
+        procs.append(child)
+        time.sleep(1.5)
+        try:
+            for name, (ep, ll) in variants.items():
+                s = zenoh.open(_zenoh_peer_config(low_latency=ll, connect=ep))
+                sessions.append(s)
+                s.declare_subscriber(f"bench/tr/{name}/callback",
+                                     on_sample(f"{name}/callback"))
+                sub = s.declare_subscriber(f"bench/tr/{name}/fifo_recv",
+                                           zenoh.handlers.FifoChannel(256))
+                t = threading.Thread(target=drain, args=(f"{name}/fifo_recv", sub),
+                                     daemon=True)
+                t.start()
+                threads.append(t)
+            child.wait(_START_TIMEOUT_S + count * 0.05 + 60.0)
+            time.sleep(0.5)
+        finally:
+            for s in sessions:
+                s.close()
+    for t in threads:
+        t.join(timeout=2.0)
+    return {
+        "what": "zenoh-python put -> direct peer (child -> this process), 700-byte samples at "
+                "25 Hz per variant, all variants interleaved; lowlatency = transport/unicast/"
+                "lowlatency true + qos disabled on both ends",
+        "latency": {n: stats_ms(v) for n, v in lat.items()},
+        "load_before": load_before,
+        "load_after": load(),
+    }
+
+
 def measure_raw_zenoh(endpoint: str, count: int, tmp: Path) -> dict[str, Any]:
     """Calibration: plain zenoh-python put -> router -> subscriber between two processes."""
     import zenoh
@@ -873,13 +1033,19 @@ def latency_ab(endpoint: str, args: argparse.Namespace, code: Path | None, tmp: 
         for variant, tree in order if r % 2 == 0 else order[::-1]:
             print(f"1x latency run, {variant} (round {r + 1}) ...", flush=True)
             run = measure_latency(endpoint, args.duration, args.seed, tmp, code=tree,
-                                  tag=f"{variant}{r}")
+                                  tag=f"{variant}{r}",
+                                  low_latency=args.low_latency and variant == "new",
+                                  sub_low_latency=args.low_latency)
             runs.append({"variant": variant, "round": r, **run})
     summary: dict[str, Any] = {}
     for variant in ("base", "new"):
         mine = [x for x in runs if x["variant"] == variant]
         summary[variant] = {
             f"{mode}_{q}": round(float(np.median([x[mode]["end_to_end"][q] for x in mine])), 4)
+            for mode in ("routed", "p2p") for q in ("median_ms", "p99_ms")}
+        summary[variant] |= {
+            f"{mode}_before_json_decode_{q}": round(float(np.median(
+                [x[mode]["end_to_end_before_json_decode"][q] for x in mine])), 4)
             for mode in ("routed", "p2p") for q in ("median_ms", "p99_ms")}
         summary[variant]["stage_medians_ms"] = {
             name: round(float(np.median([x["stages"][name]["median_ms"] for x in mine])), 4)
@@ -898,7 +1064,7 @@ def main() -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--role", default="bench",
                     choices=["bench", "sender", "udp-hop", "zenoh-hop", "replay", "raw-udp",
-                             "raw-zenoh", "subscriber", "zenoh-options"],
+                             "raw-zenoh", "subscriber", "zenoh-options", "zenoh-transport"],
                     help=argparse.SUPPRESS)
     ap.add_argument("--peer", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--max-wall", type=float, default=300.0, help=argparse.SUPPRESS)
@@ -922,6 +1088,11 @@ def main() -> int:
                     "revision or source tree (base) and of this tree (new), --rounds times "
                     "each")
     ap.add_argument("--rounds", type=int, default=3, help="A/B rounds (with --base)")
+    ap.add_argument("--low-latency", action="store_true",
+                    help="the fusion (with --base: the new one only) runs with "
+                    "--zenoh-low-latency; the subscribers always ask for the low-latency "
+                    "transport then (a link falls back to the default one unless both ends "
+                    "ask)")
     ap.add_argument("--out", type=Path, default=Path("bench/results/live_latency.json"))
     if sys.argv[1:3] == ["--role", "fusion"]:
         return fusion_main(sys.argv[3:])
@@ -942,6 +1113,8 @@ def main() -> int:
         return subscriber_main(args)
     if args.role == "zenoh-options":
         return zenoh_options_main(args)
+    if args.role == "zenoh-transport":
+        return zenoh_transport_main(args)
 
     from hil.router import zenoh_router
 
@@ -960,7 +1133,9 @@ def main() -> int:
         parts = set(args.parts.split(","))
         if "latency" in parts and args.base is None:
             print("1x latency run ...", flush=True)
-            result["latency_1x"] = measure_latency(endpoint, args.duration, args.seed, tmp)
+            result["latency_1x"] = measure_latency(
+                endpoint, args.duration, args.seed, tmp, low_latency=args.low_latency,
+                sub_low_latency=args.low_latency)
             print(json.dumps(result["latency_1x"], indent=1), flush=True)
         if "latency" in parts and args.base is not None:
             with base_tree(args.base) as code:
@@ -987,6 +1162,10 @@ def main() -> int:
             print("zenoh publisher options ...", flush=True)
             result["zenoh_options"] = measure_zenoh_options(300, tmp)
             print(json.dumps(result["zenoh_options"], indent=1), flush=True)
+        if "zenoh-transport" in parts:
+            print("zenoh transports and subscriber handlers ...", flush=True)
+            result["zenoh_transport"] = measure_zenoh_transport(args.count, tmp)
+            print(json.dumps(result["zenoh_transport"], indent=1), flush=True)
         if "sweep" in parts:
             sweep = []
             for speed in (float(s) for s in args.speeds.split(",")):

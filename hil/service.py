@@ -135,6 +135,9 @@ class FusionOptions(BaseModel):
     """Peer-to-peer subscription mode: the bus is a Zenoh peer listening here (loopback) for
     subscribers that connect directly (``hilnav monitor --peer``), besides ``zenoh``'s router
     when given."""
+    zenoh_low_latency: bool = False
+    """Ask for Zenoh's low-latency unicast transport (:attr:`hil.bus.BusConfig.low_latency`):
+    used on a link only when the other end (a direct subscriber, the router) asks too."""
     vehicle: str = "sim1"
     imu: str = "industrial-mems"
     gnss: str = "modern"
@@ -381,12 +384,12 @@ class FusionService:
             self._links["companion"] = stack.enter_context(
                 MavlinkLink(o.companion, role, signer=self._signer(2)))
         if o.zenoh is not None or o.zenoh_listen is not None:
-            from hil.bus import Bus
+            from hil.bus import Bus, BusConfig
 
             self._bus = stack.enter_context(Bus(
                 o.zenoh, vehicle=o.vehicle, mode="client" if o.zenoh_listen is None else "peer",
-                listen=o.zenoh_listen, security=self.bus_access.security,
-                auth_key=self.bus_access.auth_key))
+                listen=o.zenoh_listen, config=BusConfig(low_latency=o.zenoh_low_latency),
+                security=self.bus_access.security, auth_key=self.bus_access.auth_key))
             self._bus.declare_config_queryable(self.config_snapshot)
             self._bus.declare_liveliness()
 

@@ -44,6 +44,12 @@ class BusConfig(pydantic.BaseModel):
         One attempt to open the session (a client waits this long for the router), s.
     retry_s : float
         Pause between session-open attempts while no router answers, s.
+    low_latency : bool
+        Ask for Zenoh's low-latency unicast transport (``transport/unicast/lowlatency``, which
+        needs QoS priorities off): no transmit batching queue, each sample written to the link
+        by the thread that puts it. A link runs it only when *both* ends ask for it (a direct
+        peer, or a router and its client); otherwise the two ends settle on the default
+        transport, silently. Off by default.
     """
 
     model_config = pydantic.ConfigDict(frozen=True, extra="forbid")
@@ -52,6 +58,7 @@ class BusConfig(pydantic.BaseModel):
     queue_size: int = pydantic.Field(default=4096, ge=1, le=10_000_000)
     connect_timeout_s: float = pydantic.Field(default=1.0, gt=0.0, le=60.0)
     retry_s: float = pydantic.Field(default=0.5, ge=0.0, le=60.0)
+    low_latency: bool = False
 
     @pydantic.field_validator("rates_hz")
     @classmethod

@@ -17,7 +17,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.live import Live
 
-from hil.bus import Bus, BusAccess, Message, validate_vehicle
+from hil.bus import Bus, BusAccess, BusConfig, Message, validate_vehicle
 from hil.monitor.dashboard import MonitorState
 from hil.monitor.foxglove_server import FoxgloveLive
 from hil.monitor.recorder import McapRecorder
@@ -37,6 +37,7 @@ def monitor_main(
     foxglove_port: int | None = None,
     bus_access: BusAccess | None = None,
     peer: bool = False,
+    low_latency: bool = False,
 ) -> int:
     """Subscribe to ``hilnav/<vehicle>/**`` and show it; optionally record it to MCAP.
 
@@ -60,6 +61,9 @@ def monitor_main(
         channels as the recording; the URL is printed.
     peer : bool
         Subscribe as a Zenoh peer connected directly to ``connect`` (peer-to-peer mode).
+    low_latency : bool
+        Ask for Zenoh's low-latency transport (:attr:`hil.bus.BusConfig.low_latency`; pays
+        off with a fusion started with ``--zenoh-low-latency``).
 
     Returns
     -------
@@ -107,7 +111,8 @@ def monitor_main(
     try:
         access = bus_access or BusAccess()
         with Bus(connect, vehicle=vehicle, mode="peer" if peer else "client",
-                 security=access.security, auth_key=access.auth_key) as bus:
+                 config=BusConfig(low_latency=low_latency), security=access.security,
+                 auth_key=access.auth_key) as bus:
             bus.subscribe("**", on_message)
             bus.subscribe_liveliness(state.set_alive)
             done = threading.Event()

@@ -84,6 +84,9 @@ TlsKeyOption = Annotated[Path | None, typer.Option(
 ZenohKeyFileOption = Annotated[Path | None, typer.Option(
     help="Shared key (32 bytes, hex or base64) that tags every Zenoh sample and checks "
          "received ones (default: env HILNAV_ZENOH_KEY).", rich_help_panel="Zenoh security")]
+ZenohLowLatencyOption = Annotated[bool, typer.Option(
+    help="Ask for Zenoh's low-latency transport (no transmit batching; QoS priorities off). A "
+         "link uses it only when the other end asks too (fusion and a direct subscriber).")]
 
 
 class RunFailed(Exception):
@@ -434,6 +437,7 @@ def fusion(
     zenoh_listen: Annotated[str | None, typer.Option(
         help="Peer-to-peer: also serve Zenoh subscribers that connect here directly (hilnav "
              "monitor --peer), without the router's hop; loopback only, no login/TLS.")] = None,
+    zenoh_low_latency: ZenohLowLatencyOption = False,
     vehicle: Annotated[str, typer.Option(help="Zenoh vehicle name.")] = "sim1",
     imu: ImuOption = "industrial-mems",
     gnss: GnssOption = "modern",
@@ -503,7 +507,7 @@ def fusion(
         check_peer_link([zenoh_listen], access.security)
     options = FusionOptions(
         mavlink=mavlink, source=source, zenoh=zenoh, zenoh_listen=zenoh_listen,
-        vehicle=vehicle, imu=imu, gnss=gnss,
+        zenoh_low_latency=zenoh_low_latency, vehicle=vehicle, imu=imu, gnss=gnss,
         bridge=bridge,
         altitude=altitude, airspeed=airspeed, align=align, gcs=gcs, gcs_tlog=gcs_tlog,
         shadow_system_id=shadow_sysid, companion=companion,
@@ -545,6 +549,7 @@ def monitor(
     peer: Annotated[bool, typer.Option(
         help="--connect is a fusion's --zenoh-listen endpoint: subscribe to it directly as a "
              "Zenoh peer (one hop less than through the router; loopback only).")] = False,
+    zenoh_low_latency: ZenohLowLatencyOption = False,
     vehicle: Annotated[str, typer.Option(help="Vehicle name.")] = "sim1",
     record: Annotated[Path | None, typer.Option(help="Record everything to this .mcap.")] = None,
     duration: Annotated[float | None, typer.Option(help="Stop after S wall seconds.")] = None,
@@ -572,7 +577,7 @@ def monitor(
         check_peer_link([connect], access.security)
     code = monitor_main(connect=connect, vehicle=vehicle, record=record, duration_s=duration,
                         headless=headless, foxglove_port=foxglove, bus_access=access,
-                        peer=peer)
+                        peer=peer, low_latency=zenoh_low_latency)
     if code:
         raise typer.Exit(code)
 
