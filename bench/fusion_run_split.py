@@ -10,28 +10,33 @@ one process, on those frames (CPU time, ``process_time``; best of ``--rounds`` r
 - ``decode``: :meth:`hil.codec.Decoder.feed` (framing + unpack + SI samples + ``Decoded``);
 - ``filter``: :meth:`fusion.filter.NavFilter.step` on the decoded samples (truth skipped);
 - ``filter_collect``: :meth:`hil.tracks.Collector.feed` on them (filter + collector);
-- ``fusion_run``: the run's own sink, a fresh :class:`FusionRun` called once per frame.
+- ``fusion_run``: the run's own sink, a fresh :class:`FusionRun`, given the frames as
+  :func:`hil.pipeline.fly` gives them (whole lockstep batches where the tree's sink takes
+  them, else frame by frame).
 
 ``in_flight``: the same flight flown into that sink and into one that does nothing,
 alternately: the fusion's marginal CPU inside a real lockstep flight (cache and garbage
 collector effects of the simulator around it included, no clock read per frame).
 
 Differences give the decoder's dispatch and sample objects (``decode - framing``), the
-collector (``filter_collect - filter``) and the sink's own loop (``fusion_run - decode -
-filter_collect``). ``by_kind`` splits ``decode`` by message and ``filter`` by sample type, one
-clock read pair around each call (the pair's own cost, measured, is subtracted). Every figure
-is also given per IMU sample (the run's 200 Hz). The filter, bridge and collector are built
-exactly as ``scenarios.runner.run_scenario`` builds them.
+collector (``filter_collect - filter``) and ``sink_loop`` (``fusion_run - decode -
+filter_collect``: what the sink costs beyond its parts run one after the other over the
+whole recording: its own loop and the parts' code and data evicting each other). ``by_kind``
+splits ``decode`` by message and ``filter`` by sample type, one clock read pair around each
+call (the pair's own cost, measured, is subtracted). Every figure is also given per IMU sample
+(the run's 200 Hz). The filter, bridge and collector are built exactly as
+``scenarios.runner.run_scenario`` builds them.
 
     python bench/fusion_run_split.py --out bench/results/fusion_run_split.json
 
 ``--base REV`` (before / after of a change): the timings run in child processes, the code of
 REV (``git archive`` into a temporary folder, first on ``PYTHONPATH``, this script with it)
-and of this tree alternately, ``--rounds`` each, on the same recorded frames; ``ab`` holds
-each tree's best per part. With ``--count-s S`` it also counts, for both trees, the
-instructions of ``decode`` and ``fusion_run`` over the frames of the first S simulated seconds
-(valgrind, as :mod:`bench.instruction_count` does: the loop's process minus the same process
-without the loop, per IMU sample): a before / after that the machine's load does not move.
+and of this tree alternately, ``--rounds`` each, on the same recorded frames (and ``in_flight``
+in each child); ``ab`` holds each tree's best per part. With ``--count-s S`` it also counts,
+for both trees, the instructions of ``decode`` and ``fusion_run`` over the frames of the
+first S simulated seconds (valgrind, as :mod:`bench.instruction_count` does: the loop's
+process minus the same process without the loop, per IMU sample): a before / after that the
+machine's load does not move.
 
     python bench/fusion_run_split.py --base 4be3151 --rounds 3 --count-s 20 \
         --out bench/results/fusion_run_split_ab.json
@@ -114,6 +119,7 @@ def time_parts(rec: dict[str, Any], rounds: int) -> dict[str, Any]:
     frames: list[tuple[int, bytes]] = rec["frames"]
     cpu = time.process_time
 
+    batches = _lockstep_batches(frames)
     dec = Decoder()
     decoded = [[d.sample for d in dec.feed(f)] for _t, f in frames]
     flat = [s for ss in decoded for s in ss]
@@ -141,8 +147,13 @@ def time_parts(rec: dict[str, Any], rounds: int) -> dict[str, Any]:
 
     def fusion_run() -> None:
         run = FusionRun(config, bridge, nav=build_filter(config, bridge))
-        for t, f in frames:
-            run(t, f)
+        batch_sink = getattr(run, "frames", None)
+        if batch_sink is None:  # a tree without batches: fly() hands the frames one by one
+            for t, f in frames:
+                run(t, f)
+            return
+        for batch in batches:
+            batch_sink(batch)
 
     fns = {"framing": framing, "decode": decode, "filter": filt,
            "filter_collect": filter_collect, "fusion_run": fusion_run}
@@ -157,6 +168,23 @@ def time_parts(rec: dict[str, Any], rounds: int) -> dict[str, Any]:
             "cpu_s": best, "us_per_imu_sample": {k: v / n_imu * 1e6 for k, v in best.items()},
             "derived_us_per_imu_sample": _derived(best, n_imu),
             "by_kind": _by_kind(frames, flat, config, bridge, n_imu)}
+
+
+def _lockstep_batches(frames: list[tuple[int, bytes]]) -> list[list[tuple[int, bytes]]]:
+    """The frames as :func:`hil.pipeline.fly` hands them to a batch sink: those of
+    ``LOCKSTEP_BATCH`` steps at a time (a step's frames start with its HIL_SENSOR)."""
+    from hil.pipeline import LOCKSTEP_BATCH
+
+    out: list[list[tuple[int, bytes]]] = [[]]
+    steps = 0
+    for t, f in frames:
+        if f[7] == 107 and f[8] == 0 and f[9] == 0:  # HIL_SENSOR: a new step
+            if steps == LOCKSTEP_BATCH:
+                out.append([])
+                steps = 0
+            steps += 1
+        out[-1].append((t, f))
+    return out
 
 
 def _derived(best: dict[str, float], n_imu: int) -> dict[str, float]:
@@ -219,7 +247,9 @@ def _pair_ns(clock: Any) -> float:
 
 def _child(rec_path: Path, rounds: int, out_path: Path) -> None:
     rec = pickle.loads(rec_path.read_bytes())
-    out_path.write_text(json.dumps(time_parts(rec, rounds)), encoding="utf-8")
+    result = time_parts(rec, rounds)
+    result["in_flight"] = in_flight(Path(rec["scenario_path"]), rounds)
+    out_path.write_text(json.dumps(result), encoding="utf-8")
 
 
 COUNTED = ("decode", "fusion_run")
@@ -240,9 +270,14 @@ def _count_child(part: str, rec_path: str, run: bool) -> None:
         return
     config, bridge = _setup(rec["scenario_path"])
     sink = FusionRun(config, bridge, nav=build_filter(config, bridge))
-    if run:
+    batch_sink = getattr(sink, "frames", None)
+    batches = _lockstep_batches(frames)
+    if run and batch_sink is None:
         for t, f in frames:
             sink(t, f)
+    elif run:
+        for batch in batches:
+            batch_sink(batch)
 
 
 def count_ab(rec: dict[str, Any], trees: dict[str, Path], seconds: float,
@@ -300,7 +335,10 @@ def time_ab(rec: dict[str, Any], tree: Path, rounds: int, folder: Path) -> dict[
             for key, rs in runs.items()}
     kinds = {key: {k: min(r["by_kind"]["decode_us_per_call"][k] for r in rs)
                    for k in rs[0]["by_kind"]["decode_us_per_call"]} for key, rs in runs.items()}
+    marginal = {key: min(r["in_flight"]["fusion_marginal_us_per_imu_sample"] for r in rs)
+                for key, rs in runs.items()}
     return {"rounds": rounds, "us_per_imu_sample_best": best,
+            "in_flight_marginal_us_per_imu_sample_best": marginal,
             "decode_us_per_call_best": kinds,
             "after_over_before": {p: best["after"][p] / best["before"][p] for p in PARTS},
             "rounds_us_per_imu_sample": {key: [r["us_per_imu_sample"] for r in rs]
