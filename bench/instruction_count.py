@@ -126,10 +126,13 @@ def _describe(tree: Path) -> dict[str, Any]:
     return {"tree": "." if same else "another checkout", "tree_commit": commit}
 
 
-def _count(tree: Path, case: str, data_path: str, run: bool) -> int:
+def _count(tree: Path, case: str, data_path: str, run: bool,
+           script: Path | None = None) -> int:
+    """Instructions of ``script --child CASE DATA run|setup`` under valgrind, with ``tree``
+    first on ``PYTHONPATH`` (``script``: this bench, or another with the same child call)."""
     env = {**os.environ, "PYTHONPATH": str(tree), "OPENBLAS_NUM_THREADS": "1"}
     cmd = ["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
-           sys.executable, str(Path(__file__).resolve()), "--child", case, data_path,
+           sys.executable, str(script or Path(__file__).resolve()), "--child", case, data_path,
            "run" if run else "setup"]
     out = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True, check=True)
     m = re.search(r"I\s+refs:\s+([\d,]+)", out.stderr)

@@ -22,11 +22,11 @@ child), ``cli_import`` (``scenarios.cli.app``), ``setup`` (the command up to the
 the imports of the runner, pipeline and report modules, scenario load, filter build),
 ``flight`` split into ``jsbsim_run``
 (JSBSim's ``run()`` alone, the clock read around each call), ``decode_filter`` (the
-:class:`hil.pipeline.FusionRun` sink: decode + filter + collector), ``tlog_write`` and
-``sim_chain_python`` (the rest of the flight: adapter, guidance, sensor models, encode, the
-pipeline's loop), ``scoring`` (``score`` minus its reports), ``reports`` (JUnit, plots, HTML,
-and the import of their modules: matplotlib)
-and ``exit`` (the child's CPU after the command returned: interpreter teardown). The timers
+:class:`hil.pipeline.FusionRun` sink: decode + filter + collector, per frame or per batch),
+``tlog_write`` and ``sim_chain_python`` (the rest of the flight: adapter, guidance, sensor
+models, encode, the pipeline's loop), ``scoring`` (``score`` minus its reports),
+``reports`` (JUnit, plots, HTML, and the import of their modules: matplotlib) and ``exit``
+(the child's CPU after the command returned: interpreter teardown). The timers
 cost ~1 us per JSBSim step, so this child's total is a little above the plain run's.
 
     python bench/run_end_to_end.py --duration 300 --out bench/results/run_end_to_end.json
@@ -170,6 +170,9 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
     hil.pipeline.SimChain.__enter__ = enter  # type: ignore[method-assign]
     hil.pipeline.FusionRun.__call__ = timed(  # type: ignore[method-assign]
         "decode_filter", hil.pipeline.FusionRun.__call__)
+    if hasattr(hil.pipeline.FusionRun, "frames"):  # the sink of whole lockstep batches
+        hil.pipeline.FusionRun.frames = timed(  # type: ignore[method-assign]
+            "decode_filter", hil.pipeline.FusionRun.frames)
     scenarios.runner.TlogWriter.write = timed(  # type: ignore[method-assign]
         "tlog_write", scenarios.runner.TlogWriter.write)
     scenarios.runner.simulate = timed_simulate

@@ -378,9 +378,11 @@ class Collector:
         clock = self._clock
         if clock is None:
             clock = self._clock = SampleClock(round(nav.config.imu.time_jump_s * 1e6))
+        # bound once per call: this loop runs for every sample of a run
+        offer, step, add_estimate = clock.offer, nav.step, self._est.add
         for item in items:
             if isinstance(item, Truth):
-                clock.offer(item.time_us, nav.time_us)
+                offer(item.time_us, nav.time_us)
                 self._tru.add(item)
                 if keep:
                     self._kept[1].append(item)
@@ -389,10 +391,12 @@ class Collector:
                 self._fix.add(item)
                 if keep:
                     self._kept[2].append(item)
-            for e in nav.step(item):
-                self._est.add(e)
-                out.append(e)
-            clock.offer(item.time_us, nav.time_us)
+            estimates = step(item)
+            if estimates:
+                for e in estimates:
+                    add_estimate(e)
+                out.extend(estimates)
+            offer(item.time_us, nav.time_us)
         if keep:
             self._kept[0].extend(out)
         return out

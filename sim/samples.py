@@ -4,11 +4,11 @@ These small frozen dataclasses are what the simulator produces, what ``hil.codec
 and decodes, and what ``fusion.NavFilter`` consumes (structurally, through the protocols in
 ``fusion.samples``).
 
-:func:`make_imu_sample` and :func:`make_gnss_fix` make the same objects as the classes'
-constructors (all fields given, positionally) at about a third of the cost: for the decoder,
-which makes one per frame. A frozen dataclass's ``__init__`` sets each field through
-``object.__setattr__``; these set them on an unfrozen twin with the same slots, which then
-becomes the frozen class by ``__class__`` assignment.
+:func:`make_imu_sample`, :func:`make_gnss_fix` and :func:`make_truth` make the same objects
+as the classes' constructors (all fields given, positionally) at about a third of the cost:
+for the decoder, which makes one per frame. A frozen dataclass's ``__init__`` sets each field
+through ``object.__setattr__``; these set them on an unfrozen twin with the same slots, which
+then becomes the frozen class by ``__class__`` assignment.
 """
 
 from __future__ import annotations
@@ -160,6 +160,7 @@ def _unfrozen_twin(cls: type) -> type:
 _new = object.__new__
 _IMU_TWIN: Any = _unfrozen_twin(ImuSample)
 _GNSS_TWIN: Any = _unfrozen_twin(GnssFix)
+_TRUTH_TWIN: Any = _unfrozen_twin(Truth)
 
 
 def make_imu_sample(
@@ -203,6 +204,36 @@ def make_gnss_fix(
     s.__class__ = GnssFix  # frozen from here on
     fix: GnssFix = s
     return fix
+
+
+def make_truth(
+    time_us: int, lat_rad: float, lon_rad: float, alt_msl_m: float, v_ned_mps: Vec3,
+    q_nb: NDArray[np.float64], omega_b_rps: Vec3, specific_force_b_mps2: Vec3,
+    static_pressure_pa: float, temperature_k: float, airspeed_mps: float,
+    indicated_airspeed_mps: float, alpha_rad: float, beta_rad: float, wind_ned_mps: Vec3,
+) -> Truth:
+    """``Truth(...)`` with every field given in order, the same object, made as
+    :func:`make_imu_sample` makes its sample (the decoder makes one per HIL_STATE_QUATERNION
+    frame)."""
+    s = _new(_TRUTH_TWIN)
+    s.time_us = time_us
+    s.lat_rad = lat_rad
+    s.lon_rad = lon_rad
+    s.alt_msl_m = alt_msl_m
+    s.v_ned_mps = v_ned_mps
+    s.q_nb = q_nb
+    s.omega_b_rps = omega_b_rps
+    s.specific_force_b_mps2 = specific_force_b_mps2
+    s.static_pressure_pa = static_pressure_pa
+    s.temperature_k = temperature_k
+    s.airspeed_mps = airspeed_mps
+    s.indicated_airspeed_mps = indicated_airspeed_mps
+    s.alpha_rad = alpha_rad
+    s.beta_rad = beta_rad
+    s.wind_ned_mps = wind_ned_mps
+    s.__class__ = Truth  # frozen from here on
+    truth: Truth = s
+    return truth
 
 
 Sample = (

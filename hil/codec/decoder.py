@@ -35,11 +35,13 @@ from hil.codec.fc_messages import (
 from hil.codec.framing import FrameParser
 from hil.codec.hil_messages import (
     HIL_GPS_VALUES,
+    HIL_STATE_QUATERNION_WIRE,
     decode_hil_gps,
     decode_hil_gps_values,
     decode_hil_sensor,
     decode_hil_sensor_values,
     decode_hil_state_quaternion,
+    decode_hil_state_quaternion_wire,
 )
 from hil.codec.sources import DEFAULT_FIRST_IMU_DT_S, SourceState
 from hil.codec.vehicle_messages import (
@@ -67,6 +69,11 @@ if FAST_LAYOUTS[mavlink2.MAVLINK_MSG_ID_HIL_SENSOR].fields._fields[:7] + (
         FAST_LAYOUTS[mavlink2.MAVLINK_MSG_ID_HIL_SENSOR].fields._fields[14:]) != (
         "time_usec", "xacc", "yacc", "zacc", "xgyro", "ygyro", "zgyro", "fields_updated", "id"):
     raise ImportError("HIL_SENSOR's field order changed in the dialect")
+
+# The fast HIL_STATE_QUATERNION decode takes the unpacked wire values as they are.
+if FAST_LAYOUTS[mavlink2.MAVLINK_MSG_ID_HIL_STATE_QUATERNION].wire_fields != (
+        HIL_STATE_QUATERNION_WIRE):
+    raise ImportError("HIL_STATE_QUATERNION's wire order changed in the dialect")
 
 _new_decoded = tuple.__new__  # Decoded(...) without the named tuple's Python-level __new__
 _Samples = list[Sample | Truth]
@@ -285,6 +292,13 @@ class Decoder:
             fix = decode_hil_gps_values(*pick_gps(unpack_gps(frame)))
             return wrap([fix], gps_id, frame[5], frame[6])
 
+        truth_id = mavlink2.MAVLINK_MSG_ID_HIL_STATE_QUATERNION
+        unpack_truth = FAST_LAYOUTS[truth_id].unpack_wire
+
+        def hil_state_quaternion(frame: bytes) -> list[Decoded]:
+            truth = decode_hil_state_quaternion_wire(unpack_truth(frame))
+            return wrap([truth], truth_id, frame[5], frame[6])
+
         def through_handler(msg_id: int, layout: FastLayout) -> Callable[[bytes], list[Decoded]]:
             unpack, handler = layout.unpack, self._handlers[msg_id]
             return lambda frame: wrap(handler(unpack(frame), msg_id, frame[5], frame[6]),
@@ -293,6 +307,7 @@ class Decoder:
         table = {i: through_handler(i, layout) for i, layout in FAST_LAYOUTS.items()}
         table[sensor_id] = hil_sensor
         table[gps_id] = hil_gps
+        table[truth_id] = hil_state_quaternion
         return table
 
     def _handler_table(self) -> dict[int, _Handler]:

@@ -40,14 +40,17 @@ from sim.samples import (
 )
 from sim.samples import make_gnss_fix as _make_gnss_fix
 from sim.samples import make_imu_sample as _make_imu_sample
+from sim.samples import make_truth as _make_truth
 
 __all__ = [
     "HIL_GPS_VALUES",
+    "HIL_STATE_QUATERNION_WIRE",
     "decode_hil_gps",
     "decode_hil_gps_values",
     "decode_hil_sensor",
     "decode_hil_sensor_values",
     "decode_hil_state_quaternion",
+    "decode_hil_state_quaternion_wire",
 ]
 
 # the bits as plain ints (no class attribute look-up per message on the IMU-rate path)
@@ -179,21 +182,41 @@ def _accuracy_m(cm: int) -> float:
 def decode_hil_state_quaternion(msg: Any) -> Truth:
     """HIL_STATE_QUATERNION -> Truth (no pressure, temperature, angle of attack, sideslip or
     wind on the wire: NaN)."""
+    q = msg.attitude_quaternion
+    return decode_hil_state_quaternion_wire((
+        msg.time_usec, q[0], q[1], q[2], q[3], msg.rollspeed, msg.pitchspeed, msg.yawspeed,
+        msg.lat, msg.lon, msg.alt, msg.vx, msg.vy, msg.vz, msg.ind_airspeed,
+        msg.true_airspeed, msg.xacc, msg.yacc, msg.zacc))
+
+
+HIL_STATE_QUATERNION_WIRE: Final = (
+    "time_usec", "attitude_quaternion", "rollspeed", "pitchspeed", "yawspeed", "lat", "lon",
+    "alt", "vx", "vy", "vz", "ind_airspeed", "true_airspeed", "xacc", "yacc", "zacc")
+"""HIL_STATE_QUATERNION's fields in wire order (the quaternion: four values in a row), the
+order of the values :func:`decode_hil_state_quaternion_wire` takes."""
+
+_NAN3 = np.full(3, math.nan)
+
+
+def decode_hil_state_quaternion_wire(w: Sequence[Any]) -> Truth:
+    """:func:`decode_hil_state_quaternion` from its 19 wire values in the order of
+    :data:`HIL_STATE_QUATERNION_WIRE` (the fast path hands over the unpacked payload as it
+    is)."""
     # (each vector as the array of its wire values times the scale, element by element)
-    return Truth(
-        time_us=int(msg.time_usec),
-        lat_rad=msg.lat / DEGE7_PER_RAD,
-        lon_rad=msg.lon / DEGE7_PER_RAD,
-        alt_msl_m=msg.alt * 1e-3,
-        v_ned_mps=_array([msg.vx * 1e-2, msg.vy * 1e-2, msg.vz * 1e-2], _F64),
-        q_nb=_array(msg.attitude_quaternion, _F64),
-        omega_b_rps=_array([msg.rollspeed, msg.pitchspeed, msg.yawspeed], _F64),
-        specific_force_b_mps2=_array([msg.xacc * _MG, msg.yacc * _MG, msg.zacc * _MG], _F64),
-        static_pressure_pa=math.nan,  # not in HIL_STATE_QUATERNION
-        temperature_k=math.nan,  # not in HIL_STATE_QUATERNION
-        airspeed_mps=msg.true_airspeed * 1e-2,
-        indicated_airspeed_mps=msg.ind_airspeed * 1e-2,
-        alpha_rad=math.nan,  # not in HIL_STATE_QUATERNION
-        beta_rad=math.nan,  # not in HIL_STATE_QUATERNION
-        wind_ned_mps=_array([math.nan, math.nan, math.nan], _F64),  # not in the message
+    return _make_truth(
+        int(w[0]),  # time_us
+        w[8] / DEGE7_PER_RAD,  # lat_rad
+        w[9] / DEGE7_PER_RAD,  # lon_rad
+        w[10] * 1e-3,  # alt_msl_m
+        _array([w[11] * 1e-2, w[12] * 1e-2, w[13] * 1e-2], _F64),  # v_ned_mps
+        _array(w[1:5], _F64),  # q_nb
+        _array(w[5:8], _F64),  # omega_b_rps
+        _array([w[16] * _MG, w[17] * _MG, w[18] * _MG], _F64),  # specific_force_b_mps2
+        math.nan,  # static pressure: not in HIL_STATE_QUATERNION
+        math.nan,  # temperature: not in HIL_STATE_QUATERNION
+        w[15] * 1e-2,  # airspeed_mps (true)
+        w[14] * 1e-2,  # indicated_airspeed_mps
+        math.nan,  # angle of attack: not in HIL_STATE_QUATERNION
+        math.nan,  # sideslip: not in HIL_STATE_QUATERNION
+        _NAN3.copy(),  # wind: not in the message
     )

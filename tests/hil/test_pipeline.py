@@ -88,10 +88,12 @@ def flown(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[tuple[int, byt
 
 
 def test_fused_while_flying_equals_fused_afterwards_and_from_the_recording(flown) -> None:
-    """GIVEN one flight WHEN fused as it flies, from the frames kept in memory, and from its
-    .tlog THEN the three give bit-identical estimates (the same seed flies the same bytes)."""
+    """GIVEN one flight WHEN fused as it flies (whole lockstep batches: decoded, then fused),
+    from the frames kept in memory (frame by frame), and from its .tlog THEN the three give
+    bit-identical estimates (the same seed flies the same bytes)."""
     frames, live, log = flown
     after = fuse_frames(frames, live.config, "none", keep_objects=True)
+    assert live.samples == after.samples and live.decoder.counters == after.decoder.counters
     recorded = [(t, f) for t, f in read_tlog(log)]
     assert [f for _, f in recorded] == [f for _, f in frames]
     assert live.collector is not None and after.collector is not None
@@ -101,6 +103,9 @@ def test_fused_while_flying_equals_fused_afterwards_and_from_the_recording(flown
         assert (x.time_us, x.lat_rad, x.lon_rad, x.alt_msl_m) == (
             y.time_us, y.lat_rad, y.lon_rad, y.alt_msl_m)
         np.testing.assert_array_equal(x.v_ned_mps, y.v_ned_mps)
+        np.testing.assert_array_equal(x.P_diag, y.P_diag)
+    assert [s.time_us for s in live.collector.truths] == [
+        s.time_us for s in after.collector.truths]
     assert live.collector.end_s() == pytest.approx(40.0, abs=0.1)
 
 

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from sim.samples import GnssFix, ImuSample, make_gnss_fix, make_imu_sample
+from sim.samples import GnssFix, ImuSample, Truth, make_gnss_fix, make_imu_sample, make_truth
 
 
 @pytest.mark.parametrize(("cls", "make", "args"), [
@@ -18,6 +18,10 @@ from sim.samples import GnssFix, ImuSample, make_gnss_fix, make_imu_sample
                                   np.array([0.01, 0.0, -0.02]), 290.0, 2)),
     (GnssFix, make_gnss_fix, (456, 0.8, 0.1, 500.0, np.array([50.0, -3.0, 0.5]), 1.5,
                               math.nan, math.nan, 3, 12, 1)),
+    (Truth, make_truth, (789, 0.8, 0.1, 500.0, np.array([50.0, -3.0, 0.5]),
+                         np.array([1.0, 0.0, 0.0, 0.0]), np.array([0.01, 0.0, 0.1]),
+                         np.array([0.2, 0.0, -9.8]), math.nan, math.nan, 51.0, 49.5,
+                         math.nan, math.nan, np.full(3, math.nan))),
 ])
 def test_a_made_sample_is_the_constructed_one(cls: type, make: Any, args: tuple[object, ...]
                                               ) -> None:
