@@ -19,6 +19,8 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
+from scenarios.cli.quick_exit import QUICK_EXIT_COMMANDS, command_of, freeze_for_exit
+
 app = typer.Typer(
     name="hilnav",
     help="Hardware-in-the-loop navigation: fly JSBSim, stream MAVLink sensors, fuse, score.",
@@ -1127,5 +1129,17 @@ def campaign(
         raise RunFailed(f"some runs failed their criteria or errored; see {out / 'campaign.md'}")
 
 
+def main(argv: list[str] | None = None) -> None:
+    """The ``hilnav`` console entry: run the command (typer exits with its code), then, for an
+    offline command with every file closed, skip the interpreter's final teardown collections
+    (:mod:`scenarios.cli.quick_exit`)."""
+    args = sys.argv[1:] if argv is None else list(argv)
+    try:
+        app(args)
+    finally:
+        if command_of(args) in QUICK_EXIT_COMMANDS:
+            freeze_for_exit()
+
+
 if __name__ == "__main__":
-    app()
+    main()
