@@ -14,7 +14,6 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Annotated, Any, Literal, ParamSpec, TypeVar
 
-import pydantic
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -34,12 +33,13 @@ console = Console(soft_wrap=True)
 P = ParamSpec("P")
 R = TypeVar("R")
 
-# the methods the fusion offers (fusion/ imports no I/O: cheap to import here)
-from fusion.bridging.registry import BRIDGE_METHODS  # noqa: E402
-from fusion.config import (  # noqa: E402
+# the names of the fusion's choices, without the filter behind them (numpy, scipy, pydantic:
+# each command imports what it runs, so --help and the light commands stay fast)
+from fusion.choices import (  # noqa: E402
     AIRSPEED_MODES,
     ALIGN_MODES,
     ALTITUDE_METHODS,
+    BRIDGE_METHODS,
     DEFAULT_AIRSPEED_MODE,
     DEFAULT_ALIGN_MODE,
 )
@@ -92,7 +92,11 @@ class RunFailed(Exception):
     """The run happened but did not succeed (exit code 1)."""
 
 
-def _first_validation_error(exc: pydantic.ValidationError) -> str:
+def _bad_input_message(exc: ValueError) -> str:
+    """One line for a bad value: pydantic's first validation error as ``where: what``."""
+    pydantic = sys.modules.get("pydantic")  # not imported: exc cannot be a ValidationError
+    if pydantic is None or not isinstance(exc, pydantic.ValidationError):
+        return str(exc)
     e = exc.errors()[0]
     loc = ".".join(str(p) for p in e["loc"]) or exc.title
     return f"{loc}: {e['msg']}"
@@ -105,10 +109,10 @@ def cli_errors(func: Callable[P, R]) -> Callable[P, R]:
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
         try:
             return func(*args, **kwargs)
-        except pydantic.ValidationError as exc:
-            err_console.print(f"[red]error:[/] {_first_validation_error(exc)}", highlight=False)
+        except ValueError as exc:  # pydantic's ValidationError included
+            err_console.print(f"[red]error:[/] {_bad_input_message(exc)}", highlight=False)
             raise typer.Exit(2) from None
-        except (ValueError, FileNotFoundError) as exc:
+        except FileNotFoundError as exc:
             err_console.print(f"[red]error:[/] {exc}", highlight=False)
             raise typer.Exit(2) from None
         except OSError as exc:  # a path the user named cannot be written or read
