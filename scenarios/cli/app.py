@@ -18,7 +18,12 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-from scenarios.cli.quick_exit import QUICK_EXIT_COMMANDS, command_of, freeze_for_exit
+from scenarios.cli.quick_exit import (
+    QUICK_EXIT_COMMANDS,
+    command_of,
+    freeze_for_exit,
+    settled_heap,
+)
 
 app = typer.Typer(
     name="hilnav",
@@ -991,10 +996,11 @@ def run(
 ) -> None:
     """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
     _out_dir(out)
-    from scenarios.runner import AutopilotAbsent, run_scenario
+    with settled_heap():
+        from scenarios.runner import AutopilotAbsent, run_scenario
 
-    scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
-                         airspeed=airspeed, align=align)
+        scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
+                             airspeed=airspeed, align=align)
     if scn.autopilot.flies:
         _say_waiting_for_autopilot(scn)
     try:

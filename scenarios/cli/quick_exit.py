@@ -1,4 +1,5 @@
-"""Leave the interpreter without its last full garbage collection once nothing is left to flush.
+"""The garbage collector around a one-run command: a settled heap while it runs, and no final
+teardown collections once nothing is left to flush.
 
 When a ``hilnav`` command returns, CPython's shutdown clears every module and runs full
 garbage collections over everything still alive (~1,400 modules, ~200,000 tracked objects
@@ -21,9 +22,11 @@ close them in their destructors.
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import io
 import sys
+from collections.abc import Iterator
 
 QUICK_EXIT_COMMANDS = frozenset({"run", "replay", "compare", "demo", "schema", "list"})
 """Commands that end with every output written and closed, and hold no network session."""
@@ -53,10 +56,30 @@ def open_files_for_writing() -> list[io.IOBase]:
 def freeze_for_exit() -> bool:
     """Freeze every live object (:func:`gc.freeze`) unless a file is open for writing; True
     when frozen. Call it only when the process is about to exit."""
+    gc.unfreeze()  # objects frozen earlier (:func:`settle_heap`) are checked too
     if open_files_for_writing():
         return False
     gc.freeze()
     return True
+
+
+@contextlib.contextmanager
+def settled_heap() -> Iterator[None]:
+    """Import and set up a one-run command inside this block: no collection runs while the
+    libraries load (their ~80,000 short-lived objects are collected once, at the end), and
+    what is alive then (modules, the set-up) is frozen, so the run's own collections, the
+    full ones included, no longer traverse it. 0.4-0.5 CPU s of a 300 s ``hilnav run``
+    (0.7 s of collections before, 0.25 s after). Only for a process that runs one command and
+    exits: a frozen object is never collected (a campaign worker must not do this)."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.collect()
+        gc.freeze()
+        if enabled:
+            gc.enable()
 
 
 def command_of(argv: list[str]) -> str | None:

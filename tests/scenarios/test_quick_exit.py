@@ -64,3 +64,38 @@ def test_only_offline_commands_are_named() -> None:
     assert command_of([]) is None
     assert {"up", "fusion", "monitor", "sim", "router", "check", "campaign"}.isdisjoint(
         QUICK_EXIT_COMMANDS)
+
+
+def test_a_file_frozen_with_the_settled_heap_still_blocks_the_exit_freeze(tmp_path: Path) -> None:
+    path = tmp_path / "opened-during-set-up.txt"
+    proc = _python("import sys\n"
+                   "from scenarios.cli.quick_exit import freeze_for_exit, settled_heap\n"
+                   "class Holder:\n"
+                   "    pass\n"
+                   "with settled_heap():\n"
+                   "    h = Holder()\n"
+                   "    h.me = h\n"
+                   "    h.f = open(sys.argv[1], 'w')\n"
+                   "h.f.write('y' * 1000)\n"
+                   "sys.exit(4 if freeze_for_exit() else 0)\n", str(path))
+    assert proc.returncode == 0, proc.stderr
+    assert path.read_text() == "y" * 1000
+
+
+def test_the_settled_heap_collects_once_freezes_and_leaves_the_collector_on() -> None:
+    import gc
+
+    from scenarios.cli.quick_exit import settled_heap
+
+    assert gc.isenabled()
+    try:
+        with settled_heap():
+            assert not gc.isenabled()
+            cycle: list[object] = []
+            cycle.append(cycle)
+            del cycle
+        assert gc.isenabled()
+        assert gc.get_freeze_count() > 0
+        assert gc.get_count()[2] == 0  # the one collection ran: nothing old is pending
+    finally:
+        gc.unfreeze()
