@@ -802,10 +802,11 @@ def replay(
     """Run the navigation filter on a recorded log and score it against the log's truth
     (.tlog) or the autopilot's estimate (.ulg)."""
     _out_dir(out)
-    from hil.pipeline import filter_config
-    from hil.streamer import GnssWindow
-    from scenarios.replay import replay as run_replay
-    from sim.presets import gnss_preset
+    with settled_heap():
+        from hil.pipeline import filter_config
+        from hil.streamer import GnssWindow
+        from scenarios.replay import replay as run_replay
+        from sim.presets import gnss_preset
 
     _choice("bridging method", bridge, BRIDGE_METHODS)
     _choice("altitude method", altitude, ALTITUDE_METHODS)
@@ -920,9 +921,10 @@ def demo(
 ) -> None:
     """The main job: fly a racetrack, record it, run the filter with a GNSS outage, score it."""
     _out_dir(out)
-    from hil.pipeline import SimSetup, filter_config, record_flight
-    from scenarios.replay import replay as run_replay
-    from sim.presets import gnss_preset
+    with settled_heap():
+        from hil.pipeline import SimSetup, filter_config, record_flight
+        from scenarios.replay import replay as run_replay
+        from sim.presets import gnss_preset
 
     out.mkdir(parents=True, exist_ok=True)
     log = out / "run.tlog"
@@ -1043,8 +1045,9 @@ def compare(
 ) -> None:
     """Every bridging method on the same sensor data per seed (the papers' Tables 1 and 2)."""
     _out_dir(out)
-    from scenarios.compare import compare as run_compare
-    from scenarios.compare import markdown, parse_methods
+    with settled_heap():
+        from scenarios.compare import compare as run_compare
+        from scenarios.compare import markdown, parse_methods
 
     names = parse_methods(methods)
     scn = _load_scenario(scenario, altitude=altitude, airspeed=airspeed, align=align)
