@@ -31,7 +31,9 @@ timers (JSBSim's ``run()``, the sink, the tlog write: two clock reads each, 1-2 
 this VM, ~0.7 s of a 300 s run) are measured in the child (``timer_us_per_call``) and taken
 out of the phases they would inflate; what they cost is its own phase, ``phase_timers``, so
 this child's total is that much above the plain run's. (Before session 13 they were not
-taken out: ``tlog_write`` was then mostly the timers' own cost.)
+taken out: ``tlog_write`` was then mostly the timers' own cost.) ``gc`` is the CPU of the
+garbage collector's passes during the command, by generation (spread over the phases above,
+not a phase of its own).
 
     python bench/run_end_to_end.py --duration 300 --out bench/results/run_end_to_end.json
     python bench/run_end_to_end.py --duration 3600 --skip-bare \\
@@ -54,6 +56,7 @@ outages throughout.
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import platform
@@ -165,6 +168,16 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
     """The phase-timed ``hilnav run`` (see the module docstring); runs in the child."""
     cpu = time.process_time
     t_start = cpu()
+    gc_n, gc_s, gc_t0 = [0, 0, 0], [0.0, 0.0, 0.0], [0.0]
+
+    def gc_clock(phase: str, info: dict[str, int]) -> None:  # CPU of the collections
+        if phase == "start":
+            gc_t0[0] = cpu()
+        else:
+            gc_n[info["generation"]] += 1
+            gc_s[info["generation"]] += cpu() - gc_t0[0]
+
+    gc.callbacks.append(gc_clock)
     import scenarios.cli.app as cli_app
 
     t_cli = cpu()
@@ -244,6 +257,7 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
     except SystemExit as exc:
         code = int(exc.code or 0)
     t_end = cpu()
+    gc.callbacks.remove(gc_clock)
     # the per-call timers (two clock reads each, ~1-2 us on this VM) are not the run's work:
     # what each books to its own phase and what it adds around it are measured and taken out
     inside, whole = _timer_cost()
@@ -264,10 +278,14 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
         "reports": acc["reports"],
     }
     split["other"] = t_end - sum(split.values())
-    phases_json.write_text(json.dumps({
-        "exit_code": code, "cpu_s_at_return": t_end, "cpu_s": split,
-        "timer_us_per_call": {"inside": inside * 1e6, "whole": whole * 1e6},
-        "timed_calls": {k: calls[k] for k in per_call}}), encoding="utf-8")
+    doc = {"exit_code": code, "cpu_s": split,
+           "timer_us_per_call": {"inside": inside * 1e6, "whole": whole * 1e6},
+           "timed_calls": {k: calls[k] for k in per_call},
+           "gc": {"collections_by_generation": gc_n, "cpu_s_by_generation": gc_s,
+                  "cpu_s": sum(gc_s)}}
+    # the child's own bookkeeping (calibration, this file) is neither the run nor its exit
+    doc["cpu_s_at_return"] = cpu()
+    phases_json.write_text(json.dumps(doc), encoding="utf-8")
 
 
 def time_phases(scenario_path: Path, out: Path, tree: Path = ROOT) -> dict[str, Any]:
@@ -291,7 +309,8 @@ def time_phases(scenario_path: Path, out: Path, tree: Path = ROOT) -> dict[str, 
     return {"command": "python bench/run_end_to_end.py --child-phases SCENARIO DIR JSON TREE",
             "cpu_s_total": total, "cpu_s": split,
             "share": {k: v / total for k, v in split.items()},
-            "timer_us_per_call": child["timer_us_per_call"], "timed_calls": child["timed_calls"]}
+            "timer_us_per_call": child["timer_us_per_call"], "timed_calls": child["timed_calls"],
+            "gc": child["gc"]}
 
 
 def time_ab(scenario_path: Path, base: str, rounds: int, folder: Path,
@@ -307,19 +326,22 @@ def time_ab(scenario_path: Path, base: str, rounds: int, folder: Path,
     subprocess.run(["tar", "-x", "-C", str(tree)], input=archive, check=True)
     cpu: dict[str, list[float]] = {"before": [], "after": []}
     split: dict[str, list[dict[str, float]]] = {"before": [], "after": []}
+    gc_cpu: dict[str, list[float]] = {"before": [], "after": []}
     for k in range(rounds):
         for key, src in (("before", tree), ("after", ROOT)):
             run = time_hilnav_run(scenario_path, folder / f"ab-{key}-{k}", src)
             cpu[key].append(run["cpu_s"])
             if phases:
-                split[key].append(time_phases(scenario_path, folder / f"abp-{key}-{k}",
-                                              src)["cpu_s"])
+                timed_run = time_phases(scenario_path, folder / f"abp-{key}-{k}", src)
+                split[key].append(timed_run["cpu_s"])
+                gc_cpu[key].append(timed_run["gc"]["cpu_s"])
     result: dict[str, Any] = {"base": base, "rounds": rounds, "cpu_s": cpu,
                               "after_over_before_best": min(cpu["after"]) / min(cpu["before"])}
     if phases:
         best = {key: {p: min(r[p] for r in rows) for p in rows[0]}
                 for key, rows in split.items()}
         result["phases_cpu_s"] = split
+        result["phases_gc_cpu_s"] = gc_cpu
         result["phases_best_cpu_s"] = best
         result["phases_best_after_minus_before"] = {
             p: best["after"][p] - best["before"][p] for p in best["after"]
