@@ -12,6 +12,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from scenarios.cli.quick_exit import QUICK_EXIT_COMMANDS, command_of
 
 
@@ -29,16 +31,19 @@ def test_nothing_open_for_writing_freezes() -> None:
     assert proc.stdout == "unflushed stdout line"  # the standard streams are still flushed
 
 
+@pytest.mark.parametrize("during_set_up", [False, True])
 def test_a_file_left_open_in_a_reference_cycle_blocks_the_freeze_and_is_flushed(
-        tmp_path: Path) -> None:
+        tmp_path: Path, during_set_up: bool) -> None:
+    """Opened at the top level, or inside the settled heap (so frozen since the set-up)."""
     path = tmp_path / "left-open.txt"
+    opener = "with settled_heap():\n    " if during_set_up else ""
     proc = _python("import sys\n"
-                   "from scenarios.cli.quick_exit import freeze_for_exit\n"
+                   "from scenarios.cli.quick_exit import freeze_for_exit, settled_heap\n"
                    "class Holder:\n"
                    "    pass\n"
                    "h = Holder()\n"
                    "h.me = h  # a cycle: a plain exit flushes this file, a frozen one would not\n"
-                   "h.f = open(sys.argv[1], 'w')\n"
+                   f"{opener}h.f = open(sys.argv[1], 'w')\n"
                    "h.f.write('x' * 1000)\n"
                    "sys.exit(4 if freeze_for_exit() else 0)\n", str(path))
     assert proc.returncode == 0, proc.stderr
@@ -64,22 +69,6 @@ def test_only_offline_commands_are_named() -> None:
     assert command_of([]) is None
     assert {"up", "fusion", "monitor", "sim", "router", "check", "campaign"}.isdisjoint(
         QUICK_EXIT_COMMANDS)
-
-
-def test_a_file_frozen_with_the_settled_heap_still_blocks_the_exit_freeze(tmp_path: Path) -> None:
-    path = tmp_path / "opened-during-set-up.txt"
-    proc = _python("import sys\n"
-                   "from scenarios.cli.quick_exit import freeze_for_exit, settled_heap\n"
-                   "class Holder:\n"
-                   "    pass\n"
-                   "with settled_heap():\n"
-                   "    h = Holder()\n"
-                   "    h.me = h\n"
-                   "    h.f = open(sys.argv[1], 'w')\n"
-                   "h.f.write('y' * 1000)\n"
-                   "sys.exit(4 if freeze_for_exit() else 0)\n", str(path))
-    assert proc.returncode == 0, proc.stderr
-    assert path.read_text() == "y" * 1000
 
 
 def test_the_settled_heap_collects_once_freezes_and_leaves_the_collector_on() -> None:
