@@ -22,12 +22,17 @@ child), ``cli_import`` (``scenarios.cli.app``), ``setup`` (the command up to the
 the imports of the runner, pipeline and report modules, scenario load, filter build),
 ``flight`` split into ``jsbsim_run``
 (JSBSim's ``run()`` alone, the clock read around each call), ``decode_filter`` (the
-:class:`hil.pipeline.FusionRun` sink: decode + filter + collector, per frame or per batch),
-``tlog_write`` and ``sim_chain_python`` (the rest of the flight: adapter, guidance, sensor
-models, encode, the pipeline's loop), ``scoring`` (``score`` minus its reports),
-``reports`` (JUnit, plots, HTML, and the import of their modules: matplotlib) and ``exit``
-(the child's CPU after the command returned: interpreter teardown). The timers
-cost ~1 us per JSBSim step, so this child's total is a little above the plain run's.
+:class:`hil.pipeline.FusionRun` sink: decode + filter + collector, per frame or
+per batch), ``tlog_write`` and ``sim_chain_python`` (the rest of the flight: adapter, guidance,
+sensor models, encode, the pipeline's loop), ``scoring`` (``score`` minus its reports),
+``reports`` (JUnit, plots, HTML, and the import of their modules: matplotlib) and ``exit`` (the child's CPU after the command returned: interpreter teardown). The per-call
+timers (JSBSim's ``run()``, the sink, the tlog write: two clock reads each, 1-2 us per call on
+this VM, ~0.7 s of a 300 s run) are measured in the child (``timer_us_per_call``) and taken
+out of the phases they would inflate; what they cost is its own phase, ``phase_timers``, so
+this child's total is that much above the plain run's. (Before session 13 they were not
+taken out: ``tlog_write`` was then mostly the timers' own cost.) ``gc`` is the CPU of the
+garbage collector's passes during the command, by generation (spread over the phases above,
+not a phase of its own).
 
     python bench/run_end_to_end.py --duration 300 --out bench/results/run_end_to_end.json
     python bench/run_end_to_end.py --duration 3600 --skip-bare \\
@@ -35,7 +40,12 @@ cost ~1 us per JSBSim step, so this child's total is a little above the plain ru
 
 ``--base REV`` adds ``ab``: the whole ``hilnav run`` child of revision REV (``git archive``
 into a temporary folder, first on ``PYTHONPATH``) and of this tree, alternately,
-``--ab-rounds`` times each, so a before / after ratio holds on a loaded machine.
+``--ab-rounds`` times each, so a before / after ratio holds on a loaded machine; unless
+``--skip-phases``, the phase-timed child of each tree too, alternately (``phases_cpu_s``,
+per phase the best of the rounds in ``phases_best_cpu_s`` and their difference).
+
+    python bench/run_end_to_end.py --duration 300 --base 4be3151 --ab-rounds 3 \\
+        --out bench/results/run_end_to_end_s13_fixed_ab.json
 
 The scenario (default ``turning-60s-outages``, 200 Hz) keeps its seed, sensors and plan; its
 outage events are replaced by one 60 s outage every 120 s from 120 s on, so a long run has
@@ -45,6 +55,7 @@ outages throughout.
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import platform
@@ -117,10 +128,55 @@ def time_hilnav_run(scenario_path: Path, out: Path, tree: Path = ROOT) -> dict[s
     }
 
 
+def _timer_cost(rounds: int = 3, calls: int = 20_000) -> tuple[float, float]:
+    """CPU seconds that one call timed the way the phases are timed adds: ``(inside, whole)``,
+    the part the timer books to the timed phase and the whole cost of the timing (the rest
+    lands in the enclosing phase); best of ``rounds``."""
+    cpu = time.process_time
+    acc = {"x": 0.0}
+    count = {"x": 0}
+
+    def noop() -> None:
+        return None
+
+    def wrapper() -> None:
+        t0 = cpu()
+        try:
+            return noop()
+        finally:
+            acc["x"] += cpu() - t0
+            count["x"] += 1
+
+    inside, whole = [], []
+    for _ in range(rounds):
+        acc["x"] = 0.0
+        t0 = cpu()
+        for _ in range(calls):
+            wrapper()
+        wrapped = cpu() - t0
+        t0 = cpu()
+        for _ in range(calls):
+            noop()
+        plain = cpu() - t0
+        inside.append(acc["x"] / calls)
+        whole.append((wrapped - plain) / calls)
+    return min(inside), min(whole)
+
+
 def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
     """The phase-timed ``hilnav run`` (see the module docstring); runs in the child."""
     cpu = time.process_time
     t_start = cpu()
+    gc_n, gc_s, gc_t0 = [0, 0, 0], [0.0, 0.0, 0.0], [0.0]
+
+    def gc_clock(phase: str, info: dict[str, int]) -> None:  # CPU of the collections
+        if phase == "start":
+            gc_t0[0] = cpu()
+        else:
+            gc_n[info["generation"]] += 1
+            gc_s[info["generation"]] += cpu() - gc_t0[0]
+
+    gc.callbacks.append(gc_clock)
     import scenarios.cli.app as cli_app
 
     t_cli = cpu()
@@ -129,6 +185,7 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
 
     acc: dict[str, float] = {"jsbsim_run": 0.0, "decode_filter": 0.0, "tlog_write": 0.0,
                              "flight": 0.0, "score_total": 0.0, "reports": 0.0}
+    calls: dict[str, int] = dict.fromkeys(acc, 0)
     marks: dict[str, float] = {}
 
     def timed(key: str, fn: Any) -> Any:
@@ -138,6 +195,7 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
                 return fn(*args, **kwargs)
             finally:
                 acc[key] += cpu() - t0
+                calls[key] += 1
         return wrapper
 
     class TimedFdm:  # JSBSim's FGFDMExec with run() timed
@@ -146,9 +204,11 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
 
         def run(self) -> Any:
             t0 = cpu()
-            result = self._fdm.run()
-            acc["jsbsim_run"] += cpu() - t0
-            return result
+            try:
+                return self._fdm.run()
+            finally:
+                acc["jsbsim_run"] += cpu() - t0
+                calls["jsbsim_run"] += 1
 
         def __getattr__(self, name: str) -> Any:
             return getattr(self._fdm, name)
@@ -193,37 +253,52 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
 
     scenarios.runner.score = timed("score_total", timed_score)
     code = 0
+    entry = getattr(cli_app, "main", None) or cli_app.app  # main: the console entry since s13
     try:
-        cli_app.app(["run", str(scenario_path), "--out", str(out), "--quiet"])
+        entry(["run", str(scenario_path), "--out", str(out), "--quiet"])
     except SystemExit as exc:
         code = int(exc.code or 0)
     t_end = cpu()
+    gc.callbacks.remove(gc_clock)
+    # the per-call timers (two clock reads each, ~1-2 us on this VM) are not the run's work:
+    # what each books to its own phase and what it adds around it are measured and taken out
+    inside, whole = _timer_cost()
+    per_call = ("jsbsim_run", "decode_filter", "tlog_write")
+    n_calls = sum(calls[k] for k in per_call)
     flight_start = marks.get("flight_start", t_end)
     split = {
         "interpreter_start": t_start,
         "cli_import": t_cli - t_start,
         "setup": flight_start - t_cli,
-        "jsbsim_run": acc["jsbsim_run"],
+        "jsbsim_run": acc["jsbsim_run"] - calls["jsbsim_run"] * inside,
         "sim_chain_python": acc["flight"] - acc["jsbsim_run"] - acc["decode_filter"]
-        - acc["tlog_write"],
-        "decode_filter": acc["decode_filter"],
-        "tlog_write": acc["tlog_write"],
+        - acc["tlog_write"] - n_calls * (whole - inside),
+        "decode_filter": acc["decode_filter"] - calls["decode_filter"] * inside,
+        "tlog_write": acc["tlog_write"] - calls["tlog_write"] * inside,
+        "phase_timers": n_calls * whole,
         "scoring": acc["score_total"] - acc["reports"],
         "reports": acc["reports"],
     }
     split["other"] = t_end - sum(split.values())
-    phases_json.write_text(json.dumps({"exit_code": code, "cpu_s_at_return": t_end,
-                                       "cpu_s": split}), encoding="utf-8")
+    doc = {"exit_code": code, "cpu_s": split,
+           "timer_us_per_call": {"inside": inside * 1e6, "whole": whole * 1e6},
+           "timed_calls": {k: calls[k] for k in per_call},
+           "gc": {"collections_by_generation": gc_n, "cpu_s_by_generation": gc_s,
+                  "cpu_s": sum(gc_s)}}
+    # the child's own bookkeeping (calibration, this file) is neither the run nor its exit
+    doc["cpu_s_at_return"] = cpu()
+    phases_json.write_text(json.dumps(doc), encoding="utf-8")
 
 
-def time_phases(scenario_path: Path, out: Path) -> dict[str, Any]:
-    """Run the phase-timed child; its split (CPU s) with ``exit`` = its whole CPU minus the
-    CPU at the command's return."""
-    phases_json = out.parent / "phases.json"
+def time_phases(scenario_path: Path, out: Path, tree: Path = ROOT) -> dict[str, Any]:
+    """Run the phase-timed child on the code of ``tree``; its split (CPU s) with ``exit`` = its
+    whole CPU minus the CPU at the command's return."""
+    phases_json = out.parent / f"{out.name}-phases.json"
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     cmd = [sys.executable, str(Path(__file__).resolve()), "--child-phases", str(scenario_path),
-           str(out), str(phases_json)]
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
+           str(out), str(phases_json), str(tree)]
+    env = {**os.environ, "PYTHONPATH": str(tree)}
+    proc = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True, check=False)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0 or not phases_json.is_file():
         sys.exit(f"phase-timed run failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
@@ -233,31 +308,52 @@ def time_phases(scenario_path: Path, out: Path) -> dict[str, Any]:
     total = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     split: dict[str, float] = child["cpu_s"]
     split["exit"] = total - child["cpu_s_at_return"]
-    return {"command": "python bench/run_end_to_end.py --child-phases SCENARIO DIR JSON",
+    return {"command": "python bench/run_end_to_end.py --child-phases SCENARIO DIR JSON TREE",
             "cpu_s_total": total, "cpu_s": split,
-            "share": {k: v / total for k, v in split.items()}}
+            "share": {k: v / total for k, v in split.items()},
+            "timer_us_per_call": child["timer_us_per_call"], "timed_calls": child["timed_calls"],
+            "gc": child["gc"]}
 
 
-def time_ab(scenario_path: Path, base: str, rounds: int, folder: Path) -> dict[str, Any]:
+def time_ab(scenario_path: Path, base: str, rounds: int, folder: Path,
+            phases: bool = True) -> dict[str, Any]:
     """``hilnav run`` of git revision ``base`` (exported with ``git archive``) and of this tree,
-    alternately, ``rounds`` times each; CPU seconds of each child and the ratio of the bests."""
+    alternately, ``rounds`` times each; CPU seconds of each child and the ratio of the bests;
+    with ``phases``, also the phase-timed child of each tree, alternately, and per phase the
+    best (lowest) of the rounds."""
     tree = folder / "base"
     tree.mkdir()
     archive = subprocess.run(["git", "archive", base], cwd=ROOT, check=True,
                              capture_output=True).stdout
     subprocess.run(["tar", "-x", "-C", str(tree)], input=archive, check=True)
     cpu: dict[str, list[float]] = {"before": [], "after": []}
+    split: dict[str, list[dict[str, float]]] = {"before": [], "after": []}
+    gc_cpu: dict[str, list[float]] = {"before": [], "after": []}
     for k in range(rounds):
         for key, src in (("before", tree), ("after", ROOT)):
             run = time_hilnav_run(scenario_path, folder / f"ab-{key}-{k}", src)
             cpu[key].append(run["cpu_s"])
-    return {"base": base, "rounds": rounds, "cpu_s": cpu,
-            "after_over_before_best": min(cpu["after"]) / min(cpu["before"])}
+            if phases:
+                timed_run = time_phases(scenario_path, folder / f"abp-{key}-{k}", src)
+                split[key].append(timed_run["cpu_s"])
+                gc_cpu[key].append(timed_run["gc"]["cpu_s"])
+    result: dict[str, Any] = {"base": base, "rounds": rounds, "cpu_s": cpu,
+                              "after_over_before_best": min(cpu["after"]) / min(cpu["before"])}
+    if phases:
+        best = {key: {p: min(r[p] for r in rows) for p in rows[0]}
+                for key, rows in split.items()}
+        result["phases_cpu_s"] = split
+        result["phases_gc_cpu_s"] = gc_cpu
+        result["phases_best_cpu_s"] = best
+        result["phases_best_after_minus_before"] = {
+            p: best["after"][p] - best["before"][p] for p in best["after"]
+            if p in best["before"]}
+    return result
 
 
 def main() -> None:
-    if len(sys.argv) == 5 and sys.argv[1] == "--child-phases":
-        sys.path.insert(0, str(ROOT))
+    if len(sys.argv) == 6 and sys.argv[1] == "--child-phases":
+        sys.path.insert(0, sys.argv[5])  # the tree whose code runs (this one, or --base's)
         _child_phases(Path(sys.argv[2]), Path(sys.argv[3]), Path(sys.argv[4]))
         return
     ap = argparse.ArgumentParser(description=__doc__,
@@ -284,7 +380,8 @@ def main() -> None:
         bare_cpu, steps = (None, 0) if args.skip_bare else time_jsbsim_bare(scn_path)
         run = time_hilnav_run(scn_path, folder / "run")
         phases = None if args.skip_phases else time_phases(scn_path, folder / "phases")
-        ab = None if args.base is None else time_ab(scn_path, args.base, args.ab_rounds, folder)
+        ab = None if args.base is None else time_ab(scn_path, args.base, args.ab_rounds, folder,
+                                                    phases=not args.skip_phases)
     result: dict[str, Any] = {
         "benchmark": "run_end_to_end",
         "python": platform.python_version(),

@@ -39,8 +39,10 @@ REPLAYS = {
 
 
 def _hilnav() -> list[str]:
-    exe = Path(sys.executable).with_name("hilnav")
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "scenarios.cli"]
+    # ``python -m`` with the tree's root as working folder, never the venv's ``hilnav`` script:
+    # that script names the entry function of the tree it was installed from (``main`` since
+    # session 13), which an export of an older revision on PYTHONPATH may not have
+    return [sys.executable, "-m", "scenarios.cli"]
 
 
 def _run(args: list[str], log: Path) -> int:

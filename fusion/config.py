@@ -23,6 +23,13 @@ from pydantic import (
 )
 
 from fusion.altitude.channel import AltitudeChannelConfig
+from fusion.choices import (  # noqa: F401  # re-exported: the commands' choices
+    AIRSPEED_MODES,
+    ALIGN_MODES,
+    ALTITUDE_METHODS,
+    DEFAULT_AIRSPEED_MODE,
+    DEFAULT_ALIGN_MODE,
+)
 from fusion.error_model import LayoutName
 from physconst.geomag import DEFAULT_DECIMAL_YEAR
 
@@ -344,16 +351,6 @@ class AirspeedTuning(_Frozen):
     would move under the model."""
 
 
-AIRSPEED_MODES: tuple[str, ...] = ("on", "off", "synthetic")
-"""Air-data choices of the commands (``--airspeed``): ``on`` fuses the pitot when the stream
-carries one; ``off`` fuses no air data (samples counted, not fused); ``synthetic`` is ``on``
-plus synthetic airspeed on a fixed-wing without a pitot (:class:`AirspeedTuning`)."""
-DEFAULT_AIRSPEED_MODE = "on"
-"""The commands' air-data default: the pitot is fused whenever the stream carries one, as PX4
-and ArduPilot do. ``off`` until the gust states: on held-out JSBSim flights (industrial MEMS,
-wind 0-12 m/s, turbulence 0-0.4, ``bench/air_data.py``, 30 flights) fusing the pitot left
-0.99x / 0.87x / 0.82x the free-inertial error 25 / 60 / 300 s into an outage (1.24x at
-300 s before them; bench/README.md, "Air data on JSBSim")."""
 
 
 def airspeed_tuning(mode: str, base: AirspeedTuning | None = None) -> AirspeedTuning:
@@ -438,10 +435,6 @@ class InitConfig(_Frozen):
     """Added (in quadrature) to the height sigma when the baro bias is initialised, m."""
 
 
-ALIGN_MODES: tuple[str, ...] = ("auto", "static", "in-flight")
-"""Alignment choices of the commands (``--align``): :attr:`InitConfig.mode` with a hyphen."""
-DEFAULT_ALIGN_MODE = "auto"
-"""The commands' alignment default: the path follows from the data (:class:`InitConfig`)."""
 
 
 def init_for_align(mode: str, base: InitConfig | None = None) -> InitConfig:
@@ -562,8 +555,6 @@ class BridgeConfig(_Frozen):
         return v
 
 
-ALTITUDE_METHODS: tuple[str, ...] = ("ekf", "loop", "loop-mpc", "loop-kf")
-"""Altitude methods of :class:`AltitudeConfig` (and ``--altitude`` on the command line)."""
 
 AltitudeMethodName = Literal["ekf", "loop", "loop-mpc", "loop-kf"]
 

@@ -38,14 +38,10 @@ from fusion.bridging.airspeed import AirspeedModelBridge, WindModelBridge
 from fusion.bridging.interface import Bridge, NoBridge
 from fusion.bridging.learned import LearnedBridge
 from fusion.bridging.models import ComponentModel, NarxModel, StatelessModel
+from fusion.choices import BRIDGE_METHODS
 from fusion.config import BridgeConfig
 from fusion.gmdh import GmdhRegressor
 from fusion.regressors import BpNet, NarxMLP, RbfNet
-
-BRIDGE_METHODS: tuple[str, ...] = (
-    "none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel", "gmdh-airspeed", "gmdh-wind"
-)
-"""Names accepted by :func:`make_bridge`."""
 
 GMDH_FEATURES: tuple[str, ...] = ("t", "t2", "sinpsi", "cospsi")
 """Default inputs of the GMDH, RBF and MLP networks: time into the outage, its square and the

@@ -1,5 +1,5 @@
 """``python -m scenarios.cli``: the ``hilnav`` command line."""
 
-from scenarios.cli.app import app
+from scenarios.cli.app import main
 
-app()
+main()

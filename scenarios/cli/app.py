@@ -14,10 +14,16 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Annotated, Any, Literal, ParamSpec, TypeVar
 
-import pydantic
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+from scenarios.cli.quick_exit import (
+    QUICK_EXIT_COMMANDS,
+    command_of,
+    freeze_for_exit,
+    settled_heap,
+)
 
 app = typer.Typer(
     name="hilnav",
@@ -32,12 +38,13 @@ console = Console(soft_wrap=True)
 P = ParamSpec("P")
 R = TypeVar("R")
 
-# the methods the fusion offers (fusion/ imports no I/O: cheap to import here)
-from fusion.bridging.registry import BRIDGE_METHODS  # noqa: E402
-from fusion.config import (  # noqa: E402
+# the names of the fusion's choices, without the filter behind them (numpy, scipy, pydantic:
+# each command imports what it runs, so --help and the light commands stay fast)
+from fusion.choices import (  # noqa: E402
     AIRSPEED_MODES,
     ALIGN_MODES,
     ALTITUDE_METHODS,
+    BRIDGE_METHODS,
     DEFAULT_AIRSPEED_MODE,
     DEFAULT_ALIGN_MODE,
 )
@@ -93,7 +100,11 @@ class RunFailed(Exception):
     """The run happened but did not succeed (exit code 1)."""
 
 
-def _first_validation_error(exc: pydantic.ValidationError) -> str:
+def _bad_input_message(exc: ValueError) -> str:
+    """One line for a bad value: pydantic's first validation error as ``where: what``."""
+    pydantic = sys.modules.get("pydantic")  # not imported: exc cannot be a ValidationError
+    if pydantic is None or not isinstance(exc, pydantic.ValidationError):
+        return str(exc)
     e = exc.errors()[0]
     loc = ".".join(str(p) for p in e["loc"]) or exc.title
     return f"{loc}: {e['msg']}"
@@ -106,10 +117,10 @@ def cli_errors(func: Callable[P, R]) -> Callable[P, R]:
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
         try:
             return func(*args, **kwargs)
-        except pydantic.ValidationError as exc:
-            err_console.print(f"[red]error:[/] {_first_validation_error(exc)}", highlight=False)
+        except ValueError as exc:  # pydantic's ValidationError included
+            err_console.print(f"[red]error:[/] {_bad_input_message(exc)}", highlight=False)
             raise typer.Exit(2) from None
-        except (ValueError, FileNotFoundError) as exc:
+        except FileNotFoundError as exc:
             err_console.print(f"[red]error:[/] {exc}", highlight=False)
             raise typer.Exit(2) from None
         except OSError as exc:  # a path the user named cannot be written or read
@@ -796,10 +807,11 @@ def replay(
     """Run the navigation filter on a recorded log and score it against the log's truth
     (.tlog) or the autopilot's estimate (.ulg)."""
     _out_dir(out)
-    from hil.pipeline import filter_config
-    from hil.streamer import GnssWindow
-    from scenarios.replay import replay as run_replay
-    from sim.presets import gnss_preset
+    with settled_heap():
+        from hil.pipeline import filter_config
+        from hil.streamer import GnssWindow
+        from scenarios.replay import replay as run_replay
+        from sim.presets import gnss_preset
 
     _choice("bridging method", bridge, BRIDGE_METHODS)
     _choice("altitude method", altitude, ALTITUDE_METHODS)
@@ -914,9 +926,10 @@ def demo(
 ) -> None:
     """The main job: fly a racetrack, record it, run the filter with a GNSS outage, score it."""
     _out_dir(out)
-    from hil.pipeline import SimSetup, filter_config, record_flight
-    from scenarios.replay import replay as run_replay
-    from sim.presets import gnss_preset
+    with settled_heap():
+        from hil.pipeline import SimSetup, filter_config, record_flight
+        from scenarios.replay import replay as run_replay
+        from sim.presets import gnss_preset
 
     out.mkdir(parents=True, exist_ok=True)
     log = out / "run.tlog"
@@ -990,10 +1003,11 @@ def run(
 ) -> None:
     """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
     _out_dir(out)
-    from scenarios.runner import AutopilotAbsent, run_scenario
+    with settled_heap():
+        from scenarios.runner import AutopilotAbsent, run_scenario
 
-    scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
-                         airspeed=airspeed, align=align)
+        scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
+                             airspeed=airspeed, align=align)
     if scn.autopilot.flies:
         _say_waiting_for_autopilot(scn)
     try:
@@ -1036,8 +1050,9 @@ def compare(
 ) -> None:
     """Every bridging method on the same sensor data per seed (the papers' Tables 1 and 2)."""
     _out_dir(out)
-    from scenarios.compare import compare as run_compare
-    from scenarios.compare import markdown, parse_methods
+    with settled_heap():
+        from scenarios.compare import compare as run_compare
+        from scenarios.compare import markdown, parse_methods
 
     names = parse_methods(methods)
     scn = _load_scenario(scenario, altitude=altitude, airspeed=airspeed, align=align)
@@ -1132,5 +1147,17 @@ def campaign(
         raise RunFailed(f"some runs failed their criteria or errored; see {out / 'campaign.md'}")
 
 
+def main(argv: list[str] | None = None) -> None:
+    """The ``hilnav`` console entry: run the command (typer exits with its code), then, for an
+    offline command with every file closed, skip the interpreter's final teardown collections
+    (:mod:`scenarios.cli.quick_exit`)."""
+    args = sys.argv[1:] if argv is None else list(argv)
+    try:
+        app(args)
+    finally:
+        if command_of(args) in QUICK_EXIT_COMMANDS:
+            freeze_for_exit()
+
+
 if __name__ == "__main__":
-    app()
+    main()

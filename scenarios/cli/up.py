@@ -38,7 +38,7 @@ from typing import IO, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from fusion.config import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
+from fusion.choices import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
 from hil.bus import validate_vehicle
 from hil.bus.security import RouterSecurity, endpoint_host
 from hil.codec import SIM_SYSTEM_ID

@@ -368,3 +368,30 @@ def test_path_decimation_of_a_track_without_positions_keeps_every_sample_quietly
     y = np.linspace(0.0, 99.0, 100)
     assert np.array_equal(report.path_indices(x, y, 1.0), np.arange(100))
     assert np.array_equal(report.path_indices(y, x, 1.0), np.arange(100))
+
+
+def test_saving_without_the_layout_placeholder_writes_the_same_png_bytes(tmp_path: Path) -> None:
+    """GIVEN a figure with shared axes, shading, a band and a legend
+    WHEN it is saved by ``report._save`` (tight layout, then one draw) and by matplotlib's
+    plain ``tight_layout()`` + ``savefig`` (which draws it twice)
+    THEN the two PNG files are byte for byte the same."""
+    from matplotlib.figure import Figure
+
+    t = np.linspace(0.0, 100.0, 400)
+    paths = (tmp_path / "plain.png", tmp_path / "saved.png")
+    for k, path in enumerate(paths):
+        fig = Figure(figsize=(6, 4))
+        axes = fig.subplots(2, 2, sharex=True)
+        for i, ax in enumerate(axes.flat):
+            ax.plot(t, np.sin(t / (i + 1)), lw=0.8, label="error")
+            ax.fill_between(t, -1.0, 1.0, color="tab:gray", alpha=0.25, label="±3σ")
+            ax.axvspan(20.0, 40.0, color="tab:red", alpha=0.12)
+            ax.set_title(f"panel {i}", fontsize=9)
+        axes[0, 0].legend(loc="upper left", fontsize=8)
+        fig.suptitle("estimate minus truth", fontsize=10)
+        if k == 0:
+            fig.tight_layout()
+            fig.savefig(path, dpi=80)
+        else:
+            report._save(fig, path, dpi=80)
+    assert paths[0].read_bytes() == paths[1].read_bytes()

@@ -1,0 +1,34 @@
+"""The command line loads only what a command runs.
+
+GIVEN a fresh interpreter, WHEN it imports the ``hilnav`` command line (what ``hilnav --help``
+and every command pay before doing anything), THEN none of the heavy libraries is loaded: each
+command imports the filter, the simulator, the plots or the bus itself.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+HEAVY = ("numpy", "scipy", "pydantic", "matplotlib", "pymavlink", "zenoh", "dask", "jsbsim",
+         "yaml", "mcap", "pyulog", "fusion.config", "hil", "sim")
+
+
+def test_importing_the_command_line_loads_no_heavy_library() -> None:
+    code = ("import json, sys\n"
+            "import scenarios.cli.app\n"
+            f"print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True, timeout=60)
+    assert json.loads(proc.stdout) == []
+
+
+def test_the_choices_in_the_help_are_the_ones_the_fusion_validates() -> None:
+    from fusion import config
+    from fusion.bridging import registry
+    from fusion.choices import ALTITUDE_METHODS, BRIDGE_METHODS
+
+    assert registry.BRIDGE_METHODS is BRIDGE_METHODS
+    assert config.ALTITUDE_METHODS is ALTITUDE_METHODS
+    assert set(ALTITUDE_METHODS) == set(config.AltitudeMethodName.__args__)  # type: ignore[attr-defined]
