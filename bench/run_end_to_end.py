@@ -18,21 +18,21 @@ before and after.
 ``phases`` (unless ``--skip-phases``): where each CPU second of the run goes, from a second
 child that runs the same ``hilnav run`` command in-process (``app([...])``) with CPU timers
 (``process_time``) around its parts: ``interpreter_start`` (CPU before the first line of the
-child), ``cli_import`` (``scenarios.cli.app``), ``setup`` (the command up to the flight:
-the imports of the runner, pipeline and report modules, scenario load, filter build),
-``flight`` split into ``jsbsim_run``
-(JSBSim's ``run()`` alone, the clock read around each call), ``decode_filter`` (the
-:class:`hil.pipeline.FusionRun` sink: decode + filter + collector, per frame or
-per batch), ``tlog_write`` and ``sim_chain_python`` (the rest of the flight: adapter, guidance,
-sensor models, encode, the pipeline's loop), ``scoring`` (``score`` minus its reports),
-``reports`` (JUnit, plots, HTML, and the import of their modules: matplotlib) and ``exit`` (the child's CPU after the command returned: interpreter teardown). The per-call
-timers (JSBSim's ``run()``, the sink, the tlog write: two clock reads each, 1-2 us per call on
-this VM, ~0.7 s of a 300 s run) are measured in the child (``timer_us_per_call``) and taken
-out of the phases they would inflate; what they cost is its own phase, ``phase_timers``, so
-this child's total is that much above the plain run's. (Before session 13 they were not
-taken out: ``tlog_write`` was then mostly the timers' own cost.) ``gc`` is the CPU of the
-garbage collector's passes during the command, by generation (spread over the phases above,
-not a phase of its own).
+child), ``cli_import`` (``scenarios.cli.app``), ``setup`` (the command up to the flight: the
+imports of the runner, pipeline and report modules, scenario load, filter build), ``flight``
+split into ``jsbsim_run`` (JSBSim's ``run()`` alone, the clock read around each call),
+``decode_filter`` (the :class:`hil.pipeline.FusionRun` sink: decode + filter + collector, per
+frame or per batch), ``tlog_write`` and ``sim_chain_python`` (the rest of the flight: adapter,
+guidance, sensor models, encode, the pipeline's loop), ``scoring`` (``score`` minus its
+reports), ``reports`` (JUnit, plots, HTML, and the import of their modules: matplotlib) and
+``exit`` (the child's CPU after the command returned: interpreter teardown). The per-call timers
+(JSBSim's ``run()``, the sink, the tlog write: two clock reads each, 1-2 us per call on this VM,
+~0.7 s of a 300 s run) are measured in the child (``timer_us_per_call``) and taken out of the
+phases they would inflate; what they cost is its own phase, ``phase_timers``, so this child's
+total is that much above the plain run's. (Before session 13 they were not taken out:
+``tlog_write`` was then mostly the timers' own cost.) ``gc`` is the CPU of the garbage
+collector's passes during the command, by generation (spread over the phases above, not a phase
+of its own).
 
     python bench/run_end_to_end.py --duration 300 --out bench/results/run_end_to_end.json
     python bench/run_end_to_end.py --duration 3600 --skip-bare \\
