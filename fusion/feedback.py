@@ -25,6 +25,7 @@ from fusion.strapdown import InsState
 FloatArray = NDArray[np.float64]
 Vec3 = tuple[float, float, float]
 _tuple_new = tuple.__new__  # NamedTuple(...) without its Python-level __new__ frame
+_inv = np.linalg.inv
 
 
 class Feedback(NamedTuple):
@@ -121,16 +122,48 @@ def feedback(
         sg = (sg[0] - d[b], sg[1] - d[b + 1], sg[2] - d[b + 2])
     ma, mg = accel_misalignment_b, gyro_misalignment_b
     if layout.has_misalignment:
+        # element by element (no generator: this runs at every accepted update)
         b = layout.MA
-        ma = tuple(m - e for m, e in zip(ma, d[b : b + 6], strict=True))
+        ma = (ma[0] - d[b], ma[1] - d[b + 1], ma[2] - d[b + 2], ma[3] - d[b + 3],
+              ma[4] - d[b + 4], ma[5] - d[b + 5])  # fmt: skip
         b = layout.MG
-        mg = tuple(m - e for m, e in zip(mg, d[b : b + 6], strict=True))
+        mg = (mg[0] - d[b], mg[1] - d[b + 1], mg[2] - d[b + 2], mg[3] - d[b + 3],
+              mg[4] - d[b + 4], mg[5] - d[b + 5])  # fmt: skip
     bs = baro_scale - d[layout.BS] if layout.has_baro_scale else baro_scale
     # this runs at every accepted update: the tuple directly, not Feedback(...)
     return _tuple_new(Feedback, (
         new, new_ba, new_bg, baro_bias_m - d[layout.BARO], new_gb, sa, sg,
         d[p : p + 3] + d[v : v + 3] + d[a : a + 3], ma, mg, bs,
     ))  # fmt: skip
+
+
+def sensor_inverses(
+    accel_scale_b: Sequence[float], accel_misalignment_b: Sequence[float],
+    gyro_scale_b: Sequence[float], gyro_misalignment_b: Sequence[float],
+) -> tuple[tuple[float, ...], tuple[float, ...]]:  # fmt: skip
+    """Both sensor-model inverses after a feedback: :func:`fusion.strapdown.sensor_inverse`
+    of the accelerometer and of the gyro (each ``(I + diag(s) + M)^-1`` row-major) in one
+    ``np.linalg.inv`` call on the stack of the two matrices.
+
+    The same bits as two calls: numpy's ``inv`` gufunc copies each matrix of a stack into
+    its own buffer and solves it by its own LAPACK ``gesv`` call whatever the stack's length,
+    so a stack of two only halves the Python and dispatch overhead (two per accepted update,
+    misalignment layouts). ``tests/fusion/test_feedback.py`` checks the bits against
+    :func:`fusion.strapdown.sensor_inverse`.
+
+    Returns
+    -------
+    accel_inverse, gyro_inverse : 9 floats each
+    """
+    sa, sg = accel_scale_b, gyro_scale_b
+    a01, a02, a10, a12, a20, a21 = accel_misalignment_b
+    g01, g02, g10, g12, g20, g21 = gyro_misalignment_b
+    t = np.array([
+        [[1.0 + sa[0], a01, a02], [a10, 1.0 + sa[1], a12], [a20, a21, 1.0 + sa[2]]],
+        [[1.0 + sg[0], g01, g02], [g10, 1.0 + sg[1], g12], [g20, g21, 1.0 + sg[2]]],
+    ])  # fmt: skip
+    inv_a, inv_g = _inv(t).reshape(2, 9).tolist()
+    return tuple(inv_a), tuple(inv_g)
 
 
 def reset_block(

@@ -97,7 +97,13 @@ from fusion.estimate import (
     new_estimate,
     new_innovation,
 )
-from fusion.feedback import feedback, reset_baro_bias, reset_block, reset_position_with_bias
+from fusion.feedback import (
+    feedback,
+    reset_baro_bias,
+    reset_block,
+    reset_position_with_bias,
+    sensor_inverses,
+)
 from fusion.history import InsHistory, span_capacity
 from fusion.outage import OutageBridging
 from fusion.propagation import CovariancePropagator, decay_gnss_bias
@@ -678,8 +684,7 @@ class NavFilter:
         if air is not None and air.state.active:
             air.state.correct(dx.tolist(), self.layout)
         if self._misalign:
-            self._ta_inv = strapdown.sensor_inverse(self._sa, self._ma)
-            self._tg_inv = strapdown.sensor_inverse(self._sg, self._mg)
+            self._ta_inv, self._tg_inv = sensor_inverses(self._sa, self._ma, self._sg, self._mg)
         self._ins = ins
         if new_gb is not None:
             self._gb = list(new_gb)

@@ -17,6 +17,7 @@ from scipy.special import chdtri
 
 FloatArray = NDArray[np.float64]
 _dot = np.dot
+_add = np.add
 
 
 class Correction(NamedTuple):
@@ -127,10 +128,14 @@ def correct(
     A = _eye(len(x)) - _dot(K, H)
     P_new = _dot(_dot(A, P), A.T)
     P_new += _dot(_dot(K, R), K.T)
-    # remove the rounding asymmetry so it cannot accumulate over thousands of updates
-    P_new += P_new.T
-    P_new *= 0.5
-    return Correction(x_new, P_new, y, S, test_ratio)
+    # remove the rounding asymmetry so it cannot accumulate over thousands of updates:
+    # P = (P + P^T) / 2, each entry P_ij + P_ji in that operand order (as an in-place
+    # ``P += P.T`` computes it); the transpose copied first (one fast C-order copy) instead of
+    # the strided overlapping read numpy buffers for ``P += P.T``: same bits, C-contiguous
+    P_sym = P_new.T.copy()
+    _add(P_new, P_sym, out=P_sym)
+    P_sym *= 0.5
+    return Correction(x_new, P_sym, y, S, test_ratio)
 
 
 def _inverse_and_nis(s: list[list[float]], y: list[float]) -> tuple[list[list[float]], float]:

@@ -97,6 +97,7 @@ class CovariancePropagator:
         self.air_offset: int | None = None
         self.airspeed_mps = 0.0
         self.gust_decay = 1.0
+        self._gust_cache: dict[tuple[float, float], tuple[float, float]] = {}
 
     def take_gust_decay(self) -> float:
         """The gust decay since the last call (the nominal gust is multiplied by it)."""
@@ -175,7 +176,7 @@ class CovariancePropagator:
         else:
             f_b = w_b = _ZERO3
         model = self.model
-        Phi = model.first_order_transition(lat, h, v, c_nb, f_n, T, f_b, w_b, lt)
+        Phi = model.first_order_transition(lat, h, v, c_nb, f_n, T, f_b, w_b, lt, scratch=True)
         # P = Phi P Phi^T + Q  (Q diagonal: white sensor noise and Gauss-Markov driving noise)
         # (np.dot: the same GEMMs as @, with less dispatch overhead on these small matrices.
         # Phi^T stays a transposed view: a contiguous copy is ~7 % faster at 43 states but its
@@ -190,7 +191,15 @@ class CovariancePropagator:
             P[a + 1, a + 1] += qw
             P[a + 2, a + 2] += qk
             # gusts: first-order Gauss-Markov, decaying with the distance flown through the air
-            phi, qg = model.gust_transition(T, self.airspeed_mps)
+            # (phi and q depend on T and the airspeed, which changes at the air-data epochs only)
+            key = (T, self.airspeed_mps)
+            gust = self._gust_cache.get(key)
+            if gust is None:
+                gust = model.gust_transition(T, self.airspeed_mps)
+                if len(self._gust_cache) >= 64:
+                    self._gust_cache.clear()
+                self._gust_cache[key] = gust
+            phi, qg = gust
             g = a + 3
             P[g : g + 2, :] *= phi
             P[:, g : g + 2] *= phi

@@ -282,6 +282,14 @@ def test_first_order_transition_and_process_noise() -> None:
     np.testing.assert_allclose(
         model.first_order_transition(*args), np.eye(22) + 0.01 * f, atol=1e-15
     )
+    # the propagation's in-place form: the same bits, whatever the previous call wrote
+    fresh = model.first_order_transition(*args)
+    other = (0.2, 10.0, (-5.0, 3.0, -1.0), args[3], (2.0, 1.0, -9.0), 0.01, (1.0, -2.0, -9.0),
+             (0.5, -0.4, 0.3))  # fmt: skip
+    model.first_order_transition(*other, scratch=True)
+    again = model.first_order_transition(*args, scratch=True)
+    np.testing.assert_array_equal(again.view(np.int64), fresh.view(np.int64))
+    assert model.first_order_transition(*args, scratch=True) is again
     q = np.diag(model.process_noise(0.01))
     lay = INS22
     np.testing.assert_allclose(q[lay.vel], NOISE.accel_noise**2 * 0.01)

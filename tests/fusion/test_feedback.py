@@ -7,9 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from fusion import earth
+from fusion import earth, strapdown
 from fusion.error_model import INS16, INS16_GNSS, INS22, INS22_GNSS, StateLayout
-from fusion.feedback import feedback, reset_baro_bias, reset_block, reset_position_with_bias
+from fusion.feedback import (
+    feedback,
+    reset_baro_bias,
+    reset_block,
+    reset_position_with_bias,
+    sensor_inverses,
+)
 from fusion.rotations import quat_multiply, quat_normalize, rotvec_to_quat
 from fusion.strapdown import InsState
 
@@ -114,3 +120,20 @@ def test_baro_bias_reset_copies_the_down_position_row() -> None:
     np.testing.assert_array_equal(Pn[b], row)
     np.testing.assert_array_equal(Pn[:, b], row)
     np.testing.assert_array_equal(Pn[:b, :b], P[:b, :b])
+
+
+def test_sensor_inverses_are_two_sensor_inverse_calls_bit_for_bit() -> None:
+    rng = np.random.default_rng(5)
+    bits = np.int64
+    for k in range(300):
+        scale = rng.normal(0.0, 10.0 ** rng.uniform(-6, -1), size=6)
+        mis = rng.normal(0.0, 10.0 ** rng.uniform(-6, -1), size=12)
+        if k % 10 == 0:  # exact zeros (and a negative zero) as the first feedback has
+            scale[:3] = 0.0
+            mis[:6] = -0.0
+        sa, sg = tuple(scale[:3].tolist()), tuple(scale[3:].tolist())
+        ma, mg = tuple(mis[:6].tolist()), tuple(mis[6:].tolist())
+        inv_a, inv_g = sensor_inverses(sa, ma, sg, mg)
+        for got, want in ((inv_a, strapdown.sensor_inverse(sa, ma)),
+                          (inv_g, strapdown.sensor_inverse(sg, mg))):  # fmt: skip
+            np.testing.assert_array_equal(np.array(got).view(bits), np.array(want).view(bits))

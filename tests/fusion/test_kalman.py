@@ -78,3 +78,23 @@ def test_predict_matches_textbook() -> None:
     x2, P2 = kalman.predict(x, P, Phi, Q)
     np.testing.assert_allclose(x2, Phi @ x)
     np.testing.assert_allclose(P2, Phi @ P @ Phi.T + Q)
+
+
+@pytest.mark.parametrize("m", [1, 3])
+def test_correct_symmetrises_as_p_plus_p_transposed_over_two_bit_for_bit(m: int) -> None:
+    # the documented step, written out: P = (A P A^T + K R K^T); P += P^T; P *= 0.5 (an
+    # in-place add reads the transpose as it was); correct() must give the same bits
+    x, P, z, H, R = random_problem(m, n=43, seed=11 + m)
+    res = kalman.correct(x, P, z, H, R)
+    PHt = P @ H.T
+    K = PHt @ np.linalg.inv(H @ PHt + R)
+    A = np.eye(len(x)) - np.dot(K, H)
+    joseph = np.dot(np.dot(A, P), A.T) + np.dot(np.dot(K, R), K.T)
+    expected = np.empty_like(joseph)
+    for i in range(len(x)):
+        for j in range(len(x)):
+            expected[i, j] = (joseph[i, j] + joseph[j, i]) * 0.5
+    if m == 1:  # the K of correct() for m = 1 is PHt * (1 / S): the same bits only there
+        np.testing.assert_array_equal(res.P.view(np.int64), expected.view(np.int64))
+    np.testing.assert_array_equal(res.P, res.P.T)
+    assert res.P.flags.c_contiguous
