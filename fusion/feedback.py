@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from fusion import earth
 from fusion.error_model import StateLayout
 from fusion.rotations import quat_product, rotvec_quat
-from fusion.strapdown import InsState
+from fusion.strapdown import InsState, sensor_matrix
 
 FloatArray = NDArray[np.float64]
 Vec3 = tuple[float, float, float]
@@ -155,12 +155,9 @@ def sensor_inverses(
     -------
     accel_inverse, gyro_inverse : 9 floats each
     """
-    sa, sg = accel_scale_b, gyro_scale_b
-    a01, a02, a10, a12, a20, a21 = accel_misalignment_b
-    g01, g02, g10, g12, g20, g21 = gyro_misalignment_b
     t = np.array([
-        [[1.0 + sa[0], a01, a02], [a10, 1.0 + sa[1], a12], [a20, a21, 1.0 + sa[2]]],
-        [[1.0 + sg[0], g01, g02], [g10, 1.0 + sg[1], g12], [g20, g21, 1.0 + sg[2]]],
+        sensor_matrix(accel_scale_b, accel_misalignment_b),
+        sensor_matrix(gyro_scale_b, gyro_misalignment_b),
     ])  # fmt: skip
     inv_a, inv_g = _inv(t).reshape(2, 9).tolist()
     return tuple(inv_a), tuple(inv_g)

@@ -334,16 +334,21 @@ def increments_compensated_python(
     )
 
 
-def sensor_inverse(scale: Sequence[float], misalignment: Sequence[float]) -> tuple[float, ...]:
-    """``(I + diag(scale) + M)^-1`` row-major, ``M`` from its six off-diagonal entries in the
-    order ``(0,1), (0,2), (1,0), (1,2), (2,0), (2,1)`` (:data:`fusion.error_model.OFF_DIAGONAL`)."""
+def sensor_matrix(scale: Sequence[float], misalignment: Sequence[float]) -> list[list[float]]:
+    """The sensor model ``I + diag(scale) + M`` as rows, ``M`` from its six off-diagonal entries
+    in the order ``(0,1), (0,2), (1,0), (1,2), (2,0), (2,1)``
+    (:data:`fusion.error_model.OFF_DIAGONAL`)."""
     m01, m02, m10, m12, m20, m21 = misalignment
-    t = np.array([
+    return [
         [1.0 + scale[0], m01, m02],
         [m10, 1.0 + scale[1], m12],
         [m20, m21, 1.0 + scale[2]],
-    ])  # fmt: skip
-    return tuple(np.linalg.inv(t).ravel().tolist())
+    ]  # fmt: skip
+
+
+def sensor_inverse(scale: Sequence[float], misalignment: Sequence[float]) -> tuple[float, ...]:
+    """``(I + diag(scale) + M)^-1`` row-major (:func:`sensor_matrix`)."""
+    return tuple(np.linalg.inv(np.array(sensor_matrix(scale, misalignment))).ravel().tolist())
 
 
 # ---- compiled kernel -----------------------------------------------------------------------
