@@ -82,6 +82,7 @@ After each measurement update the error estimate is moved into the INS and reset
 from __future__ import annotations
 
 import math
+import os
 import struct
 import typing
 from dataclasses import dataclass
@@ -92,6 +93,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion import earth
+from fusion.strapdown import KERNEL_ENV
 
 FloatArray = NDArray[np.float64]
 
@@ -668,6 +670,21 @@ class ErrorModel:
             if len(self._phi_base) < 64:
                 self._phi_base[dt_s] = base
         phi = base if scratch else base.copy()
+        if terms is None:
+            terms = earth.local_terms(lat_rad, alt_m)  # as the reference's first line does
+        if _kernel is not None:
+            # the compiled _fill (fusion/_update.c), written straight into phi; it declines
+            # (False, phi untouched) where the reference would raise or meets non-float input
+            try:
+                dg = earth.gravity_gradient(lat_rad, alt_m)
+            except Exception:  # the reference below raises it again, at its own place
+                dg = None
+            lay = self.layout
+            if dg is not None and _kernel.transition_fill(
+                phi, self._var_idx, terms, dg, v_ned_mps, c_nb, f_n_mps2, f_b_mps2,
+                omega_ib_b_rps, dt_s, 1.0, lay.has_scale_factors, lay.has_misalignment,
+            ):  # fmt: skip
+                return phi
         vals = self._fill(
             lat_rad, alt_m, v_ned_mps, c_nb, f_n_mps2, f_b_mps2, omega_ib_b_rps, dt_s, 1.0, terms
         )
@@ -743,3 +760,24 @@ class ErrorModel:
         if len(self._q_cache) < 64:
             self._q_cache[dt_s] = qd
         return qd
+
+
+# ---- compiled kernel -----------------------------------------------------------------------
+# fusion/_update.c is ErrorModel._fill in C, operation for operation, writing Phi's variable
+# entries in place (built by `pip install` when a C compiler is there; README, "Compiled INS
+# kernel"). Its entries are bit for bit the reference's (tests/fusion/test_update_kernel.py).
+def _load_kernel() -> Any:
+    try:
+        from fusion import _update
+    except ImportError:  # built without a C compiler: the Python reference, same numbers
+        return None
+    _update.bind(earth.LocalTerms, earth.RATE)
+    return _update
+
+
+_compiled = _load_kernel()  # bound even when not used (tests compare it with the reference)
+_kernel = None if os.environ.get(KERNEL_ENV, "").strip().lower() == "python" else _compiled
+#: Which implementation fills the first-order transition: ``"c"`` (fusion/_update.c) or
+#: ``"python"`` (:meth:`ErrorModel._fill`; no compiler at install time, or
+#: ``HILNAV_KERNEL=python``).
+KERNEL = "python" if _kernel is None else "c"
