@@ -1,8 +1,11 @@
-/* Compiled part of the covariance time update: the variable entries of the first-order
- * transition Phi = I + F T, operation for operation the Python reference
- * fusion.error_model.ErrorModel._fill, written straight into Phi (what
- * ErrorModel.first_order_transition does with the reference's list through struct.pack_into and
- * ndarray.put).
+/* Compiled parts of the covariance time update, operation for operation their Python references
+ * in fusion.error_model:
+ * - transition_fill: the variable entries of the first-order transition Phi = I + F T
+ *   (ErrorModel._fill), written straight into Phi (what ErrorModel.first_order_transition does
+ *   with the reference's list through struct.pack_into and ndarray.put);
+ * - add_process_noise: P += Q and the air-data block's noise and gust decay, element by element
+ *   (ErrorModel.add_process_noise; numpy's in-place add and multiply round each element on its
+ *   own, so a loop in the same order gives the same bits).
  *
  * Bit identity with CPython is the contract, the discipline of fusion/_strapdown.c:
  * - every expression keeps the Python's evaluation order and parenthesisation (C and Python
@@ -326,6 +329,97 @@ done:
     return result;
 }
 
+/* A C-contiguous, writable (if asked) 2-D float64 n x n buffer of obj, or 0 with no error set. */
+static int
+square_f64(PyObject *obj, Py_buffer *view, int writable, Py_ssize_t *n)
+{
+    int flags = PyBUF_ND | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(obj, view, flags) < 0) {
+        PyErr_Clear();
+        return 0;
+    }
+    if (view->ndim != 2 || view->shape[0] != view->shape[1] || view->itemsize != 8
+        || strcmp(view->format, "d") != 0) {
+        PyBuffer_Release(view);
+        return 0;
+    }
+    *n = view->shape[0];
+    return 1;
+}
+
+PyDoc_STRVAR(add_process_noise_doc,
+"add_process_noise(P, Q, air, q_wind, q_scale, gust_phi, q_gust) -> bool\n\n"
+"ErrorModel.add_process_noise's reference in place, element by element in its order:\n"
+"``P += Q``; with ``air >= 0`` (the air block's offset) ``P[a, a] += q_wind``,\n"
+"``P[a+1, a+1] += q_wind``, ``P[a+2, a+2] += q_scale``, rows then columns ``g, g+1``\n"
+"(``g = a + 3``) times ``gust_phi``, ``P[g, g] += q_gust``, ``P[g+1, g+1] += q_gust``.\n"
+"False, with nothing changed, for anything the reference would treat otherwise (not two\n"
+"n x n C-contiguous float64 arrays, P read-only, non-float scalars, air block outside P).");
+
+static PyObject *
+add_process_noise(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 7) {
+        PyErr_SetString(PyExc_TypeError, "add_process_noise takes 7 positional arguments");
+        return NULL;
+    }
+    double q_wind, q_scale, gust_phi, q_gust;
+    if (!(PyLong_CheckExact(args[2]) && float_of(args[3], &q_wind) && float_of(args[4], &q_scale)
+          && float_of(args[5], &gust_phi) && float_of(args[6], &q_gust))) {
+        Py_RETURN_FALSE;
+    }
+    Py_ssize_t a = PyLong_AsSsize_t(args[2]);
+    if (a == -1 && PyErr_Occurred()) {
+        PyErr_Clear();
+        Py_RETURN_FALSE;
+    }
+    Py_buffer pv, qv;
+    Py_ssize_t n, nq;
+    if (!square_f64(args[0], &pv, 1, &n)) {
+        Py_RETURN_FALSE;
+    }
+    if (!square_f64(args[1], &qv, 0, &nq)) {
+        PyBuffer_Release(&pv);
+        Py_RETURN_FALSE;
+    }
+    int ok = nq == n && a >= -1 && a + 4 < n && pv.buf != qv.buf;
+    if (ok) {
+        double *P = (double *)pv.buf;
+        const double *Q = (const double *)qv.buf;
+        Py_ssize_t nn = n * n;
+        /* P += Q */
+        for (Py_ssize_t i = 0; i < nn; i++) {
+            P[i] += Q[i];
+        }
+        if (a >= 0) {
+            Py_ssize_t g = a + 3;
+            P[a * n + a] += q_wind;
+            P[(a + 1) * n + a + 1] += q_wind;
+            P[(a + 2) * n + a + 2] += q_scale;
+            /* P[g : g + 2, :] *= phi */
+            for (Py_ssize_t i = g; i < g + 2; i++) {
+                for (Py_ssize_t j = 0; j < n; j++) {
+                    P[i * n + j] *= gust_phi;
+                }
+            }
+            /* P[:, g : g + 2] *= phi */
+            for (Py_ssize_t i = 0; i < n; i++) {
+                P[i * n + g] *= gust_phi;
+                P[i * n + g + 1] *= gust_phi;
+            }
+            P[g * n + g] += q_gust;
+            P[(g + 1) * n + g + 1] += q_gust;
+        }
+    }
+    PyBuffer_Release(&qv);
+    PyBuffer_Release(&pv);
+    if (ok) {
+        Py_RETURN_TRUE;
+    }
+    Py_RETURN_FALSE;
+}
+
 PyDoc_STRVAR(bind_doc, "bind(local_terms_type, earth_rate): the Earth model's type and constant.");
 
 static PyObject *
@@ -348,6 +442,8 @@ bind(PyObject *self, PyObject *args)
 static PyMethodDef methods[] = {
     {"transition_fill", (PyCFunction)(void (*)(void))transition_fill, METH_FASTCALL,
      transition_fill_doc},
+    {"add_process_noise", (PyCFunction)(void (*)(void))add_process_noise, METH_FASTCALL,
+     add_process_noise_doc},
     {"bind", bind, METH_VARARGS, bind_doc},
     {NULL, NULL, 0, NULL},
 };

@@ -99,7 +99,7 @@ def test_kernel_is_bound_and_used_unless_the_reference_is_forced() -> None:
 def test_matches_the_reference_on_a_seeded_sweep(monkeypatch: pytest.MonkeyPatch) -> None:
     """Flight-like operating points, latitudes up to the poles, every layout family."""
     rng = np.random.default_rng(20261203)
-    for i in range(400):
+    for i in range(200):
         name = LAYOUTS[i % len(LAYOUTS)]
         q = rng.normal(size=4)
         q /= np.linalg.norm(q)
@@ -187,3 +187,69 @@ def test_bad_buffers_are_errors_not_silent_writes() -> None:
         kernel.transition_fill(np.zeros((4, 4)), model._var_idx, *call)
     with pytest.raises(TypeError):
         kernel.transition_fill(np.zeros((n, n)), model._var_idx)
+
+
+# ------------------------------------------------------------------ add_process_noise
+def noise_outcome(model: em.ErrorModel, compiled: bool, P: np.ndarray, args: tuple[Any, ...],
+                  monkeypatch: pytest.MonkeyPatch) -> tuple[str, Any]:
+    out = P.copy()
+    with monkeypatch.context() as m:
+        m.setattr(em, "_kernel", kernel if compiled else None)
+        try:
+            model.add_process_noise(out, *args)
+        except (ValueError, TypeError, IndexError) as e:
+            return type(e).__name__, str(e)
+    return "ok", bits(out)
+
+
+def assert_same_noise(name: str, P: np.ndarray, args: tuple[Any, ...],
+                      monkeypatch: pytest.MonkeyPatch) -> str:
+    model = MODELS[name]
+    got = noise_outcome(model, True, P, args, monkeypatch)
+    want = noise_outcome(model, False, P, args, monkeypatch)
+    assert got == want, (name, args)
+    return got[0]
+
+
+def test_process_noise_matches_the_reference(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Random covariances with -0.0, NaN, inf and subnormals sprinkled in; air block dormant
+    and active."""
+    rng = np.random.default_rng(7)
+    air = em.layout_for("ins35+gnss+air")
+    specials = np.array([-0.0, 0.0, math.nan, math.inf, -math.inf, 5e-324, -1e308])
+    for i in range(200):
+        name = LAYOUTS[i % len(LAYOUTS)]
+        n = MODELS[name].layout.n
+        P = rng.normal(size=(n, n)) * 10.0 ** rng.uniform(-12, 3)
+        if i % 3 == 0:
+            P.flat[rng.integers(0, n * n, 20)] = rng.choice(specials, 20)
+        dt = float(10.0 ** rng.uniform(-3.0, -1.0))
+        args: tuple[Any, ...] = (dt,)
+        if name == "ins35+gnss+air" and i % 2:
+            q = rng.choice(np.concatenate([specials, rng.uniform(0, 1, 7)]), 4).tolist()
+            args = (dt, air.WIND, q[0], q[1], q[2], q[3])
+        assert assert_same_noise(name, P, args, monkeypatch) == "ok"
+
+
+def test_process_noise_declines_what_it_does_not_take(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fortran order, float32, another size, an int scalar, an air block past the edge: the
+    reference runs (and raises where it raises)."""
+    air = em.layout_for("ins35+gnss+air")
+    n = air.n
+    P = np.arange(n * n, dtype=float).reshape(n, n) * 1e-3
+    Q = MODELS["ins35+gnss+air"].process_noise(0.01)
+    assert kernel.add_process_noise(np.asfortranarray(P), Q, -1, 0.0, 0.0, 1.0, 0.0) is False
+    assert kernel.add_process_noise(P.astype(np.float32), Q, -1, 0.0, 0.0, 1.0, 0.0) is False
+    assert kernel.add_process_noise(P[:4, :4].copy(), Q, -1, 0.0, 0.0, 1.0, 0.0) is False
+    assert kernel.add_process_noise(P.copy(), Q, air.WIND, 1, 0.0, 1.0, 0.0) is False
+    assert kernel.add_process_noise(P.copy(), Q, n - 3, 0.0, 0.0, 1.0, 0.0) is False
+    ro = P.copy()
+    ro.flags.writeable = False
+    assert kernel.add_process_noise(ro, Q, -1, 0.0, 0.0, 1.0, 0.0) is False
+    same = P.copy()
+    assert kernel.add_process_noise(same, same, -1, 0.0, 0.0, 1.0, 0.0) is False
+    assert same.tobytes() == P.tobytes()  # nothing written when declined
+    for args in [(0.01, air.WIND, 1, 0.0, 1.0, 0.0), (0.01, n - 3, 0.0, 0.0, 0.5, 0.0)]:
+        assert assert_same_noise("ins35+gnss+air", P, args, monkeypatch) in {"ok", "IndexError"}
+    with pytest.raises(TypeError):
+        kernel.add_process_noise(P, Q)
