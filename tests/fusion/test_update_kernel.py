@@ -22,6 +22,7 @@ import fusion.error_model as em
 from fusion import earth
 from fusion.rotations import dcm_from_quat
 from fusion.strapdown import KERNEL_ENV
+from tests.fusion.test_error_model import NOISE
 
 try:
     from fusion import _update as kernel
@@ -29,17 +30,6 @@ except ImportError:  # pragma: no cover - the failure below says what to do
     kernel = None  # type: ignore[assignment]
 
 LAYOUTS = ["ins16", "ins22+gnss", "ins35", "ins35+gnss+air"]
-NOISE = em.ProcessNoise(
-    gyro_noise=1e-4, accel_noise=1e-3,
-    gyro_bias_sigma=5e-5, gyro_bias_tau_s=300.0,
-    accel_bias_sigma=1e-2, accel_bias_tau_s=200.0,
-    baro_bias_sigma=5.0, baro_bias_tau_s=500.0,
-    gyro_scale_sigma=1e-3, gyro_scale_tau_s=1000.0,
-    accel_scale_sigma=1e-3, accel_scale_tau_s=800.0,
-    gnss_bias_sigma_h_m=1.4, gnss_bias_sigma_v_m=2.4,
-    gnss_bias_tau_h_s=120.0, gnss_bias_tau_v_s=90.0,
-    gyro_misalignment_sigma=1e-3, accel_misalignment_sigma=1e-3,
-)  # fmt: skip
 MODELS = {name: em.ErrorModel(em.layout_for(name), NOISE) for name in LAYOUTS}
 
 
