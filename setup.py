@@ -1,7 +1,8 @@
-"""Build of the optional compiled INS kernel (``fusion._strapdown``); everything else about the
-distribution is in pyproject.toml.
+"""Build of the optional compiled kernels (``fusion._strapdown``, the INS; ``fusion._update``,
+the covariance time update's Phi fill); everything else about the distribution is in
+pyproject.toml.
 
-The kernel must give CPython's bits (README, "Compiled INS kernel"), hence the flags: ``-O2``
+The kernels must give CPython's bits (README, "Compiled INS kernel"), hence the flags: ``-O2``
 without ``-ffast-math`` or ``-march=native``, ``-ffp-contract=off`` (gcc would fuse ``a * b + c``
 into one FMA instruction where the target has one, e.g. aarch64 or ``-march`` with FMA, and the
 fused result is rounded once instead of twice), and no builtin ``sin`` / ``cos`` (gcc would merge
@@ -31,6 +32,13 @@ setup(
             sources=["fusion/_strapdown.c"],
             extra_compile_args=_FLAGS,
             optional=True,
-        )
+        ),
+        # the covariance time update's Phi fill (fusion.error_model), the same discipline
+        Extension(
+            "fusion._update",
+            sources=["fusion/_update.c"],
+            extra_compile_args=_FLAGS,
+            optional=True,
+        ),
     ]
 )

@@ -54,6 +54,10 @@ round) so that both see the same machine load, and records both digests:
 
     python bench/fusion_speed.py --ab 42eb08f [--rounds 6] [--layout ins16 | --gnss-bias on] \
         --out bench/results/fusion_speed_ab_....json
+
+A ``git archive`` has no built extension: the base tree gets this tree's build of each compiled
+module whose C source is byte-identical in both (listed in the JSON as
+``base_compiled_modules_copied``); the others run their Python reference there.
 """
 
 from __future__ import annotations
@@ -207,6 +211,7 @@ def ab_compare(base_rev: str, samples: list[Any], n_imu: int, rounds: int, repea
         archive = subprocess.run(["git", "archive", base_rev], cwd=root, check=True,
                                  capture_output=True).stdout
         subprocess.run(["tar", "-x", "-C", str(base)], input=archive, check=True)
+        compiled = _share_compiled(root, base)
         stream = Path(tmp) / "stream.pkl"
         with open(stream, "wb") as fh:
             pickle.dump({"samples": samples, "imu_samples": n_imu, "layout": LAYOUT["name"],
@@ -237,7 +242,28 @@ def ab_compare(base_rev: str, samples: list[Any], n_imu: int, rounds: int, repea
                                       for k, v in runs.items()},
         "digests": digests,
         "bit_identical": digests["base"] == digests["this"] and len(digests["this"]) == 1,
+        "base_compiled_modules_copied": compiled,
     }
+
+
+def _share_compiled(root: Path, base: Path) -> list[str]:
+    """A ``git archive`` holds no built extension: give the base tree this tree's build of every
+    compiled module whose C source is byte-identical in both (e.g. ``fusion/_strapdown.c``), so
+    that both sides run the kernels their sources define; a module the base lacks (or has in
+    another version) stays absent there and the base runs its Python reference. Returns the
+    copied files."""
+    import shutil
+
+    copied = []
+    for src in sorted((base / "fusion").glob("_*.c")):
+        ours = root / "fusion" / src.name
+        if not ours.exists() or ours.read_bytes() != src.read_bytes():
+            continue
+        for built in sorted((root / "fusion").glob(src.stem + ".*.so")) + sorted(
+                (root / "fusion").glob(src.stem + ".*.pyd")):
+            shutil.copy2(built, base / "fusion" / built.name)
+            copied.append(f"fusion/{built.name}")
+    return copied
 
 
 def gemm_variants(samples: list[Any], rounds: int = 300, calls: int = 20) -> dict[str, Any]:

@@ -82,6 +82,7 @@ After each measurement update the error estimate is moved into the INS and reset
 from __future__ import annotations
 
 import math
+import os
 import struct
 import typing
 from dataclasses import dataclass
@@ -92,6 +93,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion import earth
+from fusion.strapdown import KERNEL_ENV
 
 FloatArray = NDArray[np.float64]
 
@@ -668,6 +670,21 @@ class ErrorModel:
             if len(self._phi_base) < 64:
                 self._phi_base[dt_s] = base
         phi = base if scratch else base.copy()
+        if terms is None:
+            terms = earth.local_terms(lat_rad, alt_m)  # as the reference's first line does
+        if _kernel is not None:
+            # the compiled _fill (fusion/_update.c), written straight into phi; it declines
+            # (False, phi untouched) where the reference would raise or meets non-float input
+            try:
+                dg = earth.gravity_gradient(lat_rad, alt_m)
+            except Exception:  # the reference below raises it again, at its own place
+                dg = None
+            lay = self.layout
+            if dg is not None and _kernel.transition_fill(
+                phi, self._var_idx, terms, dg, v_ned_mps, c_nb, f_n_mps2, f_b_mps2,
+                omega_ib_b_rps, dt_s, 1.0, lay.has_scale_factors, lay.has_misalignment,
+            ):  # fmt: skip
+                return phi
         vals = self._fill(
             lat_rad, alt_m, v_ned_mps, c_nb, f_n_mps2, f_b_mps2, omega_ib_b_rps, dt_s, 1.0, terms
         )
@@ -696,6 +713,47 @@ class ErrorModel:
         nz = self.noise
         phi = math.exp(-dt_s * max(airspeed_mps, 1.0) / nz.gust_length_m)
         return phi, nz.gust_sigma_mps**2 * (1.0 - phi * phi)
+
+    def add_process_noise(
+        self, P: FloatArray, dt_s: float, air_offset: int | None = None, q_wind: float = 0.0,
+        q_scale: float = 0.0, gust_phi: float = 1.0, q_gust: float = 0.0,
+    ) -> None:  # fmt: skip
+        """``P += Q_d`` in place (:meth:`process_noise`), and with the air-data block active
+        (``air_offset``) its process noise (:meth:`air_process_noise`: ``q_wind`` on the three
+        wind entries, ``q_scale`` on the scale) and the gust block's
+        Gauss-Markov step (:meth:`gust_transition`: its rows and columns times ``gust_phi``, then
+        ``q_gust`` on its diagonal).
+
+        Parameters
+        ----------
+        P : ndarray, shape (n, n)
+            Covariance after ``Phi P Phi^T``, modified in place.
+        dt_s : float
+            Propagation interval, s.
+        air_offset : int, optional
+            Offset of the active air-data block; ``None``: dormant or absent.
+        q_wind, q_scale, gust_phi, q_gust : float
+            The air block's increments over ``dt_s`` (unused without ``air_offset``).
+        """
+        Q = self.process_noise(dt_s)
+        if _kernel is not None and _kernel.add_process_noise(
+            P, Q, -1 if air_offset is None else air_offset, q_wind, q_scale, gust_phi, q_gust
+        ):
+            return  # the compiled loop below, element by element (fusion/_update.c)
+        # P = P + Q  (Q diagonal: white sensor noise and Gauss-Markov driving noise)
+        P += Q
+        a = air_offset
+        if a is not None:
+            # wind random walk, airspeed scale random walk
+            P[a, a] += q_wind
+            P[a + 1, a + 1] += q_wind
+            P[a + 2, a + 2] += q_scale
+            # gusts: first-order Gauss-Markov, P_gg <- phi P_gg phi + q
+            g = a + 3
+            P[g : g + 2, :] *= gust_phi
+            P[:, g : g + 2] *= gust_phi
+            P[g, g] += q_gust
+            P[g + 1, g + 1] += q_gust
 
     def transition_matrix(self, f: FloatArray, dt_s: float) -> FloatArray:
         """Discrete transition ``Phi = I + F T + (F T)^2 / 2`` (second-order Taylor series)."""
@@ -743,3 +801,27 @@ class ErrorModel:
         if len(self._q_cache) < 64:
             self._q_cache[dt_s] = qd
         return qd
+
+
+# ---- compiled kernel -----------------------------------------------------------------------
+# fusion/_update.c is ErrorModel._fill (writing Phi's variable entries in place) and the
+# element loops of ErrorModel.add_process_noise in C, operation for operation (built by
+# `pip install` when a C compiler is there; README, "Compiled INS kernel"). Its results are bit
+# for bit the reference's (tests/fusion/test_update_kernel.py). One difference off the numbers:
+# numpy's in-place lines warn on an overflow or NaN they produce, the loop does not.
+def _load_kernel() -> Any:
+    try:
+        from fusion import _update
+    except ImportError:  # built without a C compiler: the Python reference, same numbers
+        return None
+    _update.bind(earth.LocalTerms, earth.RATE)
+    return _update
+
+
+_compiled = _load_kernel()  # bound even when not used (tests compare it with the reference)
+_kernel = None if os.environ.get(KERNEL_ENV, "").strip().lower() == "python" else _compiled
+#: Which implementation fills the first-order transition and adds the process noise: ``"c"``
+#: (fusion/_update.c) or ``"python"`` (:meth:`ErrorModel._fill`, :meth:`ErrorModel.
+#: add_process_noise`'s numpy lines; no compiler at install time, or
+#: ``HILNAV_KERNEL=python``).
+KERNEL = "python" if _kernel is None else "c"

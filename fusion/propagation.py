@@ -182,14 +182,12 @@ class CovariancePropagator:
         # Phi^T stays a transposed view: a contiguous copy is ~7 % faster at 43 states but its
         # bit identity rests on how one BLAS build tiles its kernel; bench/README.md)
         P = _dot(_dot(Phi, self.P), Phi.T)
-        P += model.process_noise(T)
         a = self.air_offset
-        if a is not None:
+        if a is None:
+            model.add_process_noise(P, T)
+        else:
             # wind random walk driven harder when climbing (the wind changes with height)
             qw, qk = model.air_process_noise(T, vd)
-            P[a, a] += qw
-            P[a + 1, a + 1] += qw
-            P[a + 2, a + 2] += qk
             # gusts: first-order Gauss-Markov, decaying with the distance flown through the air
             # (phi and q depend on T and the airspeed, which changes at the air-data epochs only)
             key = (T, self.airspeed_mps)
@@ -200,11 +198,8 @@ class CovariancePropagator:
                     self._gust_cache.clear()
                 self._gust_cache[key] = gust
             phi, qg = gust
-            g = a + 3
-            P[g : g + 2, :] *= phi
-            P[:, g : g + 2] *= phi
-            P[g, g] += qg
-            P[g + 1, g + 1] += qg
+            # P += Q, then the air block's noise and the gusts' decay (in that order)
+            model.add_process_noise(P, T, a, qw, qk, phi, qg)
             self.gust_decay *= phi
         self.P = P
         k = self.baro_decay(T)
