@@ -45,3 +45,14 @@ def bind_imu(
         return None
     compiled.bind_imu(first_order_filter_ref, imu_output_ref)
     return None if KERNEL == "python" else compiled
+
+
+def bind_guidance(
+    law_ref: Callable[..., Any], controls_type: type, constants: tuple[float, ...]
+) -> ModuleType | None:
+    """Hand the guidance law's reference, its result type and its constants (g0, pi, 2 pi,
+    3 deg in rad) to the kernel; the kernel module when it is to be used, else None."""
+    if compiled is None:
+        return None
+    compiled.bind_guidance(law_ref, controls_type, constants)
+    return None if KERNEL == "python" else compiled

@@ -1,4 +1,5 @@
-"""sim._simkernel (the compiled simulator kernel) against its Python references in sim.imu, and
+"""sim._simkernel (the compiled simulator kernel) against its Python references in sim.imu and
+sim.guidance, and
 the Gauss-Markov block filter against scipy.signal.lfilter, which it replaces: the same bits for
 every output (struct bytes, so -0.0 and 0.0 differ), NaN where the reference gives NaN, the same
 exception where it raises, and the IMU model's samples unchanged.
@@ -25,9 +26,12 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from scipy.signal import lfilter  # the tests compare with it; the product must not import it
 
+import sim.guidance as guidance
 import sim.imu as imu
 import sim.kernel as sk
 from sim import presets
+from sim.flight import Flight, FlightConfig
+from sim.plans import load_plan
 
 try:
     from sim import _simkernel as kernel
@@ -90,6 +94,7 @@ def test_kernel_is_built_and_used_unless_the_reference_is_forced() -> None:
     assert sk.KERNEL == ("python" if forced else "c")
     assert (imu.imu_output is kernel.imu_output) != forced
     assert (imu.first_order_filter is kernel.first_order_filter) != forced
+    assert (guidance.law is kernel.law) != forced
 
 
 def test_the_imu_model_does_not_import_scipy_signal() -> None:
@@ -286,3 +291,131 @@ def test_imu_model_stream_is_the_same_with_and_without_the_kernel(
     monkeypatch.setattr(imu, "first_order_filter", imu.first_order_filter_python)
     monkeypatch.setattr(imu, "imu_output", imu.imu_output_python)
     assert run() == with_kernel
+
+
+# ------------------------------------------------------------------------------- guidance law
+def law_outcome(fn: Callable[..., Any], args: list[Any]) -> tuple[Any, ...]:
+    """Controls (type and bits), the integrators after the call, or the exception."""
+    args = list(args)
+    args[9] = list(args[9])  # each implementation updates its own copy
+    try:
+        c = fn(*args)
+        result: Any = (type(c).__name__, floats_key(c))
+    except (ValueError, TypeError) as e:
+        result = (type(e).__name__, str(e))
+    return result, floats_key(args[9])
+
+
+def assert_law_same(args: list[Any]) -> Any:
+    got, want = law_outcome(kernel.law, args), law_outcome(guidance.law_python, args)
+    assert got == want, args
+    return got
+
+
+def law_params() -> tuple[float, ...]:
+    trim = guidance.TrimPoint(guidance.Controls(0.01, -0.05, 0.002, 0.6), 0.03, 1500.0, 0.004)
+    plan = load_plan("racetrack")
+    return guidance.Guidance(plan, 0.0, 1000.0, 50.0, trim)._law_params
+
+
+FIN = st.floats(-1e3, 1e3)
+STATE = st.tuples(
+    st.floats(0.0, 1e4), st.sampled_from([0.005, 0.01, 0.02]), FIN, FIN, st.floats(0.0, 5e3),
+    st.floats(-80.0, 80.0), st.floats(-80.0, 80.0), st.floats(-20.0, 20.0),
+    st.floats(-5.0, 120.0), st.floats(-3.5, 3.5), st.floats(-1.6, 1.6), st.floats(-4.0, 4.0),
+    st.floats(-2.0, 2.0), st.floats(-2.0, 2.0), st.floats(-2.0, 2.0), st.floats(-0.5, 0.5),
+    st.floats(-0.5, 0.5), st.floats(-10.0, 1e4),
+)
+
+
+@settings(max_examples=80, deadline=None)
+@given(STATE, st.one_of(st.none(), st.floats(-7.0, 7.0)), st.floats(-1.0, 1.0),
+       st.floats(0.0, 1.2), st.booleans(), st.floats(-0.5, 0.5),
+       st.tuples(st.floats(0.0, 5e3), st.floats(20.0, 80.0), st.floats(0.5, 5.0)),
+       st.lists(st.floats(-0.5, 0.5), min_size=5, max_size=5))
+def test_law_matches_the_reference(s: tuple[float, ...], course_err: float | None,
+                                   phi_fixed: float, limit: float, pitch_direct: bool,
+                                   theta_fixed: float, targets: tuple[float, float, float],
+                                   integrators: list[float]) -> None:
+    gin = guidance.GuidanceInput(*s)
+    assert_law_same([gin, course_err, phi_fixed, limit, pitch_direct, theta_fixed, *targets,
+                     integrators, law_params()])
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.tuples(*[st.floats()] * 18), st.one_of(st.none(), st.floats()), st.floats(),
+       st.floats(), st.booleans(), st.floats(), st.tuples(st.floats(), st.floats(), st.floats()),
+       st.lists(st.floats(), min_size=5, max_size=5),
+       st.lists(st.floats(), min_size=29, max_size=29))
+def test_law_matches_the_reference_on_any_doubles(
+    s: tuple[float, ...], course_err: float | None, phi_fixed: float, limit: float,
+    pitch_direct: bool, theta_fixed: float, targets: tuple[float, float, float],
+    integrators: list[float], params: list[float]
+) -> None:
+    """NaN and inf anywhere: the same values, or the same "math domain error" (sin / tan / cos
+    of inf) with the integrators the reference had updated before it raised."""
+    assert_law_same([guidance.GuidanceInput(*s), course_err, phi_fixed, limit, pitch_direct,
+                     theta_fixed, *targets, integrators, tuple(params)])
+
+
+def test_law_edge_cases_and_fallbacks() -> None:
+    p = law_params()
+    base = [0.0, 0.005, 0.0, 0.0, 1000.0, 50.0, 0.0, 0.0, 50.0, 0.1, 0.05, 0.0, 0.0, 0.0, 0.0,
+            0.05, 0.0, 1500.0]
+    targets = [1000.0, 50.0, 2.5]
+
+    def args(s: list[Any], course: Any = 0.2, pitch_direct: Any = False) -> list[Any]:
+        return [guidance.GuidanceInput(*s), course, 0.1, 0.5, pitch_direct, 0.05, *targets,
+                [0.0, 0.01, -0.01, 0.0, 0.02], p]
+
+    assert assert_law_same(args(base))[0][0] == "Controls"
+    for i, v in ((9, math.inf), (10, math.inf), (9, -math.inf)):  # sin(phi), cos(theta)
+        s = list(base)
+        s[i] = v
+        assert assert_law_same(args(s))[0][0] == "ValueError"
+    for alpha in (0.15, 0.2, 0.25, 0.4):  # the angle-of-attack guard, partly and fully on
+        s = list(base)
+        s[15] = alpha
+        assert_law_same(args(s))
+        assert_law_same(args(s, course=None, pitch_direct=True))
+    for phi in (-math.pi, math.pi, 3.0, -0.0, 1e-300):  # the wrap's float modulo
+        s = list(base)
+        s[9] = phi
+        assert_law_same(args(s))
+    # inputs the kernel does not take go to the reference (same result, same errors)
+    for a in (
+        args([*base[:4], 1000, *base[5:]]),  # an int in the state
+        args(base, course=1),  # an int course error
+        args(base, pitch_direct=0),  # not a bool
+        [tuple(base), *args(base)[1:]],  # a plain tuple works too (fast path)
+        [list(base), *args(base)[1:]],  # a list: the reference
+        [*args(base)[:-1], list(p)],  # params as a list
+    ):
+        assert_law_same(a)
+    a = args(base)
+    got = law_outcome(lambda *x: kernel.law(*x[:-1], params=x[-1]), a)
+    want = law_outcome(lambda *x: guidance.law_python(*x[:-1], params=x[-1]), a)
+    assert got == want
+
+
+def test_guidance_flies_the_same_with_and_without_the_kernel(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The law on the states of a recorded manoeuvre flight (attitude, turn and waypoint legs),
+    with the kernel and with the reference: the same controls and plan progress, bit for bit."""
+    with Flight(FlightConfig(), load_plan("manoeuvre")) as flight:
+        states = []
+        for _ in range(3000):
+            states.append(flight._guidance_input(flight.time_s))
+            flight.step()
+        law = flight.guidance
+        args = (law.plan, 0.0, 1000.0, 50.0, law._trim, law.gains)
+
+    def fly() -> list[Any]:
+        g = guidance.Guidance(*args)
+        out = [[*floats_key(g.update(s)), g.leg_index] for s in states]
+        return [*out, floats_key(g._integrators)]
+
+    with_kernel = fly()
+    monkeypatch.setattr(guidance, "law", guidance.law_python)
+    assert fly() == with_kernel
