@@ -13,8 +13,9 @@ ENV PYTHONDONTWRITEBYTECODE=1 \
     PIP_DISABLE_PIP_VERSION_CHECK=1
 
 WORKDIR /src
-# a C compiler for the compiled INS kernel (fusion/_strapdown.c, README "Compiled INS kernel");
-# without it pip would silently install the slower, bit-identical Python reference only
+# a C compiler for the compiled kernels (fusion/_strapdown.c, fusion/_update.c, sim/_simkernel.c; README "Compiled
+# INS kernel", "Compiled simulator kernel");
+# without it pip would silently install the slower, bit-identical Python references only
 RUN apt-get update \
     && apt-get install -y --no-install-recommends gcc libc6-dev \
     && rm -rf /var/lib/apt/lists/*
@@ -27,7 +28,7 @@ COPY fusion ./fusion
 COPY scenarios ./scenarios
 COPY physconst ./physconst
 RUN pip install . \
-    && (cd / && python -c "import fusion._strapdown") \
+    && (cd / && python -c "import fusion._strapdown, fusion._update, sim._simkernel") \
     && useradd --create-home --uid 10001 hilnav \
     && mkdir -p /data \
     && chown hilnav /data

@@ -1,14 +1,16 @@
-"""Build of the optional compiled kernels (``fusion._strapdown``, the INS; ``fusion._update``,
-the covariance time update's Phi fill); everything else about the distribution is in
-pyproject.toml.
+"""Build of the optional compiled kernels: the INS (``fusion._strapdown``), the covariance time
+update's Phi fill and process noise (``fusion._update``) and the simulator's (``sim._simkernel``);
+everything else about the distribution is in pyproject.toml.
 
-The kernels must give CPython's bits (README, "Compiled INS kernel"), hence the flags: ``-O2``
+The kernels must give CPython's bits (README, "Compiled INS kernel" and "Compiled simulator
+kernel"), hence the flags: ``-O2``
 without ``-ffast-math`` or ``-march=native``, ``-ffp-contract=off`` (gcc would fuse ``a * b + c``
 into one FMA instruction where the target has one, e.g. aarch64 or ``-march`` with FMA, and the
 fused result is rounded once instead of twice), and no builtin ``sin`` / ``cos`` (gcc would merge
 ``sin(x)`` and ``cos(x)`` into one ``sincos`` call, whose bits libm does not promise to equal
 the two calls CPython's ``math`` makes). ``optional=True``: without a C compiler ``pip install``
-still succeeds and ``fusion.strapdown`` runs its Python reference (same numbers, slower)."""
+still succeeds and ``fusion.strapdown`` / ``sim.imu`` run their Python references (same numbers,
+slower)."""
 
 import platform
 import sys
@@ -37,6 +39,12 @@ setup(
         Extension(
             "fusion._update",
             sources=["fusion/_update.c"],
+            extra_compile_args=_FLAGS,
+            optional=True,
+        ),
+        Extension(
+            "sim._simkernel",
+            sources=["sim/_simkernel.c"],
             extra_compile_args=_FLAGS,
             optional=True,
         ),

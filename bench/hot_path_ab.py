@@ -7,9 +7,9 @@ part, on the same inputs (CPU time, best of ``--rounds`` rounds of ``--n`` calls
 ratio after / before holds even when the machine is loaded.
 
 Parts: the guidance law (``Guidance.update``), the adapter's guidance input and truth object
-(``Flight._guidance_input``, ``Flight._read_truth``), the IMU model (``measure_list``), the
-sensor suite's step (base suite with the base IMU model), and the encoder (HIL_SENSOR with IMU
-fields / with every field, HIL_GPS, HIL_STATE_QUATERNION).
+(``Flight._guidance_input``, ``Flight._read_truth``), the IMU model (``measure_list``; and
+``_refill``, one block of noise), the sensor suite's step (base suite with the base IMU model),
+and the encoder (HIL_SENSOR with IMU fields / with every field, HIL_GPS, HIL_STATE_QUATERNION).
 
     python bench/hot_path_ab.py --base 0e06048 --out bench/results/hot_path_ab.json
 """
@@ -114,6 +114,11 @@ def main() -> None:
     imu_new = new_imu.ImuModel(imu_cfg, np.random.default_rng(1), 200.0)
     cases["imu_measure"] = ab(lambda: imu_old.measure_list(u), lambda: imu_new.measure_list(u),
                               n, rounds)
+    # the noise block of BLOCK_STEPS samples (Gauss-Markov filter, random walks), per call
+    block_old = old_imu.ImuModel(imu_cfg, np.random.default_rng(2), 200.0)
+    block_new = new_imu.ImuModel(imu_cfg, np.random.default_rng(2), 200.0)
+    cases["imu_noise_block"] = ab(block_old._refill, block_new._refill, max(n // 200, 5), rounds)
+    assert block_old._err.tobytes() == block_new._err.tobytes()
 
     suite_cfg = presets.suite_config()
 

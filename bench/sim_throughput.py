@@ -25,6 +25,15 @@ of the chain runs between its calls.
     python bench/sim_throughput.py --duration 300 --wind 8,-4,0 --wind-shear 0.142857 \
         --out bench/results/sim_throughput_wind_shear.json
 
+``--base REV --ab-rounds N`` is the before/after of a change on a loaded machine: child processes
+of this script time bare JSBSim, the chain step by step and the chain in batches (``--ratio-only``,
+best of ``--repeats`` each), alternately with the code of a ``git archive`` of REV and of this
+tree first on ``PYTHONPATH``, N rounds; each child's ratios come from one process, and the JSON
+keeps every round and the best of each side (``ab``).
+
+    python bench/sim_throughput.py --duration 120 --repeats 2 --base 4f47f88 --ab-rounds 3 \
+        --out bench/results/sim_throughput_ab.json
+
 ``--wind`` / ``--wind-shear`` fly in a steady wind / a power-law wind profile (the profile is
 written to JSBSim at every step: its cost shows as the difference to a run without it).
 """
@@ -36,6 +45,9 @@ import gc
 import json
 import os
 import platform
+import subprocess
+import sys
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -185,6 +197,46 @@ def _breakdown(cfg: FlightConfig, plan_name: str, duration_s: float) -> dict[str
     return out
 
 
+def ratio_only(cfg: FlightConfig, plan_name: str, duration_s: float, repeats: int
+               ) -> dict[str, float]:
+    """Bare JSBSim, the chain step by step and in batches, CPU s (best of ``repeats``), with the
+    ratios to bare: what ``--base`` compares."""
+    bare = _best(lambda: time_jsbsim_bare(cfg, plan_name, duration_s), repeats)
+    chain = _best(lambda: time_chain(cfg, plan_name, duration_s)[0], repeats)
+    batched = _best(lambda: time_chain(cfg, plan_name, duration_s, LOCKSTEP_BATCH)[0], repeats)
+    return {"jsbsim_bare_cpu_s": bare, "sim_chain_cpu_s": chain, "sim_chain_batched_cpu_s": batched,
+            "chain_over_bare_ratio": chain / bare, "chain_batched_over_bare_ratio": batched / bare}
+
+
+def ab_rounds(args: argparse.Namespace) -> dict[str, Any]:
+    """``--ratio-only`` children of a git archive of ``args.base`` and of this tree, in turn."""
+    script = Path(__file__).resolve()
+    root = script.parent.parent
+    child_args = ["--ratio-only", "--duration", str(args.duration), "--rate", str(args.rate),
+                  "--plan", args.plan, "--wind", args.wind, "--wind-shear",
+                  str(args.wind_shear), "--repeats", str(args.repeats)]
+    rounds: dict[str, list[dict[str, float]]] = {"base": [], "this_tree": []}
+    with tempfile.TemporaryDirectory(prefix="hilnav-simab-") as tmp:
+        archive = subprocess.run(["git", "archive", args.base], cwd=root, check=True,
+                                 capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
+        for _ in range(args.ab_rounds):
+            for side, tree in (("base", Path(tmp)), ("this_tree", root)):
+                out = Path(tmp) / "child.json"
+                subprocess.run([sys.executable, str(script), *child_args, "--out", str(out)],
+                               env={**os.environ, "PYTHONPATH": str(tree)}, cwd=tree, check=True)
+                rounds[side].append(json.loads(out.read_text()))
+    keys = ("jsbsim_bare_cpu_s", "sim_chain_cpu_s", "sim_chain_batched_cpu_s",
+            "chain_over_bare_ratio", "chain_batched_over_bare_ratio")
+    best = {side: {key: min(r[key] for r in runs) for key in keys}
+            for side, runs in rounds.items()}
+    return {"base": args.base, "rounds": rounds, "best": best,
+            "chain_cpu_this_over_base": best["this_tree"]["sim_chain_cpu_s"]
+            / best["base"]["sim_chain_cpu_s"],
+            "chain_batched_cpu_this_over_base": best["this_tree"]["sim_chain_batched_cpu_s"]
+            / best["base"]["sim_chain_batched_cpu_s"]}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -195,11 +247,29 @@ def main() -> None:
     ap.add_argument("--wind-shear", type=float, default=0.0, help="power-law shear exponent")
     ap.add_argument("--repeats", type=int, default=3, help="best of this many runs")
     ap.add_argument("--out", type=Path, default=Path("bench/results/sim_throughput.json"))
+    ap.add_argument("--base", help="git revision: alternate its chain with this tree's (A/B)")
+    ap.add_argument("--ab-rounds", type=int, default=3, help="rounds of the A/B")
+    ap.add_argument("--ratio-only", action="store_true",
+                    help="only bare JSBSim and the chain (what one round of the A/B runs)")
     args = ap.parse_args()
     wn, we, wd = (float(v) for v in args.wind.split(","))
     cfg = FlightConfig(rate_hz=args.rate, wind_ned_mps=(wn, we, wd),
                        wind_shear_exponent=args.wind_shear)
     load_before = os.getloadavg()[0]
+    if args.ratio_only or args.base:
+        part = ({"ab": ab_rounds(args)} if args.base
+                else ratio_only(cfg, args.plan, args.duration, args.repeats))
+        summary = {"benchmark": "sim_throughput", "python": platform.python_version(),
+                   "machine": platform.machine(), "plan": args.plan, "rate_hz": args.rate,
+                   "sim_duration_s": args.duration,
+                   "timer": f"process_time (CPU seconds), best of {args.repeats} per child",
+                   "load_average_1m_before": load_before, **part,
+                   "load_average_1m_after": os.getloadavg()[0]}
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(summary, indent=2) + "\n")
+        if not args.ratio_only:
+            print(json.dumps(summary, indent=2))
+        return
     bare = _best(lambda: time_jsbsim_bare(cfg, args.plan, args.duration), args.repeats)
     adapter = _best(lambda: time_jsbsim(cfg, args.plan, args.duration), args.repeats)
     chain_runs = [time_chain(cfg, args.plan, args.duration) for _ in range(args.repeats)]

@@ -23,12 +23,14 @@ JSBSim's: +aileron rolls right, +elevator pitches nose down, +rudder yaws nose l
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from physconst import G0_MPS2
+from sim import kernel
 from sim.plans import FlightPlan, Leg
 
 _PI = math.pi
@@ -131,6 +133,135 @@ class TrimPoint:
     phi_rad: float = 0.0
 
 
+def law_python(
+    s: GuidanceInput,
+    course_err: float | None,
+    phi_fixed: float,
+    limit: float,
+    pitch_direct: bool,
+    theta_fixed: float,
+    alt_target_m: float,
+    airspeed_target_mps: float,
+    climb_rate_mps: float,
+    integrators: list[float],
+    params: tuple[float, ...],
+) -> Controls:
+    """The control loops of one step (Python reference of the compiled kernel's ``law``).
+
+    Parameters
+    ----------
+    s : the aircraft state.
+    course_err : course error to fly, rad; None when the leg commands bank directly
+        (``phi_fixed``, rad).
+    limit : bank limit, rad (when ``course_err`` is given).
+    pitch_direct : the leg commands pitch directly (``theta_fixed``, rad).
+    alt_target_m, airspeed_target_mps, climb_rate_mps : the current targets.
+    integrators : climb-rate, roll, pitch, sideslip and speed integrators; updated in place.
+    params : the gains, then trim bank, pitch, dynamic pressure and controls
+        (:attr:`Guidance._law_params`).
+    """
+    (k_course, k_alt, k_hdot, ki_hdot, pitch_min, pitch_max, alpha_max, k_alpha, speed_guard,
+     k_speed_guard, k_phi, ki_phi, k_p, k_theta, max_q, k_q, ki_theta, k_beta, ki_beta, k_r,
+     k_v, ki_v, trim_phi, trim_theta, trim_qbar, trim_ail, trim_ele, trim_rud,
+     trim_thr) = params
+    (_, dt, _, _, alt, _, _, v_down, airspeed, phi, theta, _, p, q, r, alpha, beta, qbar) = s
+    # the clips are written out inline (same operations, same order, as _clip)
+    v = 1.0 if 1.0 > airspeed else airspeed  # max(airspeed, 1.0), NaN included
+    # angle-of-attack guard: within 3 deg of alpha_max, bank and pull are cut back
+    alpha_margin = alpha_max - alpha
+    if pitch_direct:
+        protect = 0.0
+    else:
+        x = 1.0 - alpha_margin / _RAD_3
+        protect = 0.0 if x < 0.0 else 1.0 if x > 1.0 else x
+
+    # lateral: course error -> turn rate -> bank (coordinated turn: tan(phi) = V r / g)
+    if course_err is None:
+        phi_cmd = phi_fixed
+    else:
+        x = math.atan(v * k_course * course_err / G0_MPS2)
+        phi_cmd = -limit if x < -limit else limit if x > limit else x
+        # the trimmed bank (propeller torque, asymmetric thrust) is "wings level"
+        phi_cmd += trim_phi
+    phi_cmd *= 1.0 - 0.5 * protect
+
+    # longitudinal: altitude -> climb rate -> pitch
+    hdot = -v_down
+    speed_err = airspeed_target_mps - airspeed
+    if pitch_direct:
+        theta_cmd = theta_fixed
+    else:
+        climb = climb_rate_mps
+        x = k_alt * (alt_target_m - alt)
+        hdot_cmd = -climb if x < -climb else climb if x > climb else x
+        hdot_err = hdot_cmd - hdot
+        x = hdot_cmd / v
+        gamma_ff = math.asin(-0.5 if x < -0.5 else 0.5 if x > 0.5 else x)
+        theta_unsat = trim_theta + gamma_ff + k_hdot * hdot_err + integrators[0]
+        # speed guard: give up climb (or descent) rather than stall (or overspeed)
+        under = max(0.0, speed_err - speed_guard)
+        over = max(0.0, -speed_err - 2.0 * speed_guard)
+        theta_unsat += k_speed_guard * (over - under)
+        lo, hi = pitch_min, pitch_max
+        theta_cmd = lo if theta_unsat < lo else hi if theta_unsat > hi else theta_unsat
+        if protect == 0.0 and (
+            theta_cmd == theta_unsat or (theta_cmd > theta_unsat) == (hdot_err > 0.0)
+        ):
+            integrators[0] += ki_hdot * hdot_err * dt
+
+    # dynamic-pressure scheduling of the surface gains
+    x = trim_qbar / (1.0 if 1.0 > qbar else qbar)  # / max(qbar, 1.0)
+    sched = 0.5 if x < 0.5 else 2.0 if x > 2.0 else x
+
+    # roll: PI on bank error with roll-rate damping
+    phi_err = (phi_cmd - phi + _PI) % _TWO_PI - _PI  # _wrap
+    aileron_unsat = trim_ail + sched * (k_phi * phi_err - k_p * p) + integrators[1]
+    aileron = -1.0 if aileron_unsat < -1.0 else 1.0 if aileron_unsat > 1.0 else aileron_unsat
+    if aileron == aileron_unsat:
+        integrators[1] += sched * ki_phi * phi_err * dt
+
+    # pitch: rate command with coordinated-turn feed-forward, PI to elevator
+    sin_phi = math.sin(phi)
+    phi_c = -1.2 if phi < -1.2 else 1.2 if phi > 1.2 else phi
+    q_turn = G0_MPS2 / v * sin_phi * math.tan(phi_c)
+    theta_err = theta_cmd - theta
+    x = k_theta * theta_err
+    q_cmd = (-max_q if x < -max_q else max_q if x > max_q else x) + q_turn
+    if not pitch_direct and alpha_margin < 0.0:
+        q_cmd = min(q_cmd, k_alpha * alpha_margin)
+    pull = sched * k_q * (q_cmd - q) + integrators[2]
+    elevator_unsat = trim_ele - pull
+    elevator = -1.0 if elevator_unsat < -1.0 else 1.0 if elevator_unsat > 1.0 else elevator_unsat
+    if elevator == elevator_unsat and (protect == 0.0 or theta_err < 0.0):
+        integrators[2] += sched * ki_theta * theta_err * dt
+
+    # yaw: sideslip PI and a yaw damper around the coordinated-turn yaw rate
+    r_turn = G0_MPS2 / v * sin_phi * math.cos(theta)
+    rudder_unsat = trim_rud - sched * (k_beta * beta - k_r * (r - r_turn)) + integrators[3]
+    rudder = -1.0 if rudder_unsat < -1.0 else 1.0 if rudder_unsat > 1.0 else rudder_unsat
+    if rudder == rudder_unsat:
+        integrators[3] -= sched * ki_beta * beta * dt
+
+    # speed: throttle PI around the trim throttle
+    throttle_unsat = trim_thr + k_v * speed_err + integrators[4]
+    throttle = 0.0 if throttle_unsat < 0.0 else 1.0 if throttle_unsat > 1.0 else throttle_unsat
+    if throttle == throttle_unsat or (throttle > throttle_unsat) == (speed_err > 0.0):
+        integrators[4] += ki_v * speed_err * dt
+
+    return Controls(aileron, elevator, rudder, throttle)
+
+
+_LawFn = Callable[
+    [GuidanceInput, float | None, float, float, bool, float, float, float, float, list[float],
+     tuple[float, ...]],
+    Controls,
+]
+_compiled = kernel.bind_guidance(law_python, Controls, (G0_MPS2, _PI, _TWO_PI, _RAD_3))
+#: The control loops of one step: :func:`law_python`, compiled when :data:`sim.kernel.KERNEL`
+#: is ``"c"``.
+law: _LawFn = law_python if _compiled is None else _compiled.law
+
+
 class Guidance:
     """Flies ``plan`` leg by leg from a trimmed start.
 
@@ -173,11 +304,16 @@ class Guidance:
         self._leg_course_prev = 0.0
         self._leg_turned = 0.0
         # loop integrators start at the trimmed controls / pitch
-        self._i_hdot = 0.0
-        self._i_phi = 0.0
-        self._i_theta = 0.0
-        self._i_beta = 0.0
-        self._i_v = 0.0
+        #: climb-rate, roll, pitch, sideslip and speed integrators (law() updates them in place)
+        self._integrators = [0.0, 0.0, 0.0, 0.0, 0.0]
+        g, c = self.gains, trim.controls
+        self._law_params: tuple[float, ...] = (
+            g.k_course, g.k_alt, g.k_hdot, g.ki_hdot, g.pitch_min_rad, g.pitch_max_rad,
+            g.alpha_max_rad, g.k_alpha, g.speed_guard_mps, g.k_speed_guard, g.k_phi, g.ki_phi,
+            g.k_p, g.k_theta, g.max_q_rps, g.k_q, g.ki_theta, g.k_beta, g.ki_beta, g.k_r, g.k_v,
+            g.ki_v, trim.phi_rad, trim.theta_rad, trim.qbar_pa, c.aileron, c.elevator,
+            c.rudder, c.throttle,
+        )  # fmt: skip
 
     # -- plan geometry ---------------------------------------------------------------------
 
@@ -264,12 +400,10 @@ class Guidance:
 
     def update(self, s: GuidanceInput) -> Controls:
         """One control step: advance the plan, return the commands to apply now."""
-        # Runs at every simulation step: the input is unpacked once and the clips are written
-        # out inline (same operations, same order, as _clip; a call costs more than the test).
+        # Runs at every simulation step: the plan logic here, the loops in law() (compiled when
+        # sim.kernel.KERNEL is "c").
         g = self.gains
-        (_, dt, _, _, alt, v_north, v_east, v_down, airspeed, phi, theta, psi, p, q, r, alpha,
-         beta, qbar) = s
-        v = 1.0 if 1.0 > airspeed else airspeed  # max(airspeed, 1.0), NaN included
+        v_north, v_east, psi = s[5], s[6], s[11]
         ground_speed = math.hypot(v_north, v_east)
         course = math.atan2(v_east, v_north) if ground_speed > 1.0 else psi
 
@@ -281,97 +415,20 @@ class Guidance:
         if leg is not None and not self._leg_started:
             self._start_leg(leg, s, course)
 
-        # angle-of-attack guard: within 3 deg of alpha_max, bank and pull are cut back
-        pitch_direct = leg is not None and leg.kind == "attitude" and leg.pitch_deg is not None
-        alpha_margin = g.alpha_max_rad - alpha
-        if pitch_direct:
-            protect = 0.0
-        else:
-            x = 1.0 - alpha_margin / _RAD_3
-            protect = 0.0 if x < 0.0 else 1.0 if x > 1.0 else x
-
-        # lateral: course error -> turn rate -> bank (coordinated turn: tan(phi) = V r / g)
         if course_err is None:
             assert leg is not None
-            phi_cmd = math.radians(leg.bank_deg or 0.0)
+            phi_fixed, limit = math.radians(leg.bank_deg or 0.0), 0.0
         else:
-            limit = g.default_bank_limit_rad
+            phi_fixed, limit = 0.0, g.default_bank_limit_rad
             if leg is not None and leg.bank_deg is not None:
                 limit = math.radians(abs(leg.bank_deg))
             elif leg is not None and leg.kind == "turn":
                 limit = g.default_turn_bank_rad
-            x = math.atan(v * g.k_course * course_err / G0_MPS2)
-            phi_cmd = -limit if x < -limit else limit if x > limit else x
-            # the trimmed bank (propeller torque, asymmetric thrust) is "wings level"
-            phi_cmd += self._trim.phi_rad
-        phi_cmd *= 1.0 - 0.5 * protect
-
-        # longitudinal: altitude -> climb rate -> pitch
-        hdot = -v_down
-        speed_err = self.airspeed_target_mps - airspeed
+        pitch_direct = leg is not None and leg.kind == "attitude" and leg.pitch_deg is not None
+        theta_fixed = 0.0
         if pitch_direct:
             assert leg is not None and leg.pitch_deg is not None
-            theta_cmd = math.radians(leg.pitch_deg)
-        else:
-            climb = self.climb_rate_mps
-            x = g.k_alt * (self.alt_target_m - alt)
-            hdot_cmd = -climb if x < -climb else climb if x > climb else x
-            hdot_err = hdot_cmd - hdot
-            x = hdot_cmd / v
-            gamma_ff = math.asin(-0.5 if x < -0.5 else 0.5 if x > 0.5 else x)
-            theta_unsat = self._trim.theta_rad + gamma_ff + g.k_hdot * hdot_err + self._i_hdot
-            # speed guard: give up climb (or descent) rather than stall (or overspeed)
-            under = max(0.0, speed_err - g.speed_guard_mps)
-            over = max(0.0, -speed_err - 2.0 * g.speed_guard_mps)
-            theta_unsat += g.k_speed_guard * (over - under)
-            lo, hi = g.pitch_min_rad, g.pitch_max_rad
-            theta_cmd = lo if theta_unsat < lo else hi if theta_unsat > hi else theta_unsat
-            if protect == 0.0 and (
-                theta_cmd == theta_unsat or (theta_cmd > theta_unsat) == (hdot_err > 0.0)
-            ):
-                self._i_hdot += g.ki_hdot * hdot_err * dt
-
-        # dynamic-pressure scheduling of the surface gains
-        x = self._trim.qbar_pa / (1.0 if 1.0 > qbar else qbar)  # / max(qbar, 1.0)
-        sched = 0.5 if x < 0.5 else 2.0 if x > 2.0 else x
-        trim = self._trim.controls
-
-        # roll: PI on bank error with roll-rate damping
-        phi_err = (phi_cmd - phi + _PI) % _TWO_PI - _PI  # _wrap
-        aileron_unsat = trim.aileron + sched * (g.k_phi * phi_err - g.k_p * p) + self._i_phi
-        aileron = -1.0 if aileron_unsat < -1.0 else 1.0 if aileron_unsat > 1.0 else aileron_unsat
-        if aileron == aileron_unsat:
-            self._i_phi += sched * g.ki_phi * phi_err * dt
-
-        # pitch: rate command with coordinated-turn feed-forward, PI to elevator
-        sin_phi = math.sin(phi)
-        phi_c = -1.2 if phi < -1.2 else 1.2 if phi > 1.2 else phi
-        q_turn = G0_MPS2 / v * sin_phi * math.tan(phi_c)
-        theta_err = theta_cmd - theta
-        max_q = g.max_q_rps
-        x = g.k_theta * theta_err
-        q_cmd = (-max_q if x < -max_q else max_q if x > max_q else x) + q_turn
-        if not pitch_direct and alpha_margin < 0.0:
-            q_cmd = min(q_cmd, g.k_alpha * alpha_margin)
-        pull = sched * g.k_q * (q_cmd - q) + self._i_theta
-        elevator_unsat = trim.elevator - pull
-        elevator = (
-            -1.0 if elevator_unsat < -1.0 else 1.0 if elevator_unsat > 1.0 else elevator_unsat
-        )
-        if elevator == elevator_unsat and (protect == 0.0 or theta_err < 0.0):
-            self._i_theta += sched * g.ki_theta * theta_err * dt
-
-        # yaw: sideslip PI and a yaw damper around the coordinated-turn yaw rate
-        r_turn = G0_MPS2 / v * sin_phi * math.cos(theta)
-        rudder_unsat = trim.rudder - sched * (g.k_beta * beta - g.k_r * (r - r_turn)) + self._i_beta
-        rudder = -1.0 if rudder_unsat < -1.0 else 1.0 if rudder_unsat > 1.0 else rudder_unsat
-        if rudder == rudder_unsat:
-            self._i_beta -= sched * g.ki_beta * beta * dt
-
-        # speed: throttle PI around the trim throttle
-        throttle_unsat = trim.throttle + g.k_v * speed_err + self._i_v
-        throttle = 0.0 if throttle_unsat < 0.0 else 1.0 if throttle_unsat > 1.0 else throttle_unsat
-        if throttle == throttle_unsat or (throttle > throttle_unsat) == (speed_err > 0.0):
-            self._i_v += g.ki_v * speed_err * dt
-
-        return Controls(aileron=aileron, elevator=elevator, rudder=rudder, throttle=throttle)
+            theta_fixed = math.radians(leg.pitch_deg)
+        return law(s, course_err, phi_fixed, limit, pitch_direct, theta_fixed,
+                   self.alt_target_m, self.airspeed_target_mps, self.climb_rate_mps,
+                   self._integrators, self._law_params)
