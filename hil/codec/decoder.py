@@ -17,7 +17,7 @@ pymavlink, which also checks a configured signing key.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from operator import itemgetter
 from typing import Any, NamedTuple
 
@@ -208,18 +208,28 @@ class Decoder:
         list of Decoded
             In stream order; one message may give several samples (HIL_SENSOR: IMU, mag, baro).
         """
+        return self.feed_all((data,))
+
+    def feed_all(self, chunks: Iterable[bytes]) -> list[Decoded]:
+        """:meth:`feed` of each chunk in turn, in one call: the same samples, in the same order,
+        and the same counters as one :meth:`feed` per chunk (a lockstep batch of frames is
+        decoded without a method call, a list and the signing check per frame)."""
         fast = self.mav.signing.secret_key is None
+        framer_feed, fast_get = self._framer.feed, self._fast.get
+        counters = self.counters
         out: list[Decoded] = []
-        for frame in self._framer.feed(data):
-            if fast and frame[0] == MAGIC_V2 and frame[2] == 0:
-                fast_decode = self._fast.get(frame[7] | (frame[8] << 8) | (frame[9] << 16))
-                if fast_decode is not None:
-                    self.counters.frames_ok += 1
-                    out.extend(fast_decode(frame))
-                    continue
-            msg = self._decode_frame(frame)
-            if msg is not None:
-                out.extend(self._decode(msg))
+        extend = out.extend
+        for data in chunks:
+            for frame in framer_feed(data):
+                if fast and frame[0] == MAGIC_V2 and frame[2] == 0:
+                    fast_decode = fast_get(frame[7] | (frame[8] << 8) | (frame[9] << 16))
+                    if fast_decode is not None:
+                        counters.frames_ok += 1
+                        extend(fast_decode(frame))
+                        continue
+                msg = self._decode_frame(frame)
+                if msg is not None:
+                    extend(self._decode(msg))
         return out
 
     def decode_message(self, msg: Any) -> list[Decoded]:
