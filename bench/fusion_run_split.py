@@ -36,7 +36,12 @@ in each child); ``ab`` holds each tree's best per part. With ``--count-s S`` it 
 for both trees, the instructions of ``decode`` and ``fusion_run`` over the frames of the
 first S simulated seconds (valgrind, as :mod:`bench.instruction_count` does: the loop's
 process minus the same process without the loop, per IMU sample): a before / after that the
-machine's load does not move.
+machine's load does not move. ``--count-parts`` counts other parts too (any of ``framing``,
+``decode``, ``filter``, ``filter_collect``, ``fusion_run``); with ``filter`` and
+``filter_collect`` the JSON also gives the collector's own instructions (their difference).
+The count is a difference of two whole processes (~10^9 instructions of start-up each), so
+it varies by several thousand instructions per IMU sample from one invocation to the next
+over a few seconds of frames: compare effects larger than that.
 
     python bench/fusion_run_split.py --base 4be3151 --rounds 3 --count-s 20 \
         --out bench/results/fusion_run_split_ab.json
