@@ -36,7 +36,12 @@ in each child); ``ab`` holds each tree's best per part. With ``--count-s S`` it 
 for both trees, the instructions of ``decode`` and ``fusion_run`` over the frames of the
 first S simulated seconds (valgrind, as :mod:`bench.instruction_count` does: the loop's
 process minus the same process without the loop, per IMU sample): a before / after that the
-machine's load does not move.
+machine's load does not move. ``--count-parts`` counts other parts too (any of ``framing``,
+``decode``, ``filter``, ``filter_collect``, ``fusion_run``); with ``filter`` and
+``filter_collect`` the JSON also gives the collector's own instructions (their difference).
+The count is a difference of two whole processes (~10^9 instructions of start-up each), so
+it varies by several thousand instructions per IMU sample from one invocation to the next
+over a few seconds of frames: compare effects larger than that.
 
     python bench/fusion_run_split.py --base 4be3151 --rounds 3 --count-s 20 \
         --out bench/results/fusion_run_split_ab.json
@@ -253,15 +258,26 @@ def _child(rec_path: Path, rounds: int, out_path: Path) -> None:
 
 
 COUNTED = ("decode", "fusion_run")
+"""The parts counted by default (``--count-parts``: any of :data:`PARTS`)."""
 
 
 def _count_child(part: str, rec_path: str, run: bool) -> None:
     """The valgrind-counted process: build ``part``'s objects; run its loop if ``run``."""
     from hil.codec import Decoder
+    from hil.codec.counters import DecoderCounters
+    from hil.codec.framing import FrameParser
     from hil.pipeline import FusionRun, build_filter
+    from hil.tracks import Collector
+    from sim.samples import Truth
 
     rec = pickle.loads(Path(rec_path).read_bytes())
     frames = rec["frames"]
+    if part == "framing":
+        parse = FrameParser(DecoderCounters()).feed
+        if run:
+            for _t, f in frames:
+                parse(f)
+        return
     if part == "decode":
         feed = Decoder().feed
         if run:
@@ -269,6 +285,18 @@ def _count_child(part: str, rec_path: str, run: bool) -> None:
                 feed(f)
         return
     config, bridge = _setup(rec["scenario_path"])
+    if part in ("filter", "filter_collect"):
+        dec = Decoder()  # decoded in both processes: only the loop below differs
+        flat = [d.sample for _t, f in frames for d in dec.feed(f)]
+        nav = build_filter(config, bridge)
+        if run and part == "filter":
+            step = nav.step
+            for s in flat:
+                if not isinstance(s, Truth):
+                    step(s)
+        elif run:
+            Collector().feed(nav, flat)
+        return
     sink = FusionRun(config, bridge, nav=build_filter(config, bridge))
     batch_sink = getattr(sink, "frames", None)
     batches = _lockstep_batches(frames)
@@ -281,9 +309,9 @@ def _count_child(part: str, rec_path: str, run: bool) -> None:
 
 
 def count_ab(rec: dict[str, Any], trees: dict[str, Path], seconds: float,
-             folder: Path) -> dict[str, Any]:
-    """Instructions per IMU sample of the :data:`COUNTED` parts over the first ``seconds`` of
-    the recording, for each tree."""
+             folder: Path, parts: tuple[str, ...] = COUNTED) -> dict[str, Any]:
+    """Instructions per IMU sample of ``parts`` (default :data:`COUNTED`) over the first
+    ``seconds`` of the recording, for each tree."""
     from instruction_count import _count
 
     t_end = rec["frames"][0][0] + round(seconds * 1e6)
@@ -299,10 +327,14 @@ def count_ab(rec: dict[str, Any], trees: dict[str, Path], seconds: float,
         out["instructions_per_imu_sample"][key] = {
             part: (_count(tree, part, str(path), True, script)
                    - _count(tree, part, str(path), False, script)) / n_imu
-            for part in COUNTED}
+            for part in parts}
     if set(trees) == {"before", "after"}:
         per = out["instructions_per_imu_sample"]
-        out["after_over_before"] = {p: per["after"][p] / per["before"][p] for p in COUNTED}
+        out["after_over_before"] = {p: per["after"][p] / per["before"][p] for p in parts}
+    if {"filter", "filter_collect"} <= set(parts):
+        out["collector_instructions_per_imu_sample"] = {
+            key: per_part["filter_collect"] - per_part["filter"]
+            for key, per_part in out["instructions_per_imu_sample"].items()}
     return out
 
 
@@ -362,8 +394,13 @@ def main() -> None:
     ap.add_argument("--base", help="git revision: time its parts alternately with this tree's")
     ap.add_argument("--count-s", type=float, default=0.0,
                     help="with --base: also count instructions over the first S simulated s")
+    ap.add_argument("--count-parts", default=",".join(COUNTED),
+                    help=f"with --count-s: comma-separated parts to count, of {', '.join(PARTS)}")
     ap.add_argument("--out", type=Path, default=ROOT / "bench/results/fusion_run_split.json")
     args = ap.parse_args()
+    count_parts = tuple(args.count_parts.split(","))
+    if bad := [p for p in count_parts if p not in PARTS]:
+        ap.error(f"unknown part(s) {', '.join(bad)}; valid: {', '.join(PARTS)}")
     sys.path.insert(0, str(ROOT / "bench"))
     from run_end_to_end import LIBRARY, scenario_copy
 
@@ -386,7 +423,7 @@ def main() -> None:
                             **time_ab(rec, tree, args.rounds, folder)}
             if args.count_s > 0:
                 result["ab"]["instructions"] = count_ab(
-                    rec, {"before": tree, "after": ROOT}, args.count_s, folder)
+                    rec, {"before": tree, "after": ROOT}, args.count_s, folder, count_parts)
     result["load_average_1m_after"] = os.getloadavg()[0]
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")

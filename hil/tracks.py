@@ -321,6 +321,11 @@ class _Stream:
 
     def add(self, obj: object) -> None:
         self.pending.append(obj)
+        self.settle()
+
+    def settle(self) -> None:
+        """Compact the objects pending into one chunk once there are ``chunk_rows`` of them
+        (the collector appends to :attr:`pending` directly and settles once per feed)."""
         if len(self.pending) >= self._chunk_rows:
             self.chunks.append(self._compact(self.pending))
             self.pending = []
@@ -344,14 +349,16 @@ class _Stream:
 class Collector:
     """Accumulates estimates, truth and GNSS fixes as the filter runs, in compact form.
 
-    Feeding only appends each new object to a list (it runs at the sensor rates); every
-    ``chunk_rows`` objects the list is turned into column arrays at once
-    (:class:`ColumnChunks`: per estimate its time, mode, position, velocity, attitude, the
-    1-sigma and full 9x9 covariance of the navigation errors, test ratios and counters, ~0.9 kB;
-    per truth sample 88 bytes; per fix 32 bytes) and the objects are dropped. With
-    ``spill_dir`` those chunks go to an anonymous file there, so a live run of any length holds
-    at most one chunk of objects in memory. ``keep_objects`` also keeps every object
-    (:attr:`estimates`, :attr:`truths`, :attr:`fixes`) for tests and tools that want them.
+    Feeding only appends each new object to a list (it runs at the sensor rates); at the end
+    of a :meth:`feed` that brought a list to ``chunk_rows`` objects, the list is turned into
+    column arrays at once (:class:`ColumnChunks`: per estimate its time, mode, position,
+    velocity, attitude, the 1-sigma and full 9x9 covariance of the navigation errors, test
+    ratios and counters, ~0.9 kB; per truth sample 88 bytes; per fix 32 bytes) and the objects
+    are dropped. With ``spill_dir`` those chunks go to an anonymous file there, so a live run of
+    any length holds at most one chunk of objects (plus those of the feed in progress: one
+    frame's live, one lockstep batch's in :func:`hil.pipeline.fly`) in memory.
+    ``keep_objects`` also keeps every object (:attr:`estimates`, :attr:`truths`,
+    :attr:`fixes`) for tests and tools that want them.
     """
 
     keep_objects: bool = False
@@ -372,33 +379,39 @@ class Collector:
         self._fix = _Stream(_fix_columns, self.spill_dir, self.chunk_rows)
 
     def feed(self, nav: NavFilter, items: Iterable[Sample | Truth]) -> list[NavEstimate]:
-        """Step ``nav`` with the samples (truth is only collected); the new estimates."""
+        """Step ``nav`` with the samples (truth is only collected); the new estimates.
+
+        The objects are appended to their streams' pending lists in the loop and compacted
+        once per call (:meth:`_Stream.settle`), also when the filter raises."""
         out: list[NavEstimate] = []
-        keep = self.keep_objects
         clock = self._clock
         if clock is None:
             clock = self._clock = SampleClock(round(nav.config.imu.time_jump_s * 1e6))
+        truths, fixes = self._tru.pending, self._fix.pending
+        n_truths, n_fixes = len(truths), len(fixes)
         # bound once per call: this loop runs for every sample of a run
-        offer, step, add_estimate = clock.offer, nav.step, self._est.add
-        for item in items:
-            if isinstance(item, Truth):
+        offer, step, add_truth, add_fix = clock.offer, nav.step, truths.append, fixes.append
+        try:
+            for item in items:
+                if isinstance(item, Truth):
+                    offer(item.time_us, nav.time_us)
+                    add_truth(item)
+                    continue
+                if isinstance(item, GnssFix) and item.fix_type >= 3:
+                    add_fix(item)
+                estimates = step(item)
+                if estimates:
+                    out += estimates
                 offer(item.time_us, nav.time_us)
-                self._tru.add(item)
-                if keep:
-                    self._kept[1].append(item)
-                continue
-            if isinstance(item, GnssFix) and item.fix_type >= 3:
-                self._fix.add(item)
-                if keep:
-                    self._kept[2].append(item)
-            estimates = step(item)
-            if estimates:
-                for e in estimates:
-                    add_estimate(e)
-                out.extend(estimates)
-            offer(item.time_us, nav.time_us)
-        if keep:
-            self._kept[0].extend(out)
+        finally:
+            self._est.pending += out
+            if self.keep_objects:
+                kept_est, kept_truths, kept_fixes = self._kept
+                kept_est += out
+                kept_truths += truths[n_truths:]
+                kept_fixes += fixes[n_fixes:]
+            for stream in (self._est, self._tru, self._fix):
+                stream.settle()
         return out
 
     def _objects(self, which: int) -> list[Any]:

@@ -17,7 +17,8 @@ pymavlink, which also checks a configured signing key.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
+from itertools import chain
 from operator import itemgetter
 from typing import Any, NamedTuple
 
@@ -208,18 +209,30 @@ class Decoder:
         list of Decoded
             In stream order; one message may give several samples (HIL_SENSOR: IMU, mag, baro).
         """
+        return self._decode_frames(self._framer.feed(data))
+
+    def feed_all(self, chunks: Iterable[bytes]) -> list[Decoded]:
+        """:meth:`feed` of each chunk in turn, in one call: the same samples, in the same order,
+        and the same counters as one :meth:`feed` per chunk (a lockstep batch of frames is
+        decoded without a Python call, a list and the signing check per frame)."""
+        return self._decode_frames(chain.from_iterable(map(self._framer.feed, chunks)))
+
+    def _decode_frames(self, frames: Iterable[bytes]) -> list[Decoded]:
+        """The samples of framed messages (:class:`FrameParser` output), in order."""
         fast = self.mav.signing.secret_key is None
+        fast_get, counters = self._fast.get, self.counters
         out: list[Decoded] = []
-        for frame in self._framer.feed(data):
+        extend = out.extend
+        for frame in frames:
             if fast and frame[0] == MAGIC_V2 and frame[2] == 0:
-                fast_decode = self._fast.get(frame[7] | (frame[8] << 8) | (frame[9] << 16))
+                fast_decode = fast_get(frame[7] | (frame[8] << 8) | (frame[9] << 16))
                 if fast_decode is not None:
-                    self.counters.frames_ok += 1
-                    out.extend(fast_decode(frame))
+                    counters.frames_ok += 1
+                    extend(fast_decode(frame))
                     continue
             msg = self._decode_frame(frame)
             if msg is not None:
-                out.extend(self._decode(msg))
+                extend(self._decode(msg))
         return out
 
     def decode_message(self, msg: Any) -> list[Decoded]:
