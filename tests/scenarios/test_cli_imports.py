@@ -44,3 +44,16 @@ def test_the_filter_of_a_run_loads_no_optimizer() -> None:
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True, timeout=60)
     assert json.loads(proc.stdout) is False
+
+
+def test_the_runner_loads_the_autopilot_modules_only_when_one_flies() -> None:
+    """GIVEN a fresh interpreter, WHEN it imports the runner (``hilnav run``'s set-up), THEN
+    the autopilot's backend, telemetry, link and scoring are not loaded: a flight without an
+    autopilot never uses them (``AutopilotRun`` imports them when one flies)."""
+    code = ("import json, sys\n"
+            "import scenarios.runner\n"
+            "print(json.dumps(sorted(m for m in sys.modules if m.startswith(\n"
+            "    ('hil.autopilot', 'hil.link', 'scenarios.autopilot_summary')))))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True, timeout=60)
+    assert json.loads(proc.stdout) == []
