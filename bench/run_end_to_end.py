@@ -28,12 +28,14 @@ split into ``jsbsim_run`` (JSBSim's ``run()`` alone, the clock read around each 
 frame or per batch), ``tlog_write`` and ``sim_chain_python`` (the rest of the flight: adapter,
 guidance, sensor models, encode, the pipeline's loop), ``scoring`` (``score`` minus its
 reports), ``reports`` (JUnit, plots, HTML, and the import of their modules: matplotlib) and
-``exit`` (the child's CPU after the command returned: interpreter teardown). The per-call timers
-(JSBSim's ``run()``, the sink, the tlog write: two clock reads each, 1-2 us per call on this VM,
-~0.7 s of a 300 s run) are measured in the child (``timer_us_per_call``) and taken out of the
-phases they would inflate; what they cost is its own phase, ``phase_timers``, so this child's
-total is that much above the plain run's. (Before session 13 they were not taken out:
-``tlog_write`` was then mostly the timers' own cost.) ``gc`` is the CPU of the garbage
+``exit`` (the child's CPU after the command returned: interpreter teardown);
+``setup_split_cpu_s`` and ``reports_split_cpu_s`` split those two phases (imports / the command
+up to the flight; each plot, and matplotlib's layout pass and savefig over all plots). The
+per-call timers (JSBSim's ``run()``, the sink, the tlog write: two clock reads each, 1-2 us per
+call on this VM, ~0.7 s of a 300 s run) are measured in the child (``timer_us_per_call``) and
+taken out of the phases they would inflate; what they cost is its own phase, ``phase_timers``,
+so this child's total is that much above the plain run's. (Before session 13 they were not taken
+out: ``tlog_write`` was then mostly the timers' own cost.) ``gc`` is the CPU of the garbage
 collector's passes during the command, by generation (spread over the phases above, not a phase
 of its own).
 
@@ -198,6 +200,9 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
 
     acc: dict[str, float] = {"jsbsim_run": 0.0, "decode_filter": 0.0, "tlog_write": 0.0,
                              "flight": 0.0, "score_total": 0.0, "reports": 0.0}
+    report_parts = ("plot_ground_track", "plot_errors", "plot_horizontal_vertical",
+                    "plot_drift", "figure_tight_layout", "figure_savefig")
+    acc.update(dict.fromkeys(report_parts, 0.0))
     calls: dict[str, int] = dict.fromkeys(acc, 0)
     marks: dict[str, float] = {}
 
@@ -261,6 +266,15 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
         for module, name in ((scenarios.report, "write_plots"), (scenarios.html, "write_html"),
                              (scenarios.junit, "write_junit")):
             setattr(module, name, timed("reports", getattr(module, name)))
+        # the reports, split (a handful of calls: no timer correction): each plot, and inside
+        # them matplotlib's layout pass and the draw + PNG encoding of savefig
+        from matplotlib.figure import Figure
+
+        for name in ("plot_ground_track", "plot_errors", "plot_horizontal_vertical",
+                     "plot_drift"):
+            setattr(scenarios.report, name, timed(name, getattr(scenarios.report, name)))
+        for name in ("tight_layout", "savefig"):
+            setattr(Figure, name, timed(f"figure_{name}", getattr(Figure, name)))
         acc["reports"] += cpu() - t0
         return score(*args, **kwargs)
 
@@ -301,6 +315,9 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
            # load, and since session 14 the plots' module, filter build, run folder)
            "setup_split_cpu_s": {"runner_pipeline_imports": t_imports - t_cli,
                                  "command_to_flight": flight_start - t_imports},
+           # inside ``reports``: each plot (its figure, layout, draw and PNG), and over all
+           # plots matplotlib's tight-layout pass and savefig (draw + PNG encoding)
+           "reports_split_cpu_s": {k: acc[k] for k in report_parts},
            "gc": {"collections_by_generation": gc_n, "cpu_s_by_generation": gc_s,
                   "cpu_s": sum(gc_s)}}
     # the child's own bookkeeping (calibration, this file) is neither the run nor its exit
@@ -330,7 +347,8 @@ def time_phases(scenario_path: Path, out: Path, tree: Path = ROOT) -> dict[str, 
             "cpu_s_total": total, "cpu_s": split,
             "share": {k: v / total for k, v in split.items()},
             "timer_us_per_call": child["timer_us_per_call"], "timed_calls": child["timed_calls"],
-            "gc": child["gc"], "setup_split_cpu_s": child.get("setup_split_cpu_s")}
+            "gc": child["gc"], "setup_split_cpu_s": child.get("setup_split_cpu_s"),
+            "reports_split_cpu_s": child.get("reports_split_cpu_s")}
 
 
 #: Files of a run folder that the same seed writes with the same bytes in any tree (summary.json
@@ -360,6 +378,7 @@ def time_ab(scenario_path: Path, base: str, rounds: int, folder: Path,
     split: dict[str, list[dict[str, float]]] = {"before": [], "after": []}
     gc_cpu: dict[str, list[float]] = {"before": [], "after": []}
     setup_split: dict[str, list[Any]] = {"before": [], "after": []}
+    reports_split: dict[str, list[Any]] = {"before": [], "after": []}
     for k in range(rounds):
         for key, src in (("before", tree), ("after", ROOT)):
             run = time_hilnav_run(scenario_path, folder / f"ab-{key}-{k}", src)
@@ -369,6 +388,7 @@ def time_ab(scenario_path: Path, base: str, rounds: int, folder: Path,
                 split[key].append(timed_run["cpu_s"])
                 gc_cpu[key].append(timed_run["gc"]["cpu_s"])
                 setup_split[key].append(timed_run["setup_split_cpu_s"])
+                reports_split[key].append(timed_run["reports_split_cpu_s"])
     result: dict[str, Any] = {"base": base, "rounds": rounds, "cpu_s": cpu,
                               "after_over_before_best": min(cpu["after"]) / min(cpu["before"]),
                               "same_bytes_as_base": [same_bytes(folder / f"ab-before-{k}",
@@ -380,6 +400,7 @@ def time_ab(scenario_path: Path, base: str, rounds: int, folder: Path,
         result["phases_cpu_s"] = split
         result["phases_gc_cpu_s"] = gc_cpu
         result["phases_setup_split_cpu_s"] = setup_split
+        result["phases_reports_split_cpu_s"] = reports_split
         result["phases_best_cpu_s"] = best
         result["phases_best_after_minus_before"] = {
             p: best["after"][p] - best["before"][p] for p in best["after"]
