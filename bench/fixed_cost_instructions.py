@@ -27,11 +27,10 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from run_end_to_end import same_bytes  # this folder (the script's own) is on sys.path
 
 ROOT = Path(__file__).resolve().parent.parent
 LIBRARY = ROOT / "scenarios" / "library"
-SAME_BYTES_FILES = ("run.tlog", "ground_track.png", "errors.png", "horizontal_vertical.png",
-                    "drift.png")
 
 
 def short_scenario(source: Path, duration_s: float, folder: Path) -> Path:
@@ -80,9 +79,7 @@ def main() -> None:
         scenario = short_scenario(LIBRARY / f"{args.scenario}.yaml", args.duration, folder)
         count = {key: instructions(tree, scenario, folder / key)
                  for key, tree in (("before", base), ("after", ROOT))}
-        same = {name: (folder / "before" / name).read_bytes()
-                == (folder / "after" / name).read_bytes()
-                for name in SAME_BYTES_FILES if (folder / "before" / name).is_file()}
+        same = same_bytes(folder / "before", folder / "after")
     result = {
         "benchmark": "fixed_cost_instructions",
         "base": args.base,
