@@ -19,18 +19,23 @@ before and after.
 child that runs the same ``hilnav run`` command in-process (``app([...])``) with CPU timers
 (``process_time``) around its parts: ``interpreter_start`` (CPU before the first line of the
 child), ``cli_import`` (``scenarios.cli.app``), ``setup`` (the command up to the flight: the
-imports of the runner, pipeline and report modules, scenario load, filter build), ``flight``
+imports of the runner, pipeline and report modules, scenario load, filter build; the child
+imports the runner and the pipeline first, to time their parts, inside the command's
+``settled_heap`` as the command itself does since session 13; before session 14 it imported
+them with the collector running, which a plain run does not), ``flight``
 split into ``jsbsim_run`` (JSBSim's ``run()`` alone, the clock read around each call),
 ``decode_filter`` (the :class:`hil.pipeline.FusionRun` sink: decode + filter + collector, per
 frame or per batch), ``tlog_write`` and ``sim_chain_python`` (the rest of the flight: adapter,
 guidance, sensor models, encode, the pipeline's loop), ``scoring`` (``score`` minus its
 reports), ``reports`` (JUnit, plots, HTML, and the import of their modules: matplotlib) and
-``exit`` (the child's CPU after the command returned: interpreter teardown). The per-call timers
-(JSBSim's ``run()``, the sink, the tlog write: two clock reads each, 1-2 us per call on this VM,
-~0.7 s of a 300 s run) are measured in the child (``timer_us_per_call``) and taken out of the
-phases they would inflate; what they cost is its own phase, ``phase_timers``, so this child's
-total is that much above the plain run's. (Before session 13 they were not taken out:
-``tlog_write`` was then mostly the timers' own cost.) ``gc`` is the CPU of the garbage
+``exit`` (the child's CPU after the command returned: interpreter teardown);
+``setup_split_cpu_s`` and ``reports_split_cpu_s`` split those two phases (imports / the command
+up to the flight; each plot, and matplotlib's layout pass and savefig over all plots). The
+per-call timers (JSBSim's ``run()``, the sink, the tlog write: two clock reads each, 1-2 us per
+call on this VM, ~0.7 s of a 300 s run) are measured in the child (``timer_us_per_call``) and
+taken out of the phases they would inflate; what they cost is its own phase, ``phase_timers``,
+so this child's total is that much above the plain run's. (Before session 13 they were not taken
+out: ``tlog_write`` was then mostly the timers' own cost.) ``gc`` is the CPU of the garbage
 collector's passes during the command, by generation (spread over the phases above, not a phase
 of its own).
 
@@ -42,7 +47,9 @@ of its own).
 into a temporary folder, first on ``PYTHONPATH``) and of this tree, alternately,
 ``--ab-rounds`` times each, so a before / after ratio holds on a loaded machine; unless
 ``--skip-phases``, the phase-timed child of each tree too, alternately (``phases_cpu_s``,
-per phase the best of the rounds in ``phases_best_cpu_s`` and their difference).
+per phase the best of the rounds in ``phases_best_cpu_s`` and their difference), and
+``same_bytes_as_base``: per round, whether the two trees wrote ``run.tlog`` and the PNGs with
+the same bytes.
 
     python bench/run_end_to_end.py --duration 300 --base 4be3151 --ab-rounds 3 \\
         --out bench/results/run_end_to_end_s13_fixed_ab.json
@@ -55,6 +62,7 @@ outages throughout.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import json
 import os
@@ -180,11 +188,21 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
     import scenarios.cli.app as cli_app
 
     t_cli = cpu()
-    import hil.pipeline
-    import scenarios.runner
+    heap: Any = contextlib.nullcontext  # an older tree
+    with contextlib.suppress(ImportError):
+        from scenarios.cli import quick_exit
+
+        heap = quick_exit.settled_heap
+    with heap():  # as the run command imports them (since session 13): no collections, frozen
+        import hil.pipeline
+        import scenarios.runner
+    t_imports = cpu()
 
     acc: dict[str, float] = {"jsbsim_run": 0.0, "decode_filter": 0.0, "tlog_write": 0.0,
                              "flight": 0.0, "score_total": 0.0, "reports": 0.0}
+    report_parts = ("plot_ground_track", "plot_errors", "plot_horizontal_vertical",
+                    "plot_drift", "figure_tight_layout", "figure_savefig")
+    acc.update(dict.fromkeys(report_parts, 0.0))
     calls: dict[str, int] = dict.fromkeys(acc, 0)
     marks: dict[str, float] = {}
 
@@ -248,6 +266,15 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
         for module, name in ((scenarios.report, "write_plots"), (scenarios.html, "write_html"),
                              (scenarios.junit, "write_junit")):
             setattr(module, name, timed("reports", getattr(module, name)))
+        # the reports, split (a handful of calls: no timer correction): each plot, and inside
+        # them matplotlib's layout pass and the draw + PNG encoding of savefig
+        from matplotlib.figure import Figure
+
+        for name in ("plot_ground_track", "plot_errors", "plot_horizontal_vertical",
+                     "plot_drift"):
+            setattr(scenarios.report, name, timed(name, getattr(scenarios.report, name)))
+        for name in ("tight_layout", "savefig"):
+            setattr(Figure, name, timed(f"figure_{name}", getattr(Figure, name)))
         acc["reports"] += cpu() - t0
         return score(*args, **kwargs)
 
@@ -283,6 +310,14 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
     doc = {"exit_code": code, "cpu_s": split,
            "timer_us_per_call": {"inside": inside * 1e6, "whole": whole * 1e6},
            "timed_calls": {k: calls[k] for k in per_call},
+           # setup, split: the runner's and pipeline's imports (numpy, scipy, pydantic,
+           # pymavlink, JSBSim's module, ours), then the command up to the flight (scenario
+           # load, and since session 14 the plots' module, filter build, run folder)
+           "setup_split_cpu_s": {"runner_pipeline_imports": t_imports - t_cli,
+                                 "command_to_flight": flight_start - t_imports},
+           # inside ``reports``: each plot (its figure, layout, draw and PNG), and over all
+           # plots matplotlib's tight-layout pass and savefig (draw + PNG encoding)
+           "reports_split_cpu_s": {k: acc[k] for k in report_parts},
            "gc": {"collections_by_generation": gc_n, "cpu_s_by_generation": gc_s,
                   "cpu_s": sum(gc_s)}}
     # the child's own bookkeeping (calibration, this file) is neither the run nor its exit
@@ -312,7 +347,20 @@ def time_phases(scenario_path: Path, out: Path, tree: Path = ROOT) -> dict[str, 
             "cpu_s_total": total, "cpu_s": split,
             "share": {k: v / total for k, v in split.items()},
             "timer_us_per_call": child["timer_us_per_call"], "timed_calls": child["timed_calls"],
-            "gc": child["gc"]}
+            "gc": child["gc"], "setup_split_cpu_s": child.get("setup_split_cpu_s"),
+            "reports_split_cpu_s": child.get("reports_split_cpu_s")}
+
+
+#: Files of a run folder that the same seed writes with the same bytes in any tree (summary.json
+#: and junit.xml hold the run's wall time).
+SAME_BYTES_FILES = ("run.tlog", "ground_track.png", "errors.png", "horizontal_vertical.png",
+                    "drift.png")
+
+
+def same_bytes(a: Path, b: Path) -> dict[str, bool]:
+    """Per file of :data:`SAME_BYTES_FILES` in run folder ``a``: the same bytes in ``b``."""
+    return {name: (a / name).read_bytes() == (b / name).read_bytes()
+            for name in SAME_BYTES_FILES if (a / name).is_file()}
 
 
 def time_ab(scenario_path: Path, base: str, rounds: int, folder: Path,
@@ -329,6 +377,8 @@ def time_ab(scenario_path: Path, base: str, rounds: int, folder: Path,
     cpu: dict[str, list[float]] = {"before": [], "after": []}
     split: dict[str, list[dict[str, float]]] = {"before": [], "after": []}
     gc_cpu: dict[str, list[float]] = {"before": [], "after": []}
+    setup_split: dict[str, list[Any]] = {"before": [], "after": []}
+    reports_split: dict[str, list[Any]] = {"before": [], "after": []}
     for k in range(rounds):
         for key, src in (("before", tree), ("after", ROOT)):
             run = time_hilnav_run(scenario_path, folder / f"ab-{key}-{k}", src)
@@ -337,13 +387,20 @@ def time_ab(scenario_path: Path, base: str, rounds: int, folder: Path,
                 timed_run = time_phases(scenario_path, folder / f"abp-{key}-{k}", src)
                 split[key].append(timed_run["cpu_s"])
                 gc_cpu[key].append(timed_run["gc"]["cpu_s"])
+                setup_split[key].append(timed_run["setup_split_cpu_s"])
+                reports_split[key].append(timed_run["reports_split_cpu_s"])
     result: dict[str, Any] = {"base": base, "rounds": rounds, "cpu_s": cpu,
-                              "after_over_before_best": min(cpu["after"]) / min(cpu["before"])}
+                              "after_over_before_best": min(cpu["after"]) / min(cpu["before"]),
+                              "same_bytes_as_base": [same_bytes(folder / f"ab-before-{k}",
+                                                                folder / f"ab-after-{k}")
+                                                     for k in range(rounds)]}
     if phases:
         best = {key: {p: min(r[p] for r in rows) for p in rows[0]}
                 for key, rows in split.items()}
         result["phases_cpu_s"] = split
         result["phases_gc_cpu_s"] = gc_cpu
+        result["phases_setup_split_cpu_s"] = setup_split
+        result["phases_reports_split_cpu_s"] = reports_split
         result["phases_best_cpu_s"] = best
         result["phases_best_after_minus_before"] = {
             p: best["after"][p] - best["before"][p] for p in best["after"]

@@ -19,7 +19,6 @@ from typing import Self
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.optimize import least_squares
 
 from fusion.regressor_base import FloatArray, RegressorBase
 
@@ -234,6 +233,10 @@ class NarxMLP(RegressorBase):
             J[:m, -1] = 1.0
             J[m:] = sqrt_l2 * np.eye(n_par)
             return J
+
+        # scipy.optimize (~0.2 CPU s to import) only when a network is trained: the filter
+        # imports this module for its bridging registry in every run
+        from scipy.optimize import least_squares
 
         sol = least_squares(residuals, theta0, jac=jacobian, method="lm", max_nfev=max_nfev)
         W1, b1, w2, b2 = self._unpack(sol.x, n_hidden, n_in)

@@ -25,26 +25,21 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fusion.config import FilterConfig
-from hil.autopilot import (
-    AutopilotBackend,
-    AutopilotFlown,
-    BackendSettings,
-    close_backend,
-    fly_with_autopilot,
-    make_backend,
-)
-from hil.autopilot.telemetry import AutopilotTelemetry
 from hil.pipeline import Flown, FrameSink, FusionRun, SimSetup, build_filter, fly, tee
 from hil.pipeline import filter_config as pipeline_filter_config
 from hil.tlog import TlogWriter
-from scenarios.autopilot_summary import ScoredAutopilot, score_flown
 from scenarios.jsonable import plain_dict
 from scenarios.schema import Scenario
 from scenarios.summary import RunInfo, Scored, score_run, write_summary
 from sim.faults.events import event_type_name
+
+if TYPE_CHECKING:  # the autopilot's modules (its link, its telemetry) load when one flies
+    from hil.autopilot import AutopilotBackend, AutopilotFlown
+    from hil.autopilot.telemetry import AutopilotTelemetry
+    from scenarios.autopilot_summary import ScoredAutopilot
 
 ProgressFn = Callable[[float], None]
 
@@ -250,6 +245,9 @@ class AutopilotRun:
     def open(cls, scenario: Scenario, backend: AutopilotBackend | None = None) -> AutopilotRun:
         """Build the scenario's backend (:func:`hil.autopilot.make_backend`, unless one is
         given) and start recording its telemetry. ValueError: a bad setting or URL."""
+        from hil.autopilot import BackendSettings, close_backend, make_backend
+        from hil.autopilot.telemetry import AutopilotTelemetry
+
         ap = scenario.autopilot
         if backend is None:
             backend = make_backend(ap.kind, BackendSettings(
@@ -267,6 +265,8 @@ class AutopilotRun:
 
     def fly(self, sink: FrameSink, progress: ProgressFn | None = None) -> Flown:
         """Fly the scenario with the autopilot at the controls, every frame into ``sink``."""
+        from hil.autopilot import close_backend, fly_with_autopilot
+
         ap = self.scenario.autopilot
         if self.telemetry is not None:
             self.telemetry.start()
@@ -307,6 +307,8 @@ class AutopilotRun:
 
     def score(self, hilnav: Scored, events: list[dict[str, Any]]) -> ScoredAutopilot:
         """The autopilot's estimate scored with hilnav's truth, outages, events and settling."""
+        from scenarios.autopilot_summary import score_flown
+
         assert self.flown is not None
         ap = self.scenario.autopilot
         return score_flown(self.flown, self.telemetry, hilnav.truth, hilnav.outages,

@@ -1008,6 +1008,9 @@ def run(
 
         scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
                              airspeed=airspeed, align=align)
+        # the plots' module (matplotlib) too, once the scenario is valid: loaded here, its
+        # import runs no collection and the collections while the plots are drawn skip it
+        import scenarios.report  # noqa: F401
     if scn.autopilot.flies:
         _say_waiting_for_autopilot(scn)
     try:
