@@ -86,10 +86,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     from fusion import strapdown
+    from physconst.kernel import KERNEL_ENV
 
     if strapdown.KERNEL != "c":
         print("the compiled kernel is not in use (no C compiler at install time, or "
-              f"{strapdown.KERNEL_ENV}=python): nothing to compare", file=sys.stderr)
+              f"{KERNEL_ENV}=python): nothing to compare", file=sys.stderr)
         return 1
     load0 = os.getloadavg()
     calls = _inputs(args.calls)

@@ -93,7 +93,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion import earth
-from fusion.strapdown import KERNEL_ENV
+from physconst.kernel import python_forced
 
 FloatArray = NDArray[np.float64]
 
@@ -819,7 +819,7 @@ def _load_kernel() -> Any:
 
 
 _compiled = _load_kernel()  # bound even when not used (tests compare it with the reference)
-_kernel = None if os.environ.get(KERNEL_ENV, "").strip().lower() == "python" else _compiled
+_kernel = None if python_forced(os.environ) else _compiled
 #: Which implementation fills the first-order transition and adds the process noise: ``"c"``
 #: (fusion/_update.c) or ``"python"`` (:meth:`ErrorModel._fill`, :meth:`ErrorModel.
 #: add_process_noise`'s numpy lines; no compiler at install time, or

@@ -47,6 +47,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fusion import earth
+from physconst.kernel import python_forced
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -368,10 +369,6 @@ _Increments6Fn = Callable[
     tuple[Vec3, Vec3],
 ]
 
-#: Environment variable that makes the module use the Python reference: ``python``.
-KERNEL_ENV = "HILNAV_KERNEL"
-
-
 def _load_kernel() -> ModuleType | None:
     try:
         from fusion import _strapdown
@@ -387,7 +384,7 @@ def _load_kernel() -> ModuleType | None:
 
 
 _compiled = _load_kernel()  # bound even when not used (tests compare it with the reference)
-_kernel = None if os.environ.get(KERNEL_ENV, "").strip().lower() == "python" else _compiled
+_kernel = None if python_forced(os.environ) else _compiled
 #: Which implementation :data:`update` and the ``increments*`` functions are: ``"c"`` (the
 #: compiled kernel) or ``"python"`` (the reference; no compiler at install time, or
 #: ``HILNAV_KERNEL=python``).

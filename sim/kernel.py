@@ -16,8 +16,7 @@ from collections.abc import Callable
 from types import ModuleType
 from typing import Any
 
-#: Environment variable that makes the simulator use its Python references: ``python``.
-KERNEL_ENV = "HILNAV_KERNEL"
+from physconst.kernel import python_forced
 
 
 def _load() -> ModuleType | None:
@@ -30,7 +29,7 @@ def _load() -> ModuleType | None:
 
 #: The compiled module whether or not it is used (tests compare it with the references).
 compiled = _load()
-_forced_python = os.environ.get(KERNEL_ENV, "").strip().lower() == "python"
+_forced_python = python_forced(os.environ)
 #: ``"c"`` (the compiled kernel runs) or ``"python"`` (no compiler at install time, or
 #: ``HILNAV_KERNEL=python``).
 KERNEL = "python" if compiled is None or _forced_python else "c"

@@ -26,6 +26,7 @@ import fusion.strapdown as sd
 from bench import fusion_speed
 from fusion.config import FilterConfig
 from fusion.strapdown import InsState
+from physconst.kernel import python_forced
 from tests.helpers.nav_synth import Flight, SensorErrors, make_scenario, prepare
 
 try:
@@ -125,7 +126,7 @@ DT = st.one_of(finite(1e-6, 0.05), st.sampled_from([1e-300, 5e-324, 0.0, -0.0, 1
 
 # ------------------------------------------------------------------------------- the kernel
 def test_kernel_is_built_and_used_unless_the_reference_is_forced() -> None:
-    forced = os.environ.get(sd.KERNEL_ENV, "").strip().lower() == "python"
+    forced = python_forced(os.environ)
     assert sd.KERNEL == ("python" if forced else "c")
     assert (sd.update is kernel.update) != forced
     assert (sd.increments_compensated is kernel.increments_compensated) != forced

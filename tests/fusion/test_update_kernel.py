@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 import fusion.error_model as em
 from fusion import earth
 from fusion.rotations import dcm_from_quat
-from fusion.strapdown import KERNEL_ENV
+from physconst.kernel import python_forced
 from tests.fusion.test_error_model import NOISE
 
 try:
@@ -82,7 +82,7 @@ ANY3 = st.tuples(ANY, ANY, ANY)
 
 
 def test_kernel_is_bound_and_used_unless_the_reference_is_forced() -> None:
-    forced = os.environ.get(KERNEL_ENV, "").strip().lower() == "python"
+    forced = python_forced(os.environ)
     assert em.KERNEL == ("python" if forced else "c")
     assert (em._kernel is None) == forced
 

@@ -29,6 +29,7 @@ from scipy.signal import lfilter  # the tests compare with it; the product must 
 import sim.guidance as guidance
 import sim.imu as imu
 import sim.kernel as sk
+from physconst.kernel import python_forced
 from sim import presets
 from sim.flight import Flight, FlightConfig
 from sim.plans import load_plan
@@ -90,7 +91,7 @@ def all_filters(x: np.ndarray, b0: list[float], a1: list[float], zi: list[float]
 
 # ------------------------------------------------------------------------------- selection
 def test_kernel_is_built_and_used_unless_the_reference_is_forced() -> None:
-    forced = os.environ.get(sk.KERNEL_ENV, "").strip().lower() == "python"
+    forced = python_forced(os.environ)
     assert sk.KERNEL == ("python" if forced else "c")
     assert (imu.imu_output is kernel.imu_output) != forced
     assert (imu.first_order_filter is kernel.first_order_filter) != forced
