@@ -27,18 +27,10 @@ from bench import fusion_speed
 from fusion.config import FilterConfig
 from fusion.strapdown import InsState
 from physconst.kernel import python_forced
+from tests.helpers.kernels import compiled_kernel, require_built
 from tests.helpers.nav_synth import Flight, SensorErrors, make_scenario, prepare
 
-try:
-    from fusion import _strapdown as kernel
-except ImportError:  # pragma: no cover - the failure below says what to do
-    kernel = None  # type: ignore[assignment]
-
-NEEDS_COMPILER = (
-    "fusion._strapdown (the compiled INS kernel) is not importable: the test command needs a C "
-    "compiler (gcc or clang) when the package is installed (pip install -e '.[test]'); without "
-    "one pip silently installs the Python reference only"
-)
+kernel = compiled_kernel("fusion._strapdown")
 PAIRS: list[tuple[str, Callable[..., Any]]] = [
     ("update", sd.update_python),
     ("increments", sd.increments_python),
@@ -49,8 +41,7 @@ PAIRS: list[tuple[str, Callable[..., Any]]] = [
 
 @pytest.fixture(autouse=True)
 def _kernel_built() -> None:
-    if kernel is None:
-        pytest.fail(NEEDS_COMPILER)
+    require_built(kernel, "fusion._strapdown", "the compiled INS kernel")
 
 
 def leaves(x: Any) -> Iterator[Any]:

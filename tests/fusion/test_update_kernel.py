@@ -23,11 +23,9 @@ from fusion import earth
 from fusion.rotations import dcm_from_quat
 from physconst.kernel import python_forced
 from tests.fusion.test_error_model import NOISE
+from tests.helpers.kernels import compiled_kernel, require_built
 
-try:
-    from fusion import _update as kernel
-except ImportError:  # pragma: no cover - the failure below says what to do
-    kernel = None  # type: ignore[assignment]
+kernel = compiled_kernel("fusion._update")
 
 LAYOUTS = ["ins16", "ins22+gnss", "ins35", "ins35+gnss+air"]
 MODELS = {name: em.ErrorModel(em.layout_for(name), NOISE) for name in LAYOUTS}
@@ -35,11 +33,7 @@ MODELS = {name: em.ErrorModel(em.layout_for(name), NOISE) for name in LAYOUTS}
 
 @pytest.fixture(autouse=True)
 def _kernel_built() -> None:
-    if kernel is None:
-        pytest.fail(
-            "fusion._update (the compiled Phi fill) is not importable: the test command needs a "
-            "C compiler (gcc or clang) when the package is installed (pip install -e '.[test]')"
-        )
+    require_built(kernel, "fusion._update", "the compiled Phi fill and process noise")
 
 
 def bits(a: np.ndarray) -> list[Any]:

@@ -33,24 +33,15 @@ from physconst.kernel import python_forced
 from sim import presets
 from sim.flight import Flight, FlightConfig
 from sim.plans import load_plan
+from tests.helpers.kernels import compiled_kernel, require_built
 
-try:
-    from sim import _simkernel as kernel
-except ImportError:  # pragma: no cover - the failure below says what to do
-    kernel = None  # type: ignore[assignment]
-
-NEEDS_COMPILER = (
-    "sim._simkernel (the compiled simulator kernel) is not importable: the test command needs a "
-    "C compiler (gcc or clang) when the package is installed (pip install -e '.[test]'); "
-    "without one pip silently installs the Python references only"
-)
+kernel = compiled_kernel("sim._simkernel")
 SPECIAL = [0.0, -0.0, 5e-324, -5e-324, 2.2e-308, math.inf, -math.inf, math.nan, 1e308, -1e308]
 
 
 @pytest.fixture(autouse=True)
 def _kernel_built() -> None:
-    if kernel is None:
-        pytest.fail(NEEDS_COMPILER)
+    require_built(kernel, "sim._simkernel", "the compiled simulator kernel")
 
 
 def canonical(a: np.ndarray) -> bytes:
