@@ -11,9 +11,10 @@ times (200 Hz; a copy whose outages repeat every 120 s):
 - ``bare``: JSBSim's ``run()`` alone, controls frozen at trim, CPU s (best of ``--repeats``;
   :func:`run_end_to_end.time_jsbsim_bare`);
 - ``bare_process``: a child process that imports only the simulator's flight adapter
-  (``sim.flight``: numpy, JSBSim), builds this scenario's flight (model load, initial
-  conditions, trim; the flight configuration handed over pickled, so the child does not import
-  the scenario schema, which pulls in the whole filter) and flies the bare loop; its whole CPU
+  (``sim.flight``: numpy, JSBSim, and pydantic for the simulator's configurations), builds
+  this scenario's flight (model load, initial conditions, trim; the flight configuration
+  handed over pickled, so the child does not import the scenario schema, which pulls in the
+  whole filter) and flies the bare loop; its whole CPU
   minus its loop's is ``floor_fixed_s``, the least any Python process that flies this scenario
   in JSBSim pays before its first step (best of ``--repeats``);
 - ``phases``: the phase-timed ``hilnav run`` child of :func:`run_end_to_end.time_phases`,
