@@ -14,9 +14,9 @@ times (200 Hz; a copy whose outages repeat every 120 s):
   (``sim.flight``: numpy, JSBSim, and pydantic for the simulator's configurations), builds
   this scenario's flight (model load, initial conditions, trim; the flight configuration
   handed over pickled, so the child does not import the scenario schema, which pulls in the
-  whole filter) and flies the bare loop; its whole CPU
-  minus its loop's is ``floor_fixed_s``, the least any Python process that flies this scenario
-  in JSBSim pays before its first step (best of ``--repeats``);
+  whole filter) and flies the bare loop; its whole CPU minus its loop's is ``floor_fixed_s``,
+  the least a process that flies this scenario through hilnav's simulator pays before its
+  first step (best of ``--repeats``);
 - ``phases``: the phase-timed ``hilnav run`` child of :func:`run_end_to_end.time_phases`,
   best of ``--rounds`` per phase: what today's run spends on fixed costs (start-up, set-up,
   plots, exit), on JSBSim's ``run()`` inside the run, and on the per-step work (the simulator
