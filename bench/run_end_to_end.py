@@ -96,12 +96,18 @@ def time_jsbsim_bare(scenario_path: Path) -> tuple[float, int]:
     """CPU seconds of JSBSim's ``run()`` alone (controls frozen at trim) over the scenario's
     duration at its rate, and the number of steps."""
     from scenarios.schema import load_scenario
-    from sim.flight import Flight
 
     scn = load_scenario(scenario_path)
-    cfg = scn.flight_config()
-    n = round(scn.duration_s * cfg.rate_hz)
-    with Flight(cfg, scn.flight_plan()) as flight:
+    return time_bare_loop(scn.flight_config(), scn.flight_plan(), scn.duration_s)
+
+
+def time_bare_loop(cfg: Any, plan: Any, duration_s: float) -> tuple[float, int]:
+    """:func:`time_jsbsim_bare` from the flight's configuration and plan (it imports only
+    ``sim.flight``, not the scenario schema); CPU seconds and steps."""
+    from sim.flight import Flight
+
+    n = round(duration_s * cfg.rate_hz)
+    with Flight(cfg, plan) as flight:
         fdm = flight._fdm  # the bench measures the library underneath the adapter
         t0 = time.process_time()
         for _ in range(n):

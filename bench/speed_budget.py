@@ -84,18 +84,13 @@ def bare_process_cpu_s(scenario_path: Path, folder: Path) -> tuple[float, float]
     scn = load_scenario(scenario_path)
     flight = folder / "flight.pickle"  # the scenario's flight, for a child without the schema
     flight.write_bytes(pickle.dumps((scn.flight_config(), scn.flight_plan(), scn.duration_s)))
-    code = ("import pickle, sys, time\n"
-            "from sim.flight import Flight\n"
-            "cfg, plan, duration_s = pickle.loads(open(sys.argv[1], 'rb').read())\n"
-            "with Flight(cfg, plan) as flight:\n"
-            "    fdm = flight._fdm\n"
-            "    t0 = time.process_time()\n"
-            "    for _ in range(round(duration_s * cfg.rate_hz)):\n"
-            "        fdm.run()\n"
-            "    print(time.process_time() - t0)\n")
+    code = ("import pickle, sys\n"
+            "sys.path.insert(0, sys.argv[2])\n"
+            "from run_end_to_end import time_bare_loop\n"
+            "print(time_bare_loop(*pickle.loads(open(sys.argv[1], 'rb').read()))[0])\n")
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    proc = subprocess.run([sys.executable, "-c", code, str(flight)], cwd=ROOT, check=True,
-                          capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, "-c", code, str(flight), str(ROOT / "bench")],
+                          cwd=ROOT, check=True, capture_output=True, text=True)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     whole = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     return whole, float(proc.stdout.split()[-1])
