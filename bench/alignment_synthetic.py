@@ -1,4 +1,4 @@
-"""Benchmark: the automatic alignment on synthetic data (issue #14), over a few seeds.
+"""Benchmark: the automatic alignment on synthetic data, over a few seeds.
 
 The scenarios of ``tests/fusion/test_filter.py`` (``-k auto``), each over several seeds:
 

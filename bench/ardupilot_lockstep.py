@@ -11,7 +11,7 @@ process over loopback UDP, stopped by PID. Reported:
   JSBSim, sensor models, MAVLink frames, the JSON protocol);
 * ``chain_cpu_us_per_step``: the same chain flown without an autopilot (external control,
   constant commands), so ``protocol_added_us_per_step`` = the difference is what the JSON
-  interface adds on the simulator side (issue #20's target: <= 300 us per step);
+  interface adds on the simulator side (target: <= 300 us per step);
 * ``codec_us_per_step``: parsing a packet + the servo map + the state line alone.
 
     python bench/ardupilot_lockstep.py --duration 60 --out bench/results/ardupilot_lockstep.json

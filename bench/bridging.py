@@ -1,4 +1,4 @@
-"""Benchmark: GNSS-outage bridging strategies (issue 4) against the plain filter.
+"""Benchmark: GNSS-outage bridging strategies against the plain filter.
 
 Each run flies one plan for 600 s (Cessna 172, ``industrial-mems`` IMU, ``modern`` GNSS,
 ``ms5611`` baro, ``consumer`` magnetometer) with GNSS switched off for four 25 s outages (P0's
@@ -42,7 +42,7 @@ feature set and settings were chosen with ``--tune`` on seeds 1-5 of racetrack a
     python bench/bridging.py --tune --out bench/results/bridging_tuning.json
     python bench/bridging.py --tune-gate --out bench/results/bridging_gate_tuning.json
 
-Every method runs on every flight (the replays are cheap now that refits are bounded);
+Every method runs on every flight (the replays are cheap: refits are bounded);
 ``--full-methods-seeds K`` limits the P0-input variants to the first K seeds. For a quick
 check use ``--seeds 2 --no-pseudo`` (the reported numbers need the full 10 seeds x 3 plans).
 ``--cache DIR`` keeps the decoded flights (pickles) *and* the recordings, the latter keyed by a

@@ -1,8 +1,8 @@
 """Benchmark: MAVLink codec cost per HIL_SENSOR / HIL_GPS frame, CPU time, and where it goes.
 
     python bench/codec_speed.py                      # writes bench/results/codec_speed.json
-    python bench/codec_speed.py --base 42eb08f --rounds 3 \
-        --out bench/results/codec_speed_15_ab.json   # before / after, alternating
+    python bench/codec_speed.py --base REV --rounds 3 \
+        --out /tmp/codec_speed_ab.json   # another revision against this tree, alternating
 
 For each message (HIL_SENSOR with IMU fields only, HIL_SENSOR with IMU + mag + baro +
 diff_pressure, HIL_GPS) it times, in one process run:
@@ -13,7 +13,7 @@ diff_pressure, HIL_GPS) it times, in one process run:
   fast-path unpack, the samples);
 - ``pymavlink_pack_us`` / ``pymavlink_decode_us``: the reference path on the same frames
   (pymavlink message object + ``pack``; ``Decoder.parse``, i.e. framing + ``MAVLink.decode``,
-  + the same dispatch), i.e. what the codec cost before the fast path;
+  + the same dispatch): pymavlink's own path, the reference;
 - ``parts``: each part of the HIL_SENSOR (IMU fields) and HIL_GPS encode and decode timed
   alone on the same frames, µs per frame: encode ``pack`` (the ``struct`` call of the fields,
   ``FastLayout.payload``), ``crc`` (the X.25 CRC of header, payload and CRC_EXTRA, one

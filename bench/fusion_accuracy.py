@@ -97,7 +97,7 @@ def run_one(plan: str, seed: int, duration_s: float, gnss_bias: str = "default",
         ``default`` (the configuration's), ``on`` or ``off``: the filter's GNSS bias states.
     mag_reference : str
         ``wmm`` (the default: World Magnetic Model at the filter's position) or ``learned``
-        (learned in flight, the filter before issue #14): the magnetometer's reference field.
+        (learned in flight): the magnetometer's reference field.
 
     Returns
     -------
@@ -300,7 +300,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--gnss-bias", choices=("default", "on", "off"), default="default",
                     help="the filter's GNSS position-bias states (default: as configured)")
     ap.add_argument("--mag-reference", choices=("wmm", "learned"), default="wmm",
-                    help="the magnetometer's reference field (learned: the filter before #14)")
+                    help="the magnetometer's reference field (learned: learned in flight)")
     args = ap.parse_args(argv)
     if args.seeds < 1 or args.jobs < 1:
         ap.error("--seeds and --jobs must be >= 1")

@@ -1,4 +1,4 @@
-"""Benchmark: a million hostile frames through decoder + filter (issue: trust no input).
+"""Benchmark: a million hostile frames through decoder + filter.
 
 Per seed, a synthetic flight (tests/helpers/nav_synth.py: turns, climbs, speed changes;
 sensor errors from the filter's own model; IMU 100 Hz, GNSS 5 Hz, baro 25 Hz, mag 10 Hz) is

@@ -1,4 +1,4 @@
-"""Benchmark: GMDH as a regressor (issue 18) against polynomial ridge and an MLP.
+"""Benchmark: GMDH as a regressor against polynomial ridge and an MLP.
 
 Problems (6 inputs uniform in [-1, 1], Gaussian noise sigma = 0.02, so the noise floor of the
 test RMSE is 0.020; 3000 training samples, 3000 fresh test samples drawn with another seed):

@@ -1,4 +1,4 @@
-"""Benchmark: GMDH refit and prediction cost (issues 4 and 18), with the neural comparators'
+"""Benchmark: GMDH refit and prediction cost, with the neural comparators'
 fit cost.
 
 Data: 60 s of 100 Hz samples (6000 rows) of smooth, noisy INS-like features (4, 6 and 8
@@ -7,7 +7,7 @@ columns) and a nonlinear target. Measures, for the regressor defaults and for P0
 sample, the filter's path), of a batch ``predict`` per sample, and of ``predict`` on one row;
 and the refit on the bridging training window (``BridgeConfig.max_samples`` = 3000 pairs of
 the 4 bridging features, the bridges' settings ``paper(split="tail", ridge=1e-6)``, and the
-defaults on the same window). Targets: refit <= 50 ms (issue 18; issue 4 had 100 ms);
+defaults on the same window). Targets: refit <= 50 ms;
 single-sample predict <= 0.3 x a filter step (30-50 us), i.e. <= 9-15 us.
 
     python bench/gmdh_speed.py --out bench/results/gmdh_speed.json [--blas-threads 1]

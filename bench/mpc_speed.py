@@ -1,6 +1,6 @@
 """Benchmark: cost of one Laguerre-MPC step (P4's compensator) and of the altitude channel.
 
-Target (issue 5): the MPC step costs ≤ 20 µs per call with precomputed gains. Measured:
+Target: the MPC step costs ≤ 20 µs per call with precomputed gains. Measured:
 
 - ``first_move_fast``: the receding-horizon move ``Δu = −K_mpc·x̃`` alone (plain floats);
 - ``compensator_step``: :meth:`fusion.altitude.mpc.MpcCompensator.step` — move, control update and

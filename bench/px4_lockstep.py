@@ -1,4 +1,4 @@
-"""Benchmark: PX4 lockstep over loopback TCP (issue #20, "Speed").
+"""Benchmark: PX4 lockstep over loopback TCP.
 
 What the simulator side (``hil.autopilot.px4.Px4Backend`` in ``fly_with_autopilot``) adds per
 lockstep step, and how fast a lockstep flight runs against the PX4 protocol peer:

@@ -11,9 +11,9 @@ In one invocation it times
   seconds (``getrusage(RUSAGE_CHILDREN)``), its wall time, and its peak resident set size
   (``ru_maxrss``), plus the ``wall_s`` the run reports for itself in ``summary.json``.
 
-The ratio ``hilnav_run cpu / jsbsim_bare cpu`` is the issue-15 figure (target <= 3); the peak
-RSS of a 3600 s run is the memory figure (target < 500 MB). The load average is recorded
-before and after.
+The ratio ``hilnav_run cpu / jsbsim_bare cpu`` is the end-to-end speed figure (target <= 3);
+the peak RSS of a 3600 s run is the memory figure (target < 500 MB). The load average is
+recorded before and after.
 
 ``phases`` (unless ``--skip-phases``): where each CPU second of the run goes, from a second
 child that runs the same ``hilnav run`` command in-process (``app([...])``) with CPU timers
@@ -21,8 +21,7 @@ child that runs the same ``hilnav run`` command in-process (``app([...])``) with
 child), ``cli_import`` (``scenarios.cli.app``), ``setup`` (the command up to the flight: the
 imports of the runner, pipeline and report modules, scenario load, filter build; the child
 imports the runner and the pipeline first, to time their parts, inside the command's
-``settled_heap`` as the command itself does since session 13; before session 14 it imported
-them with the collector running, which a plain run does not), ``flight``
+``settled_heap`` as the command itself does), ``flight``
 split into ``jsbsim_run`` (JSBSim's ``run()`` alone, the clock read around each call),
 ``decode_filter`` (the :class:`hil.pipeline.FusionRun` sink: decode + filter + collector, per
 frame or per batch), ``tlog_write`` and ``sim_chain_python`` (the rest of the flight: adapter,
@@ -34,8 +33,7 @@ up to the flight; each plot, and matplotlib's layout pass and savefig over all p
 per-call timers (JSBSim's ``run()``, the sink, the tlog write: two clock reads each, 1-2 us per
 call on this VM, ~0.7 s of a 300 s run) are measured in the child (``timer_us_per_call``) and
 taken out of the phases they would inflate; what they cost is its own phase, ``phase_timers``,
-so this child's total is that much above the plain run's. (Before session 13 they were not taken
-out: ``tlog_write`` was then mostly the timers' own cost.) ``gc`` is the CPU of the garbage
+so this child's total is that much above the plain run's. ``gc`` is the CPU of the garbage
 collector's passes during the command, by generation (spread over the phases above, not a phase
 of its own).
 
@@ -51,8 +49,8 @@ per phase the best of the rounds in ``phases_best_cpu_s`` and their difference),
 ``same_bytes_as_base``: per round, whether the two trees wrote ``run.tlog`` and the PNGs with
 the same bytes.
 
-    python bench/run_end_to_end.py --duration 300 --base 4be3151 --ab-rounds 3 \\
-        --out bench/results/run_end_to_end_s13_fixed_ab.json
+    python bench/run_end_to_end.py --duration 300 --base REV --ab-rounds 3 \\
+        --out /tmp/run_end_to_end_ab.json
 
 The scenario (default ``turning-60s-outages``, 200 Hz) keeps its seed, sensors and plan; its
 outage events are replaced by one 60 s outage every 120 s from 120 s on, so a long run has
@@ -199,7 +197,7 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
         from scenarios.cli import quick_exit
 
         heap = quick_exit.settled_heap
-    with heap():  # as the run command imports them (since session 13): no collections, frozen
+    with heap():  # as the run command imports them: no collections, frozen
         import hil.pipeline
         import scenarios.runner
     t_imports = cpu()
@@ -286,7 +284,7 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
 
     scenarios.runner.score = timed("score_total", timed_score)
     code = 0
-    entry = getattr(cli_app, "main", None) or cli_app.app  # main: the console entry since s13
+    entry = getattr(cli_app, "main", None) or cli_app.app  # main: the console entry point
     try:
         entry(["run", str(scenario_path), "--out", str(out), "--quiet"])
     except SystemExit as exc:
@@ -318,7 +316,7 @@ def _child_phases(scenario_path: Path, out: Path, phases_json: Path) -> None:
            "timed_calls": {k: calls[k] for k in per_call},
            # setup, split: the runner's and pipeline's imports (numpy, scipy, pydantic,
            # pymavlink, JSBSim's module, ours), then the command up to the flight (scenario
-           # load, and since session 14 the plots' module, filter build, run folder)
+           # load, the plots' module, filter build, run folder)
            "setup_split_cpu_s": {"runner_pipeline_imports": t_imports - t_cli,
                                  "command_to_flight": flight_start - t_imports},
            # inside ``reports``: each plot (its figure, layout, draw and PNG), and over all

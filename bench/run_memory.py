@@ -19,7 +19,7 @@ peak as well):
 
 The code measured is whatever is checked out: run it at two commits for a before / after.
 
-    python bench/run_memory.py --duration 3600 --out bench/results/run_memory_1h.json
+    python bench/run_memory.py --duration 3600 --out bench/results/run_memory.json
 """
 
 from __future__ import annotations

@@ -40,8 +40,8 @@ REPLAYS = {
 
 def _hilnav() -> list[str]:
     # ``python -m`` with the tree's root as working folder, never the venv's ``hilnav`` script:
-    # that script names the entry function of the tree it was installed from (``main`` since
-    # session 13), which an export of an older revision on PYTHONPATH may not have
+    # that script names the entry function of the tree it was installed from, which an export
+    # of another revision on PYTHONPATH may not have
     return [sys.executable, "-m", "scenarios.cli"]
 
 

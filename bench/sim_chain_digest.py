@@ -7,7 +7,7 @@ power-law shear (8,-4,0 m/s, exponent 1/7). A speed change of the chain must lea
 digests unchanged. ``--base REV`` also runs this script on a ``git archive`` of REV (first on
 ``PYTHONPATH``) and compares; the JSON says ``identical`` per flight.
 
-    python bench/sim_chain_digest.py --base 4f47f88 --out bench/results/sim_chain_digest.json
+    python bench/sim_chain_digest.py --base REV --out bench/results/sim_chain_digest.json
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Benchmark: bare JSBSim vs the flight adapter vs the simulator chain (JSBSim + guidance +
 sensor models + MAVLink encode), same flight, same rate, one process run. Writes JSON.
 
-Targets (issue 15): the sim chain within 1.8x of bare JSBSim on the same flight and rate.
+Targets: the sim chain within 1.8x of bare JSBSim on the same flight and rate.
 "bare JSBSim" is JSBSim's own ``run()`` with the controls frozen at trim; "adapter" is
 :class:`sim.flight.Flight` (JSBSim + guidance law + property reads + checks + SI truth);
 "chain" is :class:`hil.pipeline.SimChain` (adapter + sensor suite + vehicle-state reports +
@@ -31,8 +31,8 @@ best of ``--repeats`` each), alternately with the code of a ``git archive`` of R
 tree first on ``PYTHONPATH``, N rounds; each child's ratios come from one process, and the JSON
 keeps every round and the best of each side (``ab``).
 
-    python bench/sim_throughput.py --duration 120 --repeats 2 --base 4f47f88 --ab-rounds 3 \
-        --out bench/results/sim_throughput_ab.json
+    python bench/sim_throughput.py --duration 120 --repeats 2 --base REV --ab-rounds 3 \
+        --out /tmp/sim_throughput_ab.json
 
 ``--wind`` / ``--wind-shear`` fly in a steady wind / a power-law wind profile (the profile is
 written to JSBSim at every step: its cost shows as the difference to a run without it).

@@ -10,7 +10,7 @@ scorecard's ``sim_duration_s`` at the end).
 
 The JSON has, per process, the samples ``[wall_s, sim_s, rss_mb]`` and, after the warm-up
 (``--warmup`` simulated seconds), the RSS min / max / range and the growth per simulated
-hour of a least-squares line; the target of issue #13 is a fusion RSS range within 50 MB
+hour of a least-squares line; the target is a fusion RSS range within 50 MB
 after the warm-up (``target_ok``). The peak of each process (``VmHWM``, last read) includes
 the end-of-run scoring, which is reported apart from the flat part.
 

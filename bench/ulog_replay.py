@@ -1,4 +1,4 @@
-"""hilnav's filter against PX4's own EKF2 on PX4's sample ULog files (issue #14, ULog replay).
+"""hilnav's filter against PX4's own EKF2 on PX4's sample ULog files.
 
 Replays every ``*.ulg`` in ``../shared/logs/px4/`` (PX4's public sample logs, pyulog's test
 data) with ``hilnav replay`` twice: ``--settle 0`` (the whole overlap of the two estimates is

@@ -11,7 +11,6 @@ import scipy.linalg
 import scipy.optimize
 import scipy.signal
 
-from bench.altitude_compare import SCENARIOS, make_config, metrics, run_channel, simulate
 from fusion.altitude.atmosphere import nonstandard_scale_bias, pressure_altitude_m
 from fusion.altitude.baro_monitor import BaroMonitorConfig
 from fusion.altitude.channel import AltitudeChannel, AltitudeChannelConfig
@@ -21,6 +20,7 @@ from fusion.altitude.mpc import MpcCompensator, MpcConfig
 from fusion.altitude.vertical_kf import VerticalKalman
 from fusion.altitude.vertical_model import VerticalErrorModel
 from fusion.laguerre import LaguerreMPC, laguerre_network, laguerre_sequence, solve_qp
+from tests.helpers.altitude_synth import SCENARIOS, make_config, metrics, run_channel, simulate
 
 # ---- third-order loop ---------------------------------------------------------------------
 

@@ -23,10 +23,10 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import fusion.strapdown as sd
-from bench import fusion_speed
 from fusion.config import FilterConfig
 from fusion.strapdown import InsState
 from physconst.kernel import python_forced
+from tests.helpers.filter_digest import filter_digest, tuned_config
 from tests.helpers.kernels import compiled_kernel, require_built
 from tests.helpers.nav_synth import Flight, SensorErrors, make_scenario, prepare
 
@@ -359,12 +359,12 @@ def test_filter_estimates_are_identical_with_and_without_the_kernel(
     prep = prepare(Flight(duration_s=3.0, turns=[(1.0, 2.5, 0.25)]), imu_rate_hz=100.0)
     cfg = FilterConfig(state_layout=layout)  # type: ignore[arg-type]
     sc = make_scenario(prep, np.random.default_rng(7), SensorErrors.from_config(cfg))
-    monkeypatch.setitem(fusion_speed.LAYOUT, "name", layout)
+    tuned = tuned_config("industrial-mems", cov_rate_hz=100.0, layout=layout)
     digests, counts = {}, {}
     for use_kernel in (True, False):
         with monkeypatch.context() as m:
             counts[use_kernel] = swap_in(m, use_kernel)
-            digests[use_kernel] = fusion_speed.digest_filter(sc.samples, 100.0)
+            digests[use_kernel] = filter_digest(tuned, sc.samples)
     assert digests[True] == digests[False]
     assert counts[True] == counts[False]
     assert counts[True]["update"] > 150  # the filter did run the swapped-in functions
