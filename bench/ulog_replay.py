@@ -1,7 +1,8 @@
 """hilnav's filter against PX4's own EKF2 on PX4's sample ULog files.
 
-Replays every ``*.ulg`` in ``../shared/logs/px4/`` (PX4's public sample logs, pyulog's test
-data) with ``hilnav replay`` twice: ``--settle 0`` (the whole overlap of the two estimates is
+Replays every ``*.ulg`` in ``--logs DIR`` (PX4's public sample logs ``sample_log_small``,
+``sample_logging_tagged_and_default_params`` and ``sample_px4_events``, pyulog's test data)
+with ``hilnav replay`` twice: ``--settle 0`` (the whole overlap of the two estimates is
 compared) and the default ``--settle 60`` (fitted to the log, see ``summary.json``
 ``settling``); and the SITL hop with ``--gnss-off 18:8`` (an 8-s GNSS cut scored against
 EKF2). Each row keeps the exit code (and the one-line error of a log that cannot be replayed),
@@ -11,7 +12,7 @@ outage figures, the alignment and the settling actually applied.
 These are *differences to another estimator*, not errors: EKF2 is the reference, not truth.
 The logs are short (6-31 s) and mostly at rest; they test log import and alignment at rest.
 
-    python bench/ulog_replay.py [--logs DIR] [--out bench/results/ulog_replay.json]
+    python bench/ulog_replay.py --logs DIR [--out bench/results/ulog_replay.json]
 """
 
 from __future__ import annotations
@@ -27,7 +28,6 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
-LOGS = ROOT.parent / "shared" / "logs" / "px4"
 GNSS_CUT = {"sample_px4_events": "18:8"}
 
 
@@ -64,7 +64,8 @@ def _replay(log: Path, args: list[str]) -> dict[str, Any]:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--logs", type=Path, default=LOGS)
+    ap.add_argument("--logs", type=Path, required=True,
+                    help="folder of PX4 .ulg logs (pyulog's test data)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results" / "ulog_replay.json")
     a = ap.parse_args()
     logs = sorted(a.logs.glob("*.ulg"))
