@@ -23,7 +23,7 @@ of the chain runs between its calls.
 
     python bench/sim_throughput.py --duration 300 --out bench/results/sim_throughput.json
     python bench/sim_throughput.py --duration 300 --wind 8,-4,0 --wind-shear 0.142857 \
-        --out bench/results/sim_throughput_wind_shear.json
+        --out /tmp/sim_throughput_wind_shear.json   # a wind profile written at every step
 
 ``--base REV --ab-rounds N`` is the before/after of a change on a loaded machine: child processes
 of this script time bare JSBSim, the chain step by step and the chain in batches (``--ratio-only``,
