@@ -9,7 +9,15 @@ from what it already reports.
 Events (``event``: severity, when)
     ``mode``              notice/warning: every mode change (``aligned``, ``GNSS lost: ...``,
                           ``GNSS regained``, ``Nav mode: ...``); never rate-limited
-    ``gnss_rejected``     warning: fixes rejected by the innovation gate
+    ``gnss_rejected``     debug: a fix rejected by the innovation gate; single rejections
+                          come at the gate's own false-alarm rate (0.5 % of fixes at its
+                          default probability), so they stay on the bus and never reach a
+                          ground station
+    ``gnss_rejections_persist`` warning: rejections persist, :attr:`reject_run` fixes in a row
+                          without one fused, or :attr:`reject_burst` within
+                          :attr:`reject_window_s`; once per episode
+    ``gnss_gate_clear``   notice: the episode is over, fixes fused again and none rejected
+                          for :attr:`clear_after_s`
     ``spoof_suspected``   critical: fixes keep arriving but every one has been rejected for
                           :attr:`NavEventDetector.spoof_after_s` (a consistency test: it
                           cannot tell a spoofer from a long multipath glitch); once per episode
@@ -22,13 +30,19 @@ Events (``event``: severity, when)
     ``imu_invalid``       warning: IMU samples with NaN/Inf or out of range (replaced)
     ``filter_rebase``     error: a new IMU time base; the filter re-initialised
 
-Repeatable events (all but ``mode`` and ``spoof_suspected``) are rate-limited per kind to one
-per :attr:`NavEventDetector.min_interval_s` of estimate time; the ones held back are counted
-in the next one's ``detail["suppressed"]``.
+Repeatable events (all but ``mode``, ``spoof_suspected`` and the once-per-episode gate
+events) are rate-limited per kind to one per :attr:`NavEventDetector.min_interval_s` of
+estimate time; the ones held back are counted in the next one's ``detail["suppressed"]``.
+
+Why the persistence rule's defaults: at 5 fixes a second and a gate that rejects 0.5 % of
+good fixes, a run of 3 rejected fixes happens by chance about once in 10^7 fixes (weeks of
+flight), and 10 rejections within 20 s (0.5 expected) even less often; a real fault (a glitch,
+a spoofer, multipath that lasts) trips either within seconds.
 """
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Final
 
@@ -102,11 +116,26 @@ class NavEventDetector:
     spoof_after_s : float
         Rejections without a fused fix for this long (fixes still arriving) make
         ``spoof_suspected``, s.
+    reject_run : int
+        Rejections in a row (no fix fused between them) that make a persistent episode.
+    reject_burst, reject_window_s : int, float
+        Or this many rejections within this many seconds of estimate time.
+    clear_after_s : float
+        An episode ends at a fused fix with no rejection for this long, s.
     """
 
-    def __init__(self, *, min_interval_s: float = 5.0, spoof_after_s: float = 3.0) -> None:
+    def __init__(self, *, min_interval_s: float = 5.0, spoof_after_s: float = 3.0,
+                 reject_run: int = 3, reject_burst: int = 10, reject_window_s: float = 20.0,
+                 clear_after_s: float = 5.0) -> None:
         self.min_interval_s = min_interval_s
         self.spoof_after_s = spoof_after_s
+        self.reject_run = reject_run
+        self.reject_burst = reject_burst
+        self.reject_window_s = reject_window_s
+        self.clear_after_s = clear_after_s
+        self._run = 0
+        self._recent_rejects_us: deque[int] = deque()
+        self._persisting = False
         self._mode: Mode | None = None
         self._health: Health | None = None
         self._last_sent_us: dict[str, int] = {}
@@ -135,10 +164,12 @@ class NavEventDetector:
         if h.gnss_rejected > prev.gnss_rejected:
             self._last_reject_us = t
             ratio = est.test_ratios.gnss_pos
-            self._limited(out, t, "gnss_rejected", "warning", "GNSS fix rejected by the gate", {
+            self._limited(out, t, "gnss_rejected", "debug", "GNSS fix rejected by the gate", {
                 "rejected_total": h.gnss_rejected,
                 "gnss_pos_test_ratio": ratio if ratio == ratio else None,
             })
+        self._gate_episode(out, t, h.gnss_rejected - prev.gnss_rejected,
+                           h.gnss_fused > prev.gnss_fused)
         if h.gnss_fused > prev.gnss_fused:
             self._spoof_flagged = False
         since_s = float(est.time_since_gnss_s)
@@ -171,12 +202,37 @@ class NavEventDetector:
         self.events.extend(out)
         return out
 
+    def _gate_episode(self, out: list[NavEvent], t: int, rejected: int, fused: bool) -> None:
+        """Persistent rejections: one warning when an episode starts, one notice when it ends."""
+        if fused:
+            self._run = 0
+        self._run += rejected
+        self._recent_rejects_us.extend([t] * rejected)
+        while self._recent_rejects_us and (
+                t - self._recent_rejects_us[0] > self.reject_window_s * 1e6):
+            self._recent_rejects_us.popleft()
+        burst = len(self._recent_rejects_us)
+        if not self._persisting and (self._run >= self.reject_run or burst >= self.reject_burst):
+            self._persisting = True
+            why = (f"{self._run} in a row" if self._run >= self.reject_run
+                   else f"{burst} in {self.reject_window_s:g} s")
+            out.append(NavEvent(t, "gnss_rejections_persist", "warning",
+                                f"GNSS fixes rejected: {why}",
+                                {"in_a_row": self._run, "in_window": burst,
+                                 "window_s": self.reject_window_s}))
+        elif (self._persisting and fused and self._last_reject_us is not None
+              and t - self._last_reject_us >= self.clear_after_s * 1e6):
+            self._persisting = False
+            self._recent_rejects_us.clear()  # a new episode needs new rejections
+            out.append(NavEvent(t, "gnss_gate_clear", "notice", "GNSS fixes accepted again",
+                                {"clear_after_s": self.clear_after_s}))
+
     def _mode_event(self, t: int, old: Mode | None, new: Mode) -> NavEvent:
         label = MODE_LABELS[new]
         detail = {"from": None if old is None else str(old), "to": str(new)}
-        if old is None:
+        if old is None and new == Mode.INITIALIZING:
             return NavEvent(t, "mode", "info", f"Nav mode: {label}", detail)
-        if old == Mode.INITIALIZING:
+        if old is None or old == Mode.INITIALIZING:  # the first estimate may come aligned
             return NavEvent(t, "mode", "notice", f"Nav aligned: {label}", detail)
         if old == Mode.GNSS and new in _GNSS_LOST_MODES:
             return NavEvent(t, "mode", "warning", f"GNSS lost: {label}", detail)

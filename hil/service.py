@@ -89,7 +89,7 @@ from hil.link import (
     LinkRole,
     MavlinkLink,
 )
-from hil.nav_events import NavEvent, NavEventDetector
+from hil.nav_events import MODE_LABELS, NavEvent, NavEventDetector
 from hil.pipeline import FusionRun, filter_config
 from hil.sample_clock import SampleClock
 from hil.shadow import CUSTOM_MODES, CompanionEncoder, ShadowEncoder, heartbeat_state
@@ -343,6 +343,7 @@ class FusionService:
         self.responder: GcsResponder | None = None
         self.events = NavEventDetector()
         self._pending_text: deque[NavEvent] = deque(maxlen=64)
+        self._gcs_heard = False  # a ground station has spoken on the GCS link
         self._relay_text: deque[tuple[int, str]] = deque(maxlen=64)  # the simulator's events
         self._gcs_tlog: TlogWriter | None = None
         self.companion: CompanionEncoder | None = None
@@ -472,7 +473,7 @@ class FusionService:
         events = self.events.update(est)
         for ev in events:
             self.stats.events += 1
-            if self.vehicle is not None:
+            if self.vehicle is not None and ev.severity != "debug":
                 self._pending_text.append(ev)
             if self._bus is not None:
                 self._bus.publish_fusion_event(ev.time_us, ev.event, ev.severity, ev.message,
@@ -507,6 +508,15 @@ class FusionService:
         if self._gcs_tlog is not None and self.shadow is not None:
             self._gcs_tlog.write(frame, self.shadow.time_us)
 
+    def _greet_gcs(self, est: NavEstimate | None) -> None:
+        """A ground station that connects after the alignment missed its STATUSTEXT: tell it
+        the navigation's state once (the mode events after this reach it as they happen)."""
+        if est is None or est.mode == "initializing":
+            return
+        label = MODE_LABELS[Mode(est.mode)]
+        self._pending_text.appendleft(NavEvent(int(est.time_us), "mode", "notice",
+                                               f"Nav aligned: {label}", {"to": str(est.mode)}))
+
     def _gcs_step(self, now: float, schedule: dict[str, float]) -> None:
         link = self._links.get("gcs")
         vehicle, responder = self.vehicle, self.responder
@@ -518,6 +528,9 @@ class FusionService:
         link.set_heartbeat_state(base_mode=base_mode, custom_mode=custom_mode,
                                  system_status=status)
         for msg in link.recv(0.0):
+            if not self._gcs_heard:
+                self._gcs_heard = True
+                self._greet_gcs(est)
             for frame in responder.handle(msg):
                 self._gcs_send(link, frame)
                 self.stats.gcs_answers += 1

@@ -1,4 +1,6 @@
-"""A self-contained HTML page of a run: verdict, criteria, outages, events, health, plots.
+"""A self-contained HTML page of a run, for a navigation engineer: the verdict and what was flown
+(aircraft, sensors, air, seed), the criteria, the plots, the outage and event tables, and the
+counters last, folded.
 
 Everything is inside the one file (inline CSS, PNG plots as base64 ``data:`` URIs, no script,
 no external link), so the page can be attached to a CI job or mailed and still opens offline.
@@ -30,6 +32,9 @@ tr.fail td { background: #fbe1e1; }
 .meta { color: #556; }
 figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #dde; }
 figcaption { color: #556; font-size: 0.9em; }
+table.setup th { background: none; border: none; padding-right: 1.2em; }
+table.setup td { border: none; }
+details { margin: 0.6em 0; } summary { cursor: pointer; color: #335; }
 """
 
 
@@ -64,6 +69,70 @@ def _table(head: Sequence[str], rows: Sequence[Sequence[str]],
     return "".join(out)
 
 
+# Human names of the scorecard's keys: (label, unit); a key not listed is spelt out from its
+# name (underscores to spaces, a unit suffix to its unit).
+_LABELS: dict[str, tuple[str, str]] = {
+    "horizontal_rmse_m": ("horizontal RMSE", "m"),
+    "vertical_rmse_m": ("vertical RMSE", "m"),
+    "horizontal_max_m": ("horizontal max", "m"),
+    "vertical_max_m": ("vertical max", "m"),
+    "roll_rmse_deg": ("roll RMSE", "deg"),
+    "pitch_rmse_deg": ("pitch RMSE", "deg"),
+    "yaw_rmse_deg": ("yaw RMSE", "deg"),
+    "cep50_m": ("CEP50", "m"),
+    "cep95_m": ("CEP95", "m"),
+    "nees_mean": ("mean NEES", ""),
+    "nees_dof": ("NEES degrees of freedom", ""),
+    "rms_z_pos": ("rms(error / σ), position", ""),
+    "rms_z_vel": ("rms(error / σ), velocity", ""),
+    "rms_z_att": ("rms(error / σ), attitude", ""),
+    "within_3sigma_pos": ("share within 3σ, position", ""),
+    "within_3sigma_vel": ("share within 3σ, velocity", ""),
+    "within_3sigma_att": ("share within 3σ, attitude", ""),
+    "horizontal": ("horizontal", ""),
+    "vertical": ("vertical", ""),
+    "reconverge_s": ("re-converged after", "s"),
+    "detect_s": ("detected after", "s"),
+    "horizontal_error_m_at": ("horizontal error at", "m"),
+    "vertical_error_m_at": ("vertical error at", "m"),
+    "containment_3sigma": ("inside the 3σ bound", "share"),
+    "gnss_on": ("GNSS on", ""),
+    "outages": ("GNSS outages", ""),
+    "events": ("events", ""),
+}
+_UNIT_SUFFIXES = (("_mps2", "m/s²"), ("_mps", "m/s"), ("_deg", "deg"), ("_rad", "rad"),
+                  ("_us", "µs"), ("_ms", "ms"), ("_m", "m"), ("_s", "s"), ("_hz", "Hz"),
+                  ("_pa", "Pa"))
+
+
+def human(key: str) -> tuple[str, str]:
+    """``(label, unit)`` of a scorecard key: ``horizontal_rmse_m`` -> ("horizontal RMSE",
+    "m"); unknown keys are spelt out from their name."""
+    if key in _LABELS:
+        return _LABELS[key]
+    for suffix, unit in _UNIT_SUFFIXES:
+        if key.endswith(suffix):
+            return key[: -len(suffix)].replace("_", " "), unit
+    return key.replace("_", " "), ""
+
+
+def metric_label(path: str) -> str:
+    """A criterion's metric path in words: ``outages.horizontal_error_m_at.60`` -> "GNSS
+    outages: horizontal error at 60 s (m)"."""
+    parts = path.split(".")
+    words: list[str] = []
+    unit = ""
+    for k, part in enumerate(parts):
+        if part.isdigit() and k > 0 and parts[k - 1].endswith("_at"):
+            words[-1] += f" {part} s"
+            continue
+        label, u = human(part)
+        words.append(label)
+        unit = u or unit
+    text = words[0] + (": " + " ".join(words[1:]) if len(words) > 1 else "")
+    return f"{text} ({unit})" if unit and unit != "share" else text
+
+
 def _criteria(summary: Mapping[str, Any]) -> str:
     crit = list(summary.get("criteria") or [])
     if not crit:
@@ -71,10 +140,11 @@ def _criteria(summary: Mapping[str, Any]) -> str:
     rows, cls = [], []
     for c in crit:
         ok = bool(c.get("ok"))
-        rows.append([_e(c.get("name")), _num(c.get("value")), _e(c.get("op", "<=")),
-                     _num(c.get("limit")), "pass" if ok else "FAIL"])
+        rows.append([_e(c.get("name")), _e(metric_label(str(c.get("path", "")))),
+                     _num(c.get("value")), _e(c.get("op", "<=")), _num(c.get("limit")),
+                     "pass" if ok else "FAIL"])
         cls.append("pass" if ok else "fail")
-    return _table(["criterion", "value", "", "limit", "result"], rows, cls)
+    return _table(["criterion", "metric", "value", "", "limit", "result"], rows, cls, left=2)
 
 
 def _at(row: Mapping[str, Any], key: str, s: str) -> Any:
@@ -86,18 +156,19 @@ def _outages(summary: Mapping[str, Any]) -> str:
     outs = list(summary.get("outages") or [])
     if not outs:
         return "<p>No GNSS outage.</p>"
-    head = ["#", "start (s)", "end (s)", "h RMSE (m)", "h max (m)", "h@10 s", "h@30 s",
-            "h@60 s", "h@120 s", "CEP50 (m)", "CEP95 (m)", "v RMSE (m)", "3σ h", "3σ v",
-            "re-converge (s)"]
+    head = ["#", "start (s)", "end (s)", "horizontal RMSE (m)", "horizontal max (m)",
+            "at 10 s (m)", "at 30 s (m)", "at 60 s (m)", "at 120 s (m)", "at 300 s (m)",
+            "CEP50 (m)", "CEP95 (m)", "vertical RMSE (m)", "inside 3σ, horizontal",
+            "inside 3σ, vertical", "re-converged after (s)"]
     rows = []
     for i, o in enumerate(outs):
         c3 = o.get("containment_3sigma") or {}
         rows.append([
             str(i + 1), _num(o.get("start_s"), ".1f"), _num(o.get("end_s"), ".1f"),
             _num(o.get("horizontal_rmse_m")), _num(o.get("horizontal_max_m")),
-            *(_num(_at(o, "horizontal_error_m_at", s)) for s in ("10", "30", "60", "120")),
+            *(_num(_at(o, "horizontal_error_m_at", s)) for s in ("10", "30", "60", "120", "300")),
             _num(o.get("cep50_m")), _num(o.get("cep95_m")), _num(o.get("vertical_rmse_m")),
-            _num(c3.get("horizontal"), ".3f"), _num(c3.get("vertical"), ".3f"),
+            _pct(c3.get("horizontal")), _pct(c3.get("vertical")),
             _num(o.get("reconverge_s"), ".1f"),
         ])
     comp_rows = []
@@ -106,9 +177,16 @@ def _outages(summary: Mapping[str, Any]) -> str:
         comp_rows.append([str(i + 1), _num(r.get("lat_deg"), ".3e"), _num(r.get("lon_deg"), ".3e"),
                           _num(r.get("h_m")), _num(r.get("vn_mps")), _num(r.get("ve_mps")),
                           _num(r.get("vd_mps"))])
-    return (_table(head, rows) + "<p class=meta>Component RMSEs (the papers' table)</p>"
-            + _table(["#", "lat (deg)", "lon (deg)", "h (m)", "vN (m/s)", "vE (m/s)",
-                      "vD (m/s)"], comp_rows))
+    return (_table(head, rows)
+            + "<details><summary>RMSE per component (the papers' table)</summary>"
+            + _table(["#", "latitude (deg)", "longitude (deg)", "height (m)",
+                      "north velocity (m/s)", "east velocity (m/s)", "down velocity (m/s)"],
+                     comp_rows)
+            + "</details>")
+
+
+def _pct(v: Any) -> str:
+    return f"{100.0 * v:.1f} %" if isinstance(v, int | float) and math.isfinite(v) else "–"
 
 
 def _events(summary: Mapping[str, Any]) -> str:
@@ -120,16 +198,17 @@ def _events(summary: Mapping[str, Any]) -> str:
         early = ev.get("reaccepted_early")
         detected = ev.get("detect_s") is not None
         rows.append([
-            _e(ev.get("type")), _e(ev.get("kind", "")), _num(ev.get("start_s"), ".1f"),
-            _num(ev.get("end_s"), ".1f"),
+            _e(str(ev.get("type", "")).replace("_", " ")), _e(ev.get("sensor", "")),
+            _num(ev.get("start_s"), ".1f"), _num(ev.get("end_s"), ".1f"),
             _num(ev.get("detect_s"), ".2f") if detected else "never",
             _num(ev.get("max_horizontal_m")), _num(ev.get("max_vertical_m")),
             _num(early), _num(ev.get("reaccept_count")), _num(ev.get("reconverge_s"), ".1f"),
         ])
         cls.append("fail" if early else ("pass" if detected else ""))
-    return _table(["event", "kind", "start (s)", "end (s)", "detected after (s)",
-                   "max h (m)", "max v (m)", "re-accepted early", "re-accepts",
-                   "re-converge (s)"], rows, cls, left=2)
+    return _table(["event", "sensor", "start (s)", "end (s)", "detected after (s)",
+                   "max horizontal error (m)", "max vertical error (m)",
+                   "bad fix re-accepted early", "re-acceptances", "re-converged after (s)"],
+                  rows, cls, left=2)
 
 
 def _flat(d: Mapping[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
@@ -150,8 +229,35 @@ def _kv(d: Mapping[str, Any], fmt: str = ".4g") -> str:
     return _table(["", "value"], [[_e(k), _num(v, fmt)] for k, v in items])
 
 
+def _labelled(d: Mapping[str, Any], fmt: str = ".3g") -> str:
+    """A flat mapping of scorecard keys as a two-column table with human labels and units."""
+    rows = []
+    for key, v in d.items():
+        if isinstance(v, Mapping):
+            continue
+        label, unit = human(str(key))
+        shown = _pct(v) if key.startswith("within_") else _num(v, fmt)
+        rows.append([_e(label + (f" ({unit})" if unit and unit != "share" else "")), shown])
+    return _table(["", "value"], rows) if rows else "<p>–</p>"
+
+
+_PLOT_ORDER = ("ground_track", "horizontal_vertical", "errors", "drift")
+_PLOT_CAPTIONS = {
+    "ground_track": "Ground track: truth and estimate, outages and events marked",
+    "horizontal_vertical": "Horizontal and vertical error with the filter's 3σ bound",
+    "errors": "Errors per axis (position, velocity, attitude) with ±3σ",
+    "drift": "Horizontal error against time into each outage",
+    "autopilot_side_by_side": "hilnav and the autopilot's estimate against truth",
+}
+
+
 def _plots(plots: Sequence[Path] | Mapping[str, Path]) -> str:
-    items = list(plots.items()) if isinstance(plots, Mapping) else [(p.stem, p) for p in plots]
+    if isinstance(plots, Mapping):
+        items = list(plots.items())
+    else:
+        rank = {name: k for k, name in enumerate(_PLOT_ORDER)}
+        ordered = sorted(plots, key=lambda p: rank.get(Path(p).stem, len(rank)))
+        items = [(_PLOT_CAPTIONS.get(Path(p).stem, Path(p).stem), p) for p in ordered]
     out = []
     for caption, p in items:
         data = base64.b64encode(Path(p).read_bytes()).decode("ascii")
@@ -217,36 +323,64 @@ def _autopilot(summary: Mapping[str, Any]) -> str:
     ])
 
 
+def _setup(summary: Mapping[str, Any]) -> str:
+    """What was flown: the scenario's aircraft, sensors, air, seed and duration."""
+    setup = summary.get("setup") or {}
+    sensors = setup.get("sensors") or {}
+    wind = setup.get("wind_ned_mps")
+    rows: list[tuple[str, str]] = [
+        ("scenario", _e(summary.get("scenario", ""))
+         + (f" — {_e(setup['description'])}" if setup.get("description") else "")),
+        ("aircraft", _e(setup.get("aircraft", "–"))),
+        ("flight plan", _e(setup.get("plan", "–"))),
+        ("IMU", _e(sensors.get("imu", "–"))), ("GNSS", _e(sensors.get("gnss", "–"))),
+        ("barometer", _e(sensors.get("baro", "–"))),
+        ("magnetometer", _e(sensors.get("mag", "–"))),
+        ("pitot", _e(sensors.get("pitot", "–"))),
+        ("wind N, E, D (m/s)", ", ".join(f"{w:g}" for w in wind) if wind else "–"),
+        ("turbulence", _e(setup.get("turbulence", "–"))),
+        ("seed", _e(summary.get("seed"))),
+        ("flown", f"{_num(summary.get('sim_duration_s'), '.1f')} s simulated in "
+                  f"{_num(summary.get('wall_s'), '.1f')} s"),
+        ("navigation", f"bridge {_e(summary.get('bridge'))} · altitude "
+                       f"{_e(summary.get('altitude'))}"),
+    ]
+    if summary.get("ended"):
+        rows.append(("ended early", _e(summary["ended"])))
+    body = "".join(f"<tr><th class=l>{k}</th><td class=l>{v}</td></tr>" for k, v in rows)
+    return f"<table class=setup><tbody>{body}</tbody></table>"
+
+
 def render_html(summary: Mapping[str, Any], plots: Sequence[Path] | Mapping[str, Path]) -> str:
-    """The page as a string (see :func:`write_html`)."""
+    """The page as a string (see :func:`write_html`): the verdict and what was flown, the
+    criteria, the plots, the outage and event tables, then the rest, folded."""
     passed = bool(summary.get("passed"))
     title = f"hilnav · {summary.get('scenario', 'run')}"
-    meta = (f"seed {_e(summary.get('seed'))} · bridge {_e(summary.get('bridge'))} · "
-            f"altitude {_e(summary.get('altitude'))} · "
-            f"{_num(summary.get('sim_duration_s'), '.1f')} s simulated in "
-            f"{_num(summary.get('wall_s'), '.1f')} s "
-            f"(×{_num(summary.get('realtime_factor'), '.1f')} real time)")
     badge = '<span class="badge pass">PASSED</span>' if passed else \
         '<span class="badge fail">FAILED</span>'
     parts = [
         "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
         f"<title>{_e(title)}</title><style>{_CSS}</style></head><body>",
-        f"<h1>{_e(title)} {badge}</h1><p class=meta>{meta}</p>",
+        f"<h1>{_e(title)} {badge}</h1>", _setup(summary),
         "<h2>Pass criteria</h2>", _criteria(summary),
+        "<h2>Plots</h2>", _plots(plots),
         "<h2>GNSS outages</h2>", _outages(summary),
         "<h2>Scenario events</h2>", _events(summary),
-        "<h2>GNSS-on accuracy</h2>", _kv(summary.get("gnss_on") or {}),
-        "<h2>Consistency</h2>",
-        _kv({"nees": summary.get("nees") or {},
-             "containment_3sigma": summary.get("containment_3sigma") or {}}),
-        "<h2>Health counters</h2>", _kv(summary.get("health") or {}),
+        "<h2>GNSS-on accuracy</h2>", _labelled(summary.get("gnss_on") or {}),
+        "<h2>Consistency</h2>", _labelled(summary.get("nees") or {}),
+        "<p class=meta>Share of the run inside the filter's 3σ bound: horizontal "
+        f"{_pct((summary.get('containment_3sigma') or {}).get('horizontal'))}, vertical "
+        f"{_pct((summary.get('containment_3sigma') or {}).get('vertical'))}.</p>",
     ]
     if summary.get("autopilot"):
         parts += ["<h2>Both estimates on one scorecard</h2>", _autopilot(summary)]
     if summary.get("rejections_outside_events"):
         parts += ["<h2>Rejections outside outages and events</h2>",
-                  _kv(summary["rejections_outside_events"])]
-    parts += ["<h2>Plots</h2>", _plots(plots), "</body></html>"]
+                  _labelled(summary["rejections_outside_events"])]
+    parts += ["<h2>Counters</h2>",
+              '<details id="counters"><summary>Health counters of the filter, decoder and '
+              "fault injector</summary>", _kv(summary.get("health") or {}), "</details>",
+              "</body></html>"]
     return "\n".join(parts) + "\n"
 
 

@@ -132,7 +132,8 @@ def score(
     assert col is not None
     end_s = col.end_s()
     info = RunInfo(scenario=scenario.name, seed=scenario.seed, sim_duration_s=sim_duration_s,
-                   wall_s=wall_s, bridge=bridge, altitude=altitude)
+                   wall_s=wall_s, bridge=bridge, altitude=altitude,
+                   setup=scenario.setup_record())
     events = event_windows(scenario, end_s)
     scored: Scored = score_run(run, info, criteria=scenario.criteria(), events=events,
                                health_extra=health_extra, with_series=True, settle_s=SETTLE_S)

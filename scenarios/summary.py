@@ -176,6 +176,8 @@ class RunInfo:
     wall_s: float
     bridge: str
     altitude: str
+    setup: Mapping[str, Any] | None = None
+    """What was flown (aircraft, plan, sensor presets, air), when the caller knows it."""
 
 
 def build_summary(
@@ -275,6 +277,7 @@ def build_summary(
         "realtime_factor": info.sim_duration_s / info.wall_s if info.wall_s > 0 else None,
         "bridge": info.bridge,
         "altitude": info.altitude,
+        **({"setup": dict(info.setup)} if info.setup is not None else {}),
         "outages": outage_rows,
         "gnss_on": gnss_on,
         "nees": metrics.consistency(err, on),

@@ -281,7 +281,8 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
         "Navigation event: a mode change or a fault the fusion detected (hil.nav_events).",
         {
             "time_us": _TIME,
-            "event": _d(_S, "kind: mode, gnss_rejected, spoof_suspected, gnss_reset, "
+            "event": _d(_S, "kind: mode, gnss_rejected, gnss_rejections_persist, "
+                            "gnss_gate_clear, spoof_suspected, gnss_reset, "
                             "gnss_reset_refused, pitot_dropped, pitot_recovered, baro_frozen, "
                             "baro_reset, imu_invalid, filter_rebase"),
             "severity": _d({"type": "string", "enum": list(EVENT_SEVERITIES)},

@@ -3,6 +3,7 @@ the line of a key, the keys allowed where an unknown one stands, the wording."""
 
 from __future__ import annotations
 
+import difflib
 import functools
 from collections.abc import Sequence
 from pathlib import Path
@@ -167,6 +168,22 @@ def _at_file_key(
     return (*loc[:2], *inner), given, msg
 
 
+def _misspelt_instead_of_missing(errors: Sequence[Any]) -> Any:
+    """The error to report: the first one, unless it is a missing key and the same mapping
+    holds an unknown key that is a near miss of it (``duraton_s`` for ``duration_s``). Then
+    the misspelling is the cause, and naming it tells the user what to fix."""
+    first = errors[0]
+    if first["type"] != "missing" or not first["loc"]:
+        return first
+    *parent, wanted = first["loc"]
+    for e in errors[1:]:
+        *where, key = e["loc"] or ("",)
+        if (e["type"] == "extra_forbidden" and where == parent and isinstance(key, str)
+                and difflib.get_close_matches(key, [str(wanted)], n=1)):
+            return e
+    return first
+
+
 def scenario_error(
     error: ValidationError,
     model: type[BaseModel],
@@ -188,7 +205,7 @@ def scenario_error(
     file_units : ``data``'s events are written as in a file: a problem the event model found
         in an SI field is reported at the file's key, with the file's value.
     """
-    e = error.errors()[0]
+    e = _misspelt_instead_of_missing(error.errors())
     loc: tuple[str | int, ...] = tuple(e["loc"])
     ctx = e.get("ctx") or {}
     msg = clean_msg(e["msg"])

@@ -272,6 +272,25 @@ class Scenario(Strict):
         """The IMU preset name (what the filter is tuned for, see hil.tuning)."""
         return self.sensors.imu.preset
 
+    def setup_record(self) -> dict[str, Any]:
+        """What is flown, in words a scorecard shows: aircraft, plan, sensor presets (``+
+        overrides`` where the file changes a preset), wind and turbulence."""
+        def preset(section: Any) -> str:
+            extra = section.model_dump(exclude_defaults=True, exclude={"preset"})
+            return str(section.preset) + (" + overrides" if extra else "")
+
+        plan = self.plan if isinstance(self.plan, str) else "inline plan"
+        return {
+            "description": self.description,
+            "aircraft": self.aircraft,
+            "plan": plan,
+            "sensors": {name: preset(getattr(self.sensors, name))
+                        for name in ("imu", "gnss", "baro", "mag", "pitot")},
+            "wind_ned_mps": list(self.wind_ned_mps),
+            "wind_shear_exponent": self.wind_shear_exponent,
+            "turbulence": self.turbulence,
+        }
+
     def start_state(self) -> StartState:
         """The start state: the given fields over the aircraft's suggested trim point."""
         given = self.start.model_dump(exclude_unset=True)

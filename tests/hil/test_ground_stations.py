@@ -136,6 +136,8 @@ def test_mavsdk_sees_a_complete_vehicle(tmp_path: Path) -> None:
     assert any(not s["global_ok"] for s in after[lost[0]:]), seen
     assert any(s["global_ok"] and s["fix"] >= 3 for s in after[lost[-1]:]), seen
     assert any("GNSS lost" in t for t in texts) and any("GNSS regained" in t for t in texts), texts
+    assert any("Nav aligned" in t for t in texts), texts
+    assert not any("rejected" in t for t in texts), texts
     assert max(s["rate_rps"] for s in ok) > 0.02  # racetrack turns: ~0.1 rad/s yaw rate
     # the mode: named through MavlinkDirect, UNKNOWN in Telemetry (see the docstring)
     assert names == {101: "ALIGNING", 102: "GNSS", 103: "BRIDGING", 104: "DEAD-RECKONING",
@@ -279,6 +281,10 @@ def test_mavproxy_program_shows_the_vehicle_its_mode_and_warnings(tmp_path: Path
     assert f"online system {SHADOW_SYS}" in out, out
     assert "fence breach" not in out, out
     assert "AP: GNSS lost" in out and "AP: GNSS regained" in out, out
+    # alignment is said; a fault-free flight's single gate rejections (the gate's false-alarm
+    # rate) are no warnings
+    assert "AP: Nav aligned" in out, out
+    assert "rejected" not in out, out
     # the scenario's own events, relayed from the simulator
     assert "AP: SIM: GNSS off for 10 s" in out and "AP: SIM: GNSS on" in out, out
     assert "GPS lock" in out, out

@@ -223,16 +223,83 @@ def test_html_embeds_plots_and_tables(
     assert page.startswith("<!DOCTYPE html>")
     chunks = page.split('src="data:image/png;base64,')[1:]
     assert len(chunks) == len(plots)
-    for chunk, p in zip(chunks, plots, strict=True):
-        data = base64.b64decode(chunk.split('"', 1)[0])
-        assert data == p.read_bytes() and data.startswith(PNG_MAGIC)
+    embedded = [base64.b64decode(chunk.split('"', 1)[0]) for chunk in chunks]
+    assert all(data.startswith(PNG_MAGIC) for data in embedded)
+    # every plot, once, in reading order: the ground track first, the drift last
+    by_name = {p.stem: p.read_bytes() for p in plots}
+    assert embedded == [by_name[n] for n in ("ground_track", "horizontal_vertical", "errors",
+                                             "drift")]
     for c in s["criteria"]:
         assert c["name"] in page
     assert page.count('<tr class="fail">') >= sum(1 for c in s["criteria"] if not c["ok"])
-    assert "gnss_spoof_hijack" in page and "FAILED" in page and "gnss_rejected" in page
+    assert "gnss spoof hijack" in page and "FAILED" in page and "gnss_rejected" in page
     # self-contained: nothing fetched from anywhere
     for needle in ("http://", "https://", "<script", "<link", "url("):
         assert needle not in page
+
+
+def test_report_reads_top_down_for_a_navigation_engineer(
+    tmp_path: Path, scored: tuple[dict[str, Any], metrics.Errors, Track, Track],
+) -> None:
+    """GIVEN a scored run with what was flown WHEN its page is written THEN the verdict and the
+    setup (aircraft, sensor presets, wind, seed) come first, then the criteria with their
+    metrics in words, then the plots in reading order (ground track first), then the outage and
+    event tables with units, and the counters last, folded; no snake_case key outside them."""
+    s, err, est, truth = scored
+    s = {**s, "setup": {"aircraft": "c172x", "plan": "racetrack", "description": "a test",
+                        "sensors": {"imu": "industrial-mems", "gnss": "modern",
+                                    "baro": "ms5611", "mag": "consumer", "pitot": "ms4525do"},
+                        "wind_ned_mps": [3.0, -2.0, 0.0], "turbulence": 0.2}}
+    plots = report.write_plots(est, truth, err, [OUTAGE], tmp_path, events=s["events"])
+    page_path = tmp_path / "report.html"
+    write_html(s, plots, page_path)
+    page = page_path.read_text(encoding="utf-8")
+    order = [page.index(x) for x in (
+        "FAILED", "c172x", "industrial-mems", "3, -2, 0", "Pass criteria",
+        "GNSS outages: horizontal error at 30 s (m)", "Ground track", "Horizontal and vertical",
+        "<h2>GNSS outages</h2>", "horizontal RMSE (m)", "<h2>Scenario events</h2>",
+        '<details id="counters">')]
+    assert order == sorted(order), order
+    visible = page[:page.index('<details id="counters">')]
+    for raw in ("rms_z_pos", "containment_3sigma.horizontal", "horizontal_error_m_at",
+                "nees_mean", "gnss_spoof_hijack"):
+        assert raw not in visible, raw
+    assert "rms(error / σ), position" in visible
+
+
+@pytest.mark.parametrize(("path", "words"), [
+    ("outages.horizontal_error_m_at.60", "GNSS outages: horizontal error at 60 s (m)"),
+    ("gnss_on.yaw_rmse_deg", "GNSS on: yaw RMSE (deg)"),
+    ("containment_3sigma.horizontal", "inside the 3σ bound: horizontal"),
+    ("events.detect_s", "events: detected after (s)"),
+])
+def test_metric_paths_in_words(path: str, words: str) -> None:
+    from scenarios.html import metric_label
+
+    assert metric_label(path) == words
+
+
+def test_report_renders_in_a_real_browser_with_the_first_plot_above_the_counters(
+    tmp_path: Path, scored: tuple[dict[str, Any], metrics.Errors, Track, Track],
+) -> None:
+    """GIVEN the page of a scored run WHEN headless Chromium lays it out at 1400 px wide THEN
+    every plot image decodes, and the first plot is above the counters and within the first
+    3000 px (a first screenful or two, not after the tables)."""
+    from tests.helpers.browser import chromium_or_skip, layout_of
+
+    chromium = chromium_or_skip()
+    s, err, est, truth = scored
+    plots = report.write_plots(est, truth, err, [OUTAGE], tmp_path, events=s["events"])
+    page_path = tmp_path / "report.html"
+    write_html(s, plots, page_path)
+    got = layout_of(chromium, page_path, tmp_path / "profile", """({
+        images: [...document.images].map(i => i.complete && i.naturalWidth > 0),
+        first_plot_top: document.images[0].getBoundingClientRect().top,
+        counters_top: document.getElementById('counters').getBoundingClientRect().top,
+    })""")
+    assert got["images"] == [True] * len(plots), got
+    assert got["first_plot_top"] < got["counters_top"], got
+    assert got["first_plot_top"] < 3000, got
 
 
 def test_drift_compare_plot_from_summaries(
