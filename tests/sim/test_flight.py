@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
+import sim.aircraft as aircraft_module
 import sim.flight as flight_module
 from sim.flight import (
     FT_M,
@@ -197,7 +198,8 @@ def test_the_quiet_flight_test_would_see_jsbsim_output(
     capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # guard against a vacuous check above: without the discarding logger JSBSim does print
-    monkeypatch.setattr(flight_module, "_jsbsim_log_discarded", contextlib.nullcontext)
+    monkeypatch.setattr(flight_module, "jsbsim_log_discarded", contextlib.nullcontext)
+    monkeypatch.setattr(aircraft_module, "jsbsim_log_discarded", contextlib.nullcontext)
     for aircraft in _CHATTY_AIRCRAFT:
         _fly_briefly(aircraft)
     out, err = capfd.readouterr()
