@@ -144,7 +144,7 @@ def _moments(Z: FloatArray, y: FloatArray, lead: int = 0) -> FloatArray:
     B[:, 1 + 4 * m] = y
     # Accumulate over row blocks small enough that OpenBLAS runs each product on one thread
     # (its threshold is m·n·k ≈ 2.6e5): the product is tiny, and handing it to a second
-    # thread on a busy 2-core machine cost 100+ ms per call instead of < 1 ms.
+    # thread on a busy machine costs far more than computing it.
     c = B.shape[1]
     if lead > 0:
         ks = np.arange(lead)

@@ -104,7 +104,7 @@ KT_MPS = 1852.0 / 3600.0
 
 # WGS-84 ellipsoid, for the local north/east offsets the guidance law uses. e² is the
 # published rounded value (NIMA TR8350.2, table 3.3), 2e-13 from physconst's exact F(2 - F);
-# kept so that every seed flies the trajectory it always flew.
+# the guidance law steers by these offsets, so a seed's trajectory depends on this value.
 _A_M = WGS84_A_M
 _E2 = 6.69437999014e-3
 

@@ -296,13 +296,13 @@ def test_deterministic_for_a_given_random_state(split: str) -> None:
         assert not np.array_equal(a, c)
 
 
-# --- the regressor defaults against P0 (issue 18) ------------------------------------------
+# --- the regressor defaults against P0 ------------------------------------------------------------
 
 _NOISE = 0.02
 
 
 def _polynomial_problem(degree: int, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """6 inputs uniform in [-1, 1]; noiseless target of degree 2 or 4 (issue 18's problems)."""
+    """6 inputs uniform in [-1, 1]; noiseless target of degree 2 or 4."""
     X = np.random.default_rng(seed).uniform(-1.0, 1.0, (n, 6))
     x0, x1, x2, x3, x4 = (X[:, k] for k in range(5))
     if degree == 2:
@@ -326,7 +326,7 @@ def test_defaults_recover_a_degree_two_polynomial_to_the_noise_floor() -> None:
     n_train = round(0.7 * 3000)
     assert excess <= 3.0 * _NOISE * np.sqrt(n_coefs / n_train)
     assert excess < 0.5 * _NOISE
-    # P0's selection chains the layers (5, 4, 3, 2, 1 survivors in issue 18): many times the
+    # P0's selection chains the layers (5, 4, 3, 2, 1 survivors): many times the
     # noise floor on the same data
     paper = GmdhRegressor.paper().fit(X, _noisy(f, 23))
     assert np.sqrt(np.mean((paper.predict(X_test) - f_test) ** 2)) > 5.0 * _NOISE

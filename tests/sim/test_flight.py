@@ -346,7 +346,8 @@ def test_same_config_gives_bit_identical_truth() -> None:
 
 
 def test_steady_wind_moves_the_air_mass() -> None:
-    """A configured wind reaches JSBSim (run_ic and the trim used to reset it to calm)."""
+    """A configured wind reaches JSBSim and survives run_ic and the trim (which re-initialise
+    the wind from the initial condition)."""
 
     def air_minus_ground(wind: tuple[float, float, float]) -> float:
         cfg = FlightConfig(aircraft="c172x", rate_hz=100.0, wind_ned_mps=wind,
