@@ -150,21 +150,9 @@ def isa_pressure_pa(h_gp_m: float) -> float:
 
 
 def pressure_altitude_m(pressure_pa: float) -> float:
-    """Pressure altitude ``Hp``: the standard-atmosphere geopotential altitude of a pressure
-    (:func:`physconst.isa.pressure_altitude_m`).
-
-    In the troposphere this is P4 eq. 1; above 11 km the matching layer of the US Standard
-    Atmosphere 1976 (isothermal layers by the logarithmic form).
-
-    Parameters
-    ----------
-    pressure_pa : float
-        Static pressure, Pa.
-
-    Returns
-    -------
-    float
-        ``Hp``, m (geopotential; 0 at 101 325 Pa, 11 000 at 22 632.04 Pa).
+    """Pressure altitude ``Hp`` (m, geopotential) of a static pressure (Pa), refusing pressures
+    outside the model: :func:`physconst.isa.pressure_altitude_m` (P4 eq. 1 in the troposphere,
+    the layers of the US Standard Atmosphere 1976 above 11 km; 0 at 101 325 Pa).
 
     Raises
     ------

@@ -1,20 +1,18 @@
 """Shared helpers of the hil.link tests: a link with what it received, receive loops with a
-bound on how long a broken link may hang a test, sample frames, and the loopback links behind
-the fixtures."""
+bound on how long a broken link may hang a test, and sample frames. The loopback fixtures
+``fusion_udp`` and ``raw_udp`` are in ``tests/hil/conftest.py``."""
 
 from __future__ import annotations
 
-import contextlib
-import socket
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from hil.codec import Encoder, mavlink2
-from hil.link import LinkCounters, LinkRole, MavlinkLink
+from hil.link import LinkCounters, MavlinkLink
 from sim.samples import ImuSample
 
 HB = mavlink2.MAVLINK_MSG_ID_HEARTBEAT
@@ -104,21 +102,3 @@ def frame_from(system_id: int, component_id: int, msg: Any, seq: int = 0) -> byt
     mav = mavlink2.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
     mav.seq = seq
     return bytes(msg.pack(mav))
-
-
-@contextlib.contextmanager
-def fusion_udp_peer() -> Iterator[Peer]:
-    """The fusion's UDP link on a free loopback port (the ``fusion_udp`` fixture)."""
-    with MavlinkLink("udpin:127.0.0.1:0", LinkRole.fusion()) as link:
-        yield Peer(link)
-
-
-@contextlib.contextmanager
-def raw_udp_socket() -> Iterator[socket.socket]:
-    """A plain UDP socket on a free loopback port (the ``raw_udp`` fixture)."""
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(("127.0.0.1", 0))
-    try:
-        yield sock
-    finally:
-        sock.close()

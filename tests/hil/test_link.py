@@ -10,7 +10,6 @@ import os
 import select
 import socket
 import time
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -38,25 +37,11 @@ from tests.hil.link_helpers import (
     WAIT_LIMIT_S,
     Peer,
     assert_books_balance,
-    fusion_udp_peer,
     imu,
     pump,
-    raw_udp_socket,
     sensor_frames,
     times_us,
 )
-
-
-@pytest.fixture
-def fusion_udp() -> Iterator[Peer]:
-    with fusion_udp_peer() as peer:
-        yield peer
-
-
-@pytest.fixture
-def raw_udp() -> Iterator[socket.socket]:
-    with raw_udp_socket() as sock:
-        yield sock
 
 
 # --- URLs and roles ------------------------------------------------------------------------

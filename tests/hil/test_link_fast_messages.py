@@ -4,22 +4,14 @@ messages in fields, header methods and decoded samples."""
 from __future__ import annotations
 
 import socket
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
-import pytest
 
 from hil.codec import SENSOR_COMPONENT_ID, Decoder, mavlink2
 from hil.link import MavlinkLink
 from hil.signing import Signer
-from tests.hil.link_helpers import Peer, frame_from, pump, raw_udp_socket
-
-
-@pytest.fixture
-def raw_udp() -> Iterator[socket.socket]:
-    with raw_udp_socket() as sock:
-        yield sock
+from tests.hil.link_helpers import Peer, frame_from, pump
 
 
 def _random_message(cls: Any, rng: np.random.Generator) -> Any:

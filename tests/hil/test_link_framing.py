@@ -8,11 +8,9 @@ from __future__ import annotations
 
 import socket
 import threading
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -23,26 +21,12 @@ from tests.hil.link_helpers import (
     Peer,
     assert_books_balance,
     drain,
-    fusion_udp_peer,
     imu,
     magic_free,
     pump,
-    raw_udp_socket,
     sensor_frames,
     times_us,
 )
-
-
-@pytest.fixture
-def fusion_udp() -> Iterator[Peer]:
-    with fusion_udp_peer() as peer:
-        yield peer
-
-
-@pytest.fixture
-def raw_udp() -> Iterator[socket.socket]:
-    with raw_udp_socket() as sock:
-        yield sock
 
 
 # --- bad input -----------------------------------------------------------------------------

@@ -10,7 +10,6 @@ from __future__ import annotations
 import select
 import socket
 import time
-from collections.abc import Iterator
 
 import pytest
 
@@ -26,25 +25,11 @@ from tests.hil.link_helpers import (
     assert_books_balance,
     drain,
     frame_from,
-    fusion_udp_peer,
     imu,
     pump,
-    raw_udp_socket,
     sensor_frames,
     times_us,
 )
-
-
-@pytest.fixture
-def fusion_udp() -> Iterator[Peer]:
-    with fusion_udp_peer() as peer:
-        yield peer
-
-
-@pytest.fixture
-def raw_udp() -> Iterator[socket.socket]:
-    with raw_udp_socket() as sock:
-        yield sock
 
 
 # --- filtering, sequence numbers -----------------------------------------------------------
