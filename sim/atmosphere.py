@@ -36,7 +36,8 @@ pressure offset: against an atmosphere with the same lapse rate and a sea-level 
 from __future__ import annotations
 
 import math
-from typing import TypeVar, cast
+from collections.abc import Callable
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -46,37 +47,46 @@ from physconst import (
     ISA_H0_M,
     ISA_H_MAX_M,
     ISA_H_MIN_M,
-    ISA_L0_KPM,
-    ISA_LAYER_BASE_M,
-    ISA_LAYER_LAPSE_KPM,
-    ISA_LAYER_P_PA,
-    ISA_LAYER_T_K,
     ISA_P0_PA,
-    ISA_R0_GEOPOTENTIAL_M,
     ISA_R_AIR_JPKGK,
     ISA_T0_K,
+    isa,
 )
+from physconst.isa import FloatOrArray, geometric_from_geopotential, geopotential_from_geometric
 
-FloatOrArray = TypeVar("FloatOrArray", float, NDArray[np.float64])
+__all__ = [
+    "P_MAX_PA",
+    "P_MIN_PA",
+    "FloatOrArray",
+    "TroposphereBaro",
+    "altitude_from_pressure",
+    "altitude_from_pressure_altitude",
+    "density_from_altitude",
+    "geometric_from_geopotential",
+    "geopotential_from_geometric",
+    "isa_pressure_pa",
+    "isa_temperature_k",
+    "nonstandard_scale_bias",
+    "pressure_altitude_from_altitude",
+    "pressure_altitude_m",
+    "pressure_from_altitude",
+    "temperature_from_altitude",
+]
 
-P_MAX_PA = ISA_P0_PA * ((ISA_T0_K + ISA_L0_KPM * ISA_H_MIN_M) / ISA_T0_K) ** (
-    -G0_MPS2 / (ISA_L0_KPM * ISA_R_AIR_JPKGK)
-)
+P_MAX_PA = isa.ISA_P_MAX_PA
 """Pressure at :data:`ISA_H_MIN_M`, Pa (highest pressure the model accepts)."""
-P_MIN_PA = ISA_LAYER_P_PA[-1] * (
-    (ISA_LAYER_T_K[-1] + ISA_LAYER_LAPSE_KPM[-1] * (ISA_H_MAX_M - ISA_LAYER_BASE_M[-1]))
-    / ISA_LAYER_T_K[-1]
-) ** (-G0_MPS2 / (ISA_LAYER_LAPSE_KPM[-1] * ISA_R_AIR_JPKGK))
+P_MIN_PA = isa.ISA_P_MIN_PA
 """Pressure at :data:`ISA_H_MAX_M`, Pa (lowest pressure the model accepts)."""
 
 
-def _as_array(x: float | NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
+def _each(f: Callable[[float], float], x: FloatOrArray) -> FloatOrArray:
+    """``f`` (one of :mod:`physconst.isa`'s scalar functions) on a float, or on every element of
+    an array: element by element, so an array gives the same bits as its floats one by one."""
     arr = np.asarray(x, dtype=np.float64)
-    return arr, arr.ndim == 0
-
-
-def _back(arr: NDArray[np.float64], scalar: bool) -> float | NDArray[np.float64]:
-    return float(arr) if scalar else arr
+    if arr.ndim == 0:
+        return cast(FloatOrArray, f(float(arr)))
+    out = np.fromiter((f(v) for v in arr.ravel().tolist()), dtype=np.float64, count=arr.size)
+    return cast(FloatOrArray, out.reshape(arr.shape))
 
 
 def _check_altitude(h: NDArray[np.float64], name: str) -> None:
@@ -101,35 +111,8 @@ def _check_pressure(p: NDArray[np.float64]) -> None:
         )
 
 
-def _layer_index(h: NDArray[np.float64]) -> NDArray[np.intp]:
-    # Altitudes below 0 use the tropospheric layer (extended down to ISA_H_MIN_M).
-    idx = np.searchsorted(np.asarray(ISA_LAYER_BASE_M), h, side="right") - 1
-    return np.clip(idx, 0, len(ISA_LAYER_BASE_M) - 1)
-
-
-def geopotential_from_geometric(h_m: FloatOrArray) -> FloatOrArray:
-    """Geopotential altitude from geometric height above mean sea level.
-
-    Parameters
-    ----------
-    h_m : float or ndarray, any shape
-        Geometric height above MSL, m.
-
-    Returns
-    -------
-    float or ndarray, same shape
-        Geopotential altitude ``r0 * h / (r0 + h)``, m (r0 = 6 356 766 m).
-    """
-    return cast(FloatOrArray, ISA_R0_GEOPOTENTIAL_M * h_m / (ISA_R0_GEOPOTENTIAL_M + h_m))
-
-
-def geometric_from_geopotential(h_gp_m: FloatOrArray) -> FloatOrArray:
-    """Inverse of :func:`geopotential_from_geometric`, m -> m (any shape)."""
-    return cast(FloatOrArray, ISA_R0_GEOPOTENTIAL_M * h_gp_m / (ISA_R0_GEOPOTENTIAL_M - h_gp_m))
-
-
 def isa_temperature_k(h_gp_m: FloatOrArray) -> FloatOrArray:
-    """Standard-atmosphere temperature.
+    """Standard-atmosphere temperature (:func:`physconst.isa.isa_temperature_k`), range-checked.
 
     Parameters
     ----------
@@ -146,17 +129,12 @@ def isa_temperature_k(h_gp_m: FloatOrArray) -> FloatOrArray:
     ValueError
         Altitude outside the model range or not finite.
     """
-    h, scalar = _as_array(h_gp_m)
-    _check_altitude(h, "altitude")
-    i = _layer_index(h)
-    t = np.asarray(ISA_LAYER_T_K)[i] + np.asarray(ISA_LAYER_LAPSE_KPM)[i] * (
-        h - np.asarray(ISA_LAYER_BASE_M)[i]
-    )
-    return cast(FloatOrArray, _back(t, scalar))
+    _check_altitude(np.asarray(h_gp_m, dtype=np.float64), "altitude")
+    return _each(isa.isa_temperature_k, h_gp_m)
 
 
 def isa_pressure_pa(h_gp_m: FloatOrArray) -> FloatOrArray:
-    """Standard-atmosphere static pressure.
+    """Standard-atmosphere static pressure (:func:`physconst.isa.isa_pressure_pa`), range-checked.
 
     Parameters
     ----------
@@ -173,26 +151,12 @@ def isa_pressure_pa(h_gp_m: FloatOrArray) -> FloatOrArray:
     ValueError
         Altitude outside the model range or not finite.
     """
-    h, scalar = _as_array(h_gp_m)
-    _check_altitude(h, "altitude")
-    i = _layer_index(h)
-    base_h = np.asarray(ISA_LAYER_BASE_M)[i]
-    base_t = np.asarray(ISA_LAYER_T_K)[i]
-    base_p = np.asarray(ISA_LAYER_P_PA)[i]
-    lapse = np.asarray(ISA_LAYER_LAPSE_KPM)[i]
-    dh = h - base_h
-    isothermal = lapse == 0.0
-    safe_lapse = np.where(isothermal, 1.0, lapse)
-    p_grad = base_p * ((base_t + lapse * dh) / base_t) ** (
-        -G0_MPS2 / (safe_lapse * ISA_R_AIR_JPKGK)
-    )
-    p_iso = base_p * np.exp(-G0_MPS2 * dh / (ISA_R_AIR_JPKGK * base_t))
-    p = np.where(isothermal, p_iso, p_grad)
-    return cast(FloatOrArray, _back(p, scalar))
+    _check_altitude(np.asarray(h_gp_m, dtype=np.float64), "altitude")
+    return _each(isa.isa_pressure_pa, h_gp_m)
 
 
 def pressure_altitude_m(pressure_pa: FloatOrArray) -> FloatOrArray:
-    """Pressure altitude: the standard-atmosphere geopotential altitude of a pressure.
+    """Pressure altitude (:func:`physconst.isa.pressure_altitude_m`), range-checked.
 
     In the troposphere this is P4's formula
     ``Hp = (T0/L)·((Ps/P0)^(−L·R/g) − 1) + H0``; above 11 km the matching layer formula.
@@ -212,23 +176,8 @@ def pressure_altitude_m(pressure_pa: FloatOrArray) -> FloatOrArray:
     ValueError
         Pressure ≤ 0, not finite, or outside the model range (about 111 Pa .. 177.7 kPa).
     """
-    p, scalar = _as_array(pressure_pa)
-    _check_pressure(p)
-    # Layer index from the (decreasing) base pressures.
-    base_p_all = np.asarray(ISA_LAYER_P_PA)
-    i = np.clip(np.searchsorted(-base_p_all, -p, side="right") - 1, 0, len(base_p_all) - 1)
-    base_h = np.asarray(ISA_LAYER_BASE_M)[i]
-    base_t = np.asarray(ISA_LAYER_T_K)[i]
-    base_p = base_p_all[i]
-    lapse = np.asarray(ISA_LAYER_LAPSE_KPM)[i]
-    isothermal = lapse == 0.0
-    safe_lapse = np.where(isothermal, 1.0, lapse)
-    h_grad = base_h + (base_t / safe_lapse) * (
-        (p / base_p) ** (-safe_lapse * ISA_R_AIR_JPKGK / G0_MPS2) - 1.0
-    )
-    h_iso = base_h - (ISA_R_AIR_JPKGK * base_t / G0_MPS2) * np.log(p / base_p)
-    h = np.where(isothermal, h_iso, h_grad) + ISA_H0_M
-    return cast(FloatOrArray, _back(h, scalar))
+    _check_pressure(np.asarray(pressure_pa, dtype=np.float64))
+    return _each(isa.pressure_altitude_m, pressure_pa)
 
 
 def nonstandard_scale_bias(sea_level_dt_k: float, sea_level_dp_pa: float) -> tuple[float, float]:
@@ -407,11 +356,11 @@ def density_from_altitude(
 
 
 class TroposphereBaro:
-    """Fast scalar pressure / temperature for the barometer's hot loop.
+    """Scalar pressure / temperature for the barometer's hot loop.
 
     Same model as :func:`pressure_from_altitude` / :func:`temperature_from_altitude` with
-    fixed ``dT``; ``dP`` may change per call (a weather front). Uses ``math`` on floats, and
-    falls back to the array functions outside the troposphere.
+    fixed ``dT``; ``dP`` may change per call (a weather front). Works on floats, without the
+    array functions' checks inside the model's range (outside it those raise).
 
     Parameters
     ----------
@@ -419,12 +368,11 @@ class TroposphereBaro:
         Sea-level temperature offset from standard, K.
     """
 
-    __slots__ = ("_exp", "_s", "_t_scale")
+    __slots__ = ("_s", "_t_scale")
 
     def __init__(self, sea_level_dt_k: float) -> None:
         s, _ = nonstandard_scale_bias(sea_level_dt_k, 0.0)
         self._s = s
-        self._exp = -G0_MPS2 / (ISA_L0_KPM * ISA_R_AIR_JPKGK)
         self._t_scale = 1.0 + s
 
     def pressure_temperature(
@@ -433,8 +381,6 @@ class TroposphereBaro:
         """Pressure (Pa) and temperature (K) at geopotential altitude ``altitude_m`` (m)."""
         b = (ISA_R_AIR_JPKGK * ISA_T0_K / G0_MPS2) * (sea_level_dp_pa / ISA_P0_PA)
         hp = (altitude_m - b + self._s * ISA_H0_M) / self._t_scale
-        if 0.0 <= hp < ISA_LAYER_BASE_M[1] or (ISA_H_MIN_M <= hp < 0.0):
-            t_isa = ISA_T0_K + ISA_L0_KPM * (hp - ISA_H0_M)
-            return ISA_P0_PA * (t_isa / ISA_T0_K) ** self._exp, t_isa * self._t_scale
-        # Outside the troposphere (or out of range: the array function raises).
-        return float(isa_pressure_pa(hp)), float(isa_temperature_k(hp)) * self._t_scale
+        if not ISA_H_MIN_M <= hp <= ISA_H_MAX_M:  # out of range (or NaN): the checked form raises
+            return float(isa_pressure_pa(hp)), float(isa_temperature_k(hp)) * self._t_scale
+        return isa.isa_pressure_pa(hp), isa.isa_temperature_k(hp) * self._t_scale

@@ -40,10 +40,6 @@ it integrates the same way (the differences telescope and do not accumulate).
 Gravity inside JSBSim is its WGS-84 J2 gravitation plus the centrifugal term (the test file
 has the exact formula), not the Somigliana normal gravity; the two differ by ~1e-5 m/s^2.
 
-Aircraft files may declare CSV outputs into the working directory, output sockets and
-listening input sockets; the adapter loads a private copy of the aircraft without those
-directives, so a flight writes no files and opens no sockets.
-
 Start: the aircraft is placed in the air at the requested state, the gear is retracted, every
 engine gets full mixture and is started (``propulsion/set-running = -1``), and JSBSim's full
 trim (``do_trim(1)``) is run. JSBSim 1.3.3's trim does not refresh FCS-driven propulsion
@@ -75,42 +71,25 @@ flaps ``fcs/flap-cmd-norm`` (0 = retracted, never moved by the guidance law). Pr
 ``propulsion/engine[i]/propeller-rpm`` of each engine that has a propeller (piston aircraft
 and the DHC6, Boeing314, Short_S23 of the verified list); jets and the turboprops that the
 wheel models with direct thrust (OV10, t6texan2) have none and report no rpm.
-Wind: the velocity the air moves towards, NED. ``FlightConfig.wind_ned_mps`` alone is a
-steady wind, written to ``atmosphere/wind-{north,east,down}-fps`` once. A profile with
-altitude is written there at every step from the altitude just reached (one step of lag:
-< 3 cm of height at 2.5 m/s and 100 Hz): either a power-law shear of the horizontal wind,
-``w(h) = w_ref (h_agl / h_ref)^p`` (``wind_shear_exponent`` p; p = 1/7 is the classical
-neutral-stability boundary-layer value, see Peterson & Hennessey, "On the use of power laws
-for estimates of wind power potential", J. Appl. Meteorol. 17 (1978) 390-394), or a table of
-``(alt_msl_m, north, east)`` interpolated linearly (``wind_table``; e.g. MIL-F-8785C's
-logarithmic low-altitude profile ``W20 ln(h / z0) / ln(20 ft / z0)``, §3.7.3, or a measured
-sounding). Writing three properties costs ~1 us a step against ~60 us for JSBSim
-(bench/sim_throughput.py). The true wind at the aircraft, turbulence included, is
-``atmosphere/total-wind-*-fps`` and goes into ``Truth.wind_ned_mps``. The aircraft starts in
-the wind without sideslip (see ``Flight._start``); the very first truth, read before JSBSim
-has stepped, still reports the windless trim's air data and a zero wind.
+
+The flight's configuration (start state, wind profiles, turbulence, who flies) is
+:mod:`sim.flight_config`; the aircraft offered and their I/O-free loading, :mod:`sim.aircraft`.
 """
 
 from __future__ import annotations
 
-import contextlib
-import itertools
 import math
-import re
-import shutil
-import tempfile
-from collections.abc import Iterator, Sequence
-from functools import lru_cache
-from pathlib import Path
+from collections.abc import Sequence
 from types import TracebackType
-from typing import Any, Literal, Self
+from typing import Any
 
 import jsbsim
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from physconst import WGS84_A_M
-from sim.guidance import Controls, Guidance, GuidanceGains, GuidanceInput, TrimPoint
+from sim.aircraft import available_aircraft, jsbsim_log_discarded, load_without_io, suggested_start
+from sim.flight_config import FlightConfig, StartState
+from sim.guidance import Controls, Guidance, GuidanceInput, TrimPoint
 from sim.plans import FlightPlan, Leg
 from sim.samples import Truth
 from sim.vehicle_state import CONTROL_INDEX, N_CONTROLS, VehicleState, control_range
@@ -125,56 +104,27 @@ KT_MPS = 1852.0 / 3600.0
 
 # WGS-84 ellipsoid, for the local north/east offsets the guidance law uses. e² is the
 # published rounded value (NIMA TR8350.2, table 3.3), 2e-13 from physconst's exact F(2 - F);
-# kept so that every seed flies the trajectory it always flew.
+# the guidance law steers by these offsets, so a seed's trajectory depends on this value.
 _A_M = WGS84_A_M
 _E2 = 6.69437999014e-3
 
-# The wheel aircraft this adapter offers: each was checked (jsbsim 1.3.3, 50 Hz, cruise plan)
-# to load, trim and hold straight and level flight for 60 s (altitude within 20 m, airspeed
-# within 3 m/s, bank within 5 deg) when started at the (altitude m, true airspeed m/s) given
-# here, which ``suggested_start`` returns. c172x and c310 also fly every packaged plan.
-# Not offered: non-aeroplanes (ball, ballx, blank, mk82, weather-balloon, Submarine_Scout,
-# ZLT-NT, F450, ah1s, paraglider, pogo-jsbsim, Pterosaur), gliders and rocket planes that
-# cannot hold level flight (SGS, sgs126, sgs233, minisgs, Shuttle, X15, x24b), aircraft that
-# reference FlightGear-only properties and fail to initialise stand-alone (dr1, f104,
-# fokker50, fokker100, L17), and aircraft that did not trim or did not hold level flight in
-# that check (listed with the measured outcome in the hilnav report).
-_VERIFIED: dict[str, tuple[float, float]] = {
-    "737": (3000.0, 140.0),
-    "787-8": (3000.0, 140.0),
-    "A320": (3000.0, 140.0),
-    "A4": (3000.0, 100.0),
-    "B747": (3000.0, 100.0),
-    "Boeing314": (1000.0, 50.0),
-    "c172p": (1000.0, 50.0),
-    "c172r": (1000.0, 50.0),
-    "c172x": (1000.0, 50.0),
-    "c182": (1000.0, 50.0),
-    "c310": (1000.0, 50.0),
-    "DHC6": (1000.0, 50.0),
-    "f15": (3000.0, 100.0),
-    "f16": (3000.0, 100.0),
-    "F4N": (3000.0, 100.0),
-    "F80C": (3000.0, 100.0),
-    "global5000": (3000.0, 100.0),
-    "J3Cub": (1000.0, 25.0),
-    "OV10": (1000.0, 70.0),
-    "pa28": (1000.0, 50.0),
-    "Short_S23": (1000.0, 50.0),
-    "T37": (1000.0, 50.0),
-    "T38": (3000.0, 140.0),
-    "t6texan2": (1000.0, 50.0),
-}
+__all__ = [
+    "FT_M",
+    "KT_MPS",
+    "LBF_N",
+    "PSF_PA",
+    "RANKINE_K",
+    "SLUG_KG",
+    "Flight",
+    "FlightConfig",
+    "FlightEnded",
+    "StartState",
+    "available_aircraft",
+    "suggested_start",
+]
+
 
 _STALL_PERSIST_S = 0.5
-
-# Aircraft files may declare data outputs (CSV files written into the working directory,
-# sockets to localhost) and network inputs (listening sockets). A simulator library must do
-# neither, so these top-level elements -- the ones with attributes; FCS components use bare
-# <input>/<output> tags -- are dropped from a private copy of the aircraft before loading.
-_IO_ELEMENT = re.compile(
-    r"<(input|output)\s+[^>]*?(?:/>|>.*?</\1\s*>)", flags=re.DOTALL | re.IGNORECASE
-)
 
 # Properties read after every step, in this order (JSBSim units).
 _READ = (
@@ -217,108 +167,6 @@ _READ = (
 ) = range(len(_READ))  # fmt: skip
 
 
-class StartState(BaseModel):
-    """Where and how the aircraft starts: in the air, wings level, on ``heading_deg``."""
-
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-    lat_deg: float = Field(default=47.0, ge=-85.0, le=85.0)
-    lon_deg: float = Field(default=8.0, ge=-180.0, le=180.0)
-    alt_msl_m: float = Field(default=1000.0, ge=100.0, le=15000.0)
-    heading_deg: float = Field(default=0.0, ge=-360.0, le=360.0)
-    airspeed_mps: float = Field(default=50.0, gt=10.0, le=350.0)
-
-
-class FlightConfig(BaseModel):
-    """Aircraft, rate, start state and atmosphere of a flight.
-
-    Wind (the velocity the air moves *towards*, NED, m/s; see "Wind" in the module docstring):
-    ``wind_ned_mps`` is the steady wind, at ``wind_ref_agl_m`` above ground when
-    ``wind_shear_exponent`` p > 0 (power-law shear of the horizontal wind,
-    ``w(h) = w_ref (h / h_ref)^p``; ``wind_ref_agl_m`` None = the start altitude above
-    ground). ``wind_table`` instead gives the horizontal wind as rows
-    ``(alt_msl_m, north_mps, east_mps)``, strictly increasing in altitude, interpolated
-    linearly and held constant beyond its ends; with a table the horizontal part of
-    ``wind_ned_mps`` and the exponent must be zero (its down component still applies).
-    ``turbulence`` is a severity in [0, 1] (see the module docstring for the mapping to
-    JSBSim's MIL-F-8785C model); ``seed`` seeds JSBSim's random generator.
-    ``stall_alpha_deg``: an angle of attack above it for 0.5 s ends the flight as a stall
-    (c172x and c310 reach their maximum lift near 14-16 deg; the guidance law itself stays
-    below ``guidance.alpha_max_rad``, 12 deg by default).
-    ``guidance``: gains of the guidance law (defaults tuned on c172x and c310).
-    ``control``: who flies the aircraft after the trim: ``"guidance"`` (our guidance law flies
-    the plan) or ``"external"`` (an autopilot in the loop: the controls given to
-    :meth:`Flight.command` hold until the next command; the plan is not flown).
-    """
-
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-    aircraft: str = "c172x"
-    rate_hz: float = Field(default=200.0, ge=50.0, le=400.0)
-    start: StartState = StartState()
-    wind_ned_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    wind_shear_exponent: float = Field(default=0.0, ge=0.0, le=1.0)
-    wind_ref_agl_m: float | None = Field(default=None, gt=0.0, le=20000.0)
-    wind_table: tuple[tuple[float, float, float], ...] = ()
-    turbulence: float = Field(default=0.0, ge=0.0, le=1.0)
-    seed: int = Field(default=0, ge=0, le=2**31 - 1)
-    stall_alpha_deg: float = Field(default=15.0, gt=5.0, le=60.0)
-    guidance: GuidanceGains = GuidanceGains()
-    control: Literal["guidance", "external"] = "guidance"
-
-    @model_validator(mode="after")
-    def _one_wind_profile(self) -> Self:
-        table = self.wind_table
-        if table:
-            if any(not all(math.isfinite(x) for x in row) for row in table):
-                raise ValueError("every value of the wind table must be finite")
-            alts = [row[0] for row in table]
-            if any(b <= a for a, b in itertools.pairwise(alts)):
-                raise ValueError("the altitudes of the wind table must increase strictly")
-            if self.wind_ned_mps[:2] != (0.0, 0.0) or self.wind_shear_exponent != 0.0:
-                raise ValueError(
-                    "a wind table replaces the horizontal wind: leave wind_ned_mps' north/east "
-                    "at 0 and wind_shear_exponent at 0"
-                )
-        return self
-
-    @property
-    def wind_varies_with_altitude(self) -> bool:
-        """True when the wind is a profile (shear or table): set anew at every step."""
-        return bool(self.wind_table) or (
-            self.wind_shear_exponent > 0.0 and self.wind_ned_mps[:2] != (0.0, 0.0)
-        )
-
-    def wind_at(self, alt_msl_m: float, alt_agl_m: float) -> tuple[float, float, float]:
-        """The steady (non-turbulent) wind at this height, NED m/s (see the class docstring).
-
-        ``alt_agl_m`` is floored at 1 m for the power law (the flight ends below it anyway).
-        """
-        wn, we, wd = self.wind_ned_mps
-        if self.wind_table:
-            n, e = _interpolate_table(self.wind_table, alt_msl_m)
-            return (n, e, wd)
-        p = self.wind_shear_exponent
-        if p == 0.0:
-            return (wn, we, wd)
-        h_ref = self.wind_ref_agl_m if self.wind_ref_agl_m is not None else self.start.alt_msl_m
-        scale = (max(alt_agl_m, 1.0) / h_ref) ** p
-        return (wn * scale, we * scale, wd)
-
-
-def _interpolate_table(
-    table: tuple[tuple[float, float, float], ...], alt_m: float
-) -> tuple[float, float]:
-    """Linear interpolation of ``(alt, north, east)`` rows at ``alt_m``, constant outside."""
-    if alt_m <= table[0][0]:
-        return (table[0][1], table[0][2])
-    for (a0, n0, e0), (a1, n1, e1) in itertools.pairwise(table):
-        if alt_m <= a1:
-            f = (alt_m - a0) / (a1 - a0)
-            return (n0 + f * (n1 - n0), e0 + f * (e1 - e0))
-    return (table[-1][1], table[-1][2])
-
-
 class FlightEnded(RuntimeError):
     """The aircraft stalled, hit the ground or departed controlled flight.
 
@@ -332,63 +180,6 @@ class FlightEnded(RuntimeError):
         super().__init__(f"flight ended at t = {time_s:.2f} s: {reason}")
         self.reason = reason
         self.time_s = time_s
-
-
-@lru_cache(maxsize=1)
-def _aircraft_dir() -> Path:
-    return Path(jsbsim.get_default_root_dir()) / "aircraft"
-
-
-def available_aircraft() -> list[str]:
-    """Aircraft of the installed jsbsim wheel this adapter offers, sorted (case-insensitive).
-
-    These are the wheel's aircraft checked to load, trim and fly straight and level (see
-    ``suggested_start``); c172x (the default) and c310 are tuned to fly every plan.
-    """
-    root = _aircraft_dir()
-    return sorted(
-        (name for name in _VERIFIED if (root / name / f"{name}.xml").is_file()), key=str.lower
-    )
-
-
-def suggested_start(aircraft: str, **overrides: float) -> StartState:
-    """A start state at which ``aircraft`` trims (altitude and airspeed), plus ``overrides``.
-
-    Raises
-    ------
-    ValueError
-        Unknown aircraft; the message lists the valid ones.
-    """
-    if aircraft not in _VERIFIED:
-        raise ValueError(
-            f"unknown aircraft {aircraft!r}: valid aircraft are {', '.join(available_aircraft())}"
-        )
-    alt_m, airspeed_mps = _VERIFIED[aircraft]
-    return StartState(**{"alt_msl_m": alt_m, "airspeed_mps": airspeed_mps, **overrides})
-
-
-def _load_without_io(fdm: Any, aircraft: str) -> None:
-    """Load ``aircraft`` from the wheel's data, minus its data-output and network-input
-    directives (see ``_IO_ELEMENT``). The private copy is deleted once JSBSim has read it."""
-    root = Path(jsbsim.get_default_root_dir())
-    with tempfile.TemporaryDirectory(prefix="hilnav-jsbsim-") as tmp:
-        folder = Path(tmp) / aircraft
-        shutil.copytree(root / "aircraft" / aircraft, folder)
-        for xml in folder.glob("*.xml"):
-            text = xml.read_text(encoding="utf-8", errors="surrogateescape")
-            cleaned = _IO_ELEMENT.sub("", text)
-            if cleaned != text:
-                xml.write_text(cleaned, encoding="utf-8", errors="surrogateescape")
-        try:
-            with _jsbsim_log_discarded():  # load-time warnings of some wheel aircraft
-                loaded = fdm.load_model_with_paths(
-                    aircraft, tmp, str(root / "engine"), str(root / "systems"), True
-                )
-        except jsbsim.BaseError as error:
-            raise ValueError(f"JSBSim could not load aircraft {aircraft!r}: {error}") from None
-    if not loaded:
-        raise ValueError(f"JSBSim could not load aircraft {aircraft!r}")
-    fdm.disable_output()
 
 
 def _radii_at(lat_rad: float) -> tuple[float, float, float]:
@@ -418,43 +209,6 @@ def _euler_to_quat(phi: float, theta: float, psi: float) -> np.ndarray:
     if w < 0.0:
         return np.array((-w, -x, -y, -z))
     return np.array((w, x, y, z))
-
-
-class _DiscardLog(jsbsim.FGLogger):
-    """A JSBSim log backend that drops every record."""
-
-    def set_level(self, level: jsbsim.LogLevel) -> None:
-        pass
-
-    def file_location(self, filename: str, line: int) -> None:
-        pass
-
-    def message(self, message: str) -> None:
-        pass
-
-    def format(self, format: jsbsim.LogFormat) -> None:
-        pass
-
-    def flush(self) -> None:
-        pass
-
-
-@contextlib.contextmanager
-def _jsbsim_log_discarded() -> Iterator[None]:
-    """Drop what JSBSim logs from this thread meanwhile (trim reports, load-time warnings).
-
-    JSBSim reports a failed trim axis and the XML warnings of some wheel aircraft whatever its
-    debug level; on the console they would corrupt a CLI's or a test's output. JSBSim sends
-    every such record to the calling thread's ``FGLogger``, so swapping that logger silences
-    them without touching a file descriptor or another thread. The previous logger is
-    restored on exit.
-    """
-    previous = jsbsim.get_logger()
-    jsbsim.set_logger(_DiscardLog())
-    try:
-        yield
-    finally:
-        jsbsim.set_logger(previous)
 
 
 class _Props:
@@ -502,7 +256,7 @@ class Flight:
         jsbsim.FGJSBBase().debug_lvl = 0
         self._fdm: Any = jsbsim.FGFDMExec(None)
         self._fdm.set_debug_level(0)
-        _load_without_io(self._fdm, config.aircraft)
+        load_without_io(self._fdm, config.aircraft)
         self._fdm.set_dt(self._dt)
         self._fdm["simulation/randomseed"] = config.seed
         self._bind()
@@ -611,7 +365,7 @@ class Flight:
             fdm["ic/alpha-rad"] = alpha_rad
         fdm["gear/gear-cmd-norm"] = 0.0  # airborne start: gear up where it retracts
         self._set_wind_ic(wind_ne_mps)
-        with _jsbsim_log_discarded():
+        with jsbsim_log_discarded():
             fdm.run_ic()
 
     def _start(self) -> TrimPoint:
@@ -655,7 +409,7 @@ class Flight:
         fdm["ic/vn-fps"] = raw[_IVN] + wn_mps / FT_M
         fdm["ic/ve-fps"] = raw[_IVE] + we_mps / FT_M
         fdm["ic/vd-fps"] = raw[_IVD]
-        with _jsbsim_log_discarded():
+        with jsbsim_log_discarded():
             fdm.run_ic()
         self._start_engines()
         self._raw = self._sample()
@@ -692,7 +446,7 @@ class Flight:
 
     def _try_trim(self) -> bool:
         try:
-            with _jsbsim_log_discarded():
+            with jsbsim_log_discarded():
                 self._fdm.do_trim(1)
         except jsbsim.TrimFailureError:
             return False

@@ -2,11 +2,11 @@
 propeller speed, sampled from the flight at a fixed rate in simulated time.
 
 A real autopilot in HIL sends HIL_ACTUATOR_CONTROLS (its mixer's normalised outputs) and
-RAW_RPM (an rpm sensor); the learned vehicle models of issue #18 (airspeed from controls and
-rpm) need both. :class:`VehicleStateReporter` turns what the flight adapter flies with
+RAW_RPM (an rpm sensor); the learned vehicle models (airspeed from controls and rpm) need
+both. :class:`VehicleStateReporter` turns what the flight adapter flies with
 (:meth:`sim.flight.Flight.vehicle_state`, a :class:`VehicleState` already in PX4's order and
 sign conventions) into :class:`~sim.samples.ActuatorSample` and :class:`~sim.samples.RpmSample`
-at ``VehicleStateConfig.rate_hz`` (default 50 Hz; >= 25 Hz, the rate issue #18 asks for).
+at ``VehicleStateConfig.rate_hz`` (default 50 Hz; >= 25 Hz, what those models need).
 
 Timing: the first step reports, then every ``1 / rate_hz`` of simulated time on a fixed grid
 (as the streamer's truth frames), so a 200 Hz flight reports every 4th step at 50 Hz. The

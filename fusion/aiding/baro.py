@@ -1,14 +1,8 @@
 """Barometric height aiding with a baro-bias state.
 
-Pressure to height, ICAO standard atmosphere (ISA), troposphere and lower stratosphere::
-
-    h = T0 / L * (1 - (p / p0)^(R L / g0))            p >= p11 (h <= 11 km)
-    h = h11 + R T11 / g0 * ln(p11 / p)               p <  p11 (isothermal layer)
-
-with T0 = 288.15 K, L = 0.0065 K/m (temperature decreasing upwards), p0 = 101 325 Pa,
-R = 287.05287 J/(kg K), g0 = 9.80665 m/s^2, T11 = 216.65 K, p11 = 22 632.06 Pa. This is paper
-P4's ``Hp = (T0/L)((Ps/P0)^(-L R / g) - 1) + H0`` written with a positive lapse rate; P4's
-non-standard-atmosphere corrections (scale ``s`` and offset ``b``) belong to the later altitude
+The height of a pressure is its ISA pressure altitude (:func:`physconst.isa.pressure_altitude_m`,
+paper P4's ``Hp = (T0/L)((Ps/P0)^(-L R / g) - 1) + H0`` in the troposphere); P4's
+non-standard-atmosphere corrections (scale ``s`` and offset ``b``) belong to the altitude
 channel. Here the whole difference between pressure height and the navigation height (weather,
 non-standard temperature, geoid) is one slowly varying Gauss-Markov bias ``b`` (state BARO)::
 
@@ -37,35 +31,14 @@ from fusion.config import BaroTuning
 from fusion.error_model import StateLayout
 from fusion.estimate import AidSource, HealthCounters
 from fusion.samples import BaroSample
-from physconst import G0_MPS2, ISA_L0_KPM, ISA_LAYER_BASE_M, ISA_P0_PA, ISA_R_AIR_JPKGK, ISA_T0_K
+from physconst.isa import isa_pressure_pa, pressure_altitude_m
 
-ISA_LAPSE_K_PER_M = -ISA_L0_KPM  # temperature decrease with height, K/m (> 0)
-ISA_R_J_PER_KG_K = ISA_R_AIR_JPKGK
-ISA_G0_MPS2 = G0_MPS2
-ISA_H11_M = ISA_LAYER_BASE_M[1]
-ISA_T11_K = ISA_T0_K - ISA_LAPSE_K_PER_M * ISA_H11_M
-_EXP = ISA_R_J_PER_KG_K * ISA_LAPSE_K_PER_M / ISA_G0_MPS2
-ISA_P11_PA = ISA_P0_PA * (ISA_T11_K / ISA_T0_K) ** (1.0 / _EXP)
-
-
-def pressure_to_height(pressure_pa: float) -> float:
-    """ISA pressure altitude, m, for a static pressure in Pa (NaN for non-positive input)."""
-    if not pressure_pa > 0.0:
-        return math.nan
-    if pressure_pa >= ISA_P11_PA:
-        return ISA_T0_K / ISA_LAPSE_K_PER_M * (1.0 - (pressure_pa / ISA_P0_PA) ** _EXP)
-    return ISA_H11_M + ISA_R_J_PER_KG_K * ISA_T11_K / ISA_G0_MPS2 * math.log(
-        ISA_P11_PA / pressure_pa
-    )
-
-
-def height_to_pressure(height_m: float) -> float:
-    """Inverse of :func:`pressure_to_height`: ISA static pressure (Pa) at a pressure altitude."""
-    if height_m <= ISA_H11_M:
-        return ISA_P0_PA * (1.0 - ISA_LAPSE_K_PER_M * height_m / ISA_T0_K) ** (1.0 / _EXP)
-    return ISA_P11_PA * math.exp(
-        -(height_m - ISA_H11_M) * ISA_G0_MPS2 / (ISA_R_J_PER_KG_K * ISA_T11_K)
-    )
+pressure_to_height = pressure_altitude_m
+"""ISA pressure altitude, m, of a static pressure in Pa (NaN for a non-positive one): the
+name the filter reads the baro height by (:func:`physconst.isa.pressure_altitude_m`)."""
+height_to_pressure = isa_pressure_pa
+"""ISA static pressure, Pa, at a pressure altitude in m: the inverse of
+:data:`pressure_to_height` (:func:`physconst.isa.isa_pressure_pa`)."""
 
 
 def height_model(

@@ -124,8 +124,8 @@ class PitotMonitor:
     ) -> str:  # fmt: skip
         r, p = self._readings, self._predicted
         # the window must be (nearly) full: judged on the readings' own span, not on the batch
-        # time (a 1 Hz batch's mean time is 0.5 s before its last reading, which left a 4 s
-        # window's span at 3.5 s, under 0.9 of it: the check never ran)
+        # time (a 1 Hz batch's mean time is 0.5 s before its last reading, so a 4 s window's
+        # span by batch times is 3.5 s, under 0.9 of it: the check would never run)
         if not r or r[-1][0] - r[0][0] < 0.9 * self._window_us or len(r) < 5 or len(p) < 3:
             return ""
         values = [q for _, q in r]

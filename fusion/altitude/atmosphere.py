@@ -1,9 +1,9 @@
 """The standard atmosphere for barometric altitude: pressure altitude, QNH, P4's non-standard
 atmosphere, geopotential heights.
 
-Pure scalar functions, SI units. ``fusion`` does not import ``sim``;
-the inverse formulas here are written to match ``sim.atmosphere`` exactly (same constants, same
-layers, same definition of P4's non-standard atmosphere), and the tests check the round trip.
+Pure scalar functions, SI units. ``fusion`` does not import ``sim``; the standard atmosphere
+itself is :mod:`physconst.isa`, the one definition both use (here with range checks), and P4's
+non-standard atmosphere is defined as in ``sim.atmosphere``; the tests check the round trip.
 
 Heights
 -------
@@ -55,41 +55,38 @@ from physconst import (
     ISA_H_MAX_M,
     ISA_H_MIN_M,
     ISA_L0_KPM,
-    ISA_LAYER_BASE_M,
-    ISA_LAYER_LAPSE_KPM,
-    ISA_LAYER_P_PA,
-    ISA_LAYER_T_K,
     ISA_P0_PA,
-    ISA_R0_GEOPOTENTIAL_M,
     ISA_R_AIR_JPKGK,
     ISA_T0_K,
+    isa,
 )
+from physconst.isa import geometric_from_geopotential, geopotential_from_geometric
+
+__all__ = [
+    "BIAS_PER_PRESSURE_M_PER_PA",
+    "P_MAX_PA",
+    "P_MIN_PA",
+    "calibrated_altitude_m",
+    "check_pressure",
+    "geometric_from_geopotential",
+    "geopotential_from_geometric",
+    "isa_pressure_pa",
+    "isa_temperature_k",
+    "nonstandard_scale_bias",
+    "p4_sea_level_conditions",
+    "pressure_altitude_m",
+    "qnh_altitude_m",
+    "scale_from_temperature",
+    "sea_level_offsets",
+]
 
 BIAS_PER_PRESSURE_M_PER_PA = ISA_R_AIR_JPKGK * ISA_T0_K / (G0_MPS2 * ISA_P0_PA)
 """P4's ``b/ΔP = R·T0/(g·P0)``, m/Pa (8.32 m per hPa)."""
 
-
-
-def _pressure_in_layer(i: int, h_gp_m: float) -> float:
-    dh = h_gp_m - ISA_LAYER_BASE_M[i]
-    lapse = ISA_LAYER_LAPSE_KPM[i]
-    if lapse == 0.0:
-        return ISA_LAYER_P_PA[i] * math.exp(-G0_MPS2 * dh / (ISA_R_AIR_JPKGK * ISA_LAYER_T_K[i]))
-    t = ISA_LAYER_T_K[i] + lapse * dh
-    return ISA_LAYER_P_PA[i] * (t / ISA_LAYER_T_K[i]) ** (-G0_MPS2 / (lapse * ISA_R_AIR_JPKGK))
-
-
-P_MAX_PA = _pressure_in_layer(0, ISA_H_MIN_M)
+P_MAX_PA = isa.ISA_P_MAX_PA
 """Pressure at :data:`ISA_H_MIN_M` (≈ 177.7 kPa): the highest pressure the model accepts, Pa."""
-P_MIN_PA = _pressure_in_layer(len(ISA_LAYER_BASE_M) - 1, ISA_H_MAX_M)
+P_MIN_PA = isa.ISA_P_MIN_PA
 """Pressure at :data:`ISA_H_MAX_M` (≈ 110.9 Pa): the lowest pressure the model accepts, Pa."""
-
-
-def _layer_of_altitude(h_gp_m: float) -> int:
-    i = 0
-    while i + 1 < len(ISA_LAYER_BASE_M) and h_gp_m >= ISA_LAYER_BASE_M[i + 1]:
-        i += 1
-    return i
 
 
 def check_pressure(pressure_pa: float) -> None:
@@ -126,18 +123,9 @@ def _check_altitude(h_gp_m: float, name: str) -> None:
         )
 
 
-def geopotential_from_geometric(h_m: float) -> float:
-    """Geopotential altitude ``r0·h/(r0 + h)`` (m) from geometric height above MSL (m)."""
-    return ISA_R0_GEOPOTENTIAL_M * h_m / (ISA_R0_GEOPOTENTIAL_M + h_m)
-
-
-def geometric_from_geopotential(h_gp_m: float) -> float:
-    """Geometric height above MSL ``r0·H/(r0 − H)`` (m) from geopotential altitude (m)."""
-    return ISA_R0_GEOPOTENTIAL_M * h_gp_m / (ISA_R0_GEOPOTENTIAL_M - h_gp_m)
-
-
 def isa_temperature_k(h_gp_m: float) -> float:
-    """Standard-atmosphere temperature (K) at geopotential altitude ``h_gp_m`` (m).
+    """Standard-atmosphere temperature (K) at geopotential altitude ``h_gp_m`` (m)
+    (:func:`physconst.isa.isa_temperature_k`).
 
     Raises
     ------
@@ -145,12 +133,12 @@ def isa_temperature_k(h_gp_m: float) -> float:
         Altitude not finite or outside [−5000, 47000] m.
     """
     _check_altitude(h_gp_m, "h_gp_m")
-    i = _layer_of_altitude(h_gp_m)
-    return ISA_LAYER_T_K[i] + ISA_LAYER_LAPSE_KPM[i] * (h_gp_m - ISA_LAYER_BASE_M[i])
+    return isa.isa_temperature_k(h_gp_m)
 
 
 def isa_pressure_pa(h_gp_m: float) -> float:
-    """Standard-atmosphere static pressure (Pa) at geopotential altitude ``h_gp_m`` (m).
+    """Standard-atmosphere static pressure (Pa) at geopotential altitude ``h_gp_m`` (m)
+    (:func:`physconst.isa.isa_pressure_pa`).
 
     Raises
     ------
@@ -158,24 +146,13 @@ def isa_pressure_pa(h_gp_m: float) -> float:
         Altitude not finite or outside [−5000, 47000] m.
     """
     _check_altitude(h_gp_m, "h_gp_m")
-    return _pressure_in_layer(_layer_of_altitude(h_gp_m), h_gp_m)
+    return isa.isa_pressure_pa(h_gp_m)
 
 
 def pressure_altitude_m(pressure_pa: float) -> float:
-    """Pressure altitude ``Hp``: the standard-atmosphere geopotential altitude of a pressure.
-
-    In the troposphere this is P4 eq. 1; above 11 km the matching layer of the US Standard
-    Atmosphere 1976 (isothermal layers by the logarithmic form).
-
-    Parameters
-    ----------
-    pressure_pa : float
-        Static pressure, Pa.
-
-    Returns
-    -------
-    float
-        ``Hp``, m (geopotential; 0 at 101 325 Pa, 11 000 at 22 632.06 Pa).
+    """Pressure altitude ``Hp`` (m, geopotential) of a static pressure (Pa), refusing pressures
+    outside the model: :func:`physconst.isa.pressure_altitude_m` (P4 eq. 1 in the troposphere,
+    the layers of the US Standard Atmosphere 1976 above 11 km; 0 at 101 325 Pa).
 
     Raises
     ------
@@ -183,18 +160,7 @@ def pressure_altitude_m(pressure_pa: float) -> float:
         Pressure ≤ 0, not finite, or outside the model range (:func:`check_pressure`).
     """
     check_pressure(pressure_pa)
-    i = 0
-    while i + 1 < len(ISA_LAYER_P_PA) and pressure_pa <= ISA_LAYER_P_PA[i + 1]:
-        i += 1
-    base_h, base_t, base_p = ISA_LAYER_BASE_M[i], ISA_LAYER_T_K[i], ISA_LAYER_P_PA[i]
-    lapse = ISA_LAYER_LAPSE_KPM[i]
-    if lapse == 0.0:
-        return base_h - (ISA_R_AIR_JPKGK * base_t / G0_MPS2) * math.log(pressure_pa / base_p)
-    return (
-        base_h
-        + (base_t / lapse) * ((pressure_pa / base_p) ** (-lapse * ISA_R_AIR_JPKGK / G0_MPS2) - 1.0)
-        + ISA_H0_M
-    )
+    return isa.pressure_altitude_m(pressure_pa)
 
 
 def qnh_altitude_m(pressure_pa: float, qnh_pa: float) -> float:

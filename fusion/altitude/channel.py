@@ -64,7 +64,7 @@ class AltitudeChannelConfig(Frozen):
             ``False`` (P4's set-up): the baro scale ``s`` comes from the sensed temperature
             only and ``b`` is not learned; GNSS reaches the altitude only through the
             compensator. ``True``: ``(s, b)`` learned from GNSS height as in the defaults, with
-            the earlier (untuned) random walk of ``b``, 0.02 m/√s.
+            an untuned random walk of ``b``, 0.02 m/√s.
         """
         cal = BaroCalibrationConfig(
             bias_random_walk_m_per_rth_s=0.02,

@@ -96,7 +96,8 @@ from hil.codec.wire import (
     HilSensorField,
     mavlink2,
 )
-from physconst import G0_MPS2, ISA_L0_KPM, ISA_P0_PA, ISA_T0_K  # G0: MAVLink's mG is 1e-3 G0
+from physconst import G0_MPS2  # MAVLink's mG is 1e-3 G0
+from physconst.isa import pressure_altitude_m
 from sim.samples import (
     ActuatorSample,
     AirspeedSample,
@@ -109,12 +110,6 @@ from sim.samples import (
 )
 
 __all__ = ["Encoder"]
-
-# ISA troposphere, for HIL_SENSOR.pressure_alt only (the fusion never reads it back).
-_ISA_P0_PA: Final = ISA_P0_PA
-_ISA_T0_K: Final = ISA_T0_K
-_ISA_LAPSE_KPM: Final = -ISA_L0_KPM
-_ISA_EXPONENT: Final = 0.190263  # R * L / (g0 * M) for dry air
 
 _N_CONTROLS: Final = 16  # HIL_ACTUATOR_CONTROLS.controls
 _ndarray = np.ndarray
@@ -188,22 +183,6 @@ def _component_id(value: int, name: str) -> int:
     if v != value or not 1 <= v <= UINT8_MAX:
         raise ValueError(f"{name} must be an integer in [1, 255] (0 is broadcast), got {value!r}")
     return v
-
-
-def _isa_pressure_altitude_m(pressure_pa: float) -> float:
-    """ISA (troposphere) pressure altitude of a static pressure.
-
-    Parameters
-    ----------
-    pressure_pa : float
-        Static pressure, Pa (> 0).
-
-    Returns
-    -------
-    float
-        Pressure altitude, m: ``T0 / L * (1 - (p / p0) ** (R L / g M))``.
-    """
-    return _ISA_T0_K / _ISA_LAPSE_KPM * (1.0 - (pressure_pa / _ISA_P0_PA) ** _ISA_EXPONENT)
 
 
 class Encoder:
@@ -400,7 +379,7 @@ class Encoder:
                 raise ValueError(f"baro.pressure_pa must be > 0, got {p!r}")
             temp_k = _finite(baro.temperature_k, "baro.temperature_k")
             abs_hpa = self._f32(p / PA_PER_HPA, "HIL_SENSOR.abs_pressure")
-            alt_m = _isa_pressure_altitude_m(p)
+            alt_m = pressure_altitude_m(p)  # for PX4; the fusion never reads it
             temp_c = self._f32(temp_k - KELVIN_AT_0_CELSIUS, "HIL_SENSOR.temperature")
             bits |= _BARO_BITS
         if diff_pressure_pa is not None:

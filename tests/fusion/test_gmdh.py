@@ -19,7 +19,8 @@ from sklearn.base import clone
 from sklearn.exceptions import NotFittedError as SkNotFittedError
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from fusion.gmdh import GmdhRegressor, _eval_neurons, _pool_values, _split_masks
+from fusion.gmdh import GmdhRegressor
+from fusion.gmdh_layer import eval_neurons, pool_values, split_masks
 from fusion.regressor_base import NotFittedError
 
 REPO = Path(__file__).resolve().parents[2]
@@ -295,13 +296,13 @@ def test_deterministic_for_a_given_random_state(split: str) -> None:
         assert not np.array_equal(a, c)
 
 
-# --- the regressor defaults against P0 (issue 18) ------------------------------------------
+# --- the regressor defaults against P0 ------------------------------------------------------------
 
 _NOISE = 0.02
 
 
 def _polynomial_problem(degree: int, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """6 inputs uniform in [-1, 1]; noiseless target of degree 2 or 4 (issue 18's problems)."""
+    """6 inputs uniform in [-1, 1]; noiseless target of degree 2 or 4."""
     X = np.random.default_rng(seed).uniform(-1.0, 1.0, (n, 6))
     x0, x1, x2, x3, x4 = (X[:, k] for k in range(5))
     if degree == 2:
@@ -325,7 +326,7 @@ def test_defaults_recover_a_degree_two_polynomial_to_the_noise_floor() -> None:
     n_train = round(0.7 * 3000)
     assert excess <= 3.0 * _NOISE * np.sqrt(n_coefs / n_train)
     assert excess < 0.5 * _NOISE
-    # P0's selection chains the layers (5, 4, 3, 2, 1 survivors in issue 18): many times the
+    # P0's selection chains the layers (5, 4, 3, 2, 1 survivors): many times the
     # noise floor on the same data
     paper = GmdhRegressor.paper().fit(X, _noisy(f, 23))
     assert np.sqrt(np.mean((paper.predict(X_test) - f_test) ** 2)) > 5.0 * _NOISE
@@ -376,9 +377,9 @@ def test_survivors_are_not_near_duplicates() -> None:
     model = GmdhRegressor(max_layers=1, min_survivors=6, max_neurons=6).fit(X, y)
     layer = model.layers_[0]
     # their validation errors, as the selection saw them
-    val = _split_masks(1000, 0.3, "blocked", 0)
+    val = split_masks(1000, 0.3, "blocked", 0)
     U = (X[val] - model.x_mean_) / model.x_scale_
-    Z = _eval_neurons(_pool_values(U, model.pool_), layer.pairs, layer.coefs)
+    Z = eval_neurons(pool_values(U, model.pool_), layer.pairs, layer.coefs)
     resid = Z - ((y[val] - model.y_mean_) / model.y_scale_)[:, None]
     corr = np.corrcoef(resid.T)
     off_diagonal = corr[~np.eye(len(corr), dtype=bool)]
@@ -386,7 +387,7 @@ def test_survivors_are_not_near_duplicates() -> None:
     # without the check the copies crowd the layer: identical errors
     crowded = GmdhRegressor(max_layers=1, min_survivors=6, max_neurons=6,
                             max_correlation=1.0).fit(X, y).layers_[0]  # fmt: skip
-    Zc = _eval_neurons(_pool_values(U, model.pool_), crowded.pairs, crowded.coefs)
+    Zc = eval_neurons(pool_values(U, model.pool_), crowded.pairs, crowded.coefs)
     corr_c = np.corrcoef((Zc - ((y[val] - model.y_mean_) / model.y_scale_)[:, None]).T)
     assert np.max(np.abs(corr_c[~np.eye(len(corr_c), dtype=bool)])) > 1.0 - 1e-9
 
@@ -394,7 +395,7 @@ def test_survivors_are_not_near_duplicates() -> None:
 @pytest.mark.parametrize("n", [2, 3, 7, 10, 11, 99, 1000, 1003])
 @pytest.mark.parametrize("fraction", [0.1, 0.3, 0.5, 0.9])
 def test_blocked_split_uses_contiguous_blocks(n: int, fraction: float) -> None:
-    mask = _split_masks(n, fraction, "blocked", None)
+    mask = split_masks(n, fraction, "blocked", None)
     assert 1 <= mask.sum() <= n - 1  # both parts non-empty
     # runs of validation samples: at most one per block, each a whole block
     edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))

@@ -286,6 +286,8 @@ class Px4Peer:
         t = int(m.time_usec)
         if bits & _BARO == _BARO:
             p_pa = float(m.abs_pressure) * 100.0
+            # the six-figure textbook ISA formula (T0/L = 44330.77 m, exponent 0.190263), written
+            # out on purpose: the peer stays independent of hilnav's physconst.isa
             e.baro_alt_m = 44330.77 * (1.0 - (p_pa / 101325.0) ** 0.190263)
             self._temp_k = float(m.temperature) + 273.15
             self._pressure_pa = p_pa

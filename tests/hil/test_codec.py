@@ -1,65 +1,38 @@
-"""hil.codec: SI <-> MAVLink round trips within the wire quantisation, stream robustness,
-and decoding of the messages a real flight controller sends."""
+"""hil.codec: SI <-> MAVLink round trips of the simulator's messages (HIL_SENSOR with air
+data, HIL_GPS, HIL_STATE_QUATERNION) within the wire quantisation, components and sequence
+numbers."""
 
 from __future__ import annotations
 
-import itertools
 import math
 import struct
 from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
-from numpy.typing import ArrayLike
 
 from hil.codec import (
-    DEFAULT_FIRST_IMU_DT_S,
     SENSOR_COMPONENT_ID,
     TRUTH_COMPONENT_ID,
-    Decoded,
     Decoder,
     Encoder,
     HilSensorField,
-    RawImuScale,
     mavlink2,
 )
 from sim.samples import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample, Truth
-
-G0 = 9.80665
-DEGE7_PER_RAD = 1e7 * 180.0 / math.pi
-FAST = settings(max_examples=60, deadline=None)
-
-
-# --- wire quantisation: the tolerance of every round trip ----------------------------------
-def f32_tol(si_value: float, si_per_wire: float, offset: float = 0.0) -> float:
-    """Largest SI error of a float32 wire field: half a float32 ulp of the wire value, in SI,
-    plus a few float64 ulps for the unit conversion arithmetic."""
-    wire = (si_value - offset) / si_per_wire
-    half_ulp = float(np.spacing(np.float32(abs(wire)))) / 2.0
-    return half_ulp * si_per_wire + 4.0 * float(np.spacing(abs(si_value) + abs(offset)))
-
-
-def int_tol(si_per_count: float, si_value: float = 0.0) -> float:
-    """Largest SI error of an integer wire field: half a count, plus float64 slack."""
-    return 0.5 * si_per_count + 4.0 * float(np.spacing(abs(si_value) + 1.0))
-
-
-def assert_f32_close(
-    got: ArrayLike, want: ArrayLike, si_per_wire: float, offset: float = 0.0
-) -> None:
-    for g, w in zip(np.atleast_1d(got), np.atleast_1d(want), strict=True):
-        assert abs(g - w) <= f32_tol(float(w), si_per_wire, offset), (g, w)
-
-
-def assert_int_close(got: ArrayLike, want: ArrayLike, si_per_count: float) -> None:
-    for g, w in zip(np.atleast_1d(got), np.atleast_1d(want), strict=True):
-        assert abs(g - w) <= int_tol(si_per_count, float(w)), (g, w)
-
-
-def angle_diff(a: float, b: float) -> float:
-    return (a - b + math.pi) % (2 * math.pi) - math.pi
+from tests.hil.codec_helpers import (
+    DEGE7_PER_RAD,
+    FAST,
+    G0,
+    angle_diff,
+    assert_f32_close,
+    assert_int_close,
+    int_tol,
+    one,
+    parse_raw,
+)
 
 
 # --- strategies ----------------------------------------------------------------------------
@@ -125,17 +98,6 @@ truths = st.builds(
     airspeed_mps=floats(0.0, 600.0),
     indicated_airspeed_mps=floats(0.0, 600.0),
 )
-
-
-def one(decoder: Decoder, frame: bytes) -> list[Any]:
-    return [d.sample for d in decoder.feed(frame)]
-
-
-def parse_raw(frame: bytes) -> Any:
-    mav = mavlink2.MAVLink(None)
-    msgs = mav.parse_buffer(frame)
-    assert msgs is not None and len(msgs) == 1
-    return msgs[0]
 
 
 # --- HIL_SENSOR ----------------------------------------------------------------------------
@@ -266,6 +228,15 @@ def test_float32_overflow_is_clipped_and_counted() -> None:
     assert raw.xacc == pytest.approx(float(np.finfo(np.float32).max))
     assert raw.zacc == pytest.approx(-float(np.finfo(np.float32).max))
     assert enc.saturations == {"HIL_SENSOR.xacc": 1, "HIL_SENSOR.zacc": 1}
+
+
+def test_float32_pressure_matches_struct_rounding() -> None:
+    # The codec's pressure loss is exactly IEEE float32 rounding of the hPa value.
+    p = 101_325.123
+    (b,) = one(Decoder(), Encoder().sensors(None, BaroSample(0, p, 288.15)))
+    assert b.pressure_pa == pytest.approx(
+        struct.unpack("<f", struct.pack("<f", p / 100.0))[0] * 100.0, rel=1e-15
+    )
 
 
 # --- HIL_GPS -------------------------------------------------------------------------------
@@ -422,453 +393,6 @@ def test_components_and_sequence_numbers() -> None:
         Encoder(sensor_component_id=5, truth_component_id=5)
     with pytest.raises(ValueError, match="system_id"):
         Encoder(system_id=0)
-
-
-# --- stream robustness ---------------------------------------------------------------------
-def _frames() -> tuple[list[bytes], int]:
-    """A mixed stream: 20 IMU frames, baro/mag every 5th, a GNSS fix and truth every 10th."""
-    enc = Encoder()
-    parts = []
-    n_samples = 0
-    for k in range(20):
-        t = 1_000_000 + 4000 * k
-        imu = ImuSample(t, 0.004, np.array([0.1 * k, -0.2, -9.8]), np.array([0.01, 0.0, -0.02 * k]))
-        if k % 5 == 0:
-            parts.append(
-                enc.sensors(
-                    imu,
-                    BaroSample(t, 95_000.0 + k, 280.0),
-                    MagSample(t, np.array([2e-5, 1e-6, 4e-5])),
-                )
-            )
-            n_samples += 3
-        else:
-            parts.append(enc.sensors(imu))
-            n_samples += 1
-        if k % 10 == 0:
-            parts.append(
-                enc.gnss(GnssFix(t, 0.8, 0.1, 500.0, np.array([50.0, 1.0, -0.5]), 1.5, 2.5, 0.1))
-            )
-            parts.append(
-                enc.truth(
-                    Truth(
-                        t,
-                        0.8,
-                        0.1,
-                        500.0,
-                        np.array([50.0, 1.0, -0.5]),
-                        np.array([1.0, 0, 0, 0]),
-                        np.zeros(3),
-                        np.array([0, 0, -9.8]),
-                        9.5e4,
-                        280.0,
-                        50.0,
-                        48.0,
-                    )
-                )
-            )
-            n_samples += 2
-    return parts, n_samples
-
-
-def _stream() -> tuple[bytes, int]:
-    parts, n_samples = _frames()
-    return b"".join(parts), n_samples
-
-
-def _key(items: list[Decoded]) -> list[str]:
-    return [repr(d) for d in items]
-
-
-def test_scenario_statustext_comes_from_the_truth_component_and_gives_no_sample() -> None:
-    enc = Encoder(system_id=3)
-    frame = enc.statustext(int(mavlink2.MAV_SEVERITY_NOTICE), "SIM: GNSS off for 20 s " + "x" * 40)
-    m = parse_raw(frame)
-    assert (m.get_srcSystem(), m.get_srcComponent()) == (3, TRUTH_COMPONENT_ID)
-    assert m.severity == mavlink2.MAV_SEVERITY_NOTICE
-    assert m.text == ("SIM: GNSS off for 20 s " + "x" * 40)[:50]  # the message's 50 chars
-    dec = Decoder()
-    assert dec.feed(frame) == [] and dec.counters.ignored_msgs == 1  # no sample from it
-    with pytest.raises(ValueError, match="severity"):
-        enc.statustext(8, "x")
-
-
-def test_unknown_message_id_is_counted_and_dropped() -> None:
-    frames, n = _frames()
-    # A well-formed MAVLink 2 frame with an id no dialect defines (pymavlink cannot CRC it).
-    payload = b"\x01\x02\x03\x04"
-    unknown = (
-        bytes([0xFD, len(payload), 0, 0, 9, 1, 1])
-        + (60_123).to_bytes(3, "little")
-        + payload
-        + b"\x00\x00"
-    )
-    assert 60_123 not in mavlink2.mavlink_map
-    half = len(frames) // 2
-    dec = Decoder()
-    items = dec.feed(b"".join([*frames[:half], unknown, *frames[half:]]))
-    assert len(items) == n
-    assert dec.counters.unknown_msg_id == 1
-    assert dec.counters.bad_crc == 0 and dec.counters.garbage_bytes == 0
-
-
-def test_bad_crc_is_counted_and_dropped() -> None:
-    enc = Encoder()
-    imu = ImuSample(0, 0.004, np.zeros(3), np.zeros(3))
-    good1, bad, good2 = (
-        enc.sensors(imu),
-        bytearray(enc.sensors(ImuSample(4000, 0.004, np.ones(3), np.zeros(3)))),
-        enc.sensors(ImuSample(8000, 0.004, np.zeros(3), np.zeros(3))),
-    )
-    bad[12] ^= 0x40  # corrupt one payload bit
-    dec = Decoder()
-    items = dec.feed(good1 + bytes(bad) + good2)
-    assert [d.sample.time_us for d in items] == [0, 8000]
-    assert dec.counters.bad_crc == 1
-    assert dec.counters.frames_ok == 2
-    # The dropped frame leaves a gap in the IMU time series, visible in dt.
-    after_gap = items[1].sample
-    assert isinstance(after_gap, ImuSample) and after_gap.dt_s == pytest.approx(0.008)
-
-
-def test_garbage_between_frames_is_counted() -> None:
-    stream, n = _stream()
-    dec = Decoder()
-    items = dec.feed(b"\x00\x11\x22" + stream + b"\x42" * 5)
-    assert len(items) == n
-    assert dec.counters.garbage_bytes == 8
-
-
-@FAST
-@given(cuts=st.lists(st.integers(0, 10_000), max_size=30))
-def test_stream_split_at_any_byte_boundary_gives_same_samples(cuts: list[int]) -> None:
-    stream, n = _stream()
-    stream = b"\x07garbage" + stream
-    whole = Decoder(imu_dt_s=0.004)
-    expected = whole.feed(stream)
-    assert len(expected) == n
-    pieces = sorted({c % (len(stream) + 1) for c in cuts} | {0, len(stream)})
-    split = Decoder(imu_dt_s=0.004)
-    got: list[Decoded] = []
-    for a, b in itertools.pairwise(pieces):
-        got.extend(split.feed(stream[a:b]))
-    assert _key(got) == _key(expected)
-    assert split.counters == whole.counters
-
-
-@FAST
-@given(cuts=st.lists(st.integers(0, 10_000), max_size=30))
-def test_feed_all_is_feed_of_each_chunk_in_turn(cuts: list[int]) -> None:
-    """GIVEN a stream with garbage, a damaged frame, an unknown id and a MAVLink 1 frame
-    (pymavlink's path) cut anywhere WHEN the pieces go through one ``feed_all`` call and
-    through one ``feed`` per piece THEN the same samples, in the same order, and the same
-    counters (the lockstep sink decodes its batches with ``feed_all``)."""
-    frames, _n = _frames()
-    bad = bytearray(frames[3])
-    bad[12] ^= 0x40
-    unknown = bytes([0xFD, 4, 0, 0, 9, 1, 1]) + (60_123).to_bytes(3, "little") + bytes(6)
-    v1 = mavlink2.MAVLink_scaled_pressure_message(1200, 1002.5, 0.0, 2100).pack(
-        mavlink2.MAVLink(None, srcSystem=1, srcComponent=1), force_mavlink1=True)
-    stream = b"".join([b"\x07garbage", *frames[:3], bytes(bad), unknown, v1, *frames[3:]])
-    pieces = sorted({c % (len(stream) + 1) for c in cuts} | {0, len(stream)})
-    chunks = [stream[a:b] for a, b in itertools.pairwise(pieces)]
-    one_by_one = Decoder(imu_dt_s=0.004)
-    expected = [d for c in chunks for d in one_by_one.feed(c)]
-    batched = Decoder(imu_dt_s=0.004)
-    got = batched.feed_all(iter(chunks))
-    assert _key(got) == _key(expected) and len(got) > 30
-    assert batched.counters == one_by_one.counters
-    assert batched.counters.bad_crc == 1 and batched.counters.unknown_msg_id == 1
-
-
-def test_signed_frames_decode_and_bad_signatures_are_rejected() -> None:
-    sender = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
-    sender.signing.secret_key = b"k" * 32
-    sender.signing.sign_outgoing = True
-    sender.signing.timestamp = 1
-    frame = mavlink2.MAVLink_scaled_pressure_message(10, 1000.0, 0.0, 2000).pack(sender)
-    assert frame[2] & 0x01 and len(frame) == 10 + frame[1] + 2 + 13
-    (b,) = one(Decoder(), frame)  # no key configured: signature not checked
-    assert b.pressure_pa == pytest.approx(100_000.0)
-    strict = Decoder()
-    strict.mav.signing.secret_key = b"x" * 32
-    assert strict.feed(frame) == []
-    assert strict.counters.bad_signature == 1
-
-
-# --- IMU interval inference ----------------------------------------------------------------
-def test_imu_dt_inferred_per_source_with_duplicates_and_resets() -> None:
-    enc = Encoder()
-    enc2 = Encoder(sensor_component_id=201, truth_component_id=26)
-
-    def frame(e: Encoder, t: int, sensor_id: int = 0) -> bytes:
-        return e.sensors(ImuSample(t, 0.0, np.zeros(3), np.zeros(3), sensor_id=sensor_id))
-
-    dec = Decoder()
-    stream = [
-        frame(enc, 1000),
-        frame(enc2, 500),
-        frame(enc, 5000),
-        frame(enc, 1000, sensor_id=1),
-        frame(enc, 9000),
-        frame(enc, 9000),
-        frame(enc2, 2500),
-        frame(enc, 3000),
-        frame(enc, 7000),
-    ]
-    dts = [d.sample.dt_s for f in stream for d in dec.feed(f) if isinstance(d.sample, ImuSample)]
-    assert dts == pytest.approx([DEFAULT_FIRST_IMU_DT_S, 0.0, 0.004, 0.0, 0.004, 0.002, 0.0, 0.004])
-    assert dec.counters.imu_duplicates == 1
-    assert dec.counters.imu_time_resets == 1
-    with pytest.raises(ValueError, match="imu_dt_s"):
-        Decoder(imu_dt_s=-1.0)
-
-
-def test_partial_fields_and_sim_reset_bit() -> None:
-    mav = mavlink2.MAVLink(None, 1, 200)
-    accel_only = mavlink2.MAVLink_hil_sensor_message(
-        100,
-        1,
-        2,
-        3,
-        4,
-        5,
-        6,
-        0.1,
-        0.2,
-        0.3,
-        1000.0,
-        0,
-        0,
-        20.0,
-        HilSensorField.ACCEL | HilSensorField.XMAG | HilSensorField.ABS_PRESSURE,
-        0,
-    ).pack(mav)
-    dec = Decoder()
-    (baro,) = one(dec, accel_only)  # only the complete baro group survives
-    assert isinstance(baro, BaroSample) and math.isnan(baro.temperature_k)
-    assert dec.counters.incomplete_fields == 2
-    # Temperature seen once is remembered for later frames of that source (PX4 behaviour).
-    with_temp = mavlink2.MAVLink_hil_sensor_message(
-        200,
-        1,
-        2,
-        3,
-        4,
-        5,
-        6,
-        0,
-        0,
-        0,
-        1000.0,
-        0,
-        0,
-        20.0,
-        HilSensorField.IMU | HilSensorField.BARO,
-        0,
-    ).pack(mav)
-    reset = mavlink2.MAVLink_hil_sensor_message(
-        100, 1, 2, 3, 4, 5, 6, 0, 0, 0, 0, 0, 0, 0, HilSensorField.IMU | HilSensorField.SIM_RESET, 0
-    ).pack(mav)
-    imu1, _ = one(dec, with_temp)
-    (imu2,) = one(dec, reset)
-    assert imu1.temperature_k == pytest.approx(293.15)
-    assert imu2.temperature_k == pytest.approx(293.15)
-    assert imu2.dt_s == DEFAULT_FIRST_IMU_DT_S  # the reset bit restarts the interval
-    assert dec.counters.sim_resets == 1 and dec.counters.imu_time_resets == 0
-
-
-# --- messages from a real flight controller ------------------------------------------------
-def _fc_frames() -> dict[str, bytes]:
-    fc = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
-    msgs = {
-        "HIGHRES_IMU": mavlink2.MAVLink_highres_imu_message(
-            2_000_000,
-            0.5,
-            -0.25,
-            -9.75,
-            0.125,
-            -0.0625,
-            0.03125,
-            0.2,
-            0.01,
-            0.4,
-            1001.5,
-            0.0,
-            110.0,
-            31.5,
-            0x1FFF,
-            0,
-        ),
-        "SCALED_IMU": mavlink2.MAVLink_scaled_imu_message(
-            1500, 100, -50, -1000, 10, -20, 30, 200, 10, 400, 3150
-        ),
-        "SCALED_IMU2": mavlink2.MAVLink_scaled_imu2_message(1500, 0, 0, -1000, 0, 0, 0, 0, 0, 0, 0),
-        "SCALED_IMU3": mavlink2.MAVLink_scaled_imu3_message(
-            1500, 0, 0, -1000, 0, 0, 0, 0, 0, 0, 100
-        ),
-        "RAW_IMU": mavlink2.MAVLink_raw_imu_message(
-            2_000_000, 100, -50, -1000, 10, -20, 30, 200, 10, 400, 0, 0
-        ),
-        "GPS_RAW_INT": mavlink2.MAVLink_gps_raw_int_message(
-            3_000_000,
-            3,
-            473_977_420,
-            85_455_940,
-            488_120,
-            90,
-            150,
-            1000,
-            9000,
-            14,
-            0,
-            1200,
-            2400,
-            300,
-            0,
-            0,
-        ),
-        "SCALED_PRESSURE": mavlink2.MAVLink_scaled_pressure_message(1500, 1001.5, 0.25, 2150),
-        "SCALED_PRESSURE3": mavlink2.MAVLink_scaled_pressure3_message(1500, 1000.0, 0.0, -500),
-        "ATTITUDE": mavlink2.MAVLink_attitude_message(1500, 0.1, 0.2, 0.3, 0.0, 0.0, 0.0),
-    }
-    out = {}
-    for name, m in msgs.items():
-        out[name] = m.pack(fc)
-        fc.seq += 1
-    return out
-
-
-def test_flight_controller_messages_decode_to_si() -> None:
-    frames = _fc_frames()
-    dec = Decoder(raw_imu_scale=RawImuScale.milli_units())
-
-    imu, mag, baro, airspeed = one(dec, frames["HIGHRES_IMU"])
-    assert isinstance(airspeed, AirspeedSample)
-    assert airspeed.diff_pressure_pa == 0.0  # bit 10 set with 0 hPa: a finite reading passes
-    assert airspeed.temperature_k == pytest.approx(304.65)
-    assert imu.specific_force_b_mps2.tolist() == [0.5, -0.25, -9.75]
-    assert imu.angular_rate_b_rps.tolist() == [0.125, -0.0625, 0.03125]
-    assert imu.temperature_k == pytest.approx(304.65)
-    assert mag.field_b_tesla == pytest.approx([2e-5, 1e-6, 4e-5])
-    assert baro.pressure_pa == pytest.approx(100_150.0)
-
-    imu, mag = one(dec, frames["SCALED_IMU"])
-    assert imu.time_us == 1_500_000 and imu.sensor_id == 0
-    assert imu.specific_force_b_mps2 == pytest.approx(np.array([0.1, -0.05, -1.0]) * G0)
-    assert imu.angular_rate_b_rps == pytest.approx([0.01, -0.02, 0.03])
-    assert imu.temperature_k == pytest.approx(304.65)
-    assert mag.field_b_tesla == pytest.approx([2e-5, 1e-6, 4e-5])
-
-    (imu2,) = one(dec, frames["SCALED_IMU2"])  # all-zero field: no magnetometer
-    assert imu2.sensor_id == 1 and math.isnan(imu2.temperature_k)  # 0 cdegC: not provided
-    (imu3,) = one(dec, frames["SCALED_IMU3"])
-    assert imu3.sensor_id == 2 and imu3.temperature_k == pytest.approx(274.15)
-
-    imu, mag = one(dec, frames["RAW_IMU"])
-    assert imu.specific_force_b_mps2 == pytest.approx(np.array([0.1, -0.05, -1.0]) * G0)
-    assert mag.field_b_tesla == pytest.approx([2e-5, 1e-6, 4e-5])
-
-    (fix,) = one(dec, frames["GPS_RAW_INT"])
-    assert math.degrees(fix.lat_rad) == pytest.approx(47.397742, abs=1e-9)
-    assert math.degrees(fix.lon_rad) == pytest.approx(8.545594, abs=1e-9)
-    assert fix.alt_msl_m == pytest.approx(488.12)
-    assert fix.v_ned_mps[:2] == pytest.approx([0.0, 10.0], abs=1e-12)  # 10 m/s due east
-    assert math.isnan(fix.v_ned_mps[2])  # GPS_RAW_INT has no vertical velocity
-    assert (fix.eph_m, fix.epv_m, fix.speed_accuracy_mps) == pytest.approx((1.2, 2.4, 0.3))
-    assert fix.satellites_visible == 14
-
-    (b,) = one(dec, frames["SCALED_PRESSURE"])
-    assert (b.time_us, b.pressure_pa, b.temperature_k) == pytest.approx(
-        (1_500_000, 100_150.0, 294.65)
-    )
-    (b3,) = one(dec, frames["SCALED_PRESSURE3"])
-    assert b3.sensor_id == 2 and b3.temperature_k == pytest.approx(268.15)
-
-    assert one(dec, frames["ATTITUDE"]) == []
-    assert dec.counters.ignored_msgs == 1
-    assert dec.counters.samples == 13  # HIGHRES_IMU: IMU, mag, baro, airspeed
-
-
-def test_raw_imu_needs_an_explicit_scale() -> None:
-    frame = _fc_frames()["RAW_IMU"]
-    dec = Decoder()
-    assert dec.feed(frame) == []
-    assert dec.counters.unscaled_raw_imu == 1
-    scaled = Decoder(raw_imu_scale=RawImuScale(accel_mps2_per_lsb=0.01, gyro_rps_per_lsb=0.001))
-    (imu,) = one(scaled, frame)  # no magnetometer scale: no MagSample
-    assert imu.specific_force_b_mps2 == pytest.approx([1.0, -0.5, -10.0])
-    with pytest.raises(ValueError, match="accel_mps2_per_lsb"):
-        RawImuScale(accel_mps2_per_lsb=-1.0, gyro_rps_per_lsb=0.001)
-    with pytest.raises(ValueError, match="extra"):
-        RawImuScale(accel_mps2_per_lsb=1.0, gyro_rps_per_lsb=0.001, typo=1.0)  # type: ignore[call-arg]
-
-
-def test_gps_raw_int_unknowns_are_nan() -> None:
-    fc = mavlink2.MAVLink(None, 1, 1)
-    frame = mavlink2.MAVLink_gps_raw_int_message(
-        1, 3, 0, 0, 0, 65535, 65535, 65535, 65535, 255
-    ).pack(fc)
-    (fix,) = one(Decoder(), frame)
-    assert np.isnan(fix.v_ned_mps).all()
-    assert math.isnan(fix.eph_m) and math.isnan(fix.epv_m) and math.isnan(fix.speed_accuracy_mps)
-
-
-def test_decode_message_accepts_pymavlink_objects() -> None:
-    frame = Encoder().gnss(GnssFix(9, 0.5, 0.1, 1.0, np.zeros(3), 1.0, 2.0, 0.1))
-    msg = parse_raw(frame)
-    dec = Decoder()
-    (item,) = dec.decode_message(msg)
-    assert item.msg_id == mavlink2.MAVLINK_MSG_ID_HIL_GPS and item.sample.time_us == 9
-    assert dec.decode_message(mavlink2.MAVLink_bad_data(b"\x01", "Bad prefix")) == []
-    assert dec.counters.garbage_bytes == 1
-
-
-def test_float32_pressure_matches_struct_rounding() -> None:
-    # The codec's pressure loss is exactly IEEE float32 rounding of the hPa value.
-    p = 101_325.123
-    (b,) = one(Decoder(), Encoder().sensors(None, BaroSample(0, p, 288.15)))
-    assert b.pressure_pa == pytest.approx(
-        struct.unpack("<f", struct.pack("<f", p / 100.0))[0] * 100.0, rel=1e-15
-    )
-
-
-def _imu_frames(n: int) -> list[bytes]:
-    enc = Encoder()
-    out = []
-    for k in range(n):
-        t = 1_000_000 + 5_000 * k
-        imu = ImuSample(t, 0.005, np.array([0.1, -0.2, -9.8]), np.array([0.01, 0.0, -0.02]))
-        out.append(enc.sensors(imu, time_us=t))
-    return out
-
-
-def test_damage_costs_the_decoder_only_the_damaged_frame() -> None:
-    # GIVEN 2,000 good HIL_SENSOR frames after one damaged one (cut in half, or its length byte
-    # hit), fed as a tlog replay feeds them (one record per call) and as one byte stream
-    frames = _imu_frames(2001)
-    hit = bytearray(frames[0])
-    hit[1] = 255
-    cut = [frames[0][: len(frames[0]) // 2], *frames[1:]]
-    for chunks in (cut, [b"".join(cut)], [bytes(hit), *frames[1:]]):
-        dec = Decoder()
-        got = [d for c in chunks for d in dec.feed(c)]
-        # THEN every one of the 2,000 good frames is decoded (pymavlink 2.4.50's byte parser,
-        # which the decoder used before, lost 1-3 of them here; the issue measured 146)
-        assert len(got) == 2000
-        assert dec.counters.frames_ok == 2000
-        assert dec.counters.garbage_bytes + dec.counters.bad_crc >= 1
-
-
-def test_decoder_keeps_mavlink1_frames_of_a_mixed_link() -> None:
-    # GIVEN a MAVLink 1 SCALED_PRESSURE between two MAVLink 2 ones
-    mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
-    msg = mavlink2.MAVLink_scaled_pressure_message(1200, 1002.5, 0.0, 2100)
-    stream = msg.pack(mav) + msg.pack(mav, force_mavlink1=True) + msg.pack(mav)
-    dec = Decoder()
-    got = dec.feed(stream)
-    # THEN all three are decoded
-    assert len(got) == 3 and all(isinstance(d.sample, BaroSample) for d in got)
 
 
 # ------------------------------------------------------------------------- air data (pitot)

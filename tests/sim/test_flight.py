@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
+import sim.aircraft as aircraft_module
 import sim.flight as flight_module
 from sim.flight import (
     FT_M,
@@ -197,7 +198,8 @@ def test_the_quiet_flight_test_would_see_jsbsim_output(
     capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # guard against a vacuous check above: without the discarding logger JSBSim does print
-    monkeypatch.setattr(flight_module, "_jsbsim_log_discarded", contextlib.nullcontext)
+    monkeypatch.setattr(flight_module, "jsbsim_log_discarded", contextlib.nullcontext)
+    monkeypatch.setattr(aircraft_module, "jsbsim_log_discarded", contextlib.nullcontext)
     for aircraft in _CHATTY_AIRCRAFT:
         _fly_briefly(aircraft)
     out, err = capfd.readouterr()
@@ -344,7 +346,8 @@ def test_same_config_gives_bit_identical_truth() -> None:
 
 
 def test_steady_wind_moves_the_air_mass() -> None:
-    """A configured wind reaches JSBSim (run_ic and the trim used to reset it to calm)."""
+    """A configured wind reaches JSBSim and survives run_ic and the trim (which re-initialise
+    the wind from the initial condition)."""
 
     def air_minus_ground(wind: tuple[float, float, float]) -> float:
         cfg = FlightConfig(aircraft="c172x", rate_hz=100.0, wind_ned_mps=wind,

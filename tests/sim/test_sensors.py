@@ -483,8 +483,8 @@ def test_declination_follows_the_model_along_a_flight(lat_deg: float, lon_deg: f
         got = _declination_deg(model.measure(k, LEVEL_NORTH).field_b_tesla)
         ref = math.degrees(magnetic_field_ned_t(lat, lon, alt, 2026.0).declination_rad)
         worst = max(worst, abs(got - ref))
-    # THEN its declination is the model's at the vehicle within the 0.5 deg (the
-    # field is re-evaluated every 500 m: ~0.01 deg away from the poles)
+    # THEN its declination is the model's at the vehicle within 0.5 deg (the field is
+    # re-evaluated every 500 m: ~0.01 deg away from the poles)
     assert worst < 0.5
     if abs(lat_deg) < 65.0:
         assert worst < 0.05

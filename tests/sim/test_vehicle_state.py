@@ -72,7 +72,7 @@ def test_reporter_reads_the_flight_only_when_due_and_honours_its_switches() -> N
     assert [type(s) for s in out] == [ActuatorSample]
     assert VehicleStateReporter(VehicleStateConfig(actuators=False, rpm=False)).step(0, read) == []
     with pytest.raises(ValidationError):
-        VehicleStateConfig(rate_hz=20.0)  # issue #18 asks for >= 25 Hz
+        VehicleStateConfig(rate_hz=20.0)  # the learned vehicle models need >= 25 Hz
 
 
 @pytest.mark.parametrize("aircraft", ["c172x", "c310"])

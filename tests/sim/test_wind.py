@@ -1,6 +1,6 @@
 """Tests of the wind in the JSBSim adapter (sim.flight): the steady wind, the altitude profile
 (power-law shear or a table), the true wind in the truth, and the guidance law flying the
-racetrack in a crosswind (the turn that never completed, issue 18)."""
+racetrack in a crosswind (every turn completes)."""
 
 from __future__ import annotations
 
@@ -108,8 +108,8 @@ def _fly_racetrack(cfg: FlightConfig, duration_s: float) -> tuple[int, np.ndarra
 
 @pytest.mark.parametrize(
     ("wind", "turbulence"),
-    [((5.0, -3.0, 0.0), 0.0),  # the reported case: the first turn stalled at 178.6 deg
-     ((0.0, 12.0, 0.0), 0.4),  # the issue's strongest wind, pure crosswind, turbulence 0.4
+    [((5.0, -3.0, 0.0), 0.0),  # a wind across the first turn
+     ((0.0, 12.0, 0.0), 0.4),  # a strong pure crosswind with turbulence
      ((-8.5, 8.5, 0.0), 0.4)],
 )
 def test_racetrack_turns_complete_and_legs_are_tracked_in_crosswind(
