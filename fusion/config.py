@@ -30,7 +30,7 @@ from fusion.choices import (  # noqa: F401  # re-exported: the commands' choices
     DEFAULT_AIRSPEED_MODE,
     DEFAULT_ALIGN_MODE,
 )
-from fusion.error_model import LayoutName
+from fusion.error_model import LayoutName, ProcessNoise
 from physconst.geomag import DEFAULT_DECIMAL_YEAR
 
 Probability = float
@@ -638,3 +638,34 @@ class FilterConfig(_Frozen):
     altitude: AltitudeConfig = AltitudeConfig()
     airspeed: AirspeedTuning = AirspeedTuning()
     zero_motion: ZeroMotionTuning = ZeroMotionTuning()
+
+    def process_noise(self) -> ProcessNoise:
+        """The error model's process-noise parameters from the sensor tunings (SI units)."""
+        imu, baro, gnss, air = self.imu, self.baro, self.gnss, self.airspeed
+        return ProcessNoise(
+            gyro_noise=imu.gyro_noise_density_rps_rthz,
+            accel_noise=imu.accel_noise_density_mps2_rthz,
+            gyro_bias_sigma=imu.gyro_bias_sigma_rps,
+            gyro_bias_tau_s=imu.gyro_bias_tau_s,
+            accel_bias_sigma=imu.accel_bias_sigma_mps2,
+            accel_bias_tau_s=imu.accel_bias_tau_s,
+            baro_bias_sigma=baro.bias_sigma_m,
+            baro_bias_tau_s=baro.bias_tau_s,
+            gyro_scale_sigma=imu.gyro_scale_sigma,
+            gyro_scale_tau_s=imu.gyro_scale_tau_s,
+            accel_scale_sigma=imu.accel_scale_sigma,
+            accel_scale_tau_s=imu.accel_scale_tau_s,
+            gyro_misalignment_sigma=imu.gyro_misalignment_sigma_rad,
+            accel_misalignment_sigma=imu.accel_misalignment_sigma_rad,
+            baro_scale_sigma=baro.scale_sigma,
+            baro_scale_tau_s=baro.scale_tau_s,
+            gnss_bias_sigma_h_m=gnss.bias_sigma_h_m,
+            gnss_bias_sigma_v_m=gnss.bias_sigma_v_m,
+            gnss_bias_tau_h_s=gnss.bias_tau_h_s,
+            gnss_bias_tau_v_s=gnss.bias_tau_v_s,
+            wind_noise_mps2_rthz=air.wind_noise_mps2_rthz,
+            wind_climb_scaler_spm=air.wind_climb_scaler_spm,
+            airspeed_scale_noise_rthz=air.scale_noise_rthz,
+            gust_sigma_mps=air.gust_sigma_mps,
+            gust_length_m=air.gust_length_m,
+        )
