@@ -199,8 +199,8 @@ class MagTuning(_Frozen):
     (declination, inclination and strength), re-evaluated every 500 m travelled; usable from
     the first moment a position is known (static alignment, heading at hover). ``learned``:
     from the body field and the filter attitude once the yaw sigma is below
-    ``learn_yaw_sigma_rad`` (no mag heading fusion before that), as before the WMM was wired
-    in. ``reference_field_n_tesla`` overrides both."""
+    ``learn_yaw_sigma_rad`` (no mag heading fusion before that), where the local field departs
+    from the model (magnetic anomalies). ``reference_field_n_tesla`` overrides both."""
     decimal_year: float = Field(default=DEFAULT_DECIMAL_YEAR, ge=1900.0, le=2100.0)
     """Date of the data, e.g. 2026.5 (:func:`physconst.geomag.decimal_year`): the date the WMM
     field is evaluated at (secular variation: ~0.15 deg/yr of declination in Europe)."""
@@ -474,15 +474,16 @@ class BridgeConfig(_Frozen):
     rate_hz: PositiveFloat = 5.0
     """The strategy is consulted this often during an outage, Hz."""
     training: Literal["virtual", "fix"] = "virtual"
-    """``virtual``: learn the drift of shadow INS copies re-seeded from the filter while GNSS
-    is good (virtual outages, :class:`fusion.bridging.shadows.ShadowBank`). ``fix``: paper
-    P0's pairs, the filter's INS-minus-GNSS error at each fix (closed loop: about zero)."""
+    """``virtual``: learn the drift of INS copies re-seeded from the filter while GNSS
+    is good (virtual outages, :class:`fusion.bridging.virtual_outages.VirtualOutageBank`).
+    ``fix``: paper P0's pairs, the filter's INS-minus-GNSS error at each fix (closed loop:
+    about zero)."""
     features: tuple[str, ...] | None = None
     """Network inputs (names in :data:`BRIDGE_FEATURES`); ``None``: the method's default."""
     virtual_outage_s: PositiveFloat = 90.0
-    """Length of a virtual outage: each shadow INS is re-seeded this often, s."""
+    """Length of a virtual outage: each INS copy is re-seeded this often, s."""
     virtual_outage_count: PositiveInt = 3
-    """Number of staggered shadows (re-seeds every ``virtual_outage_s / count``)."""
+    """Number of staggered INS copies (re-seeds every ``virtual_outage_s / count``)."""
     window_s: PositiveFloat = 300.0
     """Sliding training window (GNSS time), s."""
     refit_period_s: PositiveFloat = 10.0

@@ -73,25 +73,19 @@ from fusion.bridging.interface import (
     PseudoGnss,
 )
 from fusion.config import ALTITUDE_METHODS, FilterConfig
-from fusion.error_model import ErrorModel, StateLayout, layout_for
 from fusion.estimate import (
     AidingStatus,
-    AidSource,
-    AidSourceStatus,
     AirDataStatus,
     AlignmentStatus,
     HealthCounters,
-    Innovation,
     Mode,
     NavEstimate,
     TestRatios,
     new_estimate,
 )
 from fusion.filter_state import FilterState
-from fusion.history import InsHistory, span_capacity
-from fusion.nominal import NominalState, initial_nominal, with_baro_bias, with_ins
+from fusion.nominal import initial_nominal, with_baro_bias, with_ins
 from fusion.outage import OutageBridging
-from fusion.propagation import CovariancePropagator
 from fusion.rotations import euler_from_quat
 from fusion.samples import (
     ActuatorSample,
@@ -114,7 +108,6 @@ _increments_scaled = strapdown.increments_scaled
 _increments_compensated = strapdown.increments_compensated
 _with_ins = with_ins
 _with_baro_bias = with_baro_bias
-_IDENTITY9: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 _GNSS, _BRIDGING, _FREE = Mode.GNSS, Mode.BRIDGING, Mode.FREE_INERTIAL
 _DEAD_RECKONING = Mode.DEAD_RECKONING
 
@@ -138,23 +131,16 @@ class NavFilter(FilterState):
     """
 
     def __init__(self, config: FilterConfig | None = None, *, bridge: Bridge | None = None) -> None:
-        self.config = config if config is not None else FilterConfig()
+        cfg = config if config is not None else FilterConfig()
         self.bridge: Bridge = bridge if bridge is not None else NoBridge()
-        cfg = self.config
         method = cfg.altitude.method
         if method not in ALTITUDE_METHODS:  # model_copy(update=...) skips pydantic's check
             raise ValueError(
                 f"unknown altitude method {method!r}; valid methods: {', '.join(ALTITUDE_METHODS)}"
             )
-        self.layout: StateLayout = layout_for(cfg.state_layout)
-        self._noise = cfg.process_noise()
-        self._model = ErrorModel(self.layout, self._noise)
+        super().__init__(cfg)
         self._scale = self.layout.has_scale_factors
-        self._misalign = self.layout.has_misalignment
-        self._gnss_bias_states = self.layout.has_gnss_bias
-        self._x0 = np.zeros(self.layout.n)
         rc = cfg.rates
-        self._cov_period_s = 0.0 if rc.covariance_rate_hz is None else 1.0 / rc.covariance_rate_hz
         self._out_period_us = round(1e6 / rc.output_rate_hz)
         self._loop_alt = method != "ekf"
         # air data: fused only with the layout's air-data block and air data enabled
@@ -169,22 +155,8 @@ class NavFilter(FilterState):
         """Forget everything learned: back to ``initializing`` (configuration kept; the health
         counters too with ``keep_counters``)."""
         cfg, lay = self.config, self.layout
-        if not keep_counters:
-            self._c = HealthCounters()
+        self._restart_state(self._c if keep_counters else HealthCounters())
         self._screen = SampleScreen(cfg.imu, self._c)
-        self._cov = CovariancePropagator(self._model, self._cov_period_s, cfg.imu,
-                                         cfg.baro.bias_tau_s)  # fmt: skip
-        # the INS and the sensor-error estimates (None before alignment); the GNSS bias in it
-        # is decayed with its Gauss-Markov time constant only when used (_gnss_bias), not on
-        # the IMU path
-        self._nom: NominalState | None = None
-        self._t_us = 0
-        self._prev_dth: tuple[float, float, float] = _ZERO3
-        self._prev_dv: tuple[float, float, float] = _ZERO3
-        self._last_dt = 0.0
-        # the sensor-model inverses of the misalignment layouts, kept with the estimates
-        self._ta_inv = self._tg_inv = _IDENTITY9
-        self._history = InsHistory(span_capacity(cfg.gnss.max_delay_s))
         self._history_push = self._history.push
         self._pending: deque[GnssFix] = deque()
         self._screen_imu = self._screen.imu
@@ -205,10 +177,9 @@ class NavFilter(FilterState):
         )  # fmt: skip
         self._learns_airspeed = self._air is not None and self._air.model is not None
         self._air_link = AirDataLink(self._air_period_us)
-        self._vel_corr = [0.0, 0.0, 0.0]  # sum of the feedback's velocity corrections, m/s
         self._alt = AltitudeLink(cfg.altitude, cfg.gnss.lever_arm_b_m, self._c)
         self._outage = OutageBridging(self.bridge, cfg.bridge.rate_hz, self._epoch)
-        self._shadows = self._outage.shadows  # the IMU path's view of it
+        self._virtual = self._outage.virtual_outages  # the IMU path's view of it
         self._aligner: InFlightAlignment | StaticAlignment | AutoAlignment = (
             InFlightAlignment(cfg.init, cfg.gnss) if cfg.init.mode == "in_flight"
             else StaticAlignment(cfg.init, cfg.gnss, cfg.mag, cfg.imu)
@@ -218,11 +189,8 @@ class NavFilter(FilterState):
         self._align_status: AlignmentStatus | None = None
         self._next_out_us = 0
         self._timeout_us = round(cfg.gnss.outage_timeout_s * 1e6)
-        # the updates of the current step, and each source's status (rebuilt into the
-        # estimate's immutable parts only when an update happened)
-        self._innovations: list[Innovation] = []
-        self._aid = [AidSourceStatus(s) for s in AidSource]  # in AidSource order
-        self._aid_changed = True
+        # the estimate's immutable parts, rebuilt from the sources' status only when an update
+        # happened
         self._est_ratios = TestRatios()
         self._est_aiding = AidingStatus()
 
@@ -294,10 +262,11 @@ class NavFilter(FilterState):
         return self.bridge.status
 
     @property
-    def shadow_states(self) -> list[InsState | None]:
-        """The virtual-outage shadow INS states (empty when the strategy asks for none)."""
-        shadows = self._outage.shadows
-        return [] if shadows is None else shadows.shadows
+    def virtual_outage_states(self) -> list[InsState | None]:
+        """The states of the virtual-outage INS copies (empty when the strategy asks for
+        none)."""
+        copies = self._outage.virtual_outages
+        return [] if copies is None else copies.states
 
     @property
     def altitude_channel(self) -> AltitudeChannel | None:
@@ -432,9 +401,9 @@ class NavFilter(FilterState):
         self._prev_dv = dv
         self._last_dt = dt
         self._t_us = t
-        shadows = self._shadows
-        if shadows is not None:  # virtual outages (fusion.bridging.shadows.ShadowBank)
-            shadows.step(t, ins, dth, dv, dt, ba, bg)
+        virtual = self._virtual
+        if virtual is not None:  # fusion.bridging.virtual_outages.VirtualOutageBank
+            virtual.step(t, ins, dth, dv, dt, ba, bg)
         cov = self._cov
         acc_dt = cov.acc_dt + dt
         cov.acc_dt = acc_dt
@@ -483,9 +452,9 @@ class NavFilter(FilterState):
         nom = self._nom
         assert nom is not None
         ins = nom.ins
-        shadows = self._outage.shadows
-        if shadows is not None:  # the shadows cannot mechanise a gap either: restart
-            shadows.restart(t)
+        virtual = self._outage.virtual_outages
+        if virtual is not None:  # the INS copies cannot mechanise a gap either: restart
+            virtual.restart(t)
         coasted = strapdown.coast(ins, gap_s)
         bb = nom.baro_bias_m
         for k in self._cov.coast(coasted, ins.v_ned_mps, gap_s):
@@ -607,7 +576,7 @@ class NavFilter(FilterState):
         sigmas = fix_sigmas(fix, gnss.cfg)
         delay = (now - t) * 1e-6
         bias = self._gnss_bias() if self.layout.has_gnss_bias else None
-        ins_pre_pos = self._ins  # for the shadows' errors (virtual outages)
+        ins_pre_pos = self._ins  # for the virtual-outage INS errors
         pos = gnss.fuse_position(fix, sigmas, past, delay, bias, step_us, self._reset_position)
         if pos is None:
             return
@@ -631,7 +600,7 @@ class NavFilter(FilterState):
         nom = self._nom
         assert nom is not None
         ba, bg = nom.accel_bias_b_mps2, nom.gyro_bias_b_rps
-        shadows = self._outage.shadows
+        virtual = self._outage.virtual_outages
         return BridgeEpoch(
             time_us=time_us,
             lat_rad=state.lat_rad,
@@ -644,7 +613,7 @@ class NavFilter(FilterState):
             time_since_gnss_s=max(0.0, self._gnss.control.time_since_fused_s(time_us)),
             accel_bias_b_mps2=(ba[0], ba[1], ba[2]),
             gyro_bias_b_rps=(bg[0], bg[1], bg[2]),
-            free_state=None if shadows is None else shadows.free_state,
+            free_state=None if virtual is None else virtual.free_state,
         )
 
     def _bridge_step(self, t: int) -> None:

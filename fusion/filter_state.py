@@ -7,8 +7,7 @@ through: a chi-square gated Joseph-form update (:mod:`fusion.kalman`) whose acce
 estimate is fed back into the nominal state at once (:mod:`fusion.feedback`), the resets to a
 measurement, and the record of each update (:attr:`FilterState.innovations`, the aiding status
 of the estimate). *When* each source is fused, the time update and the output are
-:class:`~fusion.filter.NavFilter`'s, which builds every attribute declared here in its
-``reset``.
+:class:`~fusion.filter.NavFilter`'s (its subclass), which also owns the aiding sources.
 """
 
 from __future__ import annotations
@@ -20,7 +19,7 @@ from fusion import kalman
 from fusion.aiding import Observation
 from fusion.aiding.airspeed import AirspeedAiding
 from fusion.config import FilterConfig
-from fusion.error_model import StateLayout
+from fusion.error_model import ErrorModel, StateLayout, layout_for
 from fusion.estimate import (
     AidSource,
     AidSourceStatus,
@@ -37,40 +36,64 @@ from fusion.feedback import (
     reset_position_with_bias,
     sensor_inverses,
 )
-from fusion.history import InsHistory
+from fusion.history import InsHistory, span_capacity
 from fusion.nominal import NominalState, with_baro_bias
 from fusion.propagation import CovariancePropagator, decay_gnss_bias
 from fusion.strapdown import InsState
 
 FloatArray = NDArray[np.float64]
 _ZERO3 = (0.0, 0.0, 0.0)
+_IDENTITY9: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 _with_baro_bias = with_baro_bias
 _AID_INDEX = {s: i for i, s in enumerate(AidSource)}
 
 
 class FilterState:
-    """The filter's state and its measurement-update funnel (module docstring)."""
+    """The filter's state and its measurement-update funnel (module docstring).
 
-    config: FilterConfig
-    layout: StateLayout
-    _c: HealthCounters
-    _nom: NominalState | None
-    """The INS and the sensor-error estimates (``None`` before alignment)."""
-    _cov: CovariancePropagator
-    _history: InsHistory
-    _t_us: int
-    _prev_dth: tuple[float, float, float]
-    _last_dt: float
-    _x0: FloatArray
-    _misalign: bool
-    _gnss_bias_states: bool
-    _ta_inv: tuple[float, ...]
-    _tg_inv: tuple[float, ...]
+    Parameters
+    ----------
+    config : FilterConfig
+    """
+
     _air: AirspeedAiding | None
-    _innovations: list[Innovation]
-    _aid: list[AidSourceStatus]
-    _aid_changed: bool
-    _vel_corr: list[float]
+    """The air-data aiding source (the subclass's), whose wind and gust estimates the
+    feedback corrects too."""
+
+    def __init__(self, config: FilterConfig) -> None:
+        self.config = config
+        self.layout: StateLayout = layout_for(config.state_layout)
+        self._model = ErrorModel(self.layout, config.process_noise())
+        self._misalign = self.layout.has_misalignment
+        self._gnss_bias_states = self.layout.has_gnss_bias
+        self._x0 = np.zeros(self.layout.n)
+        rc = config.rates
+        self._cov_period_s = 0.0 if rc.covariance_rate_hz is None else 1.0 / rc.covariance_rate_hz
+
+    def _restart_state(self, counters: HealthCounters) -> None:
+        """Forget everything the state holds (the configuration stays); count in
+        ``counters``."""
+        cfg = self.config
+        self._c = counters
+        self._cov = CovariancePropagator(self._model, self._cov_period_s, cfg.imu,
+                                         cfg.baro.bias_tau_s)  # fmt: skip
+        # the INS and the sensor-error estimates (None before alignment); the GNSS bias in it
+        # is decayed with its Gauss-Markov time constant only when used (_gnss_bias), not on
+        # the IMU path
+        self._nom: NominalState | None = None
+        self._t_us = 0
+        self._prev_dth: tuple[float, float, float] = _ZERO3
+        self._prev_dv: tuple[float, float, float] = _ZERO3
+        self._last_dt = 0.0
+        # the sensor-model inverses of the misalignment layouts, kept with the estimates
+        self._ta_inv: tuple[float, ...] = _IDENTITY9
+        self._tg_inv: tuple[float, ...] = _IDENTITY9
+        self._history = InsHistory(span_capacity(cfg.gnss.max_delay_s))
+        self._vel_corr = [0.0, 0.0, 0.0]  # sum of the feedback's velocity corrections, m/s
+        # the updates of the current step, and each source's status (in AidSource order)
+        self._innovations: list[Innovation] = []
+        self._aid = [AidSourceStatus(s) for s in AidSource]
+        self._aid_changed = True
 
     def _propagate(self) -> None:
         """Covariance over the accumulated interval; decay of the baro-bias estimate."""

@@ -17,7 +17,7 @@ from fusion.feedback import (
     reset_position_with_bias,
     sensor_inverses,
 )
-from fusion.nominal import NominalState, initial_nominal, with_baro_bias, with_ins
+from fusion.nominal import initial_nominal
 from fusion.rotations import quat_multiply, quat_normalize, rotvec_to_quat
 from fusion.strapdown import InsState
 
@@ -77,18 +77,6 @@ def test_feedback_of_zero_is_the_identity_up_to_normalisation() -> None:
     np.testing.assert_allclose(fb.ins.q_nb, INS.q_nb, atol=1e-16)
     assert fb.accel_bias_b_mps2 == (0.1, 0.2, 0.3) and fb.baro_bias_m == 1.0
     assert fb[1:] == state[1:]
-
-
-def test_hot_path_replacements_change_only_their_field() -> None:
-    # GIVEN a nominal state with every field distinct
-    state = NominalState(INS, (1.0, 2.0, 3.0), (4.0, 5.0, 6.0), (7.0, 8.0, 9.0),
-                         (10.0, 11.0, 12.0), (0.1,) * 6, (0.2,) * 6, 13.0, 14.0, 15.0,
-                         (16.0, 17.0, 18.0), 19)  # fmt: skip
-    moved = INS._replace(alt_msl_m=1.0)
-    # THEN with_ins and with_baro_bias are _replace on their field
-    assert with_ins(state, moved) == state._replace(ins=moved)
-    assert with_baro_bias(state, -1.5) == state._replace(baro_bias_m=-1.5)
-    assert type(with_ins(state, moved)) is NominalState
 
 
 def _spd(n: int, seed: int) -> np.ndarray:
