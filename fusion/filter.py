@@ -77,6 +77,7 @@ from fusion.estimate import (
     AidingStatus,
     AirDataStatus,
     AlignmentStatus,
+    Health,
     HealthCounters,
     Mode,
     NavEstimate,
@@ -99,6 +100,8 @@ from fusion.samples import (
 )
 from fusion.screening import SampleScreen
 from fusion.strapdown import InsState
+
+__all__ = ["Health", "NavEstimate", "NavFilter"]  # the filter, its output and counters
 
 FloatArray = NDArray[np.float64]
 _ZERO3 = (0.0, 0.0, 0.0)
