@@ -11,7 +11,7 @@ How the methods are run
 An :class:`~fusion.bridging.interface.OutputCorrection` strategy (``gmdh``, ``rbf``, ``mlp``,
 ``bp-parallel``, and the P0-input variants) never changes the filter: it only shifts the
 output during an outage. So each flight is filtered **once** with a recording strategy that
-asks for the same virtual outages (shadow INS) as the learned methods and returns nothing; the
+asks for the same virtual outages (INS copies) as the learned methods and returns nothing; the
 recorded hook calls (every ``on_gnss`` with its virtual-outage pairs, every ``on_outage``, every
 ``on_gnss_restored``, in order) are then replayed into each strategy, and its corrections are
 applied to the recorded estimates exactly as ``NavFilter._make_estimate`` does (a correction
@@ -427,7 +427,7 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
         }
     if task.get("pseudo"):
         # Until gmdh-pseudo sends its first pseudo-fix the filter is the recorded one (same
-        # shadows, nothing fused): replay it first, and run the full filter pass only when
+        # virtual outages, nothing fused): replay it first, and run the full filter pass only when
         # it would send one; otherwise its run *is* the recording, bit for bit.
         fixes_sent = pseudo_fixes_in_replay(make("gmdh-pseudo", {}), rec)
         if fixes_sent:
@@ -712,11 +712,11 @@ def main(argv: list[str] | None = None) -> int:
 
     good = [r for r in rows if "error" not in r]
     step = [r["filter_cpu_s_none"] / r["imu_samples"] for r in good if "filter_cpu_s_none" in r]
-    shadow = [r["filter_cpu_s_recording"] / r["imu_samples"] for r in good]
+    virtual = [r["filter_cpu_s_recording"] / r["imu_samples"] for r in good]
     check = [r["equivalence_check"] for r in good if "equivalence_check" in r]
     if costs is not None and step:
         costs["filter_step_us_none"] = 1e6 * step[0]
-        costs["filter_step_us_with_shadows"] = 1e6 * statistics.mean(shadow)
+        costs["filter_step_us_with_virtual_outages"] = 1e6 * statistics.mean(virtual)
         costs["predict_over_filter_step"] = costs["predict_call_us"] / costs["filter_step_us_none"]
         costs["predict_per_imu_sample_over_filter_step"] = (
             costs["predict_over_filter_step"] * BridgeConfig().rate_hz / 200.0)

@@ -30,7 +30,7 @@ from fusion.choices import (  # noqa: F401  # re-exported: the commands' choices
     DEFAULT_AIRSPEED_MODE,
     DEFAULT_ALIGN_MODE,
 )
-from fusion.error_model import LayoutName
+from fusion.error_model import LayoutName, ProcessNoise
 from physconst.geomag import DEFAULT_DECIMAL_YEAR
 
 Probability = float
@@ -199,8 +199,8 @@ class MagTuning(_Frozen):
     (declination, inclination and strength), re-evaluated every 500 m travelled; usable from
     the first moment a position is known (static alignment, heading at hover). ``learned``:
     from the body field and the filter attitude once the yaw sigma is below
-    ``learn_yaw_sigma_rad`` (no mag heading fusion before that), as before the WMM was wired
-    in. ``reference_field_n_tesla`` overrides both."""
+    ``learn_yaw_sigma_rad`` (no mag heading fusion before that), where the local field departs
+    from the model (magnetic anomalies). ``reference_field_n_tesla`` overrides both."""
     decimal_year: float = Field(default=DEFAULT_DECIMAL_YEAR, ge=1900.0, le=2100.0)
     """Date of the data, e.g. 2026.5 (:func:`physconst.geomag.decimal_year`): the date the WMM
     field is evaluated at (secular variation: ~0.15 deg/yr of declination in Europe)."""
@@ -474,15 +474,16 @@ class BridgeConfig(_Frozen):
     rate_hz: PositiveFloat = 5.0
     """The strategy is consulted this often during an outage, Hz."""
     training: Literal["virtual", "fix"] = "virtual"
-    """``virtual``: learn the drift of shadow INS copies re-seeded from the filter while GNSS
-    is good (virtual outages, :class:`fusion.bridging.shadows.ShadowBank`). ``fix``: paper
-    P0's pairs, the filter's INS-minus-GNSS error at each fix (closed loop: about zero)."""
+    """``virtual``: learn the drift of INS copies re-seeded from the filter while GNSS
+    is good (virtual outages, :class:`fusion.bridging.virtual_outages.VirtualOutageBank`).
+    ``fix``: paper P0's pairs, the filter's INS-minus-GNSS error at each fix (closed loop:
+    about zero)."""
     features: tuple[str, ...] | None = None
     """Network inputs (names in :data:`BRIDGE_FEATURES`); ``None``: the method's default."""
     virtual_outage_s: PositiveFloat = 90.0
-    """Length of a virtual outage: each shadow INS is re-seeded this often, s."""
+    """Length of a virtual outage: each INS copy is re-seeded this often, s."""
     virtual_outage_count: PositiveInt = 3
-    """Number of staggered shadows (re-seeds every ``virtual_outage_s / count``)."""
+    """Number of staggered INS copies (re-seeds every ``virtual_outage_s / count``)."""
     window_s: PositiveFloat = 300.0
     """Sliding training window (GNSS time), s."""
     refit_period_s: PositiveFloat = 10.0
@@ -638,3 +639,34 @@ class FilterConfig(_Frozen):
     altitude: AltitudeConfig = AltitudeConfig()
     airspeed: AirspeedTuning = AirspeedTuning()
     zero_motion: ZeroMotionTuning = ZeroMotionTuning()
+
+    def process_noise(self) -> ProcessNoise:
+        """The error model's process-noise parameters from the sensor tunings (SI units)."""
+        imu, baro, gnss, air = self.imu, self.baro, self.gnss, self.airspeed
+        return ProcessNoise(
+            gyro_noise=imu.gyro_noise_density_rps_rthz,
+            accel_noise=imu.accel_noise_density_mps2_rthz,
+            gyro_bias_sigma=imu.gyro_bias_sigma_rps,
+            gyro_bias_tau_s=imu.gyro_bias_tau_s,
+            accel_bias_sigma=imu.accel_bias_sigma_mps2,
+            accel_bias_tau_s=imu.accel_bias_tau_s,
+            baro_bias_sigma=baro.bias_sigma_m,
+            baro_bias_tau_s=baro.bias_tau_s,
+            gyro_scale_sigma=imu.gyro_scale_sigma,
+            gyro_scale_tau_s=imu.gyro_scale_tau_s,
+            accel_scale_sigma=imu.accel_scale_sigma,
+            accel_scale_tau_s=imu.accel_scale_tau_s,
+            gyro_misalignment_sigma=imu.gyro_misalignment_sigma_rad,
+            accel_misalignment_sigma=imu.accel_misalignment_sigma_rad,
+            baro_scale_sigma=baro.scale_sigma,
+            baro_scale_tau_s=baro.scale_tau_s,
+            gnss_bias_sigma_h_m=gnss.bias_sigma_h_m,
+            gnss_bias_sigma_v_m=gnss.bias_sigma_v_m,
+            gnss_bias_tau_h_s=gnss.bias_tau_h_s,
+            gnss_bias_tau_v_s=gnss.bias_tau_v_s,
+            wind_noise_mps2_rthz=air.wind_noise_mps2_rthz,
+            wind_climb_scaler_spm=air.wind_climb_scaler_spm,
+            airspeed_scale_noise_rthz=air.scale_noise_rthz,
+            gust_sigma_mps=air.gust_sigma_mps,
+            gust_length_m=air.gust_length_m,
+        )

@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from fusion import earth
 from fusion.error_model import StateLayout
+from fusion.nominal import NominalState
 from fusion.rotations import quat_product, rotvec_quat
 from fusion.strapdown import InsState, sensor_matrix
 
@@ -28,71 +28,28 @@ _tuple_new = tuple.__new__  # NamedTuple(...) without its Python-level __new__ f
 _inv = np.linalg.inv
 
 
-class Feedback(NamedTuple):
-    """The nominal state after :func:`feedback`."""
-
-    ins: InsState
-    accel_bias_b_mps2: Vec3
-    gyro_bias_b_rps: Vec3
-    baro_bias_m: float
-    gnss_bias_ned_m: Vec3 | None
-    """``None`` when the layout has no GNSS bias block."""
-    accel_scale_b: Vec3
-    gyro_scale_b: Vec3
-    nav_dx: list[float]
-    """The 9 position (m NED), velocity (m/s NED) and attitude (rad) corrections just
-    subtracted from the INS (:meth:`fusion.history.InsHistory.add_correction`)."""
-    accel_misalignment_b: tuple[float, ...]
-    gyro_misalignment_b: tuple[float, ...]
-    """Misalignment estimates, six off-diagonal entries each
-    (:data:`fusion.error_model.OFF_DIAGONAL`)."""
-    baro_scale: float
-
-
-def feedback(
-    layout: StateLayout,
-    ins: InsState,
-    dx: FloatArray,
-    accel_bias_b_mps2: Sequence[float],
-    gyro_bias_b_rps: Sequence[float],
-    baro_bias_m: float,
-    gnss_bias_ned_m: Sequence[float] | None,
-    accel_scale_b: Vec3,
-    gyro_scale_b: Vec3,
-    accel_misalignment_b: tuple[float, ...] = (0.0,) * 6,
-    gyro_misalignment_b: tuple[float, ...] = (0.0,) * 6,
-    baro_scale: float = 0.0,
-) -> Feedback:
+def feedback(layout: StateLayout, state: NominalState, dx: FloatArray) -> NominalState:
     """Move the error estimate ``dx`` into the nominal state (subtract: errors are estimated
     minus true).
 
     Parameters
     ----------
     layout : StateLayout
-    ins : InsState
+    state : NominalState
+        The nominal state the error refers to; its GNSS bias estimate must refer to the same
+        time (layouts with the GNSS bias block).
     dx : ndarray, shape (n,)
         Error estimate in ``layout``.
-    accel_bias_b_mps2, gyro_bias_b_rps : 3 floats
-        Bias estimates, m/s^2 and rad/s.
-    baro_bias_m : float
-        Baro-bias estimate, m.
-    gnss_bias_ned_m : 3 floats or None
-        GNSS position-bias estimate at the current time, m NED (layouts with the GNSS block;
-        ``None`` otherwise).
-    accel_scale_b, gyro_scale_b : 3 floats
-        Scale-factor estimates (used by layouts with scale factors; passed through otherwise).
-    accel_misalignment_b, gyro_misalignment_b : 6 floats
-        Misalignment estimates (used by layouts with misalignment states; passed through
-        otherwise).
-    baro_scale : float
-        Baro scale-factor estimate (layouts with the state; passed through otherwise).
 
     Returns
     -------
-    Feedback
+    NominalState
+        The corrected state. Blocks ``layout`` does not have (scale factors, misalignments,
+        baro scale, GNSS bias) are passed through unchanged.
     """
     d = dx.tolist()
     p, v, a = layout.POS, layout.VEL, layout.ATT
+    ins = state.ins
     lt = earth.local_terms(ins.lat_rad, ins.alt_msl_m)
     vn, ve, vd = ins.v_ned_mps
     # q <- q(-phi) ⊗ q
@@ -107,20 +64,20 @@ def feedback(
         (vn - d[v], ve - d[v + 1], vd - d[v + 2]),
         (rw / norm, rx / norm, ry / norm, rz / norm),
     )
-    ba, bg, b, g = accel_bias_b_mps2, gyro_bias_b_rps, layout.BA, layout.BG
+    ba, bg, b, g = state.accel_bias_b_mps2, state.gyro_bias_b_rps, layout.BA, layout.BG
     new_ba = (ba[0] - d[b], ba[1] - d[b + 1], ba[2] - d[b + 2])
     new_bg = (bg[0] - d[g], bg[1] - d[g + 1], bg[2] - d[g + 2])
-    new_gb: Vec3 | None = None
-    if gnss_bias_ned_m is not None:
-        gb, g = gnss_bias_ned_m, layout.GNSS
-        new_gb = (gb[0] - d[g], gb[1] - d[g + 1], gb[2] - d[g + 2])
-    sa, sg = accel_scale_b, gyro_scale_b
+    gb = state.gnss_bias_ned_m
+    if layout.has_gnss_bias:
+        g = layout.GNSS
+        gb = (gb[0] - d[g], gb[1] - d[g + 1], gb[2] - d[g + 2])
+    sa, sg = state.accel_scale_b, state.gyro_scale_b
     if layout.has_scale_factors:
         b = layout.SA
         sa = (sa[0] - d[b], sa[1] - d[b + 1], sa[2] - d[b + 2])
         b = layout.SG
         sg = (sg[0] - d[b], sg[1] - d[b + 1], sg[2] - d[b + 2])
-    ma, mg = accel_misalignment_b, gyro_misalignment_b
+    ma, mg = state.accel_misalignment_b, state.gyro_misalignment_b
     if layout.has_misalignment:
         # element by element (no generator: this runs at every accepted update)
         b = layout.MA
@@ -129,12 +86,32 @@ def feedback(
         b = layout.MG
         mg = (mg[0] - d[b], mg[1] - d[b + 1], mg[2] - d[b + 2], mg[3] - d[b + 3],
               mg[4] - d[b + 4], mg[5] - d[b + 5])  # fmt: skip
-    bs = baro_scale - d[layout.BS] if layout.has_baro_scale else baro_scale
-    # this runs at every accepted update: the tuple directly, not Feedback(...)
-    return _tuple_new(Feedback, (
-        new, new_ba, new_bg, baro_bias_m - d[layout.BARO], new_gb, sa, sg,
-        d[p : p + 3] + d[v : v + 3] + d[a : a + 3], ma, mg, bs,
+    bs = state.baro_scale
+    if layout.has_baro_scale:
+        bs -= d[layout.BS]
+    # this runs at every accepted update: the tuple directly, not NominalState(...)
+    return _tuple_new(NominalState, (
+        new, new_ba, new_bg, sa, sg, ma, mg, state.baro_bias_m - d[layout.BARO], bs,
+        state.baro_reference_alt_m, gb, state.gnss_bias_time_us,
     ))  # fmt: skip
+
+
+def nav_corrections(layout: StateLayout, dx: list[float]) -> list[float]:
+    """The 9 position (m NED), velocity (m/s NED) and attitude (rad) corrections that
+    :func:`feedback` subtracts from the INS (:meth:`fusion.history.InsHistory.add_correction`).
+
+    Parameters
+    ----------
+    layout : StateLayout
+    dx : list of n floats
+        The error estimate fed back (``ndarray.tolist()``).
+
+    Returns
+    -------
+    list of 9 floats
+    """
+    p, v, a = layout.POS, layout.VEL, layout.ATT
+    return dx[p : p + 3] + dx[v : v + 3] + dx[a : a + 3]
 
 
 def sensor_inverses(

@@ -1,17 +1,15 @@
 """NavFilter: the loosely coupled INS/GNSS/baro/mag error-state EKF, sequencing the pieces.
 
-Per IMU sample: screen it (:mod:`fusion.screening`), compensate the bias estimates and
-integrate the strapdown INS (:mod:`fusion.strapdown`), step the shadow INS of a bridging
-strategy, accumulate time for the covariance propagation (:mod:`fusion.propagation`, at
-``covariance_rate_hz``), store the INS state for delayed measurements (:mod:`fusion.history`),
-feed the altitude channel (:mod:`fusion.altitude_link`), fuse the GNSS fixes that became due,
-watch for GNSS outages and consult the bridging strategy during one (:mod:`fusion.outage`), and
-emit an estimate (:mod:`fusion.estimate`) at ``output_rate_hz``. GNSS / baro / magnetometer
-samples and bridging pseudo-fixes go through their aiding source in :mod:`fusion.aiding`
-(control: *when*; model: *how*); every update goes through one funnel (:meth:`NavFilter.
-_correct`: chi-square gated Joseph update, :mod:`fusion.kalman`), which feeds an accepted error
-estimate back into the INS at once (:mod:`fusion.feedback`), and records the update
-(:attr:`NavFilter.innovations`, the aiding status of the estimate).
+Per IMU sample: screen it (:mod:`fusion.screening`), compensate the sensor-error estimates and
+integrate the strapdown INS (:mod:`fusion.strapdown`), step the virtual-outage INS copies of a
+bridging strategy, accumulate time for the covariance propagation (:mod:`fusion.propagation`,
+at ``covariance_rate_hz``), store the INS state for delayed measurements
+(:mod:`fusion.history`), feed the altitude channel (:mod:`fusion.altitude_link`), fuse the GNSS
+fixes that became due, watch for GNSS outages and consult the bridging strategy during one
+(:mod:`fusion.outage`), and emit an estimate (:mod:`fusion.estimate`) at ``output_rate_hz``.
+GNSS / baro / magnetometer samples and bridging pseudo-fixes go through their aiding source in
+:mod:`fusion.aiding` (control: *when*; model: *how*); every update goes through the one funnel
+of :mod:`fusion.filter_state` (gated Joseph update, feedback into the nominal state at once).
 
 Bad input never raises and is never integrated: non-finite or out-of-range IMU samples are
 replaced by the last good one (zero-order hold over their interval); duplicated timestamps are
@@ -32,13 +30,8 @@ the barometer (pressure out of the atmosphere model, frozen sensor; loop methods
 jumps) and counts what it rejects; :class:`~fusion.estimate.AltitudeStatus` reports the
 calibration and compensator state.
 
-Air data (:mod:`fusion.aiding.airspeed`, layouts ``+air``): pitot samples are screened and
-batched as they arrive; every ``1 / AirspeedTuning.fuse_rate_hz`` of IMU time one air-data
-epoch starts the dormant wind and airspeed-scale states (first airspeed above
-``min_airspeed_mps``), fuses the true airspeed through the pitot monitor
-(:mod:`fusion.aiding.pitot_monitor`: a blocked pitot is only tested), the synthetic sideslip
-of a fixed-wing, and, with GNSS lost and no usable pitot, the synthetic airspeed. With GNSS
-lost and an airspeed fused within ``timeout_s`` the mode is ``dead-reckoning``.
+Air data (layouts ``+air``): pitot samples, the air-data epochs and their inputs go through
+:mod:`fusion.air_data_link` and :mod:`fusion.aiding.airspeed`.
 
 This module only sequences calls and keeps counters.
 """
@@ -53,15 +46,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion import earth, kalman, strapdown
-from fusion.aiding import Observation
+from fusion import earth, strapdown
 from fusion.aiding.airspeed import AirspeedAiding
-from fusion.aiding.baro import BaroAiding, height_to_pressure, pressure_to_height
+from fusion.aiding.baro import BaroAiding, pressure_to_height
 from fusion.aiding.gnss import GnssAiding, fix_sigmas
 from fusion.aiding.mag import MagAiding
 from fusion.aiding.pseudo_gnss import PseudoGnssAiding
 from fusion.aiding.zero_motion import ZeroMotionAiding
-from fusion.airspeed_model import AirspeedInputs
+from fusion.air_data_link import AIR_OFF, AirDataLink
 from fusion.alignment import (
     AlignmentResult,
     AutoAlignment,
@@ -81,33 +73,21 @@ from fusion.bridging.interface import (
     PseudoGnss,
 )
 from fusion.config import ALTITUDE_METHODS, FilterConfig
-from fusion.error_model import ErrorModel, ProcessNoise, StateLayout, layout_for
 from fusion.estimate import (
     AidingStatus,
-    AidSource,
-    AidSourceStatus,
     AirDataStatus,
     AlignmentStatus,
     Health,
     HealthCounters,
-    Innovation,
     Mode,
     NavEstimate,
     TestRatios,
     new_estimate,
-    new_innovation,
 )
-from fusion.feedback import (
-    feedback,
-    reset_baro_bias,
-    reset_block,
-    reset_position_with_bias,
-    sensor_inverses,
-)
-from fusion.history import InsHistory, span_capacity
+from fusion.filter_state import FilterState
+from fusion.nominal import initial_nominal, with_baro_bias, with_ins
 from fusion.outage import OutageBridging
-from fusion.propagation import CovariancePropagator, decay_gnss_bias
-from fusion.rotations import dcm_from_quat, euler_from_quat
+from fusion.rotations import euler_from_quat
 from fusion.samples import (
     ActuatorSample,
     AirspeedSample,
@@ -120,7 +100,8 @@ from fusion.samples import (
 )
 from fusion.screening import SampleScreen
 from fusion.strapdown import InsState
-from physconst.airdata import air_density_kgpm3
+
+__all__ = ["Health", "NavEstimate", "NavFilter"]  # the filter, its output and counters
 
 FloatArray = NDArray[np.float64]
 _ZERO3 = (0.0, 0.0, 0.0)
@@ -128,17 +109,13 @@ _ins_update = strapdown.update
 _increments = strapdown.increments
 _increments_scaled = strapdown.increments_scaled
 _increments_compensated = strapdown.increments_compensated
-_ZERO6: tuple[float, ...] = (0.0,) * 6
-_IDENTITY9: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+_with_ins = with_ins
+_with_baro_bias = with_baro_bias
 _GNSS, _BRIDGING, _FREE = Mode.GNSS, Mode.BRIDGING, Mode.FREE_INERTIAL
 _DEAD_RECKONING = Mode.DEAD_RECKONING
-_NEVER_US = 1 << 62  # the air-data tick of a filter without air data
-_INPUT_MAX_AGE_US = 1_000_000  # controls / rpm older than this: the learned model has no inputs
-_AIR_OFF = AirDataStatus()
-_AID_INDEX = {s: i for i, s in enumerate(AidSource)}
 
 
-class NavFilter:
+class NavFilter(FilterState):
     """Loosely coupled INS/GNSS/baro/mag error-state EKF (see module docstring).
 
     Parameters
@@ -157,50 +134,16 @@ class NavFilter:
     """
 
     def __init__(self, config: FilterConfig | None = None, *, bridge: Bridge | None = None) -> None:
-        self.config = config if config is not None else FilterConfig()
+        cfg = config if config is not None else FilterConfig()
         self.bridge: Bridge = bridge if bridge is not None else NoBridge()
-        cfg = self.config
         method = cfg.altitude.method
         if method not in ALTITUDE_METHODS:  # model_copy(update=...) skips pydantic's check
             raise ValueError(
                 f"unknown altitude method {method!r}; valid methods: {', '.join(ALTITUDE_METHODS)}"
             )
-        self.layout: StateLayout = layout_for(cfg.state_layout)
-        imu = cfg.imu
-        self._noise = ProcessNoise(
-            gyro_noise=imu.gyro_noise_density_rps_rthz,
-            accel_noise=imu.accel_noise_density_mps2_rthz,
-            gyro_bias_sigma=imu.gyro_bias_sigma_rps,
-            gyro_bias_tau_s=imu.gyro_bias_tau_s,
-            accel_bias_sigma=imu.accel_bias_sigma_mps2,
-            accel_bias_tau_s=imu.accel_bias_tau_s,
-            baro_bias_sigma=cfg.baro.bias_sigma_m,
-            baro_bias_tau_s=cfg.baro.bias_tau_s,
-            gyro_scale_sigma=imu.gyro_scale_sigma,
-            gyro_scale_tau_s=imu.gyro_scale_tau_s,
-            accel_scale_sigma=imu.accel_scale_sigma,
-            accel_scale_tau_s=imu.accel_scale_tau_s,
-            gyro_misalignment_sigma=imu.gyro_misalignment_sigma_rad,
-            accel_misalignment_sigma=imu.accel_misalignment_sigma_rad,
-            baro_scale_sigma=cfg.baro.scale_sigma,
-            baro_scale_tau_s=cfg.baro.scale_tau_s,
-            gnss_bias_sigma_h_m=cfg.gnss.bias_sigma_h_m,
-            gnss_bias_sigma_v_m=cfg.gnss.bias_sigma_v_m,
-            gnss_bias_tau_h_s=cfg.gnss.bias_tau_h_s,
-            gnss_bias_tau_v_s=cfg.gnss.bias_tau_v_s,
-            wind_noise_mps2_rthz=cfg.airspeed.wind_noise_mps2_rthz,
-            wind_climb_scaler_spm=cfg.airspeed.wind_climb_scaler_spm,
-            airspeed_scale_noise_rthz=cfg.airspeed.scale_noise_rthz,
-            gust_sigma_mps=cfg.airspeed.gust_sigma_mps,
-            gust_length_m=cfg.airspeed.gust_length_m,
-        )
-        self._model = ErrorModel(self.layout, self._noise)
+        super().__init__(cfg)
         self._scale = self.layout.has_scale_factors
-        self._misalign = self.layout.has_misalignment
-        self._gnss_bias_states = self.layout.has_gnss_bias
-        self._x0 = np.zeros(self.layout.n)
         rc = cfg.rates
-        self._cov_period_s = 0.0 if rc.covariance_rate_hz is None else 1.0 / rc.covariance_rate_hz
         self._out_period_us = round(1e6 / rc.output_rate_hz)
         self._loop_alt = method != "ekf"
         # air data: fused only with the layout's air-data block and air data enabled
@@ -215,27 +158,8 @@ class NavFilter:
         """Forget everything learned: back to ``initializing`` (configuration kept; the health
         counters too with ``keep_counters``)."""
         cfg, lay = self.config, self.layout
-        if not keep_counters:
-            self._c = HealthCounters()
+        self._restart_state(self._c if keep_counters else HealthCounters())
         self._screen = SampleScreen(cfg.imu, self._c)
-        self._cov = CovariancePropagator(self._model, self._cov_period_s, cfg.imu,
-                                         cfg.baro.bias_tau_s)  # fmt: skip
-        self._ins: InsState | None = None
-        self._t_us = 0
-        self._prev_dth: tuple[float, float, float] = _ZERO3
-        self._prev_dv: tuple[float, float, float] = _ZERO3
-        self._last_dt = 0.0
-        self._ba = self._bg = self._sa = self._sg = _ZERO3
-        self._ma = self._mg = _ZERO6
-        self._bs = 0.0  # baro scale factor (layouts with the state)
-        self._h_ref = 0.0  # its reference height, m
-        self._ta_inv = self._tg_inv = _IDENTITY9
-        self._bb = 0.0
-        # GNSS position-bias estimate (NED, m) and the time it refers to: it is decayed with
-        # its Gauss-Markov time constant only when used (_gnss_bias), not on the IMU path
-        self._gb = [0.0, 0.0, 0.0]
-        self._gb_us = 0
-        self._history = InsHistory(span_capacity(cfg.gnss.max_delay_s))
         self._history_push = self._history.push
         self._pending: deque[GnssFix] = deque()
         self._screen_imu = self._screen.imu
@@ -255,17 +179,10 @@ class NavFilter:
             if self._air_on else None
         )  # fmt: skip
         self._learns_airspeed = self._air is not None and self._air.model is not None
-        self._air_next_us = _NEVER_US
-        self._air_status = _AIR_OFF
-        self._vel_corr = [0.0, 0.0, 0.0]  # sum of the feedback's velocity corrections, m/s
-        self._static_pa = math.nan  # last accepted baro pressure and temperature
-        self._static_temp_k = math.nan
-        self._controls = (0.0, 0.0, 0.0)  # latest aileron, elevator (pitch), throttle
-        self._controls_us = self._rpm_us = -_NEVER_US
-        self._rpm = 0.0
+        self._air_link = AirDataLink(self._air_period_us)
         self._alt = AltitudeLink(cfg.altitude, cfg.gnss.lever_arm_b_m, self._c)
         self._outage = OutageBridging(self.bridge, cfg.bridge.rate_hz, self._epoch)
-        self._shadows = self._outage.shadows  # the IMU path's view of it
+        self._virtual = self._outage.virtual_outages  # the IMU path's view of it
         self._aligner: InFlightAlignment | StaticAlignment | AutoAlignment = (
             InFlightAlignment(cfg.init, cfg.gnss) if cfg.init.mode == "in_flight"
             else StaticAlignment(cfg.init, cfg.gnss, cfg.mag, cfg.imu)
@@ -275,11 +192,8 @@ class NavFilter:
         self._align_status: AlignmentStatus | None = None
         self._next_out_us = 0
         self._timeout_us = round(cfg.gnss.outage_timeout_s * 1e6)
-        # the updates of the current step, and each source's status (rebuilt into the
-        # estimate's immutable parts only when an update happened)
-        self._innovations: list[Innovation] = []
-        self._aid = [AidSourceStatus(s) for s in AidSource]  # in AidSource order
-        self._aid_changed = True
+        # the estimate's immutable parts, rebuilt from the sources' status only when an update
+        # happened
         self._est_ratios = TestRatios()
         self._est_aiding = AidingStatus()
 
@@ -310,25 +224,15 @@ class NavFilter:
 
     def estimate(self) -> NavEstimate | None:
         """The current estimate (``None`` before alignment)."""
-        if self._ins is None:
+        if self._nom is None:
             return None
         return self._make_estimate()
-
-    @property
-    def innovations(self) -> tuple[Innovation, ...]:
-        """The gated updates made by the last :meth:`step` call, in order (empty if none)."""
-        return tuple(self._innovations)
-
-    @property
-    def health(self) -> Health:
-        """Counters snapshot."""
-        return self._c.snapshot()
 
     @property
     def mode(self) -> Mode:
         """``initializing`` | ``gnss`` | ``free-inertial`` | ``dead-reckoning`` |
         ``bridging``."""
-        if self._ins is None:
+        if self._nom is None:
             return Mode.INITIALIZING
         return self._mode(self._t_us)
 
@@ -353,7 +257,7 @@ class NavFilter:
     def air_data(self) -> AirDataStatus:
         """The air-data status (``off`` without air-data states or with air data disabled)."""
         air = self._air
-        return _AIR_OFF if air is None else air.status(self._t_us)
+        return AIR_OFF if air is None else air.status(self._t_us)
 
     @property
     def bridge_status(self) -> BridgeStatus:
@@ -361,40 +265,16 @@ class NavFilter:
         return self.bridge.status
 
     @property
-    def shadow_states(self) -> list[InsState | None]:
-        """The virtual-outage shadow INS states (empty when the strategy asks for none)."""
-        shadows = self._outage.shadows
-        return [] if shadows is None else shadows.shadows
-
-    @property
-    def ins_state(self) -> InsState | None:
-        """The INS state (IMU position, velocity, attitude) at the current time."""
-        return self._ins
-
-    @property
-    def gnss_bias_ned_m(self) -> tuple[float, float, float] | None:
-        """Estimated time-correlated GNSS position error (NED, m) at the current time;
-        ``None`` without the GNSS bias states (a layout without ``+gnss``)."""
-        if not self.layout.has_gnss_bias:
-            return None
-        b = self._gnss_bias()
-        return (b[0], b[1], b[2])
+    def virtual_outage_states(self) -> list[InsState | None]:
+        """The states of the virtual-outage INS copies (empty when the strategy asks for
+        none)."""
+        copies = self._outage.virtual_outages
+        return [] if copies is None else copies.states
 
     @property
     def altitude_channel(self) -> AltitudeChannel | None:
         """The altitude channel of a loop method (``None`` for ``ekf`` or before it started)."""
         return self._alt.channel
-
-    @property
-    def covariance(self) -> FloatArray:
-        """Copy of the error-state covariance (propagated to the current time)."""
-        self._flush()
-        return self._cov.P.copy()
-
-    @property
-    def time_us(self) -> int:
-        """INS time (0 before alignment)."""
-        return self._t_us
 
     def initialize(
         self,
@@ -442,14 +322,18 @@ class NavFilter:
             if b is not None and np.asarray(b, dtype=float).shape != (3,):
                 raise ValueError(f"{name} must have shape (3,)")
         self._start(int(time_us), state, cov)
+        nom = self._nom
+        assert nom is not None
         if accel_bias_b_mps2 is not None:
-            self._ba = _floats3(accel_bias_b_mps2)
+            nom = nom._replace(accel_bias_b_mps2=_floats3(accel_bias_b_mps2))
         if gyro_bias_b_rps is not None:
-            self._bg = _floats3(gyro_bias_b_rps)
+            nom = nom._replace(gyro_bias_b_rps=_floats3(gyro_bias_b_rps))
         if baro_bias_m is not None:
-            self._bb = float(baro_bias_m)
-            self._h_ref = float(state.alt_msl_m)  # the scale factor's reference height
+            # the INS height is the scale factor's reference height
+            nom = nom._replace(baro_bias_m=float(baro_bias_m),
+                               baro_reference_alt_m=float(state.alt_msl_m))  # fmt: skip
             self._baro.control.on_bias_init()
+        self._nom = nom
         self.alignment_method = "given"
         self._align_status = None
 
@@ -490,43 +374,44 @@ class NavFilter:
                 return self._rebase(s)
             return []
         t, dt, fw, good, gap = step
-        ins0 = self._ins
+        nom0 = self._nom
         if gap:
-            if ins0 is None:
+            if nom0 is None:
                 return []
             self._coast(t, dt)
-            ins = self._ins
-            assert ins is not None
-            self._alt.coast(ins.alt_msl_m, dt)
+            nom = self._nom
+            assert nom is not None
+            self._alt.coast(nom.ins.alt_msl_m, dt)
             return self._outputs(t)
-        if ins0 is None:
+        if nom0 is None:
             if good:
                 self._aligner.add_imu(t, dt, fw[:3], fw[3:])
                 self._try_align()
             return []
-        ba, bg = self._ba, self._bg
+        ins0 = nom0.ins
+        ba, bg = nom0.accel_bias_b_mps2, nom0.gyro_bias_b_rps
         if self._misalign:
             dth, dv = _increments_compensated(fw, dt, ba, bg, self._ta_inv, self._tg_inv)
             self._cov.accumulate_body(dth, dv)
         elif self._scale:
-            dth, dv = _increments_scaled(fw, dt, ba, bg, self._sa, self._sg)
+            dth, dv = _increments_scaled(fw, dt, ba, bg, nom0.accel_scale_b, nom0.gyro_scale_b)
             self._cov.accumulate_body(dth, dv)
         else:
             dth, dv = _increments(fw, dt, ba, bg)
         ins = _ins_update(ins0, dth, dv, self._prev_dth, self._prev_dv, dt)
-        self._ins = ins
+        nom = self._nom = _with_ins(nom0, ins)
         self._prev_dth = dth
         self._prev_dv = dv
         self._last_dt = dt
         self._t_us = t
-        shadows = self._shadows
-        if shadows is not None:  # virtual outages (fusion.bridging.shadows.ShadowBank)
-            shadows.step(t, ins, dth, dv, dt, ba, bg)
+        virtual = self._virtual
+        if virtual is not None:  # fusion.bridging.virtual_outages.VirtualOutageBank
+            virtual.step(t, ins, dth, dv, dt, ba, bg)
         cov = self._cov
         acc_dt = cov.acc_dt + dt
         cov.acc_dt = acc_dt
-        if acc_dt >= self._cov_period_s - 1e-9:
-            self._bb *= cov.propagate(ins)  # as _propagate, one call less on the hot path
+        if acc_dt >= self._cov_period_s - 1e-9:  # as _propagate, one call less on the hot path
+            self._nom = _with_baro_bias(nom, nom.baro_bias_m * cov.propagate(ins))
         if not good:
             # integrated from the last good sample: the sensors did not see this interval
             cov.add_unknown_motion(dt)
@@ -546,13 +431,15 @@ class NavFilter:
         last_fused = self._gnss_ctl.last_fused_us
         if not outage.in_outage and last_fused is not None and t - last_fused > self._timeout_us:
             self._c.gnss_outages += 1
-            outage.begin(t, self._ins, self._ba, self._bg, self._prev_dth, self._prev_dv)
+            nom = self._nom
+            assert nom is not None
+            outage.begin(t, nom.ins, nom.accel_bias_b_mps2, nom.gyro_bias_b_rps, self._prev_dth,
+                         self._prev_dv)  # fmt: skip
         if outage.in_outage and t >= outage.next_us:
             self._bridge_step(t)
-        if t >= self._air_next_us:
-            self._air_next_us += self._air_period_us
-            if self._air_next_us <= t:
-                self._air_next_us = t + self._air_period_us
+        air_link = self._air_link
+        if t >= air_link.next_us:
+            air_link.advance(t)
             self._air_tick(t)
         if t >= self._next_out_us:
             self._next_out_us += self._out_period_us
@@ -565,14 +452,17 @@ class NavFilter:
         """IMU data missing for ``gap_s``: constant-velocity dead reckoning, covariance grown by
         the process model over the gap, coning/sculling memory cleared."""
         self._flush()
-        ins = self._ins
-        assert ins is not None
-        shadows = self._outage.shadows
-        if shadows is not None:  # the shadows cannot mechanise a gap either: restart
-            shadows.restart(t)
-        self._ins = coasted = strapdown.coast(ins, gap_s)
+        nom = self._nom
+        assert nom is not None
+        ins = nom.ins
+        virtual = self._outage.virtual_outages
+        if virtual is not None:  # the INS copies cannot mechanise a gap either: restart
+            virtual.restart(t)
+        coasted = strapdown.coast(ins, gap_s)
+        bb = nom.baro_bias_m
         for k in self._cov.coast(coasted, ins.v_ned_mps, gap_s):
-            self._bb *= k
+            bb *= k
+        self._nom = _with_baro_bias(_with_ins(nom, coasted), bb)
         self._prev_dth = self._prev_dv = _ZERO3
         self._t_us = t
         self._history.push(t, coasted)
@@ -600,7 +490,7 @@ class NavFilter:
     def alignment_state(self) -> str:
         """What the alignment is doing, in words: before alignment what it waits for, after
         it the method and whether the rest updates (fine alignment) run."""
-        if self._ins is None:
+        if self._nom is None:
             aligner = self._aligner
             if isinstance(aligner, AutoAlignment):
                 return aligner.state
@@ -619,7 +509,13 @@ class NavFilter:
         return status
 
     def _start(self, time_us: int, state: InsState, cov: FloatArray) -> None:
-        self._ins = state
+        # a start from a known state on a running filter keeps its sensor-error estimates;
+        # the GNSS bias restarts at zero
+        prev = self._nom
+        if prev is None:
+            self._nom = initial_nominal(state, time_us)
+        else:
+            self._nom = prev._replace(ins=state, gnss_bias_ned_m=_ZERO3, gnss_bias_time_us=time_us)
         self._t_us = time_us
         screen = self._screen
         if screen.last_imu_us is None or screen.last_imu_us < time_us:
@@ -629,177 +525,30 @@ class NavFilter:
         self._history.clear()
         self._history.push(time_us, state)
         self._gnss.control.start(time_us)
-        self._gb, self._gb_us = [0.0, 0.0, 0.0], time_us
         self._next_out_us = time_us
         self._outage.restart()
         self._alt.restart()  # a (re)start also restarts the altitude channel
         air = self._air
         if air is not None:  # the air-data block starts dormant (the covariance restarted)
             air.state.active = False
-            self._air_next_us = time_us + self._air_period_us
-
-    # ------------------------------------------------------------------ covariance
-    def _propagate(self) -> None:
-        """Covariance over the accumulated interval; decay of the baro-bias estimate."""
-        ins = self._ins
-        assert ins is not None
-        self._bb *= self._cov.propagate(ins)
-
-    def _flush(self) -> None:
-        if self._cov.acc_dt > 0.0 and self._ins is not None:
-            self._propagate()
-
-    # ------------------------------------------------------------------ updates
-    def _correct(
-        self, obs: Observation, gate: float, source: AidSource, time_us: int
-    ) -> kalman.Correction:
-        """The single update funnel: gated Joseph-form update; on acceptance the error
-        estimate is fed back at once. Records the :class:`~fusion.estimate.Innovation` and
-        the source's status."""
-        self._flush()
-        cov = self._cov
-        res = kalman.correct(self._x0, cov.P, obs.z, obs.H, obs.R, gate)
-        fused = res.test_ratio <= 1.0
-        if fused:
-            cov.P = res.P
-            self._feedback(res.x)
-        inn = new_innovation(time_us, source, res.innovation, res.S, res.test_ratio, fused)
-        self._innovations.append(inn)
-        aid, i = self._aid, _AID_INDEX[source]
-        aid[i] = aid[i].after(inn)
-        self._aid_changed = True
-        return res
-
-    def _feedback(self, dx: FloatArray) -> None:
-        """Move the error estimate into the INS and the sensor-error estimates."""
-        ins = self._ins
-        assert ins is not None
-        gb = self._gnss_bias() if self._gnss_bias_states else None
-        (ins, self._ba, self._bg, self._bb, new_gb, self._sa, self._sg, nav_dx, self._ma,
-         self._mg, self._bs) = feedback(
-            self.layout, ins, dx, self._ba, self._bg, self._bb, gb, self._sa, self._sg,
-            self._ma, self._mg, self._bs,
-        )
-        air = self._air
-        if air is not None and air.state.active:
-            air.state.correct(dx.tolist(), self.layout)
-        if self._misalign:
-            self._ta_inv, self._tg_inv = sensor_inverses(self._sa, self._ma, self._sg, self._mg)
-        self._ins = ins
-        if new_gb is not None:
-            self._gb = list(new_gb)
-        self._history.add_correction(nav_dx)
-        vc = self._vel_corr
-        vc[0] -= nav_dx[3]
-        vc[1] -= nav_dx[4]
-        vc[2] -= nav_dx[5]
-        self._cov.v0 = ins.v_ned_mps
-
-    def _reset_velocity(self, z: FloatArray, variances: FloatArray) -> None:
-        """Velocity reset to the fix (``z`` its velocity innovation)."""
-        self._flush()
-        dx, P = reset_block(self._cov.P, self.layout.n, self.layout.vel, z, variances)
-        self._feedback(dx)
-        self._cov.P = P
-
-    def _reset_position(self, z: FloatArray, variances: FloatArray) -> None:
-        """Position reset to the fix (``z`` its position innovation, ``variances`` the white
-        part); with the GNSS bias states the bias goes back to its prior
-        (:func:`fusion.feedback.reset_position_with_bias`)."""
-        self._flush()
-        lay = self.layout
-        if not lay.has_gnss_bias:
-            dx, P = reset_block(self._cov.P, lay.n, lay.pos, z, variances)
-        else:
-            g = self.config.gnss
-            sb2 = np.array([g.bias_sigma_h_m**2] * 2 + [g.bias_sigma_v_m**2])
-            dx, P = reset_position_with_bias(self._cov.P, lay, z, variances, self._gnss_bias(),
-                                             sb2)  # fmt: skip
-        self._feedback(dx)
-        self._cov.P = P
-
-    def _current_covariance(self) -> FloatArray:
-        """The covariance propagated to the current time (read-only use)."""
-        self._flush()
-        return self._cov.P
-
-    def _velocity_corrections(self) -> tuple[float, float, float]:
-        """Sum of every velocity correction the feedback made (new minus old), m/s NED."""
-        vc = self._vel_corr
-        return (vc[0], vc[1], vc[2])
-
-    def _activate_air(
-        self, wind_ne_mps: tuple[float, float], wind_variance: float, scale_variance: float
-    ) -> None:
-        """Start the air-data block: mean-wind and scale estimates with uncorrelated variances,
-        no gust (its steady-state variance), their process noise from now on."""
-        self._flush()
-        lay, air = self.layout, self._air
-        assert air is not None
-        w, g = lay.WIND, lay.GUST
-        P = self._cov.P.copy()
-        P[lay.air, :] = 0.0
-        P[:, lay.air] = 0.0
-        P[w, w] = P[w + 1, w + 1] = wind_variance
-        P[w + 2, w + 2] = scale_variance
-        P[g, g] = P[g + 1, g + 1] = self.config.airspeed.gust_sigma_mps**2
-        cov = self._cov
-        cov.P = P
-        cov.air_offset = w
-        cov.take_gust_decay()
-        air.state.start(wind_ne_mps)
-        if self._ins is not None:
-            cov.airspeed_mps = air.air_speed_mps(self._ins.v_ned_mps)
+            self._air_link.start(time_us)
 
     def _air_tick(self, t: int) -> None:
         """The air-data epoch (every ``1 / AirspeedTuning.sideslip_rate_hz``, or the TAS rate
         if faster)."""
-        air, ins = self._air, self._ins
-        assert air is not None and ins is not None
-        p, temp = self._static_pa, self._static_temp_k
-        if not math.isfinite(p):  # no baro yet: ISA at the INS height
-            p = height_to_pressure(ins.alt_msl_m)
-            temp = math.nan
-        if not 150.0 <= temp <= 350.0:
-            temp = 288.15 - 0.0065 * min(ins.alt_msl_m, 11_000.0)  # ISA
-        inputs = self._model_inputs(t, ins, p, temp) if self._learns_airspeed else None
+        air, nom, link = self._air, self._nom, self._air_link
+        assert air is not None and nom is not None
+        ins = nom.ins
+        p, temp = link.static_air(ins)
         cov = self._cov
+        inputs = link.model_inputs(t, ins, cov.f_n, p, temp) if self._learns_airspeed else None
         if air.state.active:  # the nominal gust decays as its error did
             self._flush()
             air.state.decay(cov.take_gust_decay())
         air.tick(t, ins, self._past_state, p, temp, self._gnss_ctl.is_active(t), inputs)
-        if air.state.active and self._ins is not None:
-            cov.airspeed_mps = air.air_speed_mps(self._ins.v_ned_mps)
-        self._air_status = air.status(t)
-
-    def _init_baro_bias(self, bias_m: float, reference_alt_m: float) -> None:
-        """``b^ = h_baro - h^`` at the INS height ``reference_alt_m``, from then on the baro
-        scale factor's reference (:func:`fusion.feedback.reset_baro_bias`)."""
-        self._flush()
-        self._bb = bias_m
-        self._h_ref = reference_alt_m
-        self._cov.P = reset_baro_bias(self._cov.P, self.layout, self.config.baro.noise_m)
-
-    def _gnss_bias(self) -> list[float]:
-        """The GNSS position-bias estimate (NED, m) decayed to the current time."""
-        dt = (self._t_us - self._gb_us) * 1e-6
-        if dt > 0.0:
-            g = self.config.gnss
-            self._gb = decay_gnss_bias(self._gb, dt, g.bias_tau_h_s, g.bias_tau_v_s)
-            self._gb_us = self._t_us
-        return self._gb
-
-    def _past_state(self, time_us: int) -> InsState | None:
-        if time_us >= self._t_us:
-            return self._ins
-        return self._history.at(time_us)
-
-    def _omega_b(self) -> tuple[float, float, float]:
-        dt = self._last_dt
-        if dt <= 0.0:
-            return _ZERO3
-        a = self._prev_dth
-        return (a[0] / dt, a[1] / dt, a[2] / dt)
+        if air.state.active and self._nom is not None:
+            cov.airspeed_mps = air.air_speed_mps(self._nom.ins.v_ned_mps)
+        link.status = air.status(t)
 
     # ------------------------------------------------------------------ GNSS
     def _on_gnss(self, fix: GnssFix) -> list[NavEstimate]:
@@ -830,7 +579,7 @@ class NavFilter:
         sigmas = fix_sigmas(fix, gnss.cfg)
         delay = (now - t) * 1e-6
         bias = self._gnss_bias() if self.layout.has_gnss_bias else None
-        ins_pre_pos = self._ins  # for the shadows' errors (virtual outages)
+        ins_pre_pos = self._ins  # for the virtual-outage INS errors
         pos = gnss.fuse_position(fix, sigmas, past, delay, bias, step_us, self._reset_position)
         if pos is None:
             return
@@ -851,8 +600,10 @@ class NavFilter:
 
     # ------------------------------------------------------------------ bridging
     def _epoch(self, time_us: int, state: InsState) -> BridgeEpoch:
-        ba, bg = self._ba, self._bg
-        shadows = self._outage.shadows
+        nom = self._nom
+        assert nom is not None
+        ba, bg = nom.accel_bias_b_mps2, nom.gyro_bias_b_rps
+        virtual = self._outage.virtual_outages
         return BridgeEpoch(
             time_us=time_us,
             lat_rad=state.lat_rad,
@@ -865,7 +616,7 @@ class NavFilter:
             time_since_gnss_s=max(0.0, self._gnss.control.time_since_fused_s(time_us)),
             accel_bias_b_mps2=(ba[0], ba[1], ba[2]),
             gyro_bias_b_rps=(bg[0], bg[1], bg[2]),
-            free_state=None if shadows is None else shadows.free_state,
+            free_state=None if virtual is None else virtual.free_state,
         )
 
     def _bridge_step(self, t: int) -> None:
@@ -900,11 +651,7 @@ class NavFilter:
         ins = self._ins
         if ins is None:
             return []
-        self._static_pa = p  # for the airspeed conversion
-        try:
-            self._static_temp_k = float(s.temperature_k)
-        except (TypeError, ValueError, AttributeError):
-            self._static_temp_k = math.nan
+        self._air_link.on_static(p, getattr(s, "temperature_k", None))  # the air density
         alt = self._alt
         if not (alt.screen_baro(s, p, t, self._t_us) and alt.repeat_ok(p, t)):
             return []
@@ -914,7 +661,10 @@ class NavFilter:
         past = self._past_state(batch[0])
         if past is None:
             past = ins
-        baro.fuse(batch, past.alt_msl_m, self._bb, t, self._bs, self._h_ref)
+        nom = self._nom
+        assert nom is not None
+        baro.fuse(batch, past.alt_msl_m, nom.baro_bias_m, t, nom.baro_scale,
+                  nom.baro_reference_alt_m)  # fmt: skip
         return []
 
     def _on_airspeed(self, s: AirspeedSample) -> list[NavEstimate]:
@@ -932,32 +682,12 @@ class NavFilter:
 
     # the latest controls and propeller speed: inputs of a learned vehicle model
     def _on_controls(self, s: ActuatorSample) -> list[NavEstimate]:
-        c = s.controls
-        if len(c) >= 4:
-            self._controls = (float(c[0]), float(c[1]), float(c[3]))
-            self._controls_us = int(s.time_us)
+        self._air_link.on_controls(s)
         return []
 
     def _on_rpm(self, s: RpmSample) -> list[NavEstimate]:
-        if getattr(s, "index", 0) == 0:  # the first propeller (RAW_RPM index 0)
-            self._rpm = float(s.rpm)
-            self._rpm_us = int(s.time_us)
+        self._air_link.on_rpm(s)
         return []
-
-    def _model_inputs(self, t: int, ins: InsState, p: float, temp: float) -> AirspeedInputs | None:
-        """The learned airspeed model's inputs now (None without fresh controls and rpm)."""
-        if t - self._controls_us > _INPUT_MAX_AGE_US or t - self._rpm_us > _INPUT_MAX_AGE_US:
-            return None
-        roll, pitch, _ = euler_from_quat(ins.q_nb)
-        c = dcm_from_quat(ins.q_nb)  # C_nb row-major: f_b = C_nb^T f_n
-        fn, fe, fd = self._cov.f_n
-        fx_b, fz_b = c[0] * fn + c[3] * fe + c[6] * fd, c[2] * fn + c[5] * fe + c[8] * fd
-        aileron, elevator, throttle = self._controls
-        return AirspeedInputs(
-            throttle=throttle, elevator=elevator, aileron=aileron, rpm_krpm=1e-3 * self._rpm,
-            density_kgpm3=air_density_kgpm3(p, temp), roll_rad=roll, pitch_rad=pitch,
-            fx_b_mps2=fx_b, fz_b_mps2=fz_b, climb_rate_mps=-ins.v_ned_mps[2],
-        )  # fmt: skip
 
     def _on_mag(self, s: MagSample) -> list[NavEstimate]:
         t = self._screen.order("mag", s.time_us)
@@ -983,9 +713,9 @@ class NavFilter:
     def _make_estimate(self) -> NavEstimate:
         # runs at the output rate (50 Hz default): no per-call dataclass __init__ where a
         # cached immutable part or the slot setters (new_estimate) do
-        ins = self._ins
-        assert ins is not None
-        lat, lon, alt, v, q = ins
+        nom = self._nom
+        assert nom is not None
+        lat, lon, alt, v, q = nom.ins
         outage = self._outage
         corr = outage.correction
         if corr is not None:
@@ -1003,7 +733,8 @@ class NavFilter:
             alt, vz = vertical
             v = (v[0], v[1], -vz)
         # one read-only array, the vector fields are views of it
-        buf = np.array((*v, *q, *euler_from_quat(q), *self._ba, *self._bg, *self._omega_b()))
+        buf = np.array((*v, *q, *euler_from_quat(q), *nom.accel_bias_b_mps2, *nom.gyro_bias_b_rps,
+                        *self._omega_b()))  # fmt: skip
         buf.setflags(write=False)
         P = self._cov.P
         p_diag = P.diagonal().copy()
@@ -1025,10 +756,11 @@ class NavFilter:
             t, lat, lon, alt,
             buf[0:3], buf[3:7], buf[7:10],  # v_ned_mps, q_nb, euler_rad
             p_diag, mode,
-            buf[10:13], buf[13:16], self._bb,  # accel_bias_b_mps2, gyro_bias_b_rps, baro_bias_m
+            buf[10:13], buf[13:16],  # accel_bias_b_mps2, gyro_bias_b_rps
+            nom.baro_bias_m,
             self._c.snapshot(), self._est_ratios,
             gctl.time_since_fused_s(t), self.layout.name,
-            self._alt.status(), self.bridge.status, self._est_aiding, p_nav, self._air_status,
+            self._alt.status(), self.bridge.status, self._est_aiding, p_nav, self._air_link.status,
             buf[16:19],  # omega_b_rps
             self._alignment_status(),
         )  # fmt: skip

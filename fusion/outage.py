@@ -1,5 +1,6 @@
 """NavFilter's GNSS-outage bookkeeping: the outage state, the bridging strategy's
-consultations and output correction, and the life cycle of the shadow INS it asks for.
+consultations and output correction, and the life cycle of the virtual-outage INS copies it
+asks for.
 
 An outage begins when no fix was fused for ``GnssTuning.outage_timeout_s`` and ends when GNSS
 aiding is active again. Meanwhile the strategy (:class:`fusion.bridging.interface.Bridge`) is
@@ -8,8 +9,8 @@ consulted every ``1 / BridgeConfig.rate_hz``; an
 estimate until the outage ends, a :class:`~fusion.bridging.interface.PseudoGnss` is fused by
 the filter (:mod:`fusion.aiding.pseudo_gnss`). While GNSS is good every fix goes to the
 strategy with the INS error it revealed and, when the strategy asks for virtual outages
-(``virtual_outage_s > 0``), the errors of the shadow INS
-(:class:`~fusion.bridging.shadows.ShadowBank`).
+(``virtual_outage_s > 0``), the errors of the virtual-outage INS copies
+(:class:`~fusion.bridging.virtual_outages.VirtualOutageBank`).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from fusion.bridging.interface import (
     InsError,
     OutputCorrection,
 )
-from fusion.bridging.shadows import ShadowBank
+from fusion.bridging.virtual_outages import VirtualOutageBank
 from fusion.strapdown import InsState
 
 
@@ -37,7 +38,7 @@ class OutageBridging:
     rate_hz : float
         Consultations per second during an outage.
     epoch : callable ``(time_us, InsState) -> BridgeEpoch``
-        Builds the filter's features for a state (also given to the shadow INS bank).
+        Builds the filter's features for a state (also given to the virtual-outage bank).
 
     Attributes
     ----------
@@ -49,8 +50,8 @@ class OutageBridging:
         Time of the next consultation.
     correction : OutputCorrection or None
         The output correction in force.
-    shadows : ShadowBank or None
-        The shadow INS bank, when the strategy asks for virtual outages.
+    virtual_outages : VirtualOutageBank or None
+        The virtual-outage INS copies, when the strategy asks for virtual outages.
     """
 
     def __init__(
@@ -66,8 +67,9 @@ class OutageBridging:
         # Virtual outages only when the strategy asks for them: otherwise None, and the IMU
         # loop pays one attribute test.
         period_s = bridge.virtual_outage_s
-        self.shadows: ShadowBank | None = (
-            ShadowBank(period_s, bridge.virtual_outage_count, epoch) if period_s > 0.0 else None
+        self.virtual_outages: VirtualOutageBank | None = (
+            VirtualOutageBank(period_s, bridge.virtual_outage_count, epoch)
+            if period_s > 0.0 else None
         )
 
     def restart(self) -> None:
@@ -79,11 +81,11 @@ class OutageBridging:
         dtheta_b: Sequence[float], dv_b: Sequence[float],
     ) -> None:  # fmt: skip
         """An outage was detected at ``time_us``: consult the strategy from now on, and let
-        shadow 0 run free from the current INS (its biases and last increments)."""
+        copy 0 run free from the current INS (its biases and last increments)."""
         self.in_outage = True
         self.next_us = time_us
-        if self.shadows is not None and ins is not None:
-            self.shadows.begin_outage(time_us, ins, ba, bg, dtheta_b, dv_b)
+        if self.virtual_outages is not None and ins is not None:
+            self.virtual_outages.begin_outage(time_us, ins, ba, bg, dtheta_b, dv_b)
 
     def consult(self, time_us: int, epoch: BridgeEpoch) -> BridgeAction | None:
         """Ask the strategy at a consultation epoch; schedule the next one."""
@@ -95,7 +97,8 @@ class OutageBridging:
         ins_pre_vel: InsState | None, pos_accepted: bool, vel_accepted: bool,
         pos_ned_m: list[float], vel_ned_mps: list[float],
     ) -> None:  # fmt: skip
-        """Hand one fix to the strategy: the INS error it revealed and the shadow INS errors.
+        """Hand one fix to the strategy: the INS error it revealed and the virtual-outage INS
+        errors.
 
         Parameters
         ----------
@@ -111,10 +114,10 @@ class OutageBridging:
             INS minus the fix as received (position without the bias estimate).
         """
         zp, zv = pos_ned_m, vel_ned_mps
-        shadows = self.shadows
+        copies = self.virtual_outages
         virtual = (
-            shadows.samples(time_us, ins_pre_pos, ins_pre_vel, zp, zv)
-            if shadows is not None and pos_accepted and vel_accepted
+            copies.samples(time_us, ins_pre_pos, ins_pre_vel, zp, zv)
+            if copies is not None and pos_accepted and vel_accepted
             and ins_pre_pos is not None and ins_pre_vel is not None
             else ()
         )  # fmt: skip
@@ -130,5 +133,5 @@ class OutageBridging:
         self.active = False
         self.correction = None
         self.bridge.on_gnss_restored(epoch)
-        if self.shadows is not None:
-            self.shadows.end_outage(time_us)
+        if self.virtual_outages is not None:
+            self.virtual_outages.end_outage(time_us)

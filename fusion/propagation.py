@@ -248,7 +248,7 @@ class CovariancePropagator:
 
 def decay_gnss_bias(
     bias_ned_m: Sequence[float], dt_s: float, tau_h_s: float, tau_v_s: float
-) -> list[float]:
+) -> tuple[float, float, float]:
     """The GNSS position-bias estimate ``dt_s`` later: between fixes (and through outages) it
     relaxes to zero as its Gauss-Markov mean does.
 
@@ -263,8 +263,8 @@ def decay_gnss_bias(
 
     Returns
     -------
-    list of 3 floats
+    tuple of 3 floats
     """
     kh, kv = math.exp(-dt_s / tau_h_s), math.exp(-dt_s / tau_v_s)
     b = bias_ned_m
-    return [b[0] * kh, b[1] * kh, b[2] * kv]
+    return (b[0] * kh, b[1] * kh, b[2] * kv)

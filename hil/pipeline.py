@@ -258,9 +258,11 @@ class SimChain:
                 return
 
 
-#: Steps per batch of a lockstep flight (:func:`fly`): 1 s of simulated time at 200 Hz. The
-#: size comes from an ad-hoc sweep (50 gained less, 1000 no more; not a committed result); the
-#: committed A/B of ``hilnav run`` with it is in bench/README.md (0.64x the CPU of 42eb08f).
+#: Steps per batch of a lockstep flight (:func:`fly`): 1 s of simulated time at 200 Hz. Each
+#: stage (JSBSim, samples, encode, decode + filter) runs a whole batch in a row with its code
+#: and data warm, which costs less CPU than alternating the stages every step (bench/README.md,
+#: the lockstep batches). The size comes from an ad-hoc sweep (50 gained less, 1000 no more;
+#: not a committed result).
 LOCKSTEP_BATCH = 200
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ One job per module:
 - :mod:`fusion.bridging.interface` — what :class:`fusion.filter.NavFilter` and a strategy hand
   each other (epochs, INS errors, pseudo-fixes, output corrections, status), the
   :class:`~fusion.bridging.interface.Bridge` protocol and the ``none`` strategy;
-- :mod:`fusion.bridging.shadows` — the virtual-outage shadow INS bank that gives the learned
+- :mod:`fusion.bridging.virtual_outages` — the virtual-outage INS copies that give the learned
   strategies drift samples while GNSS is good;
 - :mod:`fusion.bridging.features` — the network inputs of one pair or epoch;
 - :mod:`fusion.bridging.models` — one component's regressor behind a uniform face, clipped to

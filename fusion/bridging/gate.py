@@ -2,7 +2,7 @@
 
 A fitted network is only a *candidate*. Whether its correction is applied is decided by what
 it would have done on data it never saw: every virtual outage, once over, is replayed through
-the candidates that were in use when it *started* (the shadows give exactly that: the error
+the candidates that were in use when it *started* (the virtual outages give exactly that: the error
 left after the correction against the INS left uncorrected, over the first
 ``gate_horizon_s``), and the first fix after each real outage scores the candidates' last
 prediction against the drift GNSS then reveals (output corrections only). A component is on
@@ -10,7 +10,7 @@ only while, over its last ``gate_outages`` scored outages (at least ``gate_min_o
 the RMS error left is at most ``gate_margin`` times that of no correction (over the summed
 squares *and* as the geometric mean of the per-outage ratios), it won in at least
 ``gate_min_wins`` of them, and it won the most recent one: it turns off at the first loss.
-The last real outage is the judge that counts: virtual outages (shadow INS without the
+The last real outage is the judge that counts: virtual outages (INS copies without the
 filter's mag/baro aiding) can drift unlike real ones, so a component whose prediction lost
 the last real outage stays off until it wins one again.
 """
@@ -96,7 +96,7 @@ class FallbackGate:
         tr = self._tracked.get(key)
         if tr is None:
             if key in self._judged:
-                # scored already: a shadow runs on past the gate horizon, and tracking it again
+                # scored already: a copy runs on past the gate horizon, and tracking it again
                 # would score the same outage once per fix, with models that have trained on it
                 return
             tr = self._tracked[key] = Tracked(tuple(candidates))

@@ -7,7 +7,7 @@
   INS minus GNSS, lever-arm corrected, before the update) — the training pairs of P0's GMDH
   and P1/P2's networks. When the strategy asks for virtual outages
   (``virtual_outage_s > 0``) the error also carries one :class:`VirtualOutage` per running
-  shadow INS (:mod:`fusion.bridging.shadows`);
+  virtual-outage INS copy (:mod:`fusion.bridging.virtual_outages`);
 - ``on_outage(epoch)`` at ``BridgeConfig.rate_hz`` while GNSS is out; the strategy may return
   a :class:`PseudoGnss` (P3: a pseudo-fix the filter fuses like GNSS, keeping its update step)
   or an :class:`OutputCorrection` (P0/P2: subtracted from the output estimate only, the INS
@@ -68,27 +68,27 @@ class BridgeEpoch:
 
 @dataclass(frozen=True, slots=True)
 class VirtualOutage:
-    """One shadow INS's error against a GNSS fix: a drift sample from an outage that did not
-    happen.
+    """One virtual-outage INS copy's error against a GNSS fix: a drift sample from an outage
+    that did not happen.
 
     Attributes
     ----------
-    shadow : int
-        Index of the shadow INS.
+    index : int
+        Index of the INS copy in the bank.
     elapsed_s : float
-        Time from the shadow's re-seed to the fix's time of validity, s.
+        Time from the copy's re-seed to the fix's time of validity, s.
     start : BridgeEpoch
         The filter's INS features at the re-seed (the virtual outage's start).
     epoch : BridgeEpoch
-        The shadow's own features at the fix (its position, velocity and attitude; specific
+        The copy's own features at the fix (its position, velocity and attitude; specific
         force, body rate and biases as the filter's).
     pos_ned_m : 3 floats
-        Shadow minus GNSS, metres N/E/D (lever-arm corrected as the filter's innovation).
+        Copy minus GNSS, metres N/E/D (lever-arm corrected as the filter's innovation).
     vel_ned_mps : 3 floats
-        Shadow minus GNSS velocity, m/s.
+        Copy minus GNSS velocity, m/s.
     """
 
-    shadow: int
+    index: int
     elapsed_s: float
     start: BridgeEpoch
     epoch: BridgeEpoch
@@ -105,7 +105,7 @@ class InsError:
     pos_accepted: bool
     vel_accepted: bool
     virtual: tuple[VirtualOutage, ...] = ()
-    """The shadow INS errors at this fix (empty unless the strategy asked for them)."""
+    """The virtual-outage INS errors at this fix (empty unless the strategy asked for them)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -192,8 +192,9 @@ class Bridge(Protocol):
 
     :class:`~fusion.filter.NavFilter` reads ``virtual_outage_s`` and ``virtual_outage_count``
     once (at construction and :meth:`~fusion.filter.NavFilter.reset`):
-    ``virtual_outage_s > 0`` makes it run a :class:`~fusion.bridging.shadows.ShadowBank` of
-    ``virtual_outage_count`` shadow INS; otherwise the shadows cost nothing. ``status`` goes
+    ``virtual_outage_s > 0`` makes it run a
+    :class:`~fusion.bridging.virtual_outages.VirtualOutageBank` of ``virtual_outage_count`` INS
+    copies; otherwise the copies cost nothing. ``status`` goes
     into every estimate. :class:`NoBridge` has the defaults (no virtual outages, status
     ``off``): a strategy that needs neither can subclass it and override the hooks.
     """
@@ -210,7 +211,7 @@ class Bridge(Protocol):
 
     @property
     def virtual_outage_count(self) -> int:
-        """Number of staggered shadow INS asked of the filter (>= 1 when
+        """Number of staggered virtual-outage INS copies asked of the filter (>= 1 when
         ``virtual_outage_s > 0``)."""
         ...
 

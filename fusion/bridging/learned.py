@@ -4,7 +4,7 @@ correct it during an outage (papers P0-P3).
 What the networks learn
 -----------------------
 With ``BridgeConfig.training = "virtual"`` (the default) the training pairs are *virtual
-outages* (:mod:`fusion.bridging.shadows`): shadow strapdown INS copies re-seeded from the
+outages* (:mod:`fusion.bridging.virtual_outages`): strapdown INS copies re-seeded from the
 filter every ``virtual_outage_s`` (staggered), whose error against each GNSS fix is the drift
 of an INS left alone for ``elapsed`` seconds. In a real outage the same inputs
 (:mod:`fusion.bridging.features`), with the time since the last fused fix, give the predicted
@@ -153,7 +153,7 @@ class LearnedBridge:
 
     @property
     def virtual_outage_count(self) -> int:
-        """Number of staggered shadow INS copies asked of the filter."""
+        """Number of staggered virtual-outage INS copies asked of the filter."""
         return self.config.virtual_outage_count if self._virtual else 0
 
     airspeed_model: OnlineAirspeedModel | None = None
@@ -198,8 +198,8 @@ class LearnedBridge:
             seen: set[int] = set()
             for v in error.virtual:
                 if v.start.time_us < self._learn_from_us:
-                    continue  # the filter was still converging when this shadow started
-                key = v.start.time_us * 64 + v.shadow % 64
+                    continue  # the filter was still converging when this copy started
+                key = v.start.time_us * 64 + v.index % 64
                 if not self._push(
                     key, epoch.time_us, base_row(v.elapsed_s, v.start, v.epoch, origin),
                     [*v.pos_ned_m, *v.vel_ned_mps],

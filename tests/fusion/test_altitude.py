@@ -291,7 +291,7 @@ def test_mpc_gain_ignores_the_baro_bias_state():
 # and of M eta - gamma, is that backward error amplified by the condition number of A and
 # scaled by the size of the quantities summed. These bounds are what round-off can do on any
 # BLAS kernel (the kernels differ in summation order and FMA use, within the same bound); a
-# fixed 1e-10 or 1e-9 is not: it passed on one kernel and failed on another (issue #16).
+# fixed 1e-10 or 1e-9 is not: it can pass on one kernel and fail on another.
 EPS = float(np.finfo(float).eps)
 
 

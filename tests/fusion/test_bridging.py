@@ -1,5 +1,5 @@
 """fusion.bridging (the bridging strategies) and the virtual-outage machinery they use
-(fusion.bridging.shadows.ShadowBank inside NavFilter)."""
+(fusion.bridging.virtual_outages.VirtualOutageBank inside NavFilter)."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ from fusion.bridging.interface import (
 )
 from fusion.bridging.learned import LearnedBridge
 from fusion.bridging.registry import BRIDGE_METHODS, make_bridge
-from fusion.bridging.shadows import ShadowBank
+from fusion.bridging.virtual_outages import VirtualOutageBank
 from fusion.config import BRIDGE_FEATURES, BridgeConfig, FilterConfig, GnssTuning
 from fusion.estimate import NavEstimate
 from fusion.filter import NavFilter
@@ -94,10 +94,10 @@ def test_bridge_config_rejects_unknown_features_naming_them() -> None:
         BridgeConfig(training="offline")  # type: ignore[arg-type]
 
 
-def test_none_reports_off_and_costs_no_shadows() -> None:
+def test_none_reports_off_and_costs_no_virtual_outages() -> None:
     nav = NavFilter(CFG)
     assert nav.bridge_status == BridgeStatus("none", "off")
-    assert nav.shadow_states == []
+    assert nav.virtual_outage_states == []
 
 
 # --------------------------------------------------------------------------- features
@@ -288,7 +288,7 @@ def test_gate_scores_a_real_outage_by_the_first_fix_after_it(accepted: bool) -> 
 
 
 def test_a_virtual_outage_running_past_the_gate_horizon_is_scored_once() -> None:
-    # GIVEN shadows that keep drifting 30 s past the gate's 60 s scoring horizon
+    # GIVEN virtual-outage INS copies that keep drifting 30 s past the gate's 60 s scoring horizon
     cfg = GATE_CFG.model_copy(update={"gate_outages": 100})
     bridge = make_bridge("gmdh", cfg)
     assert isinstance(bridge, LearnedBridge)
@@ -394,7 +394,7 @@ def test_degenerate_pairs_never_crash_and_fall_back() -> None:
         assert all(st.fallback) and bridge.on_outage(_epoch(20.0, el=8.0)) is None
 
 
-# --------------------------------------------------------------------------- shadow INS
+# --------------------------------------------------------------------------- virtual-outage INS
 class _Asking(NoBridge):
     """Records the virtual outages it is handed; corrects nothing."""
 
@@ -415,9 +415,9 @@ class _Asking(NoBridge):
         return None
 
 
-def test_shadow_ins_equals_the_main_ins_when_no_update_happened(turning: Prepared) -> None:
+def test_virtual_outage_ins_equals_the_main_ins_when_no_update_happened(turning: Prepared) -> None:
     # GIVEN a filter started from a known state and only IMU samples (no aiding at all; a long
-    # outage timeout keeps it out of outage mode, so the shadows keep re-seeding)
+    # outage timeout keeps it out of outage mode, so the copies keep re-seeding)
     sc = make_scenario(turning, np.random.default_rng(3), ERRORS)
     cfg = CFG.model_copy(update={"gnss": GnssTuning(outage_timeout_s=100.0)})
     nav = NavFilter(cfg, bridge=_Asking())
@@ -428,47 +428,47 @@ def test_shadow_ins_equals_the_main_ins_when_no_update_happened(turning: Prepare
     seen = 0
     for k, s in enumerate(imu):
         nav.step(s)
-        # THEN every seeded shadow is bit-for-bit the main INS (staggered re-seeds included)
+        # THEN every seeded copy is bit-for-bit the main INS (staggered re-seeds included)
         if k % 25 == 0:
-            for st in nav.shadow_states:
+            for st in nav.virtual_outage_states:
                 if st is not None:
                     assert st == nav.ins_state
                     seen += 1
-    assert seen > 80 and all(st is not None for st in nav.shadow_states)
+    assert seen > 80 and all(st is not None for st in nav.virtual_outage_states)
 
 
-def test_shadow_bank_reseeds_staggered_and_holds_one_free_ins_in_an_outage() -> None:
+def test_virtual_outage_bank_reseeds_staggered_and_holds_one_free_ins_in_an_outage() -> None:
     seeds: list[int] = []
 
     def epoch_fn(t_us: int, s: InsState) -> BridgeEpoch:
         seeds.append(t_us)
         return _epoch(t_us * 1e-6)
 
-    bank = ShadowBank(1.0, 2, epoch_fn)
+    bank = VirtualOutageBank(1.0, 2, epoch_fn)
     state = InsState(0.8, 0.1, 500.0, (40.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
     z = (0.0, 0.0, 0.0)
     for i in range(1, 301):  # 3 s at 100 Hz
         bank.step(i * 10_000, state, z, z, 0.01, z, z)
     assert seeds == [10_000, 510_000, 1_010_000, 1_510_000, 2_010_000, 2_510_000]
     bank.begin_outage(3_000_000, state, z, z, z, z)
-    assert bank.in_outage and bank.free_state == state and bank.shadows[1] is None
+    assert bank.in_outage and bank.free_state == state and bank.states[1] is None
     assert bank.samples(3_000_000, state, state, z, z) == ()
     bank.end_outage(3_500_000)
     assert not bank.in_outage and bank.free_state is None
     bank.step(3_510_000, state, z, z, 0.01, z, z)
-    assert bank.shadows[0] == state
-    bank.restart(3_600_000)  # an IMU gap: every shadow dropped, re-seeded from then on
-    assert bank.shadows == [None, None]
+    assert bank.states[0] == state
+    bank.restart(3_600_000)  # an IMU gap: every copy dropped, re-seeded from then on
+    assert bank.states == [None, None]
     bank.step(3_610_000, state, z, z, 0.01, z, z)
-    assert bank.shadows == [state, None]
+    assert bank.states == [state, None]
     with pytest.raises(ValueError, match="period_s"):
-        ShadowBank(0.0, 1, epoch_fn)
+        VirtualOutageBank(0.0, 1, epoch_fn)
 
 
 def test_virtual_outage_pairs_measure_drift_the_fix_innovations_do_not(
     turning: Prepared,
 ) -> None:
-    # GIVEN a filter fusing GNSS on a turning flight with sensor errors, shadows re-seeded
+    # GIVEN a filter fusing GNSS on a turning flight with sensor errors, INS copies re-seeded
     # every 20 s
     sc = make_scenario(turning, np.random.default_rng(4), ERRORS)
     asking = _Asking()
@@ -486,7 +486,7 @@ def test_virtual_outage_pairs_measure_drift_the_fix_innovations_do_not(
     late = [v for v in asking.virtual if v.elapsed_s > 15.0 and v.start.time_us > 10e6]
     assert late
     # THEN the closed-loop filter's own INS-minus-GNSS error at a fix (P0's training pairs)
-    # stays at the GNSS noise, while a shadow left alone for 15-20 s has drifted further
+    # stays at the GNSS noise, while a copy left alone for 15-20 s has drifted further
     rms_fix = float(np.sqrt(np.mean(np.square(fixes[250:]))))
     rms_virtual = float(np.sqrt(np.mean([np.hypot(*v.pos_ned_m[:2]) ** 2 for v in late])))
     assert rms_fix < 3.0 and rms_virtual > 1.5 * rms_fix

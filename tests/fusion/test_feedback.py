@@ -11,11 +11,13 @@ from fusion import earth, strapdown
 from fusion.error_model import INS16, INS16_GNSS, INS22, INS22_GNSS, StateLayout
 from fusion.feedback import (
     feedback,
+    nav_corrections,
     reset_baro_bias,
     reset_block,
     reset_position_with_bias,
     sensor_inverses,
 )
+from fusion.nominal import initial_nominal
 from fusion.rotations import quat_multiply, quat_normalize, rotvec_to_quat
 from fusion.strapdown import InsState
 
@@ -31,8 +33,12 @@ def test_feedback_subtracts_every_error_and_rotates_the_attitude_back(layout: St
     # GIVEN an error estimate over the whole layout and some sensor-error estimates
     dx = _random_dx(layout, 1)
     ba, bg, sa, sg = (0.01, -0.02, 0.03), (1e-5, 2e-5, -3e-5), (1e-4, 0.0, -1e-4), (0.0, 2e-4, 0.0)
-    gb = (0.5, -0.4, 1.1) if layout.has_gnss_bias else None
-    fb = feedback(layout, INS, dx, ba, bg, 2.5, gb, sa, sg)
+    gb = (0.5, -0.4, 1.1)
+    state = initial_nominal(INS, 7)._replace(
+        accel_bias_b_mps2=ba, gyro_bias_b_rps=bg, baro_bias_m=2.5, gnss_bias_ned_m=gb,
+        accel_scale_b=sa, gyro_scale_b=sg, baro_reference_alt_m=300.0,
+    )
+    fb = feedback(layout, state, dx)
     p, v, a = layout.POS, layout.VEL, layout.ATT
     # THEN position moves by -dr (metres to radians), velocity by -dv
     lt = earth.local_terms(INS.lat_rad, INS.alt_msl_m)
@@ -49,25 +55,28 @@ def test_feedback_subtracts_every_error_and_rotates_the_attitude_back(layout: St
     np.testing.assert_allclose(fb.gyro_bias_b_rps, np.array(bg) - dx[layout.bg], atol=1e-15)
     assert fb.baro_bias_m == 2.5 - dx[layout.BARO]
     if layout.has_gnss_bias:
-        assert gb is not None and fb.gnss_bias_ned_m is not None
         np.testing.assert_allclose(fb.gnss_bias_ned_m, np.array(gb) - dx[layout.gnss])
-    else:
-        assert fb.gnss_bias_ned_m is None
+    else:  # blocks the layout lacks pass through
+        assert fb.gnss_bias_ned_m == gb
     if layout.has_scale_factors:
         np.testing.assert_allclose(fb.accel_scale_b, np.array(sa) - dx[layout.sa], atol=1e-15)
         np.testing.assert_allclose(fb.gyro_scale_b, np.array(sg) - dx[layout.sg], atol=1e-15)
     else:
         assert (fb.accel_scale_b, fb.gyro_scale_b) == (sa, sg)
+    # AND what is not an estimate (reference height, GNSS-bias time) is kept
+    assert (fb.baro_reference_alt_m, fb.gnss_bias_time_us) == (300.0, 7)
     # AND the 9 navigation corrections are handed on for the history
-    assert fb.nav_dx == [*dx[p : p + 3], *dx[v : v + 3], *dx[a : a + 3]]
+    d = dx.tolist()
+    assert nav_corrections(layout, d) == [*d[p : p + 3], *d[v : v + 3], *d[a : a + 3]]
 
 
 def test_feedback_of_zero_is_the_identity_up_to_normalisation() -> None:
-    fb = feedback(INS16, INS, np.zeros(16), (0.1, 0.2, 0.3), (0.0,) * 3, 1.0, None, (0.0,) * 3,
-                  (0.0,) * 3)  # fmt: skip
+    state = initial_nominal(INS, 0)._replace(accel_bias_b_mps2=(0.1, 0.2, 0.3), baro_bias_m=1.0)
+    fb = feedback(INS16, state, np.zeros(16))
     assert fb.ins[:4] == INS[:4]
     np.testing.assert_allclose(fb.ins.q_nb, INS.q_nb, atol=1e-16)
     assert fb.accel_bias_b_mps2 == (0.1, 0.2, 0.3) and fb.baro_bias_m == 1.0
+    assert fb[1:] == state[1:]
 
 
 def _spd(n: int, seed: int) -> np.ndarray:

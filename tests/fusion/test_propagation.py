@@ -71,7 +71,7 @@ def test_coast_moves_the_ins_at_constant_velocity() -> None:
 
 def test_gnss_bias_decays_with_its_correlation_times() -> None:
     b = decay_gnss_bias([1.0, -2.0, 3.0], 60.0, 120.0, 30.0)
-    assert b == [math.exp(-0.5), -2.0 * math.exp(-0.5), 3.0 * math.exp(-2.0)]
+    assert b == (math.exp(-0.5), -2.0 * math.exp(-0.5), 3.0 * math.exp(-2.0))
 
 
 def test_increments_compensate_biases_and_scale_factors() -> None:
