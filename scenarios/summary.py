@@ -11,6 +11,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, NonNegativeFloat, PositiveFloat
 
+from hil.build_info import build_info
 from hil.pipeline import FusionRun
 from hil.tracks import HealthSeries, Track
 from scenarios import event_metrics, metrics
@@ -374,6 +375,7 @@ def score_run(
         events=events, series=col.series() if with_series else None, scoring=cfg)
     if fitted is not None:
         summary["settling"] = fitted.as_dict()
+    summary["build"] = build_info()
     return Scored(summary, err, estimate, truth, outages)
 
 
