@@ -9,6 +9,7 @@ errors of interest here.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -220,6 +221,48 @@ def outages_from_fix_times(
     if end_s - ft[-1] > gap_s:
         windows.append(Window(float(ft[-1]), float(end_s)))
     return windows
+
+
+GNSS_DENIAL_EVENTS = frozenset({"gnss_outage", "gnss_jamming"})
+"""Scripted events during which GNSS is denied: the fix gaps inside one are one outage."""
+
+
+@dataclass(frozen=True)
+class Outage(Window):
+    """A GNSS outage as a user counts it: one scripted denial, or gaps in quick succession,
+    with the fix gaps it is made of (``gaps``; one gap for a plain outage)."""
+
+    gaps: tuple[Window, ...] = ()
+
+
+def merge_gaps(gaps: Sequence[Window], *, denied: Sequence[Window] = (),
+               merge_s: float = 0.0) -> list[Outage]:
+    """Outages from fix gaps: gaps that overlap the same scripted denial window (a jammer
+    that lets a fix through now and then), or that are less than ``merge_s`` apart, form one
+    outage from the first gap's start to the last one's end.
+
+    Parameters
+    ----------
+    gaps : sequence of Window
+        Fix gaps (:func:`outages_from_fix_times`).
+    denied : sequence of Window
+        Scripted GNSS-denial windows (events of :data:`GNSS_DENIAL_EVENTS`).
+    merge_s : float
+        Gaps closer than this (end of one to start of the next) merge, s.
+    """
+    def within(g: Window, d: Window) -> bool:
+        return g.start_s <= d.end_s and g.end_s >= d.start_s
+
+    out: list[Outage] = []
+    for g in sorted(gaps, key=lambda w: w.start_s):
+        if out:
+            last = out[-1]
+            same_event = any(within(last.gaps[-1], d) and within(g, d) for d in denied)
+            if same_event or g.start_s - last.end_s < merge_s:
+                out[-1] = Outage(last.start_s, max(last.end_s, g.end_s), (*last.gaps, g))
+                continue
+        out.append(Outage(g.start_s, g.end_s, (Window(g.start_s, g.end_s),)))
+    return out
 
 
 def cep(horizontal_m: FloatArray, q: float) -> float:

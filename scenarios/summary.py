@@ -11,6 +11,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, NonNegativeFloat, PositiveFloat
 
+from hil.build_info import build_info
 from hil.pipeline import FusionRun
 from hil.tracks import HealthSeries, Track
 from scenarios import event_metrics, metrics
@@ -98,6 +99,9 @@ class ScoringConfig(BaseModel):
     horizontal error of the fixes outside events, at least ``bad_fix_min_m``."""
     bad_fix_k: PositiveFloat = 5.0
     bad_fix_min_m: PositiveFloat = 10.0
+    outage_merge_s: NonNegativeFloat = 3.0
+    """GNSS fix gaps less than this apart form one outage (s); gaps inside one scripted
+    outage or jamming event always do."""
 
 
 MIN_SCORED_FRACTION = 0.5
@@ -225,7 +229,7 @@ def build_summary(
     err : Errors
     """
     cfg = scoring if scoring is not None else ScoringConfig()
-    windows = [e if isinstance(e, EventWindow) else EventWindow.from_mapping(e) for e in events]
+    windows = [_event(e) for e in events]
     err = metrics.errors(estimate, truth)
     on = metrics.gnss_on_mask(err.time_s, outages, settle_s=settle_s)
     end_data = float(err.time_s[-1]) if err.time_s.size else 0.0
@@ -254,7 +258,10 @@ def build_summary(
             om.reconverge_s = metrics.reconverge_time(
                 err, w.end_s, threshold_m=threshold, hold_s=cfg.reconverge_hold_s,
                 until_s=next_start(w.end_s))
-            outage_rows.append(om.as_dict())
+            row = om.as_dict()
+            parts = w.gaps if isinstance(w, metrics.Outage) and w.gaps else (w,)
+            row["gaps"] = [[g.start_s, g.end_s] for g in parts]
+            outage_rows.append(row)
     fix_err = None
     bad_fix_m = cfg.bad_fix_m
     if series is not None and series.fixes is not None and series.fixes.time_s.size:
@@ -322,16 +329,19 @@ def score_run(
     health_extra: Mapping[str, Any] | None = None,
     with_series: bool = False,
     fit_settle: bool = False,
+    scoring: ScoringConfig | None = None,
 ) -> Scored:
     """Score what a :class:`hil.pipeline.FusionRun` collected: the one scorer of ``run``,
     ``replay``, ``compare``, ``campaign``, the live scorecard and the benches.
 
     GNSS outages are the gaps of more than 1 s between received 3-D fixes (up to the end of
-    the shorter of the estimate and truth tracks); ``health`` holds the filter's and the
-    decoder's final counters plus ``health_extra``; ``with_series`` adds the per-estimate
-    mode / test-ratio / counter series that event scoring needs. ``fit_settle`` fits
-    ``settle_s`` to a short log (:func:`fit_settling`) and writes ``settling`` into the
-    summary.
+    the shorter of the estimate and truth tracks), merged into one outage where they fall
+    inside one scripted outage or jamming event or are less than
+    ``scoring.outage_merge_s`` apart (each outage row lists its ``gaps``); ``health`` holds
+    the filter's and the decoder's final counters plus ``health_extra``; ``with_series``
+    adds the per-estimate mode / test-ratio / counter series that event scoring needs.
+    ``fit_settle`` fits ``settle_s`` to a short log (:func:`fit_settling`) and writes
+    ``settling`` into the summary.
 
     Raises
     ------
@@ -344,8 +354,13 @@ def score_run(
     estimate = col.estimate_track()
     truth = col.truth_track()
     end_s = col.end_s()
-    outages = metrics.outages_from_fix_times(
+    cfg = scoring if scoring is not None else ScoringConfig()
+    denied = [metrics.Window(float(e.start_s), float(e.end_s)) for e in map(_event, events)
+              if e.type in metrics.GNSS_DENIAL_EVENTS]
+    gaps = metrics.outages_from_fix_times(
         np.asarray(col.fix_times_us, dtype=float) * 1e-6, end_s=end_s)
+    outages: list[metrics.Window] = list(
+        metrics.merge_gaps(gaps, denied=denied, merge_s=cfg.outage_merge_s))
     health: dict[str, Any] = {"filter": plain_dict(run.nav.health),
                               "decoder": plain_dict(run.decoder.counters)}
     health.update(health_extra or {})
@@ -357,10 +372,15 @@ def score_run(
         settle_s = fitted.applied_s
     summary, err = build_summary(
         info, estimate, truth, outages, settle_s=settle_s, criteria=criteria, health=health,
-        events=events, series=col.series() if with_series else None)
+        events=events, series=col.series() if with_series else None, scoring=cfg)
     if fitted is not None:
         summary["settling"] = fitted.as_dict()
+    summary["build"] = build_info()
     return Scored(summary, err, estimate, truth, outages)
+
+
+def _event(e: EventWindow | Mapping[str, Any]) -> EventWindow:
+    return e if isinstance(e, EventWindow) else EventWindow.from_mapping(e)
 
 
 def _bad_fix_threshold(

@@ -52,6 +52,32 @@ def run_metrics(summary: Mapping[str, Any]) -> dict[str, list[float]]:
     return values
 
 
+def _add_criteria(into: dict[str, dict[str, Any]], summary: Mapping[str, Any]) -> None:
+    """Collect one run's criterion results (value and verdict) by criterion name."""
+    for c in summary.get("criteria") or []:
+        row = into.setdefault(str(c.get("name")), {
+            "metric": c.get("path"), "op": c.get("op", "<="), "limit": c.get("limit"),
+            "values": [], "passed": 0, "runs": 0})
+        row["runs"] += 1
+        row["passed"] += int(bool(c.get("ok")))
+        row["values"].extend(_finite([c.get("value")]))
+
+
+def criterion_stats(row: Mapping[str, Any]) -> dict[str, Any]:
+    """A scenario's criterion over a group's runs: its metric, limit, pass count and the
+    ``{mean, p95, worst, n}`` of its values, where worst and p95 are on the failing side
+    (the smallest values for a ``>=`` criterion)."""
+    values = list(row["values"])
+    low_is_bad = row["op"] in (">=", ">")
+    st = stats([-v for v in values] if low_is_bad else values)
+    if low_is_bad:
+        st = {"mean": None if st["mean"] is None else -st["mean"],
+              "p95": None if st["p95"] is None else -st["p95"],
+              "worst": None if st["worst"] is None else -st["worst"], "n": st["n"]}
+    return {"metric": row["metric"], "op": row["op"], "limit": row["limit"],
+            "passed": row["passed"], "runs": row["runs"], **st}
+
+
 def _not_passed_reason(summary: Mapping[str, Any]) -> str:
     ended = (summary.get("health") or {}).get("flight_ended")
     if ended:
@@ -72,7 +98,8 @@ def aggregate(specs: Sequence[RunSpec], out_dir: Path) -> dict[str, Any]:
     -------
     dict
         ``campaign.json`` without the execution block: ``groups`` (per scenario x grid point:
-        methods, run counts, pass rate and :func:`stats` of every metric), ``runs`` (id,
+        methods, run counts, pass rate, :func:`stats` of every metric and, per criterion of
+        the scenario, :func:`criterion_stats`), ``runs`` (id,
         scenario, seed, point, status), ``failed`` (runs that raised, with the message) and
         ``not_passed`` (runs that finished but failed their criteria or crashed).
     """
@@ -86,7 +113,8 @@ def aggregate(specs: Sequence[RunSpec], out_dir: Path) -> dict[str, Any]:
             "order": spec.order, "scenario": spec.scenario_name,
             "scenario_path": spec.scenario_path, "point": dict(spec.point),
             "bridge": [], "altitude": [],
-            "runs": 0, "passed": 0, "errored": 0, "values": {m: [] for m in METRICS}})
+            "runs": 0, "passed": 0, "errored": 0, "values": {m: [] for m in METRICS},
+            "criteria": {}})
         g["runs"] += 1
         row = spec.describe()
         if summary_path.is_file():
@@ -99,6 +127,7 @@ def aggregate(specs: Sequence[RunSpec], out_dir: Path) -> dict[str, Any]:
                     g[name].append(summary[name])
             for m, vals in run_metrics(summary).items():
                 g["values"][m].extend(vals)
+            _add_criteria(g["criteria"], summary)
             if not passed:
                 not_passed.append({**spec.describe(), "reason": _not_passed_reason(summary)})
         else:
@@ -116,6 +145,7 @@ def aggregate(specs: Sequence[RunSpec], out_dir: Path) -> dict[str, Any]:
         g["altitude"] = sorted(g["altitude"])
         g["pass_rate"] = g["passed"] / g["runs"] if g["runs"] else None
         g["metrics"] = {m: stats(values[m]) for m in METRICS}
+        g["criteria"] = {name: criterion_stats(row) for name, row in g["criteria"].items()}
         group_rows.append(g)
     group_rows.sort(key=lambda g: g["order"])
     for g in group_rows:

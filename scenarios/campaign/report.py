@@ -54,6 +54,20 @@ def markdown(report: Mapping[str, Any]) -> str:
             f"| {triple(m['outage_horizontal_error_m_at_60s'])} "
             f"| {triple(m['outage_horizontal_max_m'])} "
             f"| {triple(m['gnss_on_horizontal_rmse_m'])} |")
+    crit_rows = [(g, name, c) for g in report["groups"]
+                 for name, c in (g.get("criteria") or {}).items()]
+    if crit_rows:
+        lines += ["", "## Each scenario's own criteria", "",
+                  "Each criterion's value over the runs of a row: mean / p95 / worst, worst on "
+                  "the failing side.", "",
+                  "| scenario | grid point | criterion | metric | limit | passed "
+                  "| mean / p95 / worst |", "|---|---|---|---|---|---|---|"]
+        for g, name, c in crit_rows:
+            lines.append(
+                f"| {g['scenario']} | {point_label(g['point'])} | {name} | {c['metric']} "
+                f"| {c['op']} {_fmt(c['limit'], 'g')} | {c['passed']}/{c['runs']} "
+                f"| {_fmt(c['mean'], '.3g')} / {_fmt(c['p95'], '.3g')} "
+                f"/ {_fmt(c['worst'], '.3g')} |")
     if report["failed"]:
         lines += ["", "## Runs that raised", "", "| run | scenario | seed | grid point | error |",
                   "|---|---|---|---|---|"]

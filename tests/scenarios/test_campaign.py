@@ -239,6 +239,27 @@ def test_campaign_writes_every_run_and_the_aggregate(first: CampaignResult) -> N
         assert (out / name).stat().st_size > 0
     assert json.loads((out / "campaign.json").read_text())["groups"] == rep["groups"]
     assert "imu=consumer-mems" in (out / "campaign.md").read_text()
+    # the scenario's own criterion, per row: its metric, limit, pass count and values
+    for g in rep["groups"]:
+        c = g["criteria"]["outage drift"]
+        assert (c["metric"], c["op"], c["limit"], c["runs"]) == (
+            "outages.horizontal_rmse_m", "<=", 1000.0, 2)
+        # one outage per run: the criterion's values are the outage RMSEs of the row
+        assert c["passed"] == 2 and c["n"] == 2
+        assert c["worst"] == g["metrics"]["outage_horizontal_rmse_m"]["worst"]
+    md = (out / "campaign.md").read_text()
+    assert "## Each scenario's own criteria" in md and "| outage drift |" in md
+
+
+def test_criterion_stats_worst_is_on_the_failing_side() -> None:
+    """GIVEN a ``>=`` criterion (e.g. containment) WHEN aggregated THEN its worst value is the
+    smallest; for ``<=`` it is the largest."""
+    from scenarios.campaign.aggregate import criterion_stats
+
+    row = {"metric": "containment_3sigma.horizontal", "op": ">=", "limit": 0.9,
+           "values": [0.99, 0.95, 0.97], "passed": 3, "runs": 3}
+    assert criterion_stats(row)["worst"] == 0.95
+    assert criterion_stats({**row, "op": "<="})["worst"] == 0.99
 
 
 def test_same_aggregate_twice(first: CampaignResult, tiny: Path, tmp_path: Path,

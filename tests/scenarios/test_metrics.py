@@ -489,3 +489,32 @@ def test_errors_in_blocks_equal_errors_in_one_piece(with_cov: bool) -> None:
                                       err_msg=name)
     with pytest.raises(ValueError, match="block_rows"):
         metrics.errors(est, truth, block_rows=0)
+
+
+# ------------------------------------------------------------------ outages as users count them
+
+
+def test_gaps_inside_one_jamming_event_are_one_outage() -> None:
+    """GIVEN the fix gaps of a jammer (10 s blackout, then fixes flapping every 2 s) and a
+    later, separate outage WHEN merged with the jamming window THEN the jamming is one outage
+    from its first gap's start to its last gap's end, listing its gaps; the later outage
+    stays on its own."""
+    jam = metrics.Window(305.0, 395.0)
+    gaps = [metrics.Window(304.9, 315.1)]
+    gaps += [metrics.Window(t - 0.1, t + 1.1) for t in np.arange(317.0, 395.0, 2.0)]
+    later = metrics.Window(500.0, 530.0)
+    out = metrics.merge_gaps([*gaps, later], denied=[jam], merge_s=0.0)
+    assert [(o.start_s, o.end_s) for o in out] == [(304.9, gaps[-1].end_s), (500.0, 530.0)]
+    assert out[0].gaps == tuple(gaps) and out[1].gaps == (later,)
+
+
+def test_close_gaps_merge_and_far_ones_do_not() -> None:
+    """GIVEN gaps 2 s apart and then 20 s apart WHEN merged with a 3 s merge time (no
+    scripted event) THEN the first two form one outage and the third stays apart; with no
+    merge time every gap is its own outage."""
+    gaps = [metrics.Window(100.0, 110.0), metrics.Window(112.0, 120.0),
+            metrics.Window(140.0, 150.0)]
+    merged = metrics.merge_gaps(gaps, merge_s=3.0)
+    assert [(o.start_s, o.end_s, len(o.gaps)) for o in merged] == [
+        (100.0, 120.0, 2), (140.0, 150.0, 1)]
+    assert len(metrics.merge_gaps(gaps, merge_s=0.0)) == 3
