@@ -26,6 +26,7 @@ from fusion.rotations import dcm_from_quat, euler_from_quat
 from fusion.samples import ActuatorSample, RpmSample
 from fusion.strapdown import InsState
 from physconst.airdata import air_density_kgpm3
+from physconst.isa import isa_temperature_k
 
 NEVER_US = 1 << 62
 """The air-data epoch time of a filter without air data."""
@@ -96,7 +97,7 @@ class AirDataLink:
             p = height_to_pressure(ins.alt_msl_m)
             temp = math.nan
         if not 150.0 <= temp <= 350.0:
-            temp = 288.15 - 0.0065 * min(ins.alt_msl_m, 11_000.0)  # ISA
+            temp = isa_temperature_k(ins.alt_msl_m)
         return p, temp
 
     def model_inputs(
