@@ -131,3 +131,22 @@ def test_an_autopilot_that_never_connects_ends_the_run(tmp_path: Path) -> None:
     with pytest.raises(AutopilotAbsent, match="PX4 did not connect within 5 s"):
         run_scenario(scn, tmp_path / "out", backend=autopilot, reports=False)
     assert autopilot.closed
+
+
+def test_the_px4_library_scenario_flies_the_standard_planes_actuator_map() -> None:
+    # GIVEN the library's PX4 scenario, read from where the installed package keeps it
+    from importlib.resources import files
+
+    from hil.autopilot.actuators import ActuatorMap
+
+    library = Path(str(files("scenarios") / "library"))
+    scn = load_scenario(library / "px4-fixed-wing-gnss-outage.yaml")
+    path = scn.autopilot_path(scn.autopilot.actuator_map)
+    # THEN its actuator map is PX4's standard plane, shipped in the library's package data
+    assert path is not None and path.is_file()
+    assert path.resolve().parent == (library / "autopilot").resolve()
+    standard = ActuatorMap.load(path)
+    assert standard.channels != ActuatorMap.default().channels
+    # AND the docs' copy is that same file, not a second definition
+    docs = Path(__file__).resolve().parents[2] / "docs" / "autopilot" / "px4-standard-plane.yaml"
+    assert docs.resolve() == path.resolve()
