@@ -104,7 +104,7 @@ def test_the_health_records_mode_failsafe_and_the_lost_position(
     h = recorded.health()
     assert h["autopilot_type"] == int(mavlink2.MAV_AUTOPILOT_PX4) and h["armed_ever"]
     assert h["modes"][0]["custom_mode"] == 4 << 16
-    assert [t["text"] for t in h["failsafes"]][0] == "Failsafe enabled: no global position"
+    assert h["failsafes"][0]["text"] == "Failsafe enabled: no global position"
     assert h["failsafes"][0]["time_s"] == pytest.approx(OUTAGE[0], abs=0.11)
     est = h["estimator"]
     assert est["pos_horiz_abs_lost_s"] == [pytest.approx(OUTAGE[0], abs=0.11)]
