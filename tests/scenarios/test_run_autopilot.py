@@ -154,8 +154,8 @@ def test_a_flight_that_ends_early_is_scored_as_far_as_it_flew(tmp_path: Path) ->
                     "offset_hpa: 2}\n")
     scn = load_scenario(path)
     autopilot = _Autopilot(f"udpout:127.0.0.1:{port}", dive_after_s=20.0)
-    # WHEN the run is scored
-    result = run_scenario(scn, tmp_path / "out", reports=False, backend=autopilot)
+    # WHEN the run is scored, with its reports
+    result = run_scenario(scn, tmp_path / "out", backend=autopilot)
     s = result.summary
     end = s["sim_duration_s"]
     assert end < OUTAGE[0]
@@ -170,6 +170,7 @@ def test_a_flight_that_ends_early_is_scored_as_far_as_it_flew(tmp_path: Path) ->
     assert glitch["type"] == "baro_glitch" and glitch["clipped"]
     assert glitch["planned_end_s"] == 160.0 and glitch["end_s"] <= end
     assert s["autopilot"]["events_not_reached"] == s["events_not_reached"]
+    assert (tmp_path / "out" / "report.html").is_file()
 
 
 def test_a_denial_the_autopilot_did_not_take_fails_the_run_and_is_no_outage(
