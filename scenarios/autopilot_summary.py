@@ -11,6 +11,14 @@ horizontal / vertical accuracies, ArduPilot's EKF_STATUS_REPORT "variances" are 
 innovation test ratios): those are kept in ``health.estimator.max``, not turned into a
 consistency figure. The run's pass criteria are hilnav's; the autopilot's figures are reported,
 not judged.
+
+Only what the autopilot was really denied is an outage of the autopilot: PX4 is denied through
+the sensor stream it is sent (every window is), ArduPilot through SIM_* parameters over its
+MAVLink port, so a GNSS window in which a step of its denial was not acknowledged (or that had
+no step at all: no MAVLink port) is listed in ``outages_not_denied`` and scored as GNSS-on
+time, never as an outage. The section also says from when the autopilot's estimate is scored
+(``estimate_from_s``: its first valid position) and when its trim hold ended
+(``trim_released_s``: it armed).
 """
 
 from __future__ import annotations
@@ -22,13 +30,15 @@ from typing import Any
 import numpy as np
 
 from hil.autopilot import AutopilotFlown
+from hil.autopilot.backend import DenialStep
 from hil.autopilot.telemetry import AutopilotTelemetry
 from hil.tracks import Track
 from scenarios.event_metrics import EventWindow
 from scenarios.metrics import Errors, Window
 from scenarios.summary import RunInfo, build_summary
 
-__all__ = ["AUTOPILOT_METRIC_KEYS", "ScoredAutopilot", "autopilot_section", "score_flown"]
+__all__ = ["AUTOPILOT_METRIC_KEYS", "ScoredAutopilot", "autopilot_section", "score_flown",
+           "split_denied"]
 
 #: The keys of hilnav's summary that the autopilot section repeats for the autopilot.
 AUTOPILOT_METRIC_KEYS = ("outages", "gnss_on", "events", "scoring")
@@ -57,6 +67,7 @@ def autopilot_section(
     settle_s: float = 60.0,
     events: Sequence[EventWindow | Mapping[str, Any]] = (),
     problem: str | None = None,
+    extra: Mapping[str, Any] | None = None,
 ) -> ScoredAutopilot:
     """Score the autopilot's ``track`` against ``truth`` with hilnav's scorer.
 
@@ -71,6 +82,7 @@ def autopilot_section(
     stalled : the stall sentence of the run, None when the autopilot kept flying.
     connected : whether the autopilot ever connected.
     health : :meth:`~hil.autopilot.telemetry.AutopilotTelemetry.health`.
+    extra : further keys of the section (:func:`score_flown`'s).
 
     Returns
     -------
@@ -88,6 +100,7 @@ def autopilot_section(
         "health": dict(health or {}),
         "nees": None,
         "problem": problem,
+        **(extra or {}),
     }
     if track is None or track.time_s.size == 0:
         section.update(dict.fromkeys(AUTOPILOT_METRIC_KEYS))
@@ -117,6 +130,15 @@ def score_flown(
     against ``truth`` (None: no truth, nothing scored) by :func:`autopilot_section`."""
     counters = {**flown.counters, "clipped_controls": flown.clipped_controls,
                 "steps": flown.steps}
+    denied, not_denied = split_denied(outages, flown.denial)
+    extra: dict[str, Any] = {
+        "trim_released_s": flown.trim_released_s,
+        "estimate_from_s": None if telemetry is None else telemetry.estimate_from_s,
+        "denial": None if flown.denial is None else [
+            {"time_s": d.time_s, "name": d.name, "value": d.value, "status": d.status}
+            for d in flown.denial],
+        "outages_not_denied": [{"start_s": w.start_s, "end_s": w.end_s} for w in not_denied],
+    }
     track: Track | None = None
     health: dict[str, Any] | None = None
     problem: str | None = None
@@ -136,6 +158,29 @@ def score_flown(
     z = np.zeros(0)
     return autopilot_section(
         flown.autopilot, track, truth if truth is not None else Track(z, z, z, z, z, z),
-        outages, link=link, counters=counters, stalled=flown.stalled,
+        denied, link=link, counters=counters, stalled=flown.stalled,
         connected=flown.connected, health=health, settle_s=settle_s, events=events,
-        problem=problem)
+        problem=problem, extra=extra)
+
+
+#: Seconds around a GNSS window's start (the gap begins at the last fix before the denial) in
+#: which the step that denies it is due.
+_STEP_LEAD_S = 1.0
+
+
+def split_denied(outages: list[Window], denial: Sequence[DenialStep] | None,
+                 ) -> tuple[list[Window], list[Window]]:
+    """The GNSS outage windows the autopilot was denied, and those it was not.
+
+    ``denial`` None: the denial is in the sensor stream (PX4), every window was. Else a window
+    was denied when at least one step of the denial is due at its start (within
+    ``_STEP_LEAD_S``) and the autopilot took every such step.
+    """
+    if denial is None:
+        return list(outages), []
+    denied: list[Window] = []
+    not_denied: list[Window] = []
+    for w in outages:
+        steps = [d for d in denial if abs(d.time_s - w.start_s) <= _STEP_LEAD_S]
+        (denied if steps and all(d.took for d in steps) else not_denied).append(w)
+    return denied, not_denied

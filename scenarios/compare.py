@@ -65,6 +65,7 @@ def compare(
         if progress:
             progress(f"seed {seed}: flying {scn.duration_s:.0f} s")
         flown = simulate(scn, _appender(frames))
+        ended = [] if flown.ended is None else [f"the flight ended early: {flown.ended}"]
         config = filter_config(scn, altitude)
         for m in methods:
             if progress:
@@ -74,7 +75,7 @@ def compare(
             summary, _ = score(
                 scn, fused, out_dir / f"seed{seed}" / m, bridge=m, altitude=altitude,
                 sim_duration_s=flown.sim_duration_s, wall_s=fused.fuse_s,
-                health_extra={"bridge_status": status}, reports=False)
+                health_extra={"bridge_status": status}, reports=False, failures=ended)
             summary["update_us_per_sample"] = 1e6 * fused.fuse_s / max(fused.samples, 1)
             summary["fit_ms"] = status.get("fit_ms")
             write_summary(summary, out_dir / f"seed{seed}" / m / "summary.json")

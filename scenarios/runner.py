@@ -12,6 +12,13 @@ estimate is recorded from its telemetry (:class:`hil.autopilot.telemetry.Autopil
 and scored beside hilnav's (``summary.json``'s ``autopilot`` section,
 :mod:`scenarios.autopilot_summary`). A stalled autopilot fails the run and says so.
 
+A flight that ends early (ground impact, stall of the aircraft, an autopilot that stopped
+sending controls) is scored as far as it flew: events that had not begun are listed in
+``events_not_reached``, events it cut short are scored up to its end and carry
+``"clipped": true`` with their ``planned_end_s``. Whatever fails a run besides its criteria
+(the early end, a stalled autopilot, a denial step the autopilot did not acknowledge) is one
+sentence in ``failures`` (present only when there is one) and ``passed`` is false.
+
 The flight and the fusion are the pipeline's (:mod:`hil.pipeline`); this module turns a
 :class:`~scenarios.schema.Scenario` into its :class:`~hil.pipeline.SimSetup` and filter, scores
 the run with the one scorer (:func:`scenarios.summary.score_run`) and writes the run folder.
@@ -101,15 +108,29 @@ def simulate(scenario: Scenario, sink: Callable[[int, bytes], None], *,
     return fly(sim_setup(scenario), sink, progress=progress)
 
 
-def event_windows(scenario: Scenario, end_s: float) -> list[dict[str, Any]]:
-    """The scenario's timeline as scored windows ``{type, kind, start_s, end_s}``."""
+def event_windows(scenario: Scenario, end_s: float, *,
+                  ended_early: bool = False) -> list[dict[str, Any]]:
+    """The scenario's timeline as scored windows ``{type, kind, start_s, end_s}``, cut at
+    ``end_s`` (the end of the scored data).
+
+    ``ended_early``: the flight ended before the scenario did; an event that had not begun by
+    ``end_s`` is then ``{type, kind, start_s, planned_end_s, not_reached: True}`` (nothing to
+    score), one it cut short carries ``clipped: True`` and its ``planned_end_s``.
+    """
     rows = []
     for ev in scenario.fault_events():
         type_name = event_type_name(ev)
         start = float(ev.start_s)
-        stop = end_s if ev.duration_s is None else min(end_s, start + float(ev.duration_s))
-        rows.append({"type": type_name, "kind": _SCORED_EVENT_KINDS.get(type_name, "generic"),
-                     "start_s": start, "end_s": stop})
+        planned = (float(scenario.duration_s) if ev.duration_s is None
+                   else start + float(ev.duration_s))
+        row: dict[str, Any] = {"type": type_name,
+                               "kind": _SCORED_EVENT_KINDS.get(type_name, "generic"),
+                               "start_s": start, "end_s": min(end_s, planned)}
+        if ended_early and start >= end_s:
+            row = {**row, "end_s": None, "planned_end_s": planned, "not_reached": True}
+        elif ended_early and planned > end_s:
+            row.update(clipped=True, planned_end_s=planned)
+        rows.append(row)
     return rows
 
 
@@ -125,25 +146,34 @@ def score(
     health_extra: dict[str, Any] | None = None,
     reports: bool = True,
     autopilot: AutopilotRun | None = None,
+    failures: list[str] | None = None,
 ) -> tuple[dict[str, Any], list[Path]]:
     """Build ``summary.json`` (+ JUnit XML, plots and HTML when ``reports``) in ``out_dir``;
-    with ``autopilot``, its estimate scored beside hilnav's (the ``autopilot`` section)."""
+    with ``autopilot``, its estimate scored beside hilnav's (the ``autopilot`` section).
+    ``failures``: sentences on why the run failed besides its criteria; given, the flight
+    ended early (its events are cut as :func:`event_windows` says) and the run failed."""
     col = run.collector
     assert col is not None
     end_s = col.end_s()
     info = RunInfo(scenario=scenario.name, seed=scenario.seed, sim_duration_s=sim_duration_s,
                    wall_s=wall_s, bridge=bridge, altitude=altitude,
                    setup=scenario.setup_record())
-    events = event_windows(scenario, end_s)
+    failures = list(failures or [])
+    timeline = event_windows(scenario, end_s, ended_early=bool(failures))
+    events = [e for e in timeline if not e.get("not_reached")]
     scored: Scored = score_run(run, info, criteria=scenario.criteria(), events=events,
                                health_extra=health_extra, with_series=True, settle_s=SETTLE_S)
     summary = scored.summary
+    _mark_cut_events(summary, timeline)
     side: ScoredAutopilot | None = None
     if autopilot is not None:
         side = autopilot.score(scored, events)
+        _mark_cut_events(side.section, timeline)
         summary["autopilot"] = side.section
-        if autopilot.failed:
-            summary["passed"] = False  # a stalled or absent autopilot fails the run
+        failures += autopilot.failures()
+    if failures:
+        summary["failures"] = failures
+        summary["passed"] = False
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [out_dir / "summary.json"]
     write_summary(summary, files[0])
@@ -168,6 +198,22 @@ def score(
         write_html(summary, plots, html)
         files += [junit, *plots, html]
     return summary, files
+
+
+def _mark_cut_events(summary: dict[str, Any], timeline: list[dict[str, Any]]) -> None:
+    """Mark the scored events a flight cut short, and list those it never reached (only a
+    flight that ended early has either: a complete run's summary is left as it is)."""
+    rows = summary.get("events")
+    if rows is None:
+        return
+    scored = [e for e in timeline if not e.get("not_reached")]
+    for row, event in zip(rows, scored, strict=True):
+        if event.get("clipped"):
+            row.update(clipped=True, planned_end_s=event["planned_end_s"])
+    missed = [{k: e[k] for k in ("type", "kind", "start_s", "planned_end_s")}
+              for e in timeline if e.get("not_reached")]
+    if missed:
+        summary["events_not_reached"] = missed
 
 
 def run_scenario(
@@ -214,18 +260,18 @@ def run_scenario(
         "fault_log": [plain_dict(e) for e in flown.fault_log],
         "fusion_us_per_sample": fusion.fusion_us_per_sample,
     }
+    early: list[str] = []
     if flown.ended is not None:
         extra["flight_ended"] = str(flown.ended)
+        # a crash is a failed run whatever the criteria say
+        early.append(f"the flight ended early: {flown.ended}")
     if ap_run is not None:
         ap_run.check_scorable(fusion)
+        early += ap_run.early_end()
     summary, files = score(
         scenario, fusion, out_dir, bridge=bridge, altitude=altitude,
         sim_duration_s=flown.sim_duration_s, wall_s=wall, health_extra=extra,
-        reports=reports, autopilot=ap_run)
-    if flown.ended is not None:
-        # a crash is a failed run whatever the criteria say
-        summary["passed"] = False
-        write_summary(summary, files[0])
+        reports=reports, autopilot=ap_run, failures=early)
     if tlog:
         files.insert(1, log_path)
     return RunResult(summary, out_dir, files)
@@ -262,6 +308,10 @@ class AutopilotRun:
             except ValueError as exc:
                 close_backend(backend)
                 raise ValueError(f"autopilot telemetry {ap.telemetry}: {exc}") from None
+            watch_armed = getattr(backend, "watch_armed", None)
+            if callable(watch_armed):  # a backend that cannot see the armed flag itself
+                recorder = telemetry
+                watch_armed(lambda: recorder.armed)
         return cls(scenario, backend, telemetry)
 
     def fly(self, sink: FrameSink, progress: ProgressFn | None = None) -> Flown:
@@ -289,10 +339,22 @@ class AutopilotRun:
         return Flown(flown.sim_duration_s, flown.wall_s, flown.frames, flown.ended,
                      flown.fault_log, flown.fault_counters)
 
-    @property
-    def failed(self) -> bool:
-        """The autopilot stalled (stopped sending controls) or never connected."""
-        return self.flown is None or not self.flown.connected or self.flown.stalled is not None
+    def early_end(self) -> list[str]:
+        """Why the flight with the autopilot ended before the scenario did (its stall, a stop
+        asked for), as sentences; empty when it flew to the end."""
+        flown = self.flown
+        if flown is None or not flown.connected:
+            return ["the autopilot never flew"]
+        if flown.stalled is not None:
+            return [flown.stalled]
+        if flown.stopped:
+            return [f"the run was stopped at {flown.sim_duration_s:.2f} s"]
+        return []
+
+    def failures(self) -> list[str]:
+        """What the backend could not do for the scenario (:attr:`AutopilotFlown.problems`:
+        a denial step the autopilot did not acknowledge)."""
+        return [] if self.flown is None else list(self.flown.problems)
 
     def check_scorable(self, fusion: FusionRun) -> None:
         """AutopilotAbsent when a stall left hilnav nothing to score."""

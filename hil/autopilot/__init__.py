@@ -3,6 +3,8 @@ our JSBSim aircraft through its actuator commands.
 
 * :mod:`hil.autopilot.backend`: what a protocol backend provides (:class:`AutopilotBackend`)
   and the one lockstep loop every backend runs in (:func:`fly_with_autopilot`).
+* :mod:`hil.autopilot.arming`: :class:`~hil.autopilot.arming.TrimHold`, the trim flown
+  until the autopilot is armed (every backend).
 * :mod:`hil.autopilot.actuators`: :class:`~hil.autopilot.actuators.ActuatorMap`, PX4's
   HIL_ACTUATOR_CONTROLS channels -> the aircraft's controls (YAML per airframe).
 * :mod:`hil.autopilot.px4`: :class:`~hil.autopilot.px4.Px4Backend`, the simulator side of
@@ -17,7 +19,7 @@ our JSBSim aircraft through its actuator commands.
   :mod:`hil.autopilot.sim_params` (the scenario's denial as SIM_* parameters over MAVLink).
 """
 
-from hil.autopilot.backend import AutopilotBackend, AutopilotFlown, fly_with_autopilot
+from hil.autopilot.backend import AutopilotBackend, AutopilotFlown, DenialStep, fly_with_autopilot
 from hil.autopilot.factory import AUTOPILOT_KINDS, BackendSettings, close_backend, make_backend
 
 __all__ = [
@@ -25,6 +27,7 @@ __all__ = [
     "AutopilotBackend",
     "AutopilotFlown",
     "BackendSettings",
+    "DenialStep",
     "close_backend",
     "fly_with_autopilot",
     "make_backend",

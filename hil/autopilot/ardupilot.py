@@ -12,13 +12,24 @@ UDP server of that exchange; :func:`hil.autopilot.fly_with_autopilot` runs it in
   again (``repeated_frames``). A frame count going backwards means ArduPilot restarted: it is
   reported once per restart (``restarts``, :attr:`ArduPilotBackend.warnings`) and flown on
   (the aircraft cannot be put back; ArduPilot's clock simply resumes at our timestamp).
+* trim hold: a booting or disarmed ArduPlane sits in MANUAL with neutral surfaces and its
+  throttle at the minimum, which a trimmed aircraft in the air does not survive; its outputs are
+  flown only once it reports itself armed (:class:`hil.autopilot.arming.TrimHold`, as for
+  PX4). The armed flag is read from the HEARTBEATs on its MAVLink port (``mavlink_url``) and
+  from its telemetry when the run records it (:meth:`ArduPilotBackend.watch_armed`); with
+  neither the backend cannot see it and flies the outputs from the first packet
+  (``trim_released_s`` None, ``disarmed_controls`` 0).
+  :attr:`ArduPilotBackend.trim_released_s` is the simulated time the hold ended.
 * ``send``: the state line of the step (its IMU sample and the latest pitot airspeed as our
   fusion gets them, so IMU and pitot faults reach ArduPilot too); parameter changes due by its
   simulated time go out on ArduPilot's MAVLink port (``mavlink_url``;
   :mod:`hil.autopilot.sim_params`) for what ArduPilot simulates itself (GPS, barometer).
 
 Bad input (counted in :meth:`counters`, never fatal): an unknown magic (``bad_magic``) or a
-known magic with the wrong length (``bad_size``) is ignored; an undriven mapped output (PWM 0)
+known magic with the wrong length (``bad_size``) is ignored; a physics rate (SIM_RATE_HZ)
+unlike ours is one warning, once ArduPilot has asked for the same rate for
+``RATE_SETTLED_PACKETS`` packets (its rate changes while it boots) or, failing that, at the end
+with the last rate asked for; an undriven mapped output (PWM 0)
 holds its control, PWM outside the servo's range is clipped (``pwm_undriven``,
 ``pwm_clipped``); MAVLink bytes on the JSON port (``wrong_protocol``) put one line naming what
 was expected into :attr:`ArduPilotBackend.warnings` (and ``warn``).
@@ -35,7 +46,10 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Sequence
+from typing import Final
 
+from hil.autopilot.arming import TrimHold
+from hil.autopilot.backend import DenialStep
 from hil.autopilot.servos import ServoMap
 from hil.autopilot.sim_params import SimParamSender
 from hil.autopilot.sitl_json import (
@@ -52,9 +66,11 @@ from physconst.airdata import calibrated_airspeed_mps
 from sim.faults.ardupilot import ardupilot_param_schedule, ardupilot_unmapped
 from sim.samples import AirspeedSample, ImuSample
 
-__all__ = ["DEFAULT_URL", "ArduPilotBackend", "parse_json_url"]
+__all__ = ["DEFAULT_URL", "RATE_SETTLED_PACKETS", "ArduPilotBackend", "parse_json_url"]
 
 DEFAULT_URL = "udpin:127.0.0.1:9002"
+RATE_SETTLED_PACKETS: Final = 200
+"""Packets asking for the same physics rate after which ArduPilot's rate counts as settled."""
 _EXPECTED = (
     f"expected ArduPilot SITL JSON servo packets (magic {SERVO_MAGIC_16} / {SERVO_MAGIC_32}, "
     f"{PACKET_SIZES[SERVO_MAGIC_16]} / {PACKET_SIZES[SERVO_MAGIC_32]} bytes; start SITL with "
@@ -94,6 +110,8 @@ class ArduPilotBackend:
         The origin of the JSON position (ArduPilot's ``--home``).
     warn : callable, optional
         Called with each warning line as it happens.
+    hold_trim_disarmed : bool
+        Fly the trim until ArduPilot reports itself armed (see the module docstring).
     """
 
     name = "ArduPilot"
@@ -107,6 +125,7 @@ class ArduPilotBackend:
         mavlink_url: str | None = None,
         origin: JsonOrigin | None = None,
         warn: Callable[[str], None] | None = None,
+        hold_trim_disarmed: bool = True,
     ) -> None:
         host, port = parse_json_url(url)
         self.url = url
@@ -142,6 +161,15 @@ class ArduPilotBackend:
         self.frame_rate_hz: int | None = None
         self._airspeed_mps: float | None = None  # of the latest pitot sample (held between)
         self._rate_hz = None if setup is None else setup.flight.rate_hz
+        self._rate_run = 0  # packets in a row asking for frame_rate_hz
+        self._rate_warned = False
+        self.trim_hold = TrimHold(enabled=hold_trim_disarmed)
+        self._armed_sources: list[Callable[[], bool | None]] = []
+        if self._params is not None:
+            params = self._params
+            self._armed_sources.append(lambda: params.armed)
+        self._time_us = 0  # of the latest step sent
+        self._params_finished = False
 
     # -- setup --
     def _param_sender(self, setup: SimSetup, mavlink_url: str | None) -> SimParamSender | None:
@@ -179,7 +207,46 @@ class ArduPilotBackend:
         """The MAVLink parameter sender (None without a setup)."""
         return self._params
 
+    def watch_armed(self, source: Callable[[], bool | None]) -> None:
+        """Also read ArduPilot's armed flag from ``source`` (e.g. its telemetry's HEARTBEAT:
+        :attr:`hil.autopilot.telemetry.AutopilotTelemetry.armed`; None: not heard yet)."""
+        self._armed_sources.append(source)
+
+    def armed(self) -> bool | None:
+        """Whether ArduPilot reports itself armed (False while booting: not yet heard);
+        None when nothing shows its armed state."""
+        if not self._armed_sources:
+            return None
+        return any(source() for source in self._armed_sources)
+
+    @property
+    def trim_released_s(self) -> float | None:
+        """Simulated time (s) ArduPilot first reported itself armed (the trim hold ended)."""
+        return self.trim_hold.released_s
+
+    def problems(self) -> list[str]:
+        """What did not reach ArduPilot (its denial parameters; :mod:`hil.autopilot.sim_params`),
+        asked once the flight is over (it waits briefly for the acknowledgements owed)."""
+        if self._params is None:
+            return []
+        self._finish_params()
+        return self._params.problems()
+
+    def denial(self) -> list[DenialStep]:
+        """Each SIM_* change of the scenario's denial and its outcome (none without a MAVLink
+        port: then ArduPilot's own sensors were never denied)."""
+        if self._params is None:
+            return []
+        self._finish_params()
+        return self._params.steps()
+
+    def _finish_params(self) -> None:
+        if self._params is not None and not self._params_finished:
+            self._params_finished = True
+            self._params.finish()
+
     def close(self) -> None:
+        self._warn_rate()
         self._sel.close()
         self._sock.close()
         if self._params is not None:
@@ -217,7 +284,7 @@ class ArduPilotBackend:
         servo = self.servo_map.controls(packet.pwm_us)
         self._counts["pwm_clipped"] += servo.clipped
         self._counts["pwm_undriven"] += servo.undriven
-        return servo.controls
+        return self.trim_hold.apply(servo.controls, self.armed(), self._time_us)
 
     def send(self, step: SimStep) -> None:
         imu: ImuSample | None = None
@@ -228,6 +295,7 @@ class ArduPilotBackend:
                 self._airspeed_mps = calibrated_airspeed_mps(sample.diff_pressure_pa)
         line = json_state_line(step.truth, self.origin, imu=imu, airspeed_mps=self._airspeed_mps)
         self._last_line = line
+        self._time_us = step.truth.time_us
         self._counts["steps_answered"] += 1
         self._send(line)
         if self._params is not None:
@@ -235,9 +303,20 @@ class ArduPilotBackend:
 
     def counters(self) -> dict[str, int]:
         out = dict(self._counts)
+        out["disarmed_controls"] = self.trim_hold.held
         if self._params is not None:
             out.update(self._params.counters())
         return out
+
+    def _warn_rate(self) -> None:
+        """One warning when ArduPilot's physics rate is not ours (see the module docstring)."""
+        rate = self.frame_rate_hz
+        if self._rate_warned or rate is None or self._rate_hz is None \
+                or rate == round(self._rate_hz):
+            return
+        self._rate_warned = True
+        self._warn(f"ArduPilot asks for {rate} Hz physics (SIM_RATE_HZ); hilnav steps at "
+                   f"{self._rate_hz:g} Hz: set SIM_RATE_HZ {self._rate_hz:g}")
 
     # -- the socket --
     def _send(self, line: bytes) -> None:
@@ -280,10 +359,10 @@ class ArduPilotBackend:
         self._peer = address
         if self.frame_rate_hz != parsed.frame_rate_hz:
             self.frame_rate_hz = parsed.frame_rate_hz
-            if self._rate_hz is not None and parsed.frame_rate_hz != round(self._rate_hz):
-                self._warn(f"ArduPilot asks for {parsed.frame_rate_hz} Hz physics "
-                           f"(SIM_RATE_HZ); hilnav steps at {self._rate_hz:g} Hz: set "
-                           f"SIM_RATE_HZ {self._rate_hz:g}")
+            self._rate_run = 0
+        self._rate_run += 1
+        if self._rate_run >= RATE_SETTLED_PACKETS:
+            self._warn_rate()
         last = self._frame_count
         if last is not None and parsed.frame_count == last:
             c["repeated_frames"] += 1

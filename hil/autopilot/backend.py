@@ -35,7 +35,7 @@ from hil.pipeline import FrameSink, ProgressFn, SimChain, SimSetup, SimStep
 from sim.faults import FaultLogEntry
 from sim.flight import FlightEnded
 
-__all__ = ["AutopilotBackend", "AutopilotFlown", "fly_with_autopilot"]
+__all__ = ["AutopilotBackend", "AutopilotFlown", "DenialStep", "fly_with_autopilot"]
 
 
 class AutopilotBackend(Protocol):
@@ -63,12 +63,36 @@ class AutopilotBackend(Protocol):
 
 
 @dataclass(frozen=True)
+class DenialStep:
+    """One step of a denial the autopilot simulates itself (a parameter it was asked to set at
+    ``time_s`` of simulated time) and what became of it: ``status`` is ``"acknowledged"``
+    (its PARAM_VALUE said so), ``"rejected"`` (it answered another value),
+    ``"unacknowledged"`` (sent, no answer in time), ``"not sent"`` (the link did not take it
+    in time) or ``"not due"`` (the flight ended before ``time_s``)."""
+
+    time_s: float
+    name: str
+    value: float
+    status: str
+
+    @property
+    def took(self) -> bool:
+        """The autopilot applied this step."""
+        return self.status == "acknowledged"
+
+
+@dataclass(frozen=True)
 class AutopilotFlown:
     """What a flight with an autopilot in the loop produced besides its frames.
 
     ``stalled``: the autopilot stopped sending controls (a sentence with the simulated time),
     else None. ``ended``: a stall / ground contact of the aircraft (the flight's own end).
     ``clipped_controls``: control values out of range (clipped) or not finite (ignored).
+    ``trim_released_s``: simulated time the autopilot first reported itself armed, ending the
+    trim hold (:mod:`hil.autopilot.arming`); None when it never did or its backend cannot see
+    it. ``problems``: sentences on what the backend could not do for the scenario (a GNSS
+    denial the autopilot did not acknowledge, naming the parameter and the link); a run with
+    problems has failed.
     """
 
     autopilot: str
@@ -85,6 +109,12 @@ class AutopilotFlown:
     fault_log: list[FaultLogEntry] = field(default_factory=list)
     """The fault injector's event starts and ends (as :attr:`hil.pipeline.Flown.fault_log`)."""
     fault_counters: dict[str, int] = field(default_factory=dict)
+    trim_released_s: float | None = None
+    problems: tuple[str, ...] = ()
+    denial: tuple[DenialStep, ...] | None = None
+    """Each step of the scenario's denial the autopilot simulates itself (ArduPilot's SIM_*
+    parameters) and whether it took it; None when the denial is in the sensor stream it is
+    sent (PX4), which always reaches it."""
 
     @property
     def realtime_factor(self) -> float:
@@ -127,7 +157,8 @@ def fly_with_autopilot(
         connected = backend.wait_connected(connect_timeout_s, stop)
         if not connected:
             return AutopilotFlown(backend.name, False, 0.0, time.monotonic() - wall0, 0, 0, None,
-                                  None, stop.is_set(), 0, backend.counters())
+                                  None, stop.is_set(), 0, backend.counters(),
+                                  problems=_problems(backend), denial=_denial(backend))
         wall0 = time.monotonic()
         t0_us = chain.start_us
         next_progress_us = t0_us
@@ -172,8 +203,24 @@ def fly_with_autopilot(
             backend.name, True, chain.sim_duration_s, time.monotonic() - wall0, steps, frames,
             chain.ended, stalled, stop.is_set(), clipped, backend.counters(),
             list(chain.fault_log), chain.fault_counters,
+            trim_released_s=getattr(backend, "trim_released_s", None),
+            problems=_problems(backend), denial=_denial(backend),
         )
     raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _problems(backend: AutopilotBackend) -> tuple[str, ...]:
+    """The backend's ``problems()`` (optional in the protocol: a backend without one has
+    none), asked once the flight is over."""
+    problems = getattr(backend, "problems", None)
+    return tuple(problems()) if callable(problems) else ()
+
+
+def _denial(backend: AutopilotBackend) -> tuple[DenialStep, ...] | None:
+    """The backend's ``denial()`` (optional: None, the denial is in the sensor stream)."""
+    denial = getattr(backend, "denial", None)
+    steps = denial() if callable(denial) else None
+    return None if steps is None else tuple(steps)
 
 
 def _stall_sentence(name: str, timeout_s: float, elapsed_us: int) -> str:

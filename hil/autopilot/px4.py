@@ -29,8 +29,10 @@ The lockstep exchange (``fly_with_autopilot(speed=None)``)
     controls are flown each step.
 
     While PX4 reports itself disarmed its controls are all zero; since our aircraft starts in
-    the air, the backend then holds the trim (``hold_trim_disarmed``, counted in
-    ``disarmed_controls``) until PX4 is armed.
+    the air, the backend then holds the trim (:class:`hil.autopilot.arming.TrimHold`,
+    ``hold_trim_disarmed``, counted in ``disarmed_controls``) until PX4 is armed (the
+    ``mode`` of its HIL_ACTUATOR_CONTROLS); :attr:`Px4Backend.trim_released_s` is the simulated
+    time it first was.
 
 Reconnects and bad input
     A PX4 that restarts connects again: the new connection replaces the old one (counted in
@@ -50,6 +52,7 @@ from collections.abc import Sequence
 from typing import Any, Final
 
 from hil.autopilot.actuators import ActuatorMap
+from hil.autopilot.arming import TrimHold
 from hil.codec import SENSOR_COMPONENT_ID, SIM_SYSTEM_ID, mavlink2
 from hil.codec.wire import frame_msg_id
 from hil.link import LinkRole, MavlinkLink
@@ -110,7 +113,7 @@ class Px4Backend:
     def __init__(self, url: str = DEFAULT_PX4_URL, *, actuator_map: ActuatorMap | None = None,
                  signer: Signer | None = None, hold_trim_disarmed: bool = True) -> None:
         self.actuator_map = actuator_map or ActuatorMap.default()
-        self.hold_trim_disarmed = hold_trim_disarmed
+        self.trim_hold = TrimHold(enabled=hold_trim_disarmed)
         role = LinkRole(
             system_id=SIM_SYSTEM_ID, component_id=SENSOR_COMPONENT_ID,
             mav_type=mavlink2.MAV_TYPE_GENERIC, autopilot=mavlink2.MAV_AUTOPILOT_INVALID,
@@ -189,10 +192,16 @@ class Px4Backend:
         """Protocol counters and the link's (bytes, frames, drops, connections)."""
         link = self.link.counters()
         out = dict(self._c)
+        out["disarmed_controls"] = self.trim_hold.held
         for key in ("bytes_received", "bytes_sent", "garbage_bytes", "dropped", "accepted",
                     "sent", "connects", "disconnects", "tx_buffer_full"):
             out[f"link_{key}"] = link[key]
         return out
+
+    @property
+    def trim_released_s(self) -> float | None:
+        """Simulated time (s) PX4 first reported itself armed (the trim hold ended)."""
+        return self.trim_hold.released_s
 
     # -- lifetime --
     def close(self) -> None:
@@ -276,7 +285,6 @@ class Px4Backend:
         raw = [float(x) for x in msg.controls]
         bad = sum(1 for x in raw if not math.isfinite(x))
         self._c["nonfinite_channels"] += bad
-        if self.hold_trim_disarmed and not int(msg.mode) & _ARMED:
-            self._c["disarmed_controls"] += 1
-            return []
-        return self.actuator_map.apply(raw)
+        armed = bool(int(msg.mode) & _ARMED)
+        return list(self.trim_hold.apply(self.actuator_map.apply(raw), armed,
+                                         self._last_step_us or 0))

@@ -15,7 +15,24 @@ owned by one background thread, as a ground station: system 255, component 190) 
 
 Once the autopilot's heartbeat is heard, the recorder asks for the messages it needs at
 ``rate_hz`` (MAV_CMD_SET_MESSAGE_INTERVAL, which PX4 and ArduPilot both honour) and counts the
-acknowledgements.
+acknowledgements. It asks each autopilot only for what it has: the estimator status is
+ESTIMATOR_STATUS from PX4 (PX4 does not stream EKF_STATUS_REPORT and refuses it) and
+EKF_STATUS_REPORT from ArduPilot; another autopilot is asked for neither.
+
+Before the autopilot has a position
+    A booting ArduPilot sends GLOBAL_POSITION_INT at lat/lon 0/0 (and -1000 m) until its EKF
+    has an origin. Position reports are dropped (``positions_before_fix``) until the first
+    one that is not exactly 0/0 while the latest estimator status (when one was heard) says
+    the absolute horizontal position is valid (``POS_HORIZ_ABS``); from then on every report
+    is kept, outages included. :attr:`AutopilotTelemetry.estimate_from_s` is that first time:
+    the autopilot's estimate is scored from there.
+
+STATUSTEXT
+    A text longer than one message (50 characters) arrives in chunks (MAVLink 2 ``id`` != 0,
+    ``chunk_seq`` 0, 1, ...): the chunks are joined by ``id``; a chunk shorter than 50
+    characters (or NUL-terminated) ends the text; a text whose end never comes is kept as it
+    stands once ``TEXT_CHUNK_TIMEOUT_S`` of autopilot time passed, or when the recording is
+    read.
 
 Time axis
     Every report is stamped with the autopilot's ``time_boot_ms`` (ESTIMATOR_STATUS with its
@@ -31,6 +48,8 @@ Time axis
     of ``time_boot_ms``. This does not hold for an autopilot that is not in lockstep (HITL on
     its own crystal; ArduPilot after a physics reset, when the timestamp went backwards):
     give ``time_offset_us`` there, or score the estimate knowing its clock drifts.
+    Times are kept in integer microseconds and reported in seconds as ``time_us / 1e6`` (the
+    nearest float to the autopilot's millisecond, never 2.2159999999999997 for 2216 ms).
 """
 
 from __future__ import annotations
@@ -68,13 +87,17 @@ _HB: Final = int(mavlink2.MAVLINK_MSG_ID_HEARTBEAT)
 
 TELEMETRY_MSG_IDS: Final = frozenset({_GPI, _ATT, _LPN, _EST, _EKF, _TXT, _ACK})
 """What the recorder accepts besides HEARTBEAT."""
-#: Messages asked for at ``rate_hz`` (the estimator status of both autopilots included: each
-#: refuses the other's message, which is counted, not an error).
-_REQUESTED: Final = (_GPI, _ATT, _LPN, _EST, _EKF)
+#: Messages asked for at ``rate_hz``: the estimate, and the estimator status each autopilot has.
+_REQUESTED: Final = (_GPI, _ATT, _LPN)
+_STATUS_OF: Final = {int(mavlink2.MAV_AUTOPILOT_PX4): _EST,
+                     int(mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA): _EKF}
 _ARMED: Final = int(mavlink2.MAV_MODE_FLAG_SAFETY_ARMED)
 #: ESTIMATOR_STATUS_FLAGS / EKF_STATUS_FLAGS bit of a valid absolute horizontal position.
 POS_HORIZ_ABS: Final = int(mavlink2.ESTIMATOR_POS_HORIZ_ABS)
 _MAX_TEXTS: Final = 1000
+_TEXT_CHUNK: Final = 50  # characters of one STATUSTEXT
+TEXT_CHUNK_TIMEOUT_S: Final = 2.0
+"""Autopilot seconds after which an incomplete chunked STATUSTEXT is kept as it stands."""
 _SEVERITY_WARNING: Final = int(mavlink2.MAV_SEVERITY_WARNING)
 
 
@@ -146,13 +169,17 @@ class AutopilotTelemetry:
         self._locals: list[LocalPositionReport] = []
         self._status: list[_Status] = []
         self._texts: list[dict[str, Any]] = []
+        self._chunks: dict[int, tuple[int, int, list[str]]] = {}  # id: (time_us, severity, parts)
+        self._armed: bool | None = None
+        self._position_from_us: int | None = None
         self._modes: list[dict[str, Any]] = []
         self._autopilot: tuple[int, int] | None = None
         self._autopilot_kind: int | None = None
         self._last_time_us = 0
         self._requested = False
         self._count: dict[str, int] = dict.fromkeys(
-            ("position_reports", "attitude_reports", "local_position_reports",
+            ("position_reports", "positions_before_fix", "attitude_reports",
+             "local_position_reports",
              "rejected_reports", "out_of_order", "heartbeats", "statustexts",
              "statustexts_dropped", "estimator_status", "ekf_status", "interval_requests",
              "interval_acks_ok", "interval_acks_refused"), 0)
@@ -210,7 +237,7 @@ class AutopilotTelemetry:
             if msg_id == _HB:
                 self._on_heartbeat(msg, source)
             elif msg_id == _GPI:
-                self._add(decode_global_position_int(msg), self._positions, "position_reports")
+                self._on_position(msg)
             elif msg_id == _ATT:
                 self._add(decode_attitude(msg), self._attitudes, "attitude_reports")
             elif msg_id == _LPN:
@@ -227,6 +254,23 @@ class AutopilotTelemetry:
 
     def _stamp(self, time_us: int) -> int:
         return time_us + self.time_offset_us
+
+    def _seconds(self, time_us: int) -> float:
+        """Autopilot time (us) -> simulated seconds, as exact as the float allows."""
+        return self._stamp(time_us) / 1e6
+
+    def _on_position(self, msg: Any) -> None:
+        if self._position_from_us is None:
+            no_origin = int(msg.lat) == 0 and int(msg.lon) == 0
+            no_position = bool(self._status) and not self._status[-1].flags & POS_HORIZ_ABS
+            if no_origin or no_position:
+                self._count["positions_before_fix"] += 1
+                self._last_time_us = max(self._last_time_us, int(msg.time_boot_ms) * 1000)
+                return
+        report = decode_global_position_int(msg)
+        if report is not None and self._position_from_us is None:
+            self._position_from_us = report.time_us
+        self._add(report, self._positions, "position_reports")
 
     def _add(self, report: Any, into: list[Any], counter: str) -> None:
         if report is None:
@@ -248,11 +292,12 @@ class AutopilotTelemetry:
         if source != self._autopilot:
             return
         self._count["heartbeats"] += 1
-        state = {"custom_mode": int(msg.custom_mode),
-                 "armed": bool(int(msg.base_mode) & _ARMED),
+        armed = bool(int(msg.base_mode) & _ARMED)
+        self._armed = armed
+        state = {"custom_mode": int(msg.custom_mode), "armed": armed,
                  "system_status": int(msg.system_status)}
         if not self._modes or {k: self._modes[-1][k] for k in state} != state:
-            self._modes.append({"time_s": self._stamp(self._last_time_us) * 1e-6, **state})
+            self._modes.append({"time_s": self._seconds(self._last_time_us), **state})
 
     def _on_estimator_status(self, msg: Any) -> None:
         t = int(msg.time_usec)
@@ -275,13 +320,42 @@ class AutopilotTelemetry:
 
     def _on_text(self, msg: Any) -> None:
         self._count["statustexts"] += 1
+        raw = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode(
+            "utf-8", "replace")
+        text = raw.split("\x00", 1)[0]
+        ends = len(text) < _TEXT_CHUNK or "\x00" in raw
+        text_id = int(getattr(msg, "id", 0) or 0)
+        now = self._last_time_us
+        self._flush_chunks(now - round(TEXT_CHUNK_TIMEOUT_S * 1e6))
+        if text_id == 0:
+            self._keep_text(now, int(msg.severity), text)
+            return
+        t0, severity, parts = self._chunks.get(text_id, (now, int(msg.severity), []))
+        seq = int(getattr(msg, "chunk_seq", 0) or 0)
+        if seq != len(parts):  # a lost or repeated chunk: keep what came, start again
+            if parts:
+                self._keep_text(t0, severity, "".join(parts))
+            t0, severity, parts = now, int(msg.severity), []
+        parts.append(text)
+        if ends:
+            self._chunks.pop(text_id, None)
+            self._keep_text(t0, severity, "".join(parts))
+        else:
+            self._chunks[text_id] = (t0, severity, parts)
+
+    def _flush_chunks(self, before_us: int) -> None:
+        """Keep the incomplete chunked texts begun before ``before_us`` as they stand."""
+        for text_id, (t0, severity, parts) in list(self._chunks.items()):
+            if t0 <= before_us:
+                del self._chunks[text_id]
+                self._keep_text(t0, severity, "".join(parts))
+
+    def _keep_text(self, time_us: int, severity: int, text: str) -> None:
         if len(self._texts) >= _MAX_TEXTS:
             self._count["statustexts_dropped"] += 1
             return
-        text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode(
-            "utf-8", "replace")
-        self._texts.append({"time_s": self._stamp(self._last_time_us) * 1e-6,
-                            "severity": int(msg.severity), "text": text.rstrip("\x00")})
+        self._texts.append({"time_s": self._seconds(time_us), "severity": severity,
+                            "text": text})
 
     def _on_ack(self, msg: Any) -> None:
         if int(msg.command) != int(mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL):
@@ -293,7 +367,8 @@ class AutopilotTelemetry:
         assert self._autopilot is not None and self.rate_hz is not None
         target_sys, target_comp = self._autopilot
         interval_us = 1e6 / self.rate_hz
-        for msg_id in _REQUESTED:
+        status = _STATUS_OF.get(self._autopilot_kind or 0)
+        for msg_id in _REQUESTED if status is None else (*_REQUESTED, status):
             cmd = mavlink2.MAVLink_command_long_message(
                 target_sys, target_comp, int(mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL), 0,
                 float(msg_id), interval_us, 0, 0, 0, 0, 0)
@@ -302,6 +377,20 @@ class AutopilotTelemetry:
         self._requested = True
 
     # -- results --
+    @property
+    def armed(self) -> bool | None:
+        """The armed flag of the autopilot's latest HEARTBEAT (None: none heard yet)."""
+        with self._lock:
+            return self._armed
+
+    @property
+    def estimate_from_s(self) -> float | None:
+        """Simulated time of the first position report kept (the autopilot had a position
+        from then on); None before one."""
+        with self._lock:
+            t = self._position_from_us
+        return None if t is None else self._seconds(t)
+
     @property
     def connected(self) -> bool:
         """Whether the autopilot's heartbeat was heard."""
@@ -352,7 +441,7 @@ class AutopilotTelemetry:
         euler[:, 2] = (euler[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
         kept = [r for r, k in zip(pos, keep, strict=True) if k]
         return Track(
-            time_s=(t + self.time_offset_us) * 1e-6,
+            time_s=(t + self.time_offset_us) / 1e6,
             lat_rad=np.array([r.lat_rad for r in kept]),
             lon_rad=np.array([r.lon_rad for r in kept]),
             alt_m=np.array([r.alt_msl_m for r in kept]),
@@ -367,6 +456,7 @@ class AutopilotTelemetry:
         absolute horizontal position was declared lost / regained, the largest test ratios
         or variances and accuracies)."""
         with self._lock:
+            self._flush_chunks(self._last_time_us)
             modes = [dict(m) for m in self._modes]
             texts = [dict(t) for t in self._texts]
             status = list(self._status)
@@ -378,7 +468,7 @@ class AutopilotTelemetry:
         peaks: dict[str, float] = {}
         prev: int | None = None
         for s in status:
-            t = self._stamp(s.time_us) * 1e-6
+            t = self._seconds(s.time_us)
             if s.flags != prev:
                 flags_changes.append({"time_s": t, "flags": s.flags})
                 had = prev is not None and bool(prev & POS_HORIZ_ABS)

@@ -26,6 +26,13 @@ the heading change since. It holds the start altitude and airspeed and flies the
 its plan (a bank of at most 25 degrees), through the servo outputs of a
 :class:`hil.autopilot.ServoMap` (PX4 signs: PWM above trim = roll right / nose up).
 
+Booting: for ``disarmed_s`` of its clock it is disarmed, as ArduPlane booting in MANUAL: its
+outputs are neutral (surfaces at their PWM trim, throttle at its minimum) and its HEARTBEATs
+(on its MAVLink port and its telemetry, each telemetry period) have no armed flag; then it arms
+and flies. Its GPS has no fix before ``fix_after_s`` of its clock; until its first fix its
+GLOBAL_POSITION_INT says lat/lon 0/0 at -1000 m (ArduPilot before its EKF has an origin) and
+its EKF_STATUS_REPORT has no absolute position.
+
 Its estimate goes out as telemetry on ``telemetry_url`` (a ``udpout`` MAVLink link, as SITL's
 ``--out``): GLOBAL_POSITION_INT, ATTITUDE and EKF_STATUS_REPORT at ``telemetry_hz`` of its
 clock, system 1, component 1, ArduPilot's HEARTBEAT.
@@ -51,6 +58,8 @@ from sim.faults.ardupilot import ARDUPILOT_DEFAULTS
 from sim.flight import Flight
 
 __all__ = ["ArduPilotPeer", "PeerPlan", "parse_sim_json", "trimmed_controls"]
+
+_ARMED = int(mavlink2.MAV_MODE_FLAG_SAFETY_ARMED)
 
 # SIM_JSON's key table: (section, key, number of values, required)
 _KEYS = (
@@ -178,6 +187,10 @@ class ArduPilotPeer:
         Resend the packet after this long without an answer (ArduPilot: 1 s).
     silent_after : int, optional
         Stop sending after this many answered frames (a hung autopilot), until :meth:`stop`.
+    disarmed_s : float
+        Booting disarmed for this long (its clock): neutral outputs, no armed flag.
+    fix_after_s : float
+        No GPS fix before this time (its clock); lat/lon 0/0 in its telemetry until one.
     """
 
     def __init__(
@@ -195,7 +208,13 @@ class ArduPilotPeer:
         resend_s: float = 1.0,
         telemetry_hz: float = 10.0,
         silent_after: int | None = None,
+        disarmed_s: float = 0.0,
+        fix_after_s: float = 0.0,
     ) -> None:
+        self.disarmed_s = disarmed_s
+        self.fix_after_s = fix_after_s
+        self.armed_at_s: float | None = None
+        """Its clock when it armed."""
         self._sim_address = _udp_address(sim_url) if sim_url is not None else None
         self.plan = plan or PeerPlan()
         self.home = home
@@ -223,6 +242,7 @@ class ArduPilotPeer:
         self._sock.settimeout(0.05)
         self._mav = MavlinkLink("tcpin:127.0.0.1:0", self._role()) if mavlink else None
         self._tel = MavlinkLink(telemetry_url, self._role()) if telemetry_url else None
+        self._set_armed(disarmed_s <= 0.0)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self.error: BaseException | None = None
@@ -265,6 +285,23 @@ class ArduPilotPeer:
     def __exit__(self, *exc: object) -> None:
         self.stop()
 
+    def _links(self) -> list[MavlinkLink]:
+        return [link for link in (self._mav, self._tel) if link is not None]
+
+    def _set_armed(self, armed: bool) -> None:
+        self.armed = armed
+        for link in self._links():
+            link.set_heartbeat_state(base_mode=_ARMED if armed else 0)
+
+    def _heartbeat(self) -> None:
+        """A HEARTBEAT on every link now (ArduPilot's 1 Hz of its clock, here each telemetry
+        period), so that its armed state is heard in simulated, not wall, time."""
+        msg = mavlink2.MAVLink_heartbeat_message(
+            int(mavlink2.MAV_TYPE_FIXED_WING), int(mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA),
+            _ARMED if self.armed else 0, 0, int(mavlink2.MAV_STATE_ACTIVE), 3)
+        for link in self._links():
+            link.send_message(msg)
+
     # -- the frame loop --
     def _run(self) -> None:
         try:
@@ -291,6 +328,13 @@ class ArduPilotPeer:
             frame += 1
             self.counters["frames"] = frame
             outputs = self._autopilot(state)
+            if not self.armed:
+                if state["timestamp"][0] < self.disarmed_s:
+                    outputs = [0.0, 0.0, 0.0, 0.0]  # MANUAL, disarmed: neutral, throttle min
+                else:
+                    self.armed_at_s = state["timestamp"][0]
+                    self._set_armed(True)
+                    self._heartbeat()
             if self._mav is not None and frame % 10 == 0:
                 self._serve_params()
             if self._tel is not None:
@@ -354,6 +398,8 @@ class ArduPilotPeer:
             est["hdot"] += (dt / 0.5) * ((baro_alt - est["alt"]) / dt - est["hdot"])
         est["alt"] = baro_alt
         fix = self._gps.fix(t, lat_deg, lon_deg, alt_m, (vel[0], vel[1], vel[2]))
+        if t < self.fix_after_s:
+            fix = None
         if fix is not None:
             self.counters["fixes"] += 1
             self.fix_times.append(t)
@@ -375,9 +421,11 @@ class ArduPilotPeer:
             est["next_track"] += 1.0
             self.track.append((t, est["n"], est["e"], est["alt"], est["yaw"]))
             self.truth_track.append((t, pos[0], pos[1], -pos[2] + self.home[2]))
-        if self._tel is not None and t >= est["next_tel"]:
+        if t >= est["next_tel"]:
             est["next_tel"] += self.telemetry_period_s
-            self._telemetry(t)
+            if self._tel is not None:
+                self._telemetry(t)
+            self._heartbeat()
         return self._control(dt, gyro, airspeed)
 
     def _location(self, pos: tuple[float, ...]) -> tuple[float, float, float]:
@@ -462,6 +510,9 @@ class ArduPilotPeer:
         e = self.estimate
         boot_ms = round(t * 1000.0) & 0xFFFF_FFFF
         lat, lon, _ = self._location((e["n"], e["e"], 0.0))
+        alt = e["alt"]
+        if not math.isfinite(e["last_fix"]):
+            lat, lon, alt = 0.0, 0.0, -1000.0  # no origin yet: ArduPilot says 0/0
         gps_ok = t - e["last_fix"] < 1.0
         flags = (mavlink2.EKF_ATTITUDE | mavlink2.EKF_VELOCITY_HORIZ | mavlink2.EKF_VELOCITY_VERT
                  | mavlink2.EKF_POS_VERT_ABS | mavlink2.EKF_PRED_POS_HORIZ_REL)
@@ -469,8 +520,8 @@ class ArduPilotPeer:
             flags |= mavlink2.EKF_POS_HORIZ_REL | mavlink2.EKF_POS_HORIZ_ABS
         msgs = [
             mavlink2.MAVLink_global_position_int_message(
-                boot_ms, round(lat * 1e7), round(lon * 1e7), round(e["alt"] * 1000),
-                round((e["alt"] - self.home[2]) * 1000), round(e["vn"] * 100),
+                boot_ms, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
+                round((alt - self.home[2]) * 1000), round(e["vn"] * 100),
                 round(e["ve"] * 100), round(-e["hdot"] * 100),
                 round(math.degrees(e["yaw"]) % 360 * 100)),
             mavlink2.MAVLink_attitude_message(boot_ms, e["roll"], e["pitch"], e["yaw"],

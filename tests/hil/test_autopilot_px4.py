@@ -90,6 +90,9 @@ def test_px4_flies_a_turn_through_a_gnss_outage_in_lockstep() -> None:
     assert flown.steps + 1 == c["boot_steps"] + c["controls"]
     assert flown.steps == peer.counters["sensors"] and c["controls"] == peer.counters["controls"]
     assert c["lockstep_controls"] == c["controls"] and c["disarmed_controls"] == 20
+    # the trim hold ended with PX4's first armed controls, 50 steps (boot + disarmed) in
+    assert flown.trim_released_s is not None
+    assert flown.trim_released_s == pytest.approx((peer.boot_sensors + 20) / RATE_HZ, abs=0.05)
     assert c["reconnects"] == 0 and c["link_garbage_bytes"] == 0
     # the outage reached the autopilot: no HIL_GPS valid in [50, 110) s
     assert peer.gps_times and not [t for t in peer.gps_times if 50e6 <= t < 110e6]

@@ -18,7 +18,7 @@ from hil.tracks import Track, truth_track
 from scenarios.autopilot_summary import autopilot_section
 from scenarios.metrics import Window
 from sim.samples import Truth
-from tests.helpers.autopilot_telemetry import EstimateSender
+from tests.helpers.autopilot_telemetry import LONG_TEXT_CHUNKS, EstimateSender
 
 OUTAGE = (20.0, 40.0)
 OFFSET_M = 30.0
@@ -52,7 +52,7 @@ def recorded(truths: list[Truth]) -> AutopilotTelemetry:
             if k % 50 == 0:
                 time.sleep(0.002)  # let the receiver drain: loopback UDP, not a queue
         _wait(lambda: tel.snapshot()["positions"] >= sender.sent)
-        _wait(lambda: tel.counters()["interval_acks_ok"] >= 5, 3.0)
+        _wait(lambda: tel.counters()["interval_acks_ok"] >= 4, 3.0)
     finally:
         tel.stop()
         sender.close()
@@ -66,7 +66,7 @@ def test_the_recorder_keeps_every_report_on_the_simulated_time_axis(
     assert c["position_reports"] == c["attitude_reports"] == c["estimator_status"] == 600
     assert c["rejected_reports"] == 0 and c["heartbeats"] >= 1
     # SET_MESSAGE_INTERVAL asked once per message once the heartbeat was heard, all acked
-    assert c["interval_requests"] == 5 == c["interval_acks_ok"]
+    assert c["interval_requests"] == 4 == c["interval_acks_ok"]
     track = recorded.estimate_track()
     # time_boot_ms * 1000 is the time_us of the truth each report was made from (10 Hz)
     truth_us = {t.time_us for t in truths}
@@ -104,12 +104,57 @@ def test_the_health_records_mode_failsafe_and_the_lost_position(
     h = recorded.health()
     assert h["autopilot_type"] == int(mavlink2.MAV_AUTOPILOT_PX4) and h["armed_ever"]
     assert h["modes"][0]["custom_mode"] == 4 << 16
-    assert [t["text"] for t in h["failsafes"]] == ["Failsafe enabled: no global position"]
+    assert h["failsafes"][0]["text"] == "Failsafe enabled: no global position"
     assert h["failsafes"][0]["time_s"] == pytest.approx(OUTAGE[0], abs=0.11)
     est = h["estimator"]
     assert est["pos_horiz_abs_lost_s"] == [pytest.approx(OUTAGE[0], abs=0.11)]
     assert est["pos_horiz_abs_regained_s"] == [pytest.approx(OUTAGE[1], abs=0.11)]
     assert est["max"]["pos_horiz_accuracy_m"] == pytest.approx(1.5)
+
+
+def test_px4_is_asked_only_for_what_it_streams_and_refuses_nothing(
+        recorded: AutopilotTelemetry) -> None:
+    # GIVEN a PX4 that refuses a message interval for EKF_STATUS_REPORT (it has none)
+    c = recorded.counters()
+    # THEN it was asked for its estimate and ESTIMATOR_STATUS, never for EKF_STATUS_REPORT
+    assert c["interval_requests"] == 4 == c["interval_acks_ok"]
+    assert c["interval_acks_refused"] == 0
+
+
+def test_a_chunked_statustext_is_one_text_at_an_exact_time(
+        recorded: AutopilotTelemetry) -> None:
+    # GIVEN a long STATUSTEXT in two MAVLink 2 chunks, "failsafe" split between them
+    h = recorded.health()
+    texts = [t["text"] for t in h["statustext"]]
+    # THEN it is one text, and a failsafe
+    assert "".join(LONG_TEXT_CHUNKS) in texts
+    assert not set(LONG_TEXT_CHUNKS) & set(texts)
+    assert "".join(LONG_TEXT_CHUNKS) in [t["text"] for t in h["failsafes"]]
+    # AND every time is the autopilot's millisecond as the nearest float, not float noise
+    times = [t["time_s"] for t in h["statustext"] + h["modes"]]
+    times += [f["time_s"] for f in h["estimator"]["flags_changes"]]
+    assert times and all(t == round(t, 3) for t in times)
+
+
+def test_positions_before_the_autopilots_first_fix_are_not_its_estimate(
+        truths: list[Truth]) -> None:
+    # GIVEN an autopilot that reports lat/lon 0/0 at -1000 m for its first 2 s (no fix yet)
+    tel = AutopilotTelemetry("udpin:127.0.0.1:0", rate_hz=None).start()
+    sender = EstimateSender(f"udpout:127.0.0.1:{tel.local_address[1]}", no_fix_before_s=2.0)
+    try:
+        for truth in truths[:500]:
+            sender.send_truth(truth)
+        _wait(lambda: tel.counters()["position_reports"]
+              + tel.counters()["positions_before_fix"] >= sender.sent)
+    finally:
+        tel.stop()
+        sender.close()
+    track = tel.estimate_track()
+    # THEN its track starts at its first position and holds no 0/0, no -1000 m
+    assert tel.estimate_from_s == pytest.approx(2.0, abs=0.11) == track.time_s[0]
+    assert np.all(np.degrees(track.lat_rad) > 40.0) and np.all(track.alt_m > 0.0)
+    # (the report at 2.0 s may still follow a status without a position: one more dropped)
+    assert 20 <= tel.counters()["positions_before_fix"] <= 21
 
 
 def test_bad_reports_are_counted_and_an_empty_recording_scores_nothing() -> None:

@@ -39,11 +39,12 @@ events:
         return path
 
     # the peer is trimmed as a tuned ArduPlane (the aircraft's trim at the start); its MAVLink
-    # port is named in the scenario; the run waits for it, then it flies
+    # port is named in the scenario; the run waits for it, then it flies. It boots disarmed
+    # for 8 s (neutral outputs) and has no GPS fix for 5 s (its position 0/0 until then)
     trim = trimmed_controls(sim_setup(load_scenario(scenario(None))))
     peer = ArduPilotPeer(telemetry_url=f"udpout:127.0.0.1:{tport}",
                          plan=PeerPlan(headings=((70.0, 90.0),)), home=(47.0, 8.0, 0.0),
-                         trim=trim, mavlink=True)
+                         trim=trim, mavlink=True, disarmed_s=8.0, fix_after_s=5.0)
     scn = load_scenario(scenario(peer.mavlink_url))
     starter = threading.Timer(0.5, lambda: peer.start(f"udp:127.0.0.1:{port}"))
     starter.start()
@@ -65,4 +66,15 @@ events:
     (theirs,) = ap["outages"]
     assert (theirs["start_s"], theirs["end_s"]) == (mine["start_s"], mine["end_s"])
     assert math.isfinite(theirs["horizontal_rmse_m"])
+    # the trim was held until it armed, and the scorecard says when that was
+    assert peer.armed_at_s is not None
+    assert peer.armed_at_s <= ap["trim_released_s"] < peer.armed_at_s + 1.0
+    # its position before its first fix (0/0) is not its estimate: scored from its fix on
+    assert 5.0 <= ap["estimate_from_s"] < 6.5
+    assert ap["counters"]["telemetry_positions_before_fix"] >= 50
+    assert ap["gnss_on"]["horizontal_rmse_m"] < 100.0  # not the 5,000 km to 0/0
+    # its denial was acknowledged step by step: the outage is its outage too
+    assert ap["outages_not_denied"] == []
+    assert {d["status"] for d in ap["denial"]} == {"acknowledged"}
+    assert "failures" not in s
     assert theirs["horizontal_max_m"] > ap["gnss_on"]["horizontal_rmse_m"]

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+from hil.autopilot import DenialStep
 from hil.pipeline import SimStep
 from scenarios.cli.up import free_udp_port
 from scenarios.runner import AutopilotAbsent, run_scenario
@@ -32,7 +33,10 @@ class _Autopilot:
     name = "PX4"
 
     def __init__(self, telemetry_url: str, *, silent_after_s: float | None = None,
-                 connects: bool = True) -> None:
+                 connects: bool = True, dive_after_s: float | None = None,
+                 denial: tuple[DenialStep, ...] | None = None) -> None:
+        self.dive_after_s = dive_after_s
+        self._denial = denial
         self.sender = EstimateSender(telemetry_url, offset_north_m=OFFSET_M, windows=[OUTAGE])
         self.silent_after_s = silent_after_s
         self.connects = connects
@@ -46,6 +50,8 @@ class _Autopilot:
     def controls(self, timeout_s: float) -> Sequence[float] | None:
         if self.silent_after_s is not None and self.time_s >= self.silent_after_s:
             return None
+        if self.dive_after_s is not None and self.time_s >= self.dive_after_s:
+            return [0.0, -1.0, 0.0, 0.0]  # full nose down, engine off: into the ground
         self.integral += self.roll_rad * 0.01
         return [max(-0.3, min(0.3, -0.8 * self.roll_rad - 0.3 * self.p_rps
                               - 0.8 * self.integral))]
@@ -60,6 +66,13 @@ class _Autopilot:
 
     def counters(self) -> dict[str, int]:
         return {"telemetry_sent": self.sender.sent}
+
+    def problems(self) -> list[str]:
+        return [f"{d.name} = {d.value:g} not acknowledged on tcp:127.0.0.1:5760"
+                for d in self._denial or () if not d.took]
+
+    def denial(self) -> list[DenialStep] | None:
+        return None if self._denial is None else list(self._denial)
 
     def close(self) -> None:
         self.closed = True
@@ -131,3 +144,71 @@ def test_an_autopilot_that_never_connects_ends_the_run(tmp_path: Path) -> None:
     with pytest.raises(AutopilotAbsent, match="PX4 did not connect within 5 s"):
         run_scenario(scn, tmp_path / "out", backend=autopilot, reports=False)
     assert autopilot.closed
+
+
+def test_a_flight_that_ends_early_is_scored_as_far_as_it_flew(tmp_path: Path) -> None:
+    # GIVEN an autopilot that dives into the ground from 20 s, before the outage at 70 s
+    port = free_udp_port()
+    path = _scenario(tmp_path, port)
+    path.write_text(path.read_text() + "  - {type: baro_glitch, at: 10, duration: 150, "
+                    "offset_hpa: 2}\n")
+    scn = load_scenario(path)
+    autopilot = _Autopilot(f"udpout:127.0.0.1:{port}", dive_after_s=20.0)
+    # WHEN the run is scored, with its reports
+    result = run_scenario(scn, tmp_path / "out", backend=autopilot)
+    s = result.summary
+    end = s["sim_duration_s"]
+    assert end < OUTAGE[0]
+    # THEN it failed, saying why, and its summary was written
+    assert not s["passed"] and (tmp_path / "out" / "summary.json").is_file()
+    assert len(s["failures"]) == 1 and s["failures"][0].startswith("the flight ended early")
+    # AND the outage that never began is listed as not reached
+    assert [(e["type"], e["start_s"]) for e in s["events_not_reached"]] == [
+        ("gnss_outage", OUTAGE[0])]
+    # AND the glitch it cut short is scored up to the end, and marked so
+    (glitch,) = s["events"]
+    assert glitch["type"] == "baro_glitch" and glitch["clipped"]
+    assert glitch["planned_end_s"] == 160.0 and glitch["end_s"] <= end
+    assert s["autopilot"]["events_not_reached"] == s["events_not_reached"]
+    assert (tmp_path / "out" / "report.html").is_file()
+
+
+def test_a_denial_the_autopilot_did_not_take_fails_the_run_and_is_no_outage(
+        tmp_path: Path) -> None:
+    # GIVEN an autopilot that simulates its own GNSS and never acknowledged the step that
+    # would have switched it off at the outage
+    port = free_udp_port()
+    scn = load_scenario(_scenario(tmp_path, port))
+    denial = (DenialStep(OUTAGE[0], "SIM_GPS1_ENABLE", 0.0, "unacknowledged"),
+              DenialStep(OUTAGE[1], "SIM_GPS1_ENABLE", 1.0, "unacknowledged"))
+    autopilot = _Autopilot(f"udpout:127.0.0.1:{port}", denial=denial)
+    result = run_scenario(scn, tmp_path / "out", reports=False, backend=autopilot)
+    s = result.summary
+    # THEN the run failed with a sentence naming the parameter and the port
+    assert not s["passed"]
+    assert any("SIM_GPS1_ENABLE = 0" in f and "tcp:127.0.0.1:5760" in f for f in s["failures"])
+    # AND the window is hilnav's outage, but not one of the autopilot's
+    (mine,) = s["outages"]
+    ap = s["autopilot"]
+    assert ap["outages"] == []
+    assert ap["outages_not_denied"] == [{"start_s": mine["start_s"], "end_s": mine["end_s"]}]
+    assert [d["status"] for d in ap["denial"]] == ["unacknowledged", "unacknowledged"]
+
+
+def test_the_px4_library_scenario_flies_the_standard_planes_actuator_map() -> None:
+    # GIVEN the library's PX4 scenario, read from where the installed package keeps it
+    from importlib.resources import files
+
+    from hil.autopilot.actuators import ActuatorMap
+
+    library = Path(str(files("scenarios") / "library"))
+    scn = load_scenario(library / "px4-fixed-wing-gnss-outage.yaml")
+    path = scn.autopilot_path(scn.autopilot.actuator_map)
+    # THEN its actuator map is PX4's standard plane, shipped in the library's package data
+    assert path is not None and path.is_file()
+    assert path.resolve().parent == (library / "autopilot").resolve()
+    standard = ActuatorMap.load(path)
+    assert standard.channels != ActuatorMap.default().channels
+    # AND the docs' copy is that same file, not a second definition
+    docs = Path(__file__).resolve().parents[2] / "docs" / "autopilot" / "px4-standard-plane.yaml"
+    assert docs.resolve() == path.resolve()

@@ -194,3 +194,19 @@ def test_pytest_plugin_runs_scenarios_as_tests(pytester: pytest.Pytester, tmp_pa
     res.assert_outcomes(passed=1, failed=2)
     res.stdout.fnmatch_lines(["*broken.yaml:*duration*", "*strict.yaml: outage accuracy*"])
     assert (tmp_path / "ci" / "good" / "junit.xml").is_file()
+
+
+def test_a_flight_that_ended_early_cuts_its_timeline_where_it_ended(scenario: Scenario) -> None:
+    # GIVEN the short scenario's timeline (outage 40-60 s, spoof 75-90 s)
+    from scenarios.runner import event_windows
+
+    # WHEN the flight (hilnav's guidance or an autopilot) ended at 50 s
+    rows = event_windows(scenario, 50.0, ended_early=True)
+    # THEN the outage is cut at 50 s and marked so; the spoof was never reached
+    outage, spoof = rows
+    assert (outage["start_s"], outage["end_s"], outage["planned_end_s"]) == (40.0, 50.0, 60.0)
+    assert outage["clipped"] and not outage.get("not_reached")
+    assert spoof["not_reached"] and spoof["end_s"] is None and spoof["planned_end_s"] == 90.0
+    # AND a flight that flew to its end keeps the timeline as it is
+    assert [set(r) for r in event_windows(scenario, 100.0)] == [
+        {"type", "kind", "start_s", "end_s"}] * 2
