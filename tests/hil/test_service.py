@@ -200,8 +200,8 @@ def test_gcs_ftp_answers_of_an_empty_read_only_file_system() -> None:
         (["fusion", "--companion-kind", "mavros"], "companion_kind"),
         (["fusion", "--mavlink", "udpin:nowhere"], "udpin"),
         (["fusion", "--imu", "nope"], "nope"),
-        (["sim", "--duration", "5"], "--record"),
-        (["sim", "--live", "udpout:127.0.0.1:9", "--speed", "0", "--duration", "5"], "speed"),
+        (["sim"], "record FILE, live URL, px4 URL or ardupilot URL"),
+        (["sim", "live", "udpout:127.0.0.1:9", "--speed", "0", "--duration", "5"], "speed"),
         (["fusion", "--zenoh", "bogus"], "bogus"),
     ],
 )
@@ -244,7 +244,7 @@ def test_live_chain_matches_replay_of_the_same_frames(tmp_path: Path) -> None:
             str(SHADOW_SYS), "--out", str(tmp_path / "live"), "--idle-exit", "3",
             "--settle", "10", log=tmp_path / "fusion.log")
         sim = hilnav_process(
-            "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "20", "--duration", "60",
+            "sim", "live", f"udpout:127.0.0.1:{port}", "--speed", "20", "--duration", "60",
             "--seed", "3", "--gnss-off", "30:10", "--record", str(tmp_path / "run.tlog"),
             "--wait-peer", "30", "--zenoh", endpoint, "--vehicle", "t1",
             log=tmp_path / "sim.log")
