@@ -26,6 +26,35 @@ _OWNED = {
         "ardupilot", "--servo-map and --ardupilot-mavlink need --ardupilot URL"),
 }
 
+_ZENOH_SECURITY = {"--zenoh-user", "--zenoh-password-file", "--tls-ca", "--tls-cert", "--tls-key",
+                   "--zenoh-key-file"}
+#: The options each subcommand takes besides the flight and sensor options. With the flag
+#: spelling every one of them was accepted in every mode, and ignored where it did not apply:
+#: those are dropped, so a command line that worked still does.
+_MODE_OPTIONS = {
+    "record": set(),
+    "live": {"--speed", "--zenoh", "--vehicle", "--wait-peer", "--lockstep", "--no-lockstep",
+             "--lockstep-window", "--signing-key-file", *_ZENOH_SECURITY},
+    "px4": {"--actuator-map", "--speed", "--stall-timeout", "--connect-timeout"},
+    "ardupilot": {"--servo-map", "--ardupilot-mavlink", "--stall-timeout", "--connect-timeout"},
+}
+_FLAGS = {"--lockstep", "--no-lockstep"}  # the ones without a value
+
+
+def _without_ignored(args: list[str], mode: str) -> list[str]:
+    """``args`` without the options of other modes that the flag spelling ignored."""
+    other = set().union(*_MODE_OPTIONS.values()) - _MODE_OPTIONS[mode]
+    kept: list[str] = []
+    i = 0
+    while i < len(args):
+        name, eq, _ = args[i].partition("=")
+        if name in other:
+            i += 1 if eq or name in _FLAGS else 2
+            continue
+        kept.append(args[i])
+        i += 1
+    return kept
+
 
 def rewrite(args: list[str]) -> tuple[list[str], str | None]:
     """``args`` (without the program name) in the subcommand spelling, and the deprecation
@@ -72,4 +101,4 @@ def rewrite(args: list[str]) -> tuple[list[str], str | None]:
     metavar = "FILE" if mode == "record" else "URL"
     note = (f"warning: `hilnav sim {flag} {metavar}` is deprecated; use "
             f"`hilnav sim {mode} {metavar}`")
-    return ["sim", mode, target, *record, *rest], note
+    return ["sim", mode, target, *record, *_without_ignored(rest, mode)], note

@@ -73,6 +73,11 @@ def test_each_mode_shows_its_own_options_and_the_flight_options(
      ["sim", "px4", "tcpin:h:4560", "--record", "a.tlog", "--actuator-map", "m.yaml"]),
     (["sim", "--ardupilot", "udpin:h:9002", "--servo-map", "s.yaml"],
      ["sim", "ardupilot", "udpin:h:9002", "--servo-map", "s.yaml"]),
+    # options the flag spelling accepted and ignored in that mode are dropped
+    (["sim", "--record", "a.tlog", "--speed", "5", "--zenoh-user=u", "--no-lockstep",
+      "--vehicle", "v", "--seed", "3"], ["sim", "record", "a.tlog", "--seed", "3"]),
+    (["sim", "--px4", "tcpin:h:4560", "--zenoh", "tcp/h:7447", "--speed", "2"],
+     ["sim", "px4", "tcpin:h:4560", "--speed", "2"]),
 ])
 def test_the_flag_spelling_becomes_the_subcommand(old: list[str], new: list[str]) -> None:
     args, note = legacy_sim.rewrite(old)
