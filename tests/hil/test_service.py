@@ -1,5 +1,5 @@
 """The live fusion service: shadow-vehicle / companion wire encoding, ground-station answers,
-and the live chain end to end (sim --live -> fusion -> Zenoh + shadow vehicle) on loopback."""
+and the live chain end to end (sim live -> fusion -> Zenoh + shadow vehicle) on loopback."""
 
 from __future__ import annotations
 
@@ -218,7 +218,7 @@ def _gcs_role() -> LinkRole:
 
 
 def test_live_chain_matches_replay_of_the_same_frames(tmp_path: Path) -> None:
-    """GIVEN sim --live at 20x for 60 s into the fusion service WHEN it ends THEN the live
+    """GIVEN sim live at 20x for 60 s into the fusion service WHEN it ends THEN the live
     scorecard equals `replay` of the sim's own recording, the Zenoh errors equal the replayed
     filter's errors, no frame was lost, and a ground station saw the shadow vehicle."""
     port = free_udp_port()
@@ -306,7 +306,7 @@ def test_live_chain_matches_replay_of_the_same_frames(tmp_path: Path) -> None:
 def test_live_fusion_with_gmdh_and_loop_mpc_equals_replay_with_the_same_options(
     tmp_path: Path,
 ) -> None:
-    """GIVEN `hilnav fusion --bridge gmdh --altitude loop-mpc` fed live by `hilnav sim --live
+    """GIVEN `hilnav fusion --bridge gmdh --altitude loop-mpc` fed live by `hilnav sim live
     --lockstep` (no frame can be lost) WHEN the flight ends THEN its scorecard equals `hilnav
     replay --bridge gmdh --altitude loop-mpc` of the sim's recording: the live service and the
     replay build the same filter."""
@@ -339,7 +339,7 @@ def test_live_fusion_with_gmdh_and_loop_mpc_equals_replay_with_the_same_options(
 def test_a_second_sender_flooding_the_fusion_costs_the_legitimate_stream_nothing(
     tmp_path: Path,
 ) -> None:
-    """GIVEN `hilnav fusion` fed by `hilnav sim --live --lockstep` (system 1) WHEN another
+    """GIVEN `hilnav fusion` fed by `hilnav sim live URL --lockstep` (system 1) WHEN another
     sender (system 99) floods the same port with valid HIL_SENSOR and HIL_GPS frames claiming
     a position 50 km away THEN none of its frames is fused (all counted as wrong_source), the
     fusion stays bound to system 1, no legitimate frame is lost, and the live scorecard equals

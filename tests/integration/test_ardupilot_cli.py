@@ -1,4 +1,4 @@
-"""``hilnav sim --ardupilot URL``: the command, its bad input and a whole flight with the
+"""``hilnav sim ardupilot URL``: the command, its bad input and a whole flight with the
 ArduPilot-side protocol peer (a real hilnav process, stopped by PID)."""
 
 from __future__ import annotations

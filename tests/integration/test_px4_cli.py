@@ -1,4 +1,4 @@
-"""``hilnav sim --px4`` as a real process on loopback with the PX4 protocol peer: the tlog it
+"""``hilnav sim px4 URL`` as a real process on loopback with the PX4 protocol peer: the tlog it
 records and its exit codes (0 flown, 1 stalled, 2 a peer speaking another protocol)."""
 
 from __future__ import annotations
