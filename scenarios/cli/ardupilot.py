@@ -1,4 +1,4 @@
-"""``hilnav sim --ardupilot URL``: ArduPilot SITL flies the aircraft through the JSON physics
+"""``hilnav sim ardupilot URL``: ArduPilot SITL flies the aircraft through the JSON physics
 interface (part of the composition root; :class:`hil.autopilot.ardupilot.ArduPilotBackend` in
 :func:`hil.autopilot.fly_with_autopilot`)."""
 

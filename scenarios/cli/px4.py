@@ -1,10 +1,10 @@
-"""``hilnav sim --px4``: PX4 flies the simulated aircraft (part of the composition root).
+"""``hilnav sim px4 URL``: PX4 flies the simulated aircraft (part of the composition root).
 
 The simulator side of PX4's simulator interface (:class:`hil.autopilot.px4.Px4Backend`) in
 the one autopilot loop (:func:`hil.autopilot.fly_with_autopilot`): lockstep over TCP (PX4
 SITL connects to ``tcpin:HOST:PORT``), paced at ``speed`` x real time over a serial port
 (HITL). Every frame of the flight can be recorded to a ``.tlog`` (the same HIL_SENSOR /
-HIL_GPS / truth frames as ``hilnav sim --record``, plus the controls the aircraft flew as
+HIL_GPS / truth frames as ``hilnav sim record``, plus the controls the aircraft flew as
 HIL_ACTUATOR_CONTROLS from the simulator's autopilot component).
 """
 
@@ -36,7 +36,7 @@ def fly_px4(
     parsed = LinkUrl.parse(url)
     if parsed.scheme not in ("tcpin", "serial"):
         raise ValueError(
-            f"--px4 {url}: PX4 SITL connects as a TCP client, so listen with "
+            f"px4 URL {url}: PX4 SITL connects as a TCP client, so listen with "
             "tcpin:HOST:PORT (default tcpin:127.0.0.1:4560); HITL: serial:DEVICE:BAUD")
     amap = ActuatorMap.load(actuator_map) if actuator_map is not None else ActuatorMap.default()
     paced = speed if parsed.scheme == "serial" else None

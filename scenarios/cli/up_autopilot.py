@@ -35,7 +35,8 @@ from hil.pipeline import SimSetup, SimStep
 from hil.tlog import TlogWriter
 from hil.tracks import truth_track
 from scenarios.autopilot_summary import score_flown
-from scenarios.cli.up import _DEFAULT_DURATION_S, _FUSION_IDLE_EXIT_S, Child, UpOptions, settle_s
+from scenarios.cli.children import Child
+from scenarios.cli.up_options import DEFAULT_DURATION_S, FUSION_IDLE_EXIT_S, UpOptions, settle_s
 from scenarios.jsonable import write_json
 from scenarios.metrics import Window
 from sim.samples import Truth
@@ -57,7 +58,7 @@ _TRUTH_PERIOD_US = 20_000  # the truth kept for scoring the autopilot: 50 Hz
 def _setup(options: UpOptions) -> SimSetup:
     return SimSetup.build(plan=options.plan, seed=options.seed, gnss_off=list(options.gnss_off),
                           imu=options.imu, gnss=options.gnss,
-                          duration_s=options.duration_s or _DEFAULT_DURATION_S)
+                          duration_s=options.duration_s or DEFAULT_DURATION_S)
 
 
 def up_backend(options: UpOptions) -> AutopilotBackend:
@@ -123,7 +124,7 @@ def fly_autopilot(options: UpOptions, endpoint: str, port: int, children: list[C
     if flown is not None:
         log(_flown_line(flown))
         try:
-            fusion.proc.wait(timeout=_FUSION_IDLE_EXIT_S + 30.0)
+            fusion.proc.wait(timeout=FUSION_IDLE_EXIT_S + 30.0)
         except subprocess.TimeoutExpired:
             log("fusion did not stop by itself; stopping it")
     for child in reversed(children):

@@ -30,7 +30,7 @@ def lockstep_chain(
         "fusion", "--mavlink", f"udpin:127.0.0.1:{port}", "--out", str(tmp_path / "live"),
         "--idle-exit", "3", "--settle", settle_s, *fusion_args, log=tmp_path / "fusion.log")
     sim = hilnav_process(
-        "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", speed, "--lockstep",
+        "sim", "live", f"udpout:127.0.0.1:{port}", "--speed", speed, "--lockstep",
         "--duration", duration_s, "--seed", seed, *sim_args,
         "--record", str(tmp_path / "run.tlog"), "--wait-peer", "30", log=tmp_path / "sim.log")
     return fusion, sim

@@ -37,7 +37,7 @@ def _start_chain(tmp_path: Path, gcs_url: str, *, speed: str, duration: str,
         str(SHADOW_SYS), "--gcs-tlog", str(tmp_path / "shadow.tlog"), "--idle-exit", "3",
         log=tmp_path / "fusion.log")
     sim = hilnav_process(
-        "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", speed, "--duration", duration,
+        "sim", "live", f"udpout:127.0.0.1:{port}", "--speed", speed, "--duration", duration,
         "--seed", "3", "--gnss-off", gnss_off, "--wait-peer", "30", log=tmp_path / "sim.log")
     return fusion, sim
 

@@ -112,7 +112,7 @@ def test_fusion_serves_routed_and_direct_subscribers(tmp_path: Path) -> None:
                 peer.subscribe(Topic.ESTIMATE, keep(direct))
                 assert peer.wait_connected(60.0), (tmp_path / "fusion.log").read_text()
                 sim = hilnav_process(
-                    "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "10",
+                    "sim", "live", f"udpout:127.0.0.1:{port}", "--speed", "10",
                     "--duration", "30", "--seed", "2", "--wait-peer", "30",
                     log=tmp_path / "sim.log")
                 assert sim.wait(120) == 0, (tmp_path / "sim.log").read_text()

@@ -1,5 +1,5 @@
 """The live fusion service: shadow-vehicle / companion wire encoding, ground-station answers,
-and the live chain end to end (sim --live -> fusion -> Zenoh + shadow vehicle) on loopback."""
+and the live chain end to end (sim live -> fusion -> Zenoh + shadow vehicle) on loopback."""
 
 from __future__ import annotations
 
@@ -200,8 +200,8 @@ def test_gcs_ftp_answers_of_an_empty_read_only_file_system() -> None:
         (["fusion", "--companion-kind", "mavros"], "companion_kind"),
         (["fusion", "--mavlink", "udpin:nowhere"], "udpin"),
         (["fusion", "--imu", "nope"], "nope"),
-        (["sim", "--duration", "5"], "--record"),
-        (["sim", "--live", "udpout:127.0.0.1:9", "--speed", "0", "--duration", "5"], "speed"),
+        (["sim"], "record FILE, live URL, px4 URL or ardupilot URL"),
+        (["sim", "live", "udpout:127.0.0.1:9", "--speed", "0", "--duration", "5"], "speed"),
         (["fusion", "--zenoh", "bogus"], "bogus"),
     ],
 )
@@ -218,7 +218,7 @@ def _gcs_role() -> LinkRole:
 
 
 def test_live_chain_matches_replay_of_the_same_frames(tmp_path: Path) -> None:
-    """GIVEN sim --live at 20x for 60 s into the fusion service WHEN it ends THEN the live
+    """GIVEN sim live at 20x for 60 s into the fusion service WHEN it ends THEN the live
     scorecard equals `replay` of the sim's own recording, the Zenoh errors equal the replayed
     filter's errors, no frame was lost, and a ground station saw the shadow vehicle."""
     port = free_udp_port()
@@ -244,7 +244,7 @@ def test_live_chain_matches_replay_of_the_same_frames(tmp_path: Path) -> None:
             str(SHADOW_SYS), "--out", str(tmp_path / "live"), "--idle-exit", "3",
             "--settle", "10", log=tmp_path / "fusion.log")
         sim = hilnav_process(
-            "sim", "--live", f"udpout:127.0.0.1:{port}", "--speed", "20", "--duration", "60",
+            "sim", "live", f"udpout:127.0.0.1:{port}", "--speed", "20", "--duration", "60",
             "--seed", "3", "--gnss-off", "30:10", "--record", str(tmp_path / "run.tlog"),
             "--wait-peer", "30", "--zenoh", endpoint, "--vehicle", "t1",
             log=tmp_path / "sim.log")
@@ -306,7 +306,7 @@ def test_live_chain_matches_replay_of_the_same_frames(tmp_path: Path) -> None:
 def test_live_fusion_with_gmdh_and_loop_mpc_equals_replay_with_the_same_options(
     tmp_path: Path,
 ) -> None:
-    """GIVEN `hilnav fusion --bridge gmdh --altitude loop-mpc` fed live by `hilnav sim --live
+    """GIVEN `hilnav fusion --bridge gmdh --altitude loop-mpc` fed live by `hilnav sim live
     --lockstep` (no frame can be lost) WHEN the flight ends THEN its scorecard equals `hilnav
     replay --bridge gmdh --altitude loop-mpc` of the sim's recording: the live service and the
     replay build the same filter."""
@@ -339,7 +339,7 @@ def test_live_fusion_with_gmdh_and_loop_mpc_equals_replay_with_the_same_options(
 def test_a_second_sender_flooding_the_fusion_costs_the_legitimate_stream_nothing(
     tmp_path: Path,
 ) -> None:
-    """GIVEN `hilnav fusion` fed by `hilnav sim --live --lockstep` (system 1) WHEN another
+    """GIVEN `hilnav fusion` fed by `hilnav sim live URL --lockstep` (system 1) WHEN another
     sender (system 99) floods the same port with valid HIL_SENSOR and HIL_GPS frames claiming
     a position 50 km away THEN none of its frames is fused (all counted as wrong_source), the
     fusion stays bound to system 1, no legitimate frame is lost, and the live scorecard equals

@@ -1,4 +1,4 @@
-"""``hilnav sim --ardupilot URL``: the command, its bad input and a whole flight with the
+"""``hilnav sim ardupilot URL``: the command, its bad input and a whole flight with the
 ArduPilot-side protocol peer (a real hilnav process, stopped by PID)."""
 
 from __future__ import annotations
@@ -13,33 +13,44 @@ from typer.testing import CliRunner
 from hil.codec import mavlink2
 from hil.pipeline import SimSetup
 from hil.tlog import read_tlog
-from scenarios.cli.app import app
+from scenarios.cli.app import app, main
 from scenarios.cli.up import stop_process
 from tests.helpers.ardupilot_peer import ArduPilotPeer, trimmed_controls
 from tests.helpers.processes import hilnav_process
 
 
 @pytest.mark.parametrize(("args", "needle"), [
-    (["--servo-map", "s.yaml"], "need --ardupilot URL"),
-    (["--ardupilot-mavlink", "tcp:127.0.0.1:5760"], "need --ardupilot URL"),
-    (["--ardupilot", "tcp:127.0.0.1:9002"], "expected udpin:HOST:PORT"),
-    (["--ardupilot", "udpin:127.0.0.1:0", "--live", "udpout:127.0.0.1:9"], "give one"),
-    (["--ardupilot", "udpin:127.0.0.1:0", "--servo-map", "missing.yaml"], "servo map"),
-    (["--ardupilot", "udpin:127.0.0.1:0", "--ardupilot-mavlink", "bogus:1"], "link URL"),
-    (["--ardupilot", "udpin:127.0.0.1:0", "--stall-timeout", "0"], "stall timeout"),
+    (["tcp:127.0.0.1:9002"], "expected udpin:HOST:PORT"),
+    (["udpin:127.0.0.1:0", "--servo-map", "missing.yaml"], "servo map"),
+    (["udpin:127.0.0.1:0", "--ardupilot-mavlink", "bogus:1"], "link URL"),
+    (["udpin:127.0.0.1:0", "--stall-timeout", "0"], "stall timeout"),
 ])
-def test_bad_autopilot_options_are_one_line_and_exit_2(
-    tmp_path: Path, args: list[str], needle: str
-) -> None:
-    result = CliRunner().invoke(app, ["sim", "--record", str(tmp_path / "x.tlog"),
-                                      "--duration", "5", *args])
+def test_bad_autopilot_options_are_one_line_and_exit_2(args: list[str], needle: str) -> None:
+    result = CliRunner().invoke(app, ["sim", "ardupilot", *args, "--duration", "5"])
     assert result.exit_code == 2, result.output
     assert needle in result.output and "Traceback" not in result.output
     assert len([ln for ln in result.output.splitlines() if ln.strip()]) == 1
 
 
+@pytest.mark.parametrize(("args", "needle"), [
+    (["--record", "x.tlog", "--servo-map", "s.yaml"], "need --ardupilot URL"),
+    (["--record", "x.tlog", "--ardupilot-mavlink", "tcp:127.0.0.1:5760"], "need --ardupilot URL"),
+    (["--ardupilot", "udpin:127.0.0.1:0", "--live", "udpout:127.0.0.1:9"], "give one"),
+])
+def test_the_flag_spelling_still_names_the_ardupilot_mistakes(
+    capsys: pytest.CaptureFixture[str], args: list[str], needle: str
+) -> None:
+    """GIVEN the deprecated flag spelling (``hilnav sim --ardupilot URL``) with options that
+    need another mode THEN exit 2 with one line saying which."""
+    with pytest.raises(SystemExit) as exited:
+        main(["sim", *args, "--duration", "5"])
+    err = capsys.readouterr().err
+    assert exited.value.code == 2 and needle in err
+    assert len([ln for ln in err.splitlines() if ln.strip()]) == 1
+
+
 def test_no_ardupilot_within_the_connect_timeout_exits_1(tmp_path: Path) -> None:
-    result = CliRunner().invoke(app, ["sim", "--ardupilot", "udpin:127.0.0.1:0", "--duration",
+    result = CliRunner().invoke(app, ["sim", "ardupilot", "udpin:127.0.0.1:0", "--duration",
                                       "5", "--connect-timeout", "0.3"])
     assert result.exit_code == 1
     assert "no ArduPilot servo packet within 0.3 s" in result.output
@@ -51,7 +62,7 @@ def test_sim_flies_with_the_ardupilot_peer_and_records_every_frame(tmp_path: Pat
     peer = ArduPilotPeer(trim=trimmed_controls(setup), mavlink=True)
     log, tlog = tmp_path / "sim.log", tmp_path / "run.tlog"
     proc = hilnav_process(
-        "sim", "--ardupilot", "udpin:127.0.0.1:0", "--ardupilot-mavlink", peer.mavlink_url,
+        "sim", "ardupilot", "udpin:127.0.0.1:0", "--ardupilot-mavlink", peer.mavlink_url,
         "--duration", "30", "--rate", "100", "--seed", "5", "--gnss-off", "10:10",
         "--record", str(tlog), log=log)
     try:

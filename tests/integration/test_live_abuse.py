@@ -143,7 +143,7 @@ def test_a_hostile_sender_speaking_before_the_simulator_costs_the_live_run_nothi
 def test_hostile_stamps_from_the_simulators_own_address_cannot_stop_the_lockstep(
     tmp_path: Path,
 ) -> None:
-    """GIVEN `hilnav fusion` fed by `hilnav sim --live --lockstep` WHEN a sender that forges
+    """GIVEN `hilnav fusion` fed by `hilnav sim live URL --lockstep` WHEN a sender that forges
     the simulator's own address (system 1, component 200; no signing) slips in HIL_SENSOR
     frames stamped 2^64 - 1 us and an hour ahead, ten a second THEN the fusion keeps
     acknowledging the simulator's real time (a stamp of 2^64 - 1 us used to kill its reader

@@ -1,4 +1,4 @@
-"""``hilnav sim --px4`` as a real process on loopback with the PX4 protocol peer: the tlog it
+"""``hilnav sim px4 URL`` as a real process on loopback with the PX4 protocol peer: the tlog it
 records and its exit codes (0 flown, 1 stalled, 2 a peer speaking another protocol)."""
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def _listening_port(proc: subprocess.Popen[bytes], log: Path, timeout_s: float =
 
 def _sim_px4(tmp_path: Path, *args: str) -> tuple[subprocess.Popen[bytes], Path, int]:
     log = tmp_path / "sim.log"
-    proc = hilnav_process("sim", "--px4", "tcpin:127.0.0.1:0", "--rate", "50", "--seed", "5",
+    proc = hilnav_process("sim", "px4", "tcpin:127.0.0.1:0", "--rate", "50", "--seed", "5",
                           *args, log=log)
     return proc, log, _listening_port(proc, log)
 

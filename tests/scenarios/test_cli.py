@@ -39,7 +39,7 @@ def _run(*args: str) -> tuple[int, str]:
     ],
 )
 def test_sim_bad_input_is_one_line_and_exit_2(tmp_path: Path, args: list[str], needle: str) -> None:
-    code, out = _run("sim", "--record", str(tmp_path / "x.tlog"), "--duration", "5", *args)
+    code, out = _run("sim", "record", str(tmp_path / "x.tlog"), "--duration", "5", *args)
     assert code == 2
     assert needle in out
     assert "Traceback" not in out
@@ -58,7 +58,7 @@ def test_replay_bad_input(tmp_path: Path, short_flight_log: Path) -> None:
 
 def test_sim_records_a_log_mavlogdump_reads(tmp_path: Path) -> None:
     log = tmp_path / "run.tlog"
-    code, out = _run("sim", "--record", str(log), "--duration", "20", "--seed", "3")
+    code, out = _run("sim", "record", str(log), "--duration", "20", "--seed", "3")
     assert code == 0, out
     dump = subprocess.run(
         [sys.executable, "-m", "pymavlink.tools.mavlogdump", "--types",
@@ -79,7 +79,7 @@ def test_sim_records_a_log_mavlogdump_reads(tmp_path: Path) -> None:
 def test_same_seed_gives_identical_bytes(tmp_path: Path) -> None:
     paths = [tmp_path / "a.tlog", tmp_path / "b.tlog", tmp_path / "c.tlog"]
     for p, seed in zip(paths, (5, 5, 6), strict=True):
-        code, out = _run("sim", "--record", str(p), "--duration", "10", "--seed", str(seed),
+        code, out = _run("sim", "record", str(p), "--duration", "10", "--seed", str(seed),
                          "--turbulence", "0.3")
         assert code == 0, out
     a, b, c = (p.read_bytes() for p in paths)
@@ -94,7 +94,7 @@ def test_crash_keeps_the_log_and_exits_1(tmp_path: Path) -> None:
         " climb_rate_mps: 8}\n"
     )
     log = tmp_path / "dive.tlog"
-    code, out = _run("sim", "--record", str(log), "--plan", str(plan), "--alt", "300",
+    code, out = _run("sim", "record", str(log), "--plan", str(plan), "--alt", "300",
                      "--rate", "50", "--duration", "300")
     assert code == 1
     assert "ground" in out and "kept" in out
@@ -200,7 +200,7 @@ def test_bad_output_paths_are_bad_input(tmp_path: Path, short_flight_log: Path) 
         (["replay", str(short_flight_log), "--out", str(afile)], "is a file"),
         (["replay", str(short_flight_log), "--out", str(afile / "sub")], "under the file"),
         (["replay", str(tmp_path), "--out", str(tmp_path / "o")], "is a folder"),
-        (["sim", "--record", str(tmp_path), "--duration", "1"], "is a folder"),
+        (["sim", "record", str(tmp_path), "--duration", "1"], "is a folder"),
         (["schema", "--out", str(tmp_path)], "is a folder"),
     ]
     for args, needle in cases:

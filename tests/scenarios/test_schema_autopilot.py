@@ -1,4 +1,4 @@
-"""The scenario key ``autopilot:`` (issue #20): who flies, its links and timeouts."""
+"""The scenario key ``autopilot:``: who flies, its links and timeouts."""
 
 from __future__ import annotations
 

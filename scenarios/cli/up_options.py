@@ -1,0 +1,79 @@
+"""The options of ``hilnav up`` and the durations derived from them (shared by
+:mod:`scenarios.cli.up` and :mod:`scenarios.cli.up_autopilot`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from fusion.choices import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
+
+__all__ = ["DEFAULT_DURATION_S", "FUSION_IDLE_EXIT_S", "UpOptions", "settle_s"]
+
+FUSION_IDLE_EXIT_S = 3.0
+"""The fusion service of ``up`` exits after this long without input (once input started)."""
+DEFAULT_DURATION_S = 3600.0
+"""How long ``up`` flies without a duration (or until Ctrl-C)."""
+
+
+class UpOptions(BaseModel):
+    """Options of :func:`run_up`."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    duration_s: float | None = Field(default=None, gt=0.0)
+    speed: float = Field(default=1.0, gt=0.0, le=1000.0)
+    out: Path = Path("out/up")
+    vehicle: str = "sim1"
+    plan: str = "racetrack"
+    seed: int = Field(default=1, ge=0)
+    imu: str = "industrial-mems"
+    """IMU preset: the simulated sensor and the filter's tuning."""
+    gnss: str = "modern"
+    """GNSS receiver preset: the simulated receiver and the filter's model of it."""
+    bridge: str = "none"
+    """The fusion's GNSS-outage bridging method."""
+    altitude: str = "ekf"
+    """The fusion's altitude method."""
+    airspeed: str = DEFAULT_AIRSPEED_MODE
+    """The fusion's air-data choice (on, off, synthetic)."""
+    align: str = DEFAULT_ALIGN_MODE
+    """The fusion's alignment (auto, static, in-flight)."""
+    gnss_off: tuple[str, ...] = ()
+    gcs: str | None = None
+    monitor: bool = True
+    lockstep: bool = False
+    """Run the sim with ``--lockstep``: it never runs ahead of the fusion (no loss at any
+    speed; the run goes as fast as the slower of the two)."""
+    foxglove_port: int | None = Field(default=None, ge=0, le=65535)
+    """The monitor also serves a Foxglove WebSocket on ``127.0.0.1:<port>`` (needs monitor)."""
+    settle_s: float | None = Field(default=None, ge=0.0)
+    """Scorecard settling time; None: 60 s, at most a quarter of the duration."""
+    zenoh_host: str = "127.0.0.1"
+    """Where the in-process router listens (beyond loopback only with ``users_file`` or
+    ``insecure``)."""
+    users_file: Path | None = None
+    """usrpwd dictionary (``user:password`` lines) of outside clients, admitted read-only;
+    turns on authentication and access control for the children too."""
+    insecure: bool = False
+    """Allow ``zenoh_host`` beyond loopback without authentication."""
+    zenoh_key_file: Path | None = None
+    """Shared payload key for every child (default: ``HILNAV_ZENOH_KEY``, inherited)."""
+    autopilot: Literal["none", "px4", "ardupilot"] = "none"
+    """An autopilot flies instead of hilnav's guidance (:mod:`scenarios.cli.up_autopilot`)."""
+    autopilot_link: str | None = None
+    """Where the simulator meets it (None: the backend's default)."""
+    autopilot_telemetry: str | None = "udpin:127.0.0.1:14550"
+    """Where it reports its estimate (None: not recorded)."""
+    connect_timeout_s: float = Field(default=300.0, gt=0.0)
+    stall_timeout_s: float = Field(default=10.0, gt=0.0)
+
+
+def settle_s(options: UpOptions) -> float:
+    """The scorecard's settling time: ``settle_s``, else 60 s, at most a quarter of the
+    duration."""
+    if options.settle_s is not None:
+        return options.settle_s
+    return min(60.0, 0.25 * (options.duration_s or DEFAULT_DURATION_S))
