@@ -14,7 +14,7 @@ ENV PYTHONDONTWRITEBYTECODE=1 \
 
 WORKDIR /src
 # a C compiler for the compiled kernels (fusion/_strapdown.c, fusion/_update.c,
-# sim/_simkernel.c; README "Compiled INS kernel", "Compiled simulator kernel");
+# sim/_simkernel.c; docs/development.md, "Compiled kernels");
 # without it pip would silently install the slower, bit-identical Python references only
 RUN apt-get update \
     && apt-get install -y --no-install-recommends gcc libc6-dev \

@@ -2,15 +2,14 @@
 update's Phi fill and process noise (``fusion._update``) and the simulator's (``sim._simkernel``);
 everything else about the distribution is in pyproject.toml.
 
-The kernels must give CPython's bits (README, "Compiled INS kernel" and "Compiled simulator
-kernel"), hence the flags: ``-O2``
-without ``-ffast-math`` or ``-march=native``, ``-ffp-contract=off`` (gcc would fuse ``a * b + c``
-into one FMA instruction where the target has one, e.g. aarch64 or ``-march`` with FMA, and the
-fused result is rounded once instead of twice), and no builtin ``sin`` / ``cos`` (gcc would merge
-``sin(x)`` and ``cos(x)`` into one ``sincos`` call, whose bits libm does not promise to equal
-the two calls CPython's ``math`` makes). ``optional=True``: without a C compiler ``pip install``
-still succeeds and ``fusion.strapdown`` / ``sim.imu`` run their Python references (same numbers,
-slower)."""
+The kernels must give CPython's bits (docs/development.md, "Compiled kernels"), hence the flags:
+``-O2`` without ``-ffast-math`` or ``-march=native``, ``-ffp-contract=off`` (gcc would fuse
+``a * b + c`` into one FMA instruction where the target has one, e.g. aarch64 or ``-march`` with
+FMA, and the fused result is rounded once instead of twice), and no builtin ``sin`` / ``cos``
+(gcc would merge ``sin(x)`` and ``cos(x)`` into one ``sincos`` call, whose bits libm does not
+promise to equal the two calls CPython's ``math`` makes). ``optional=True``: without a C compiler
+``pip install`` still succeeds and ``fusion.strapdown`` / ``sim.imu`` run their Python references
+(same numbers, slower)."""
 
 import platform
 import sys

@@ -26,8 +26,8 @@ worker imports the run's modules (``execution.warm_up_s``, ~3 s, counted with th
 start-up, as in a long campaign it is paid once per worker).
 
 ``--cluster dask-cli`` runs the same campaigns on a cluster of real ``dask scheduler`` /
-``dask worker`` processes on 127.0.0.1 (the README's remote-cluster recipe, reached through
-``--scheduler``) instead of a ``LocalCluster``.
+``dask worker`` processes on 127.0.0.1 (the recipe of docs/scenarios.md, "On a Dask cluster",
+reached through ``--scheduler``) instead of a ``LocalCluster``.
 
 One command, on an idle machine (no other session busy; ``uptime`` near 0), from the
 repository root (~8 min on 2 cores)::

@@ -7,7 +7,7 @@ after dropping the wall-clock fields (``wall_s``, ``realtime_factor``, and the m
 ``fusion_us_per_sample``), and exits 1 on any other difference, listing the paths that differ.
 
 Only the command line is used (``hilnav run`` / ``hilnav replay``, the output contract of
-ARCHITECTURE.md), so the check holds across any restructuring of the code behind it.
+docs/architecture.md), so the check holds across any restructuring of the code behind it.
 
     python bench/scorecard_identity.py record DIR [--seed 100] [--jobs 2] [--only NAME,...]
     python bench/scorecard_identity.py diff BEFORE_DIR AFTER_DIR

@@ -16,7 +16,7 @@ Gauss-Markov's driving noise matches it over times short against ``tau`` and is 
 beyond). Modelling the whole bias as a Gauss-Markov process instead makes its covariance decay
 from the turn-on sigma to the in-run one within ``tau`` (100 s for MEMS datasheets) whether or
 not anything observed it: the filter then believes in a heading-gyro bias it never learned
-(``bench/README.md``, consistency). The baro bias and the GNSS position bias are zero-mean
+(``docs/results.md``, "Consistency"). The baro bias and the GNSS position bias are zero-mean
 processes, first-order Gauss-Markov, ``b' = -b / tau + w``.
 
 Continuous error dynamics ``dx' = F dx + G w`` (Titterton & Weston ch. 12, Groves ch. 14.2,
@@ -532,7 +532,8 @@ class ErrorModel:
 # ---- compiled kernel -----------------------------------------------------------------------
 # fusion/_update.c is ErrorModel._fill (writing Phi's variable entries in place) and the
 # element loops of ErrorModel.add_process_noise in C, operation for operation (built by
-# `pip install` when a C compiler is there; README, "Compiled INS kernel"). Its results are bit
+# `pip install` when a C compiler is there; docs/development.md, "Compiled kernels"). Its
+# results are bit
 # for bit the reference's (tests/fusion/test_update_kernel.py). One difference off the numbers:
 # numpy's in-place lines warn on an overflow or NaN they produce, the loop does not.
 def _load_kernel() -> Any:

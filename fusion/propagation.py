@@ -179,8 +179,8 @@ class CovariancePropagator:
         Phi = model.first_order_transition(lat, h, v, c_nb, f_n, T, f_b, w_b, lt, scratch=True)
         # P = Phi P Phi^T + Q  (Q diagonal: white sensor noise and Gauss-Markov driving noise)
         # (np.dot: the same GEMMs as @, with less dispatch overhead on these small matrices.
-        # Phi^T stays a transposed view: a contiguous copy is ~7 % faster at 43 states but its
-        # bit identity rests on how one BLAS build tiles its kernel; bench/README.md)
+        # Phi^T stays a transposed view: a contiguous copy is a little faster at 43 states but
+        # its bit identity rests on how one BLAS build tiles its kernel)
         P = _dot(_dot(Phi, self.P), Phi.T)
         a = self.air_offset
         if a is None:

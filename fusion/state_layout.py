@@ -35,8 +35,9 @@ Error definitions (every error is *estimated minus true*):
   autopilot holds the airspeed, so fitting ``TAS = (1 + k) |v - w|`` regresses the airspeed on
   a noisy ground speed and drives ``k`` down (measured on a JSBSim cruise in turbulence 0.36:
   ``k`` = -0.19 and the along-track wind 10 m/s off after four minutes of GNSS; with the gust
-  states, see ``bench/README.md``). PX4 and ArduPilot do not estimate the scale in their EKFs
-  (it is calibrated apart), so they do not meet this. The block is *dormant* until air data
+  states it stays near zero: ``tests/integration/test_air_data_turbulence.py``). PX4 and
+  ArduPilot do not estimate the scale in their EKFs (it is calibrated apart), so they do not
+  meet this. The block is *dormant* until air data
   starts it: zero
   covariance rows and columns and no process noise (:meth:`ErrorModel.air_process_noise` is
   added by :class:`fusion.propagation.CovariancePropagator` only once the filter activated

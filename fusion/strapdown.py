@@ -354,7 +354,8 @@ def sensor_inverse(scale: Sequence[float], misalignment: Sequence[float]) -> tup
 
 # ---- compiled kernel -----------------------------------------------------------------------
 # fusion/_strapdown.c is these four functions in C, operation for operation (built by
-# `pip install` when a C compiler is there; README, "Compiled INS kernel"). Its results are bit
+# `pip install` when a C compiler is there; docs/development.md, "Compiled kernels"). Its
+# results are bit
 # for bit the Python's (tests/fusion/test_strapdown_kernel.py); inputs it does not take (ints,
 # numpy scalars, other sequences) go to the Python reference unchanged.
 _UpdateFn = Callable[

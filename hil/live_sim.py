@@ -303,7 +303,7 @@ def _fly(
         if bus is not None:
             bus.publish_truth(truth)
             for s in samples:
-                if not isinstance(s, ActuatorSample | RpmSample):  # no Zenoh topic yet (#18)
+                if not isinstance(s, ActuatorSample | RpmSample):  # no Zenoh topic for these
                     bus.publish_sample(s)
         # pace: simulated time runs at `speed` x the wall clock. recv() returns early when a
         # message arrives (heartbeats, lockstep acknowledgements), so sleep in a loop.

@@ -217,16 +217,16 @@ class SimChain:
     def steps(self, *, batch: int = 1) -> Iterator[SimStep]:
         """Fly until the setup's duration is reached or the flight ends.
 
-        ``batch`` > 1 (lockstep only): JSBSim and the guidance law advance up to ``batch``
-        steps in a row (each step's vehicle state read right after it, as JSBSim has it then),
-        and only then are those steps' sensor samples made, encoded and yielded, one by one.
-        The steps, samples and frames are the same, in the same order; what changes is that
-        JSBSim's ``run()`` calls follow one another while its code and data are still in the
-        CPU caches instead of after the sensor models, the encoder and whatever the consumer
-        does with each step (bench/jsbsim_in_chain.py: ~2x slower ``run()`` with them in
-        between). A consumer that acts on the flight between steps (an autopilot's commands,
-        live pacing) needs ``batch=1``: the flight is then up to ``batch - 1`` steps ahead of
-        the step yielded.
+        ``batch`` > 1 (lockstep only): JSBSim and the guidance law advance up to ``batch`` steps in
+        a row (each step's vehicle state read right after it, as JSBSim has it then), and only then
+        are those steps' sensor samples made, encoded and yielded, one by one. The steps, samples
+        and frames are the same, in the same order; what changes is that JSBSim's ``run()`` calls
+        follow one another while its code and data are still in the CPU caches instead of after the
+        sensor models, the encoder and whatever the consumer does with each step (JSBSim's ``run()``
+        is slower with them in between: ``jsbsim_run_inside_chain`` of bench/sim_throughput.py;
+        docs/results.md, "Speed"). A consumer that acts on the flight between steps (an autopilot's
+        commands, live pacing) needs ``batch=1``: the flight is then up to ``batch - 1`` steps ahead
+        of the step yielded.
         """
         flight, streamer = self.flight, self.streamer
         if flight is None or streamer is None:
@@ -258,11 +258,11 @@ class SimChain:
                 return
 
 
-#: Steps per batch of a lockstep flight (:func:`fly`): 1 s of simulated time at 200 Hz. Each
-#: stage (JSBSim, samples, encode, decode + filter) runs a whole batch in a row with its code
-#: and data warm, which costs less CPU than alternating the stages every step (bench/README.md,
-#: the lockstep batches). The size comes from an ad-hoc sweep (50 gained less, 1000 no more;
-#: not a committed result).
+#: Steps per batch of a lockstep flight (:func:`fly`): 1 s of simulated time at 200 Hz. Each stage
+#: (JSBSim, samples, encode, decode + filter) runs a whole batch in a row with its code and data
+#: warm, which costs less CPU than alternating the stages every step (bench/sim_throughput.py,
+#: ``sim_chain_batched`` against ``sim_chain``; docs/results.md, "Speed"). The size comes from an
+#: ad-hoc sweep (50 gained less, 1000 no more; not a committed result).
 LOCKSTEP_BATCH = 200
 
 @dataclass(frozen=True)
@@ -442,7 +442,7 @@ class FusionRun:
         decoded first, then their samples fused. The decoder never looks at the filter, so the
         filter gets the same samples in the same order as frame by frame; each stage just
         runs over the whole batch with its code and data warm in the CPU caches
-        (bench/fusion_run_split.py: interleaving them per frame cost more than either).
+        (interleaving them frame by frame costs more CPU).
         """
         t0 = time.perf_counter()
         decoded = self.decoder.feed_all(map(_frame_of, batch))

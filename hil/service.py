@@ -462,7 +462,7 @@ class FusionService:
                 self.stats.innovations += 1
 
     def _on_estimate(self, est: NavEstimate) -> None:
-        # published first: everything else here waits, the subscribers do not (issue 15)
+        # published first, for live latency: everything else here waits, the subscribers do not
         if self._bus is not None and est.mode != "initializing":
             self._bus.publish_estimate(est)
         self.stats.estimates += 1

@@ -73,8 +73,8 @@ def datasheet_layout(layout: LayoutName) -> LayoutName:
     plus the air-data block (``+air``: wind and airspeed scale).
 
     The simulator's IMU (and a real one) has scale-factor and cross-axis errors; without their
-    states the filter is overconfident in turns (``bench/README.md``, consistency error
-    budget: NEES 72 with ``ins16+gnss``). The air-data block is dormant until the stream
+    states the filter is overconfident in turns (``docs/results.md``, "Consistency":
+    NEES 74 with ``ins16+gnss``). The air-data block is dormant until the stream
     carries air data (or a fixed-wing without a pitot flies), so it costs a stream without
     air data nothing but three zero rows of the covariance.
     """
@@ -116,8 +116,9 @@ def gnss_state_layout(gnss: GnssConfig, layout: LayoutName = "ins16") -> LayoutN
     time-correlated (Gauss-Markov) position error, without them otherwise.
 
     The receiver reports its total accuracy in ``eph`` / ``epv``; with the bias states the
-    filter fuses only the white remainder. On the ``modern`` receiver this brought the position
-    rms(error / sigma) from 3-11 to 0.6-0.8 (``bench/README.md``, navigation filter accuracy).
+    filter fuses only the white remainder; otherwise it would take the whole accuracy as white
+    noise and be overconfident. With them the position's rms(error / sigma) is about 1 on the
+    ``modern`` receiver (``docs/results.md``, "Accuracy").
     """
     correlated = gnss.horizontal_gm_sigma_m > 0.0 or gnss.vertical_gm_sigma_m > 0.0
     air = "+air" if layout.endswith("+air") else ""

@@ -4,7 +4,7 @@ For each seed the scenario is flown once (JSBSim -> sensors -> faults -> MAVLink
 memory); every method then decodes and fuses exactly those frames, so the methods differ only in
 how they bridge. The result is the papers' Table 1 (outage RMSE of latitude, longitude, height,
 vN, vE, vD and horizontal error) and Table 2 (mean update time per sample and fit time) on our
-data, written as ``compare.json`` (ARCHITECTURE.md) and ``compare.md``.
+data, written as ``compare.json`` (docs/architecture.md) and ``compare.md``.
 """
 
 from __future__ import annotations

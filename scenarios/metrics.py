@@ -21,7 +21,7 @@ from hil.tracks import Track
 FloatArray = NDArray[np.float64]
 
 #: Seconds into an outage at which the horizontal error is reported (300 and 900: the long
-#: denial of issue #18, where air-data dead reckoning is judged; ``None`` in shorter outages).
+#: denials where air-data dead reckoning is judged; ``None`` in shorter outages).
 ERROR_AT_S: tuple[int, ...] = (10, 30, 60, 120, 300, 900)
 
 

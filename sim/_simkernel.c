@@ -1,6 +1,7 @@
 /* Compiled simulator kernel: the IMU model's Gauss-Markov block filter and its per-sample output,
- * and the guidance law's control loops, operation for operation the Python references in
- * sim/imu.py (first_order_filter_python, imu_output_python) and sim/guidance.py (law_python). Loaded through sim/kernel.py; README, "Compiled simulator kernel".
+ * and the guidance law's control loops, operation for operation the Python references in sim/imu.py
+ * (first_order_filter_python, imu_output_python) and sim/guidance.py (law_python). Loaded through
+ * sim/kernel.py; docs/development.md, "Compiled kernels".
  *
  * Bit identity with CPython (and, for the filter, with scipy.signal.lfilter, which the reference
  * reproduces) is the contract, so, as in fusion/_strapdown.c:

@@ -104,7 +104,7 @@ _IMU_PRESETS: dict[str, ImuConfig] = {
             misalignment_mrad=0.5,  # class value
         ),
     ),
-    # Paper P2 (papers/README.md): "gyro drift 0.1 °/h as first-order Markov, correlation
+    # Paper P2 (docs/methods.md): "gyro drift 0.1 °/h as first-order Markov, correlation
     # time 100 s". P2 states nothing else about the IMU; the rest is the smallest
     # plausible companion of such a gyro, marked assumption.
     "paper-p2": ImuConfig(

@@ -26,7 +26,8 @@
 ========================  =====================================================================
 
 What each method achieves on held-out flights is measured by ``bench/bridging.py`` and
-reported in ``bench/README.md``; ``none`` is the default.
+reported in ``docs/results.md`` ("Bridging (GMDH and the learned methods)"); ``none`` is the
+default.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ from fusion.regressors import BpNet, NarxMLP, RbfNet
 GMDH_FEATURES: tuple[str, ...] = ("t", "t2", "sinpsi", "cospsi")
 """Default inputs of the GMDH, RBF and MLP networks: time into the outage, its square and the
 heading (chosen with ``python bench/bridging.py --tune`` over 17 feature sets; the comparison
-is in ``bench/README.md``)."""
+is in ``bench/results/bridging_tuning.json``)."""
 P0_FEATURES: tuple[str, ...] = ("own",)
 """Paper P0's inputs: the component's own INS value."""
 MLP_FEATURES: tuple[str, ...] = GMDH_FEATURES

@@ -4,13 +4,12 @@ the configuration queryable.
 Publishing never blocks the caller (the filter loop): :meth:`Bus.publish` rate-limits per topic,
 serialises, and appends to a bounded queue that a publisher thread drains into Zenoh publishers
 declared with congestion control ``DROP``. A full queue drops its *oldest* message (the freshest
-estimate matters most) and counts it; :meth:`Bus.stats` reports every counter. (Putting
-straight from the caller's thread when nothing is queued was tried twice for latency, issue
-15: with ``DROP`` bursts lost samples (innovations of a lockstep run at ``--speed 1000``);
-with ``BLOCK`` and one send token ordering the two paths nothing was lost, but the put then
-took 0.23-0.38 ms in the filter's thread against 0.07 ms in the publisher thread, so the
-estimate reached a direct subscriber no sooner (bench/README.md, "Live path, session 13");
-reverted both times.)
+estimate matters most) and counts it; :meth:`Bus.stats` reports every counter. (The caller's
+thread never puts straight into Zenoh, even when nothing is queued: with ``DROP`` a burst loses
+samples (innovations of a lockstep run at ``--speed 1000``); with ``BLOCK`` and one send token
+ordering the two paths nothing is lost, but the put takes 0.23-0.38 ms in the filter's thread
+against 0.07 ms in the publisher thread, so the estimate reaches a direct subscriber no
+sooner.)
 
 Connection: the default is a Zenoh *client* that connects to a router (``hilnav up``'s in-process
 router, see :mod:`hil.router`, or zenohd). A Zenoh (1.10) client cannot open a session while no

@@ -1,4 +1,4 @@
-"""Light message records for the link's high-rate input (issue 15, live latency).
+"""Light message records for the link's high-rate input (live latency).
 
 :meth:`hil.link.MavlinkLink.recv` hands accepted frames to pymavlink's ``MAVLink.decode``,
 which checks again the CRC the link's framing already checked and builds a message object with

@@ -320,7 +320,7 @@ AUTOPILOT_KINDS: tuple[str, ...] = ("none", "px4", "ardupilot")
 
 
 class AutopilotSection(Strict):
-    """An autopilot in the loop (issue #20): who flies, where it connects, where its telemetry
+    """An autopilot in the loop: who flies, where it connects, where its telemetry
     (its own estimate) arrives, and how long to wait for it. ``autopilot: px4`` is short for
     ``autopilot: {kind: px4}``; ``none`` (the default) flies hilnav's own guidance law."""
 

@@ -705,7 +705,7 @@ def test_compensator_is_rolled_back_with_the_loop_on_a_frozen_baro(
     assert ch.health.freeze_rollbacks == 1
     after = (short_data.t_imu >= 103.0) & (short_data.t_imu < 133.0)
     rolled = float(np.max(np.abs(est[after] - clean[after])))
-    # ... and the same with the compensator left as it was (the behaviour before the fix)
+    # ... and the same with the compensator left where the stuck readings took it (no rollback)
     monkeypatch.setattr(AltitudeChannel, "_comp_rollback", lambda self: None)
     frozen_from.clear()
     kept, _ = _run_with(short_data, cfg, stuck)

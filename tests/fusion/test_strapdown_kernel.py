@@ -5,7 +5,7 @@ gives NaN, the same exception where it raises, and the filter's estimates unchan
 NaN payloads and signs are not compared: IEEE 754 leaves them to the hardware and the operand
 order the C compiler picks (CPython's own float operations included), so they are not a property
 of the algorithm. The kernel must be built for these tests: pip builds it when a C compiler is
-installed (README, "Compiled INS kernel")."""
+installed (docs/development.md, "Compiled kernels")."""
 
 from __future__ import annotations
 

@@ -4,8 +4,8 @@ reference, ``ErrorModel._fill`` packed and ``put`` into Phi: the same bits in ev
 (the kernel declines and the reference runs), for every layout family.
 
 NaN payloads and signs are not compared (tests/fusion/test_strapdown_kernel.py says why). The
-kernel must be built for these tests: pip builds it when a C compiler is installed (README,
-"Compiled INS kernel")."""
+kernel must be built for these tests: pip builds it when a C compiler is installed
+(docs/development.md, "Compiled kernels")."""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
 """A Dask cluster of real ``dask scheduler`` / ``dask worker`` processes on loopback, as the
-README's remote-cluster recipe starts one on other hosts (free ports, stopped by PID)."""
+recipe of docs/scenarios.md ("On a Dask cluster") starts one on other hosts (free ports,
+stopped by PID)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
 """The compiled kernels in tests: import one if it was built, and fail its tests with the reason
-when it was not (the test command needs a C compiler: README, "Compiled INS kernel")."""
+when it was not (the test command needs a C compiler: docs/development.md,
+"Compiled kernels")."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A burst through the bus loses nothing; the low-latency transport is asked for (issue 15).
+"""A burst through the bus loses nothing; the low-latency transport is asked for.
 
 GIVEN a bus whose ``publish`` queues samples for its publisher thread (Zenoh ``DROP``),
 WHEN 2,000 estimates are published back to back to a direct peer whose callback is slow

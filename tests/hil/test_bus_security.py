@@ -317,7 +317,7 @@ def test_check_alive_flags_a_fake_token_only_with_the_key(router: str) -> None:
         token = mallory.liveliness().declare_token(key("lt", Topic.ALIVE))
         answer = mallory.declare_queryable(
             key("lt", Topic.CONFIG), lambda q: q.reply(q.key_expr, b'{"schema_version": 1}'))
-        assert wait_for(lambda: check(None)[0] == 0)  # without the key: fooled (issue #13, 7)
+        assert wait_for(lambda: check(None)[0] == 0)  # without the key: fooled
         code, lines = check(KEY)
         assert code == 1 and "forged token?" in lines[0]
         del token, answer

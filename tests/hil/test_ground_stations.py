@@ -49,10 +49,10 @@ def test_mavsdk_sees_a_complete_vehicle(tmp_path: Path) -> None:
     the SYS_STATUS GPS bits) goes false and STATUSTEXTs arrive; the mode names reach MAVSDK
     through its MavlinkDirect plugin (AVAILABLE_MODES / CURRENT_MODE).
 
-    Two MAVSDK 4.1 limits, asserted as they are (README "Which client shows what"):
-    ``Telemetry.flight_mode`` is a fixed enum of PX4 / ArduPilot modes, and MAVSDK decodes a
-    non-ArduPilot ``custom_mode`` as PX4's (``to_flight_mode_from_custom_mode``): 101-105 have
-    PX4 main mode 0, so it says UNKNOWN rather than a wrong name. ``Telemetry.battery`` takes
+    Two MAVSDK 4.1 limits, asserted as they are (docs/ground-stations.md, "Which client shows
+    what"): ``Telemetry.flight_mode`` is a fixed enum of PX4 / ArduPilot modes, and MAVSDK decodes a
+    non-ArduPilot ``custom_mode`` as PX4's (``to_flight_mode_from_custom_mode``): 101-105 have PX4
+    main mode 0, so it says UNKNOWN rather than a wrong name. ``Telemetry.battery`` takes
     SYS_STATUS ``voltage_battery`` times 1e-3 without testing the spec's UINT16_MAX = "not
     sent" (``TelemetryImpl::process_sys_status``): the spec-correct "unknown" reads 65.535 V,
     ``remaining_percent`` -1."""

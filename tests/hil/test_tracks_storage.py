@@ -1,4 +1,4 @@
-"""The collector's compact storage (issue #13, bounded memory): the tracks and the health
+"""The collector's compact storage (bounded memory): the tracks and the health
 series built from compacted (or spilled) column chunks equal those built from the objects, and
 a spilling collector holds at most one chunk of objects however long the run."""
 

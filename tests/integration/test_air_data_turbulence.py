@@ -1,4 +1,4 @@
-"""In turbulence the air-data filter learns the wind, not a wrong airspeed scale (issue #18).
+"""In turbulence the air-data filter learns the wind, not a wrong airspeed scale.
 
 JSBSim cruise (straight, north) for 240 s, seed 3, the air_data bench's weather for that seed
 (wind 8.9 m/s from the north-west, MIL-F-8785C turbulence 0.36: along-track gusts of 2.4 m/s
@@ -76,7 +76,7 @@ def test_gust_states_keep_the_airspeed_scale_and_the_wind_in_turbulence() -> Non
     # prior (0.05); what must not happen is a confident wrong answer
     assert abs(dk) < 3.0 * sd_k, (dk, sd_k)
     assert np.all(np.abs(dw) < 3.0 * sd_w), (dw, sd_w)
-    # AND without the gust states the scale is confidently wrong (the defect this guards:
-    # -0.19 against a sigma of 0.024 when it was found)
+    # AND without the gust states the scale is confidently wrong (the defect this guards
+    # against: -0.19 against a sigma of 0.024 on this flight)
     assert abs(dk_old) > 5.0 * sd_k_old, (dk_old, sd_k_old)
     assert abs(dk_old) > 0.1, dk_old

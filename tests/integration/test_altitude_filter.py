@@ -1,4 +1,4 @@
-"""Altitude methods inside fusion.filter.NavFilter (issue #5): ekf, loop, loop-mpc, loop-kf.
+"""Altitude methods inside fusion.filter.NavFilter: ekf, loop, loop-mpc, loop-kf.
 
 Synthetic flights (tests/helpers/nav_synth.py: sensor errors from the filter's own model, a
 barometer 30 m off plus a Gauss-Markov bias) with a GNSS outage; faults injected into the

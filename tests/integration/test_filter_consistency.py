@@ -1,5 +1,5 @@
 """The commands' filter is consistent on a JSBSim flight with the simulator's full IMU error
-model (issue: a filter that knows how wrong it is).
+model: it knows how wrong it is.
 
 Manoeuvre plan, 300 s, seed 5, ``industrial-mems`` IMU (scale factor 1000 ppm, 0.87 mrad
 misalignment, 180 deg/h turn-on gyro bias), ``modern`` GNSS on throughout. Over seeds 5-7 of

@@ -1,4 +1,4 @@
-"""Hostile input through decoder + filter (issue: trust no input): byte-mutated frames and
+"""Hostile input through decoder + filter (trust no input): byte-mutated frames and
 CRC-valid frames with hostile values, bounded and seeded (a few seconds).
 
 A synthetic 90 s flight (tests/helpers/nav_synth.py: turns, climbs; sensor errors from the

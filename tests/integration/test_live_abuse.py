@@ -1,4 +1,4 @@
-"""A hostile sender on the live chain's MAVLink port (issue #13), over real loopback sockets.
+"""A hostile sender on the live chain's MAVLink port, over real loopback sockets.
 
 `tests/hil/test_service.py` floods a fusion that has already bound to the simulator with valid
 frames from system 99, and `tests/integration/test_fuzz.py` feeds hostile values from the

@@ -1,11 +1,11 @@
-"""Strapdown mechanisation against a real JSBSim racetrack (the filter issue's physics test).
+"""Strapdown mechanisation against a real JSBSim racetrack (the INS's physics test).
 
 GIVEN 10 min of a c172x racetrack from JSBSim WHEN an ideal IMU is derived from that trajectory
 (splines of position and attitude through hilnav's Earth model) and mechanised THEN the INS
 reproduces the trajectory to better than 1 m.
 
-Mechanising JSBSim's *own* specific force instead drifts by a few metres in 10 min
-(``bench/mechanisation_jsbsim.py``): JSBSim's gravity (WGS-84 + J2) differs from hilnav's
+Mechanising JSBSim's *own* specific force instead drifts by a few metres in 10 min: JSBSim's
+gravity (WGS-84 + J2) differs from hilnav's
 normal gravity by ~1e-5 m/s^2, far below any real accelerometer's bias.
 """
 

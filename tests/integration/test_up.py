@@ -41,7 +41,7 @@ def test_up_with_duration_finishes_by_itself_and_prints_a_scorecard(tmp_path: Pa
 
 
 def test_up_signs_every_link_with_the_key_from_the_environment(tmp_path: Path) -> None:
-    # GIVEN a signing key in HILNAV_MAVLINK_KEY (as the README's first example shows)
+    # GIVEN a signing key in HILNAV_MAVLINK_KEY (as docs/live.md, "MAVLink signing", shows)
     out = tmp_path / "up"
     env = {**_env(), "HILNAV_MAVLINK_KEY": "5a" * 32}
     proc = subprocess.run(

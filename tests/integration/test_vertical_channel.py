@@ -1,5 +1,5 @@
-"""The default altitude mode's vertical channel with GNSS on (issue: a filter that knows how
-wrong it is).
+"""The default altitude mode's vertical channel with GNSS on is consistent: the filter knows
+how wrong it is.
 
 A JSBSim climb-descent flight in a non-standard atmosphere (20 K above ISA, paper P4's case:
 the ISA pressure height then changes about 6.5 % less than the true height), GNSS on
@@ -63,7 +63,7 @@ def test_down_velocity_stays_inside_its_3_sigma_band_in_climbs(frames: list[Fram
             inside = np.abs(vd_err) <= 3.0 * err.sigma[climbing, 5]
             assert inside.mean() >= 0.99
             # AND the vertical position too, and it is better than the receiver's own height:
-            # with the baro scale ignored it was 3.6-4.1 m RMS, worse than GNSS alone
+            # with the baro scale ignored it is 3.6-4.1 m RMS, worse than GNSS alone
             assert sc.summary["containment_3sigma"]["vertical"] >= 0.99
             rx = gnss_preset("modern")
             gnss_vertical_sigma_m = math.hypot(rx.vertical_gm_sigma_m,

@@ -327,7 +327,7 @@ def test_a_run_that_raises_is_reported(tmp_path: Path, scheduler: str) -> None:
 
 def test_remote_cluster_recipe_on_loopback(first: CampaignResult, tiny: Path,
                                            tmp_path: Path) -> None:
-    """The README's remote-cluster recipe, on 127.0.0.1: ``dask scheduler`` and two ``dask
+    """The Dask-cluster recipe of docs/scenarios.md, on 127.0.0.1: ``dask scheduler`` and two ``dask
     worker`` processes (what other hosts would run), ``hilnav campaign --scheduler``."""
     from tests.helpers.dask_cluster import dask_cli_cluster
 

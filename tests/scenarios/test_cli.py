@@ -1,7 +1,7 @@
 """The hilnav command line: recording, replay scorecard, exit codes, bad input.
 
 GIVEN a user at the shell, WHEN they run a subcommand, THEN they get the files of the output
-contract (ARCHITECTURE.md) and exit 0 / 1 / 2 with one readable line on failure.
+contract (docs/architecture.md) and exit 0 / 1 / 2 with one readable line on failure.
 """
 
 from __future__ import annotations

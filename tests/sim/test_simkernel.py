@@ -6,8 +6,8 @@ exception where it raises, and the IMU model's samples unchanged.
 
 NaN payloads and signs are not compared (as in tests/fusion/test_strapdown_kernel.py): IEEE 754
 leaves them to the hardware and to the operand order the compiler picks. The kernel must be
-built for these tests: pip builds it when a C compiler is installed (README, "Compiled
-simulator kernel")."""
+built for these tests: pip builds it when a C compiler is installed (docs/development.md,
+"Compiled kernels")."""
 
 from __future__ import annotations
 
