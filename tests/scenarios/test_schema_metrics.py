@@ -21,6 +21,8 @@ NOT_CRITERIA = {
     "schema_version", "seed", "wall_s", "nees.nees_dof", "outages.drift.step_s",
     "outages.drift.horizontal_m", "scoring.reconverge_threshold_m", "scoring.reconverge_hold_s",
     "scoring.bad_fix_m",
+    # the fix gaps an outage is made of ([start_s, end_s] pairs), not a figure of merit
+    "outages.gaps",
     # a flag (true / false; null for an event without a re-accept check), not a number
     "events.reaccepted_early",
 }
