@@ -1,4 +1,4 @@
-"""Build ``summary.json`` (the CLI output contract of ARCHITECTURE.md) from collected tracks."""
+"""Build ``summary.json`` (the output contract in docs/architecture.md) from collected tracks."""
 
 from __future__ import annotations
 
@@ -221,7 +221,7 @@ def build_summary(
     Returns
     -------
     summary : dict
-        The ``summary.json`` contract of ARCHITECTURE.md plus ``containment_3sigma``,
+        The ``summary.json`` contract (docs/architecture.md) plus ``containment_3sigma``,
         ``events``, ``detect_s_by_sensor`` (the events' ``detect_s`` per sensor), ``scoring``
         and (with ``series``) ``rejections_outside_events``; each outage also has
         ``cep50_m``, ``cep95_m``, ``containment_3sigma``, ``reconverge_s``, vertical error

@@ -294,7 +294,7 @@ class RouterSecurity(pydantic.BaseModel):
             raise ValueError(
                 f"refusing to listen on {', '.join(exposed)} (beyond loopback) without client "
                 "authentication: give --users-file or --mtls (see 'Securing the Zenoh bus' in "
-                "the README), or --insecure to accept every client that can reach it")
+                "docs/live.md), or --insecure to accept every client that can reach it")
 
     def zenoh_config(self) -> dict[str, Any]:
         """The router's ``transport``, ``access_control`` and ``adminspace`` sections."""

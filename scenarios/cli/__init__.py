@@ -3,5 +3,5 @@
 The only place that may import every layer (scenarios, hil, fusion, sim) and wire them
 together; nothing imports it. Each command validates its input, builds its pieces through the
 shared pipeline (:mod:`hil.pipeline`) and scorer (:mod:`scenarios.summary`), and maps failures
-to the exit codes of ARCHITECTURE.md.
+to the exit codes in docs/architecture.md.
 """

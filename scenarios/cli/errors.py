@@ -1,6 +1,6 @@
 """Exit codes of ``hilnav``: bad input -> 2 with one line, a failed run -> 1.
 
-Exit codes follow ARCHITECTURE.md: 0 success / pass, 1 run failed (criteria failed, aircraft
+Exit codes (docs/architecture.md): 0 success / pass, 1 run failed (criteria failed, aircraft
 crashed), 2 bad input (one line on stderr naming what is wrong, never a traceback). The input
 checks here raise ValueError, which :func:`cli_errors` turns into that one line.
 """

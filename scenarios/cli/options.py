@@ -111,8 +111,9 @@ def option_group(name: str, template: Callable[..., None], build: Callable[..., 
     return decorate
 
 
-# How a bus client (fusion, sim, monitor, check) joins a secured Zenoh router; see the README's
-# "Securing the Zenoh bus". Secrets never go on the command line: files or the environment.
+# How a bus client (fusion, sim, monitor, check) joins a secured Zenoh router; see
+# docs/live.md, "Securing the Zenoh bus". Secrets never go on the command line: files or the
+# environment.
 def _zenoh_security_template(
     zenoh_user: Annotated[str | None, typer.Option(
         help="Zenoh usrpwd user (password from --zenoh-password-file or env "

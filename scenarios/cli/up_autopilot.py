@@ -43,7 +43,7 @@ from sim.samples import Truth
 
 __all__ = ["AUTOPILOT_SIDE_COMMANDS", "fly_autopilot", "up_backend"]
 
-#: What the user runs on the autopilot's side (printed by ``up``; the README has the details).
+#: What the user runs on the autopilot's side (printed by ``up``; details in docs/autopilots.md).
 AUTOPILOT_SIDE_COMMANDS = {
     "px4": "PX4 SITL (lockstep): in PX4-Autopilot, `make px4_sitl none_<airframe>` (it connects "
            "to TCP 4560 on PX4_SIM_HOSTNAME, default this machine); its estimate comes back on "
