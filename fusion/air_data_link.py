@@ -19,14 +19,13 @@ from __future__ import annotations
 
 import math
 
-from fusion.aiding.baro import height_to_pressure
 from fusion.airspeed_model import AirspeedInputs
 from fusion.estimate import AirDataStatus
 from fusion.rotations import dcm_from_quat, euler_from_quat
 from fusion.samples import ActuatorSample, RpmSample
 from fusion.strapdown import InsState
 from physconst.airdata import air_density_kgpm3
-from physconst.isa import isa_temperature_k
+from physconst.isa import isa_pressure_pa, isa_temperature_k
 
 NEVER_US = 1 << 62
 """The air-data epoch time of a filter without air data."""
@@ -94,7 +93,7 @@ class AirDataLink:
         baro sample's, ISA at the INS height where it has none."""
         p, temp = self._static_pa, self._static_temp_k
         if not math.isfinite(p):  # no baro yet: ISA at the INS height
-            p = height_to_pressure(ins.alt_msl_m)
+            p = isa_pressure_pa(ins.alt_msl_m)
             temp = math.nan
         if not 150.0 <= temp <= 350.0:
             temp = isa_temperature_k(ins.alt_msl_m)

@@ -48,7 +48,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fusion import earth, strapdown
 from fusion.aiding.airspeed import AirspeedAiding
-from fusion.aiding.baro import BaroAiding, pressure_to_height
+from fusion.aiding.baro import BaroAiding
 from fusion.aiding.gnss import GnssAiding, fix_sigmas
 from fusion.aiding.mag import MagAiding
 from fusion.aiding.pseudo_gnss import PseudoGnssAiding
@@ -100,6 +100,7 @@ from fusion.samples import (
 )
 from fusion.screening import SampleScreen
 from fusion.strapdown import InsState
+from physconst.isa import pressure_altitude_m
 
 __all__ = ["Health", "NavEstimate", "NavFilter"]  # the filter, its output and counters
 
@@ -647,7 +648,7 @@ class NavFilter(FilterState):
         p = baro.pressure(s)
         if p is None:
             return []
-        h_baro = pressure_to_height(p)
+        h_baro = pressure_altitude_m(p)
         ins = self._ins
         if ins is None:
             return []

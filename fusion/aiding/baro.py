@@ -31,14 +31,6 @@ from fusion.config import BaroTuning
 from fusion.error_model import StateLayout
 from fusion.estimate import AidSource, HealthCounters
 from fusion.samples import BaroSample
-from physconst.isa import isa_pressure_pa, pressure_altitude_m
-
-pressure_to_height = pressure_altitude_m
-"""ISA pressure altitude, m, of a static pressure in Pa (NaN for a non-positive one): the
-name the filter reads the baro height by (:func:`physconst.isa.pressure_altitude_m`)."""
-height_to_pressure = isa_pressure_pa
-"""ISA static pressure, Pa, at a pressure altitude in m: the inverse of
-:data:`pressure_to_height` (:func:`physconst.isa.isa_pressure_pa`)."""
 
 
 def height_model(

@@ -13,6 +13,7 @@ from fusion.config import BaroTuning, GnssTuning, MagTuning
 from fusion.error_model import INS16, INS16_GNSS
 from fusion.rotations import euler_to_quat, quat_multiply, quat_to_dcm, rotvec_to_quat
 from fusion.strapdown import InsState
+from physconst.isa import isa_pressure_pa, pressure_altitude_m
 from sim.samples import GnssFix
 from tests.helpers.nav_synth import FIELD_N_T
 
@@ -165,15 +166,15 @@ def test_gnss_models_reject_garbage() -> None:
 
 
 def test_isa_pressure_height() -> None:
-    assert baro.pressure_to_height(101325.0) == pytest.approx(0.0, abs=1e-9)
+    assert pressure_altitude_m(101325.0) == pytest.approx(0.0, abs=1e-9)
     # standard-atmosphere tables
-    assert baro.pressure_to_height(89874.6) == pytest.approx(1000.0, abs=0.1)
-    assert baro.pressure_to_height(22632.06) == pytest.approx(11000.0, abs=0.5)
-    assert baro.pressure_to_height(5474.89) == pytest.approx(20000.0, abs=1.0)
+    assert pressure_altitude_m(89874.6) == pytest.approx(1000.0, abs=0.1)
+    assert pressure_altitude_m(22632.06) == pytest.approx(11000.0, abs=0.5)
+    assert pressure_altitude_m(5474.89) == pytest.approx(20000.0, abs=1.0)
     for h in (-300.0, 0.0, 1234.5, 10999.0, 11001.0, 18000.0):
-        assert baro.pressure_to_height(baro.height_to_pressure(h)) == pytest.approx(h, abs=1e-6)
-    assert math.isnan(baro.pressure_to_height(0.0))
-    assert math.isnan(baro.pressure_to_height(math.nan))
+        assert pressure_altitude_m(isa_pressure_pa(h)) == pytest.approx(h, abs=1e-6)
+    assert math.isnan(pressure_altitude_m(0.0))
+    assert math.isnan(pressure_altitude_m(math.nan))
 
 
 def test_baro_h_matches_finite_differences() -> None:

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 
 import pytest
 
-from fusion.aiding.baro import height_to_pressure
 from fusion.air_data_link import NEVER_US, AirDataLink
 from fusion.strapdown import InsState
+from physconst.isa import isa_pressure_pa as height_to_pressure
 
 INS = InsState(0.8, 0.2, 1_000.0, (30.0, 0.0, -2.0), (1.0, 0.0, 0.0, 0.0))
 

@@ -15,13 +15,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion import earth
-from fusion.aiding.baro import height_to_pressure
 from fusion.config import FilterConfig
 from fusion.filter import NavFilter
 from fusion.rotations import dcm_to_rotvec, euler_to_quat, quat_to_dcm
 from fusion.trajectory import SplineTrajectory, ideal_increments, imu_rates
 from physconst.airdata import impact_pressure_pa
 from physconst.geomag import DEFAULT_DECIMAL_YEAR, magnetic_field_ned_t
+from physconst.isa import isa_pressure_pa as height_to_pressure
 from sim.samples import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample
 
 FloatArray = NDArray[np.float64]

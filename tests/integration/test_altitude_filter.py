@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 from fusion import earth
-from fusion.aiding.baro import height_to_pressure
 from fusion.config import ALTITUDE_METHODS, AltitudeConfig, FilterConfig
 from fusion.estimate import AltitudeStatus, NavEstimate
 from fusion.filter import NavFilter
+from physconst.isa import isa_pressure_pa as height_to_pressure
 from sim.samples import BaroSample, ImuSample
 from tests.helpers.nav_synth import Flight, Prepared, SensorErrors, make_scenario, prepare
 
@@ -250,7 +250,7 @@ def _faulty(samples: list[object], fault: str) -> tuple[list[object], int]:
 
 
 def _isa_height(p: float) -> float:
-    from fusion.aiding.baro import pressure_to_height
+    from physconst.isa import pressure_altitude_m as pressure_to_height
 
     return pressure_to_height(p)
 
