@@ -85,7 +85,7 @@ from fusion.estimate import (
     new_estimate,
 )
 from fusion.filter_state import FilterState
-from fusion.nominal import initial_nominal, with_baro_bias, with_ins
+from fusion.nominal import NominalState, initial_nominal, with_baro_bias, with_ins
 from fusion.outage import OutageBridging
 from fusion.rotations import euler_from_quat
 from fusion.samples import (
@@ -111,6 +111,7 @@ _increments = strapdown.increments
 _increments_scaled = strapdown.increments_scaled
 _increments_compensated = strapdown.increments_compensated
 _with_ins = with_ins
+_tuple_new = tuple.__new__
 _with_baro_bias = with_baro_bias
 _GNSS, _BRIDGING, _FREE = Mode.GNSS, Mode.BRIDGING, Mode.FREE_INERTIAL
 _DEAD_RECKONING = Mode.DEAD_RECKONING
@@ -400,7 +401,8 @@ class NavFilter(FilterState):
         else:
             dth, dv = _increments(fw, dt, ba, bg)
         ins = _ins_update(ins0, dth, dv, self._prev_dth, self._prev_dv, dt)
-        nom = self._nom = _with_ins(nom0, ins)
+        # fusion.nominal.with_ins, inlined (every IMU sample)
+        nom = self._nom = _tuple_new(NominalState, (ins,) + nom0[1:])  # noqa: RUF005
         self._prev_dth = dth
         self._prev_dv = dv
         self._last_dt = dt

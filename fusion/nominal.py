@@ -7,7 +7,8 @@ filter holds exactly one :class:`NominalState` and replaces it whenever any part
 It is a ``NamedTuple`` (immutable, named fields) rather than a frozen dataclass because the
 filter replaces it at every IMU sample (the INS moves): building a tuple costs a fraction of a
 frozen dataclass's ``__init__``, which sets each field through ``object.__setattr__``. The
-``with_*`` functions below are the hot-path replacements; elsewhere ``_replace`` is fine.
+``with_*`` functions below are the hot-path replacements (tuple concatenation: cheaper than
+unpacking into a new tuple, and than ``_replace``); elsewhere ``_replace`` is fine.
 """
 
 from __future__ import annotations
@@ -76,9 +77,9 @@ def initial_nominal(ins: InsState, time_us: int) -> NominalState:
 
 def with_ins(state: NominalState, ins: InsState) -> NominalState:
     """``state`` with the INS replaced (every IMU sample: a tuple, no ``_replace``)."""
-    return _tuple_new(NominalState, (ins, *state[1:]))
+    return _tuple_new(NominalState, (ins,) + state[1:])  # noqa: RUF005  (module docstring)
 
 
 def with_baro_bias(state: NominalState, baro_bias_m: float) -> NominalState:
     """``state`` with the baro bias replaced (at every covariance propagation)."""
-    return _tuple_new(NominalState, (*state[:7], baro_bias_m, *state[8:]))
+    return _tuple_new(NominalState, state[:7] + (baro_bias_m,) + state[8:])  # noqa: RUF005
