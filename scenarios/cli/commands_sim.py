@@ -306,8 +306,9 @@ def ardupilot(
         help="Servo map YAML (default ArduPlane: 1 aileron, 2 elevator, 3 throttle, 4 rudder, "
              "1000-2000 us).", rich_help_panel=_AUTOPILOT)] = None,
     ardupilot_mavlink: Annotated[str | None, typer.Option(
-        help="ArduPilot's MAVLink port (e.g. tcp:127.0.0.1:5760) for the SIM_GPS1_* parameters "
-             "of the GNSS denial.", rich_help_panel=_AUTOPILOT)] = None,
+        help="ArduPilot's MAVLink port (e.g. tcp:127.0.0.1:5762; 5760 is sim_vehicle's "
+             "MAVProxy) for the SIM_GPS1_* parameters of the GNSS denial.",
+        rich_help_panel=_AUTOPILOT)] = None,
     record: RecordAlsoOption = None,
     stall_timeout: StallTimeoutOption = 10.0,
     connect_timeout: ConnectTimeoutOption = 60.0,

@@ -50,6 +50,7 @@ from sim.samples import Truth
 __all__ = ["autopilot_side_command", "fly_autopilot", "up_backend"]
 
 _TRUTH_PERIOD_US = 20_000  # the truth kept for scoring the autopilot: 50 Hz
+_COVERAGE_SLACK_S = 5.0  # the scorecard may start after the flight (the filter's alignment)
 
 
 def _setup(options: UpOptions) -> SimSetup:
@@ -162,6 +163,10 @@ def fly_autopilot(options: UpOptions, endpoint: str, port: int, children: list[C
         return None
     summary: dict[str, Any] = json.loads(summary_path.read_text())
     if flown is not None:
+        scored_s = float(summary.get("sim_duration_s") or 0.0)
+        if scored_s < flown.sim_duration_s - _COVERAGE_SLACK_S:
+            warn(f"the live scorecard covers {scored_s:.1f} s of the {flown.sim_duration_s:.1f} s "
+                 f"flown: the fusion service stopped early (see {fusion.log_path})")
         summary["autopilot"] = _section(options, summary, flown, telemetry, truths)
         if flown.problems:
             summary["failures"] = [*summary.get("failures", []), *flown.problems]

@@ -8,6 +8,8 @@ loop on the truth it is sent, its estimate as MAVLink telemetry over loopback), 
 
 from __future__ import annotations
 
+import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +42,9 @@ def test_an_unacknowledged_denial_is_a_failure_of_the_live_scorecard(tmp_path: P
     assert any("SIM_GPS1_ENABLE = 0" in f for f in summary["failures"])
     assert progress and max(progress) >= 100.0
     assert any(line.startswith("now start     PX4 SITL") for line in said)
+    # AND the fusion scored the whole flight (it waits out the autopilot's pauses)
+    assert not [line for line in said if "the live scorecard covers" in line], said
+    assert summary["sim_duration_s"] > 115.0
 
 
 def test_up_prints_each_failure_and_exits_1(tmp_path: Path,
@@ -57,6 +62,36 @@ def test_up_prints_each_failure_and_exits_1(tmp_path: Path,
                                    str(tmp_path), "--quiet"])
     assert res.exit_code == 1
     assert res.output.count(failure) == 2  # its own line and the exit line
+
+
+class _PausingAutopilot(_Autopilot):
+    """Stops sending controls once, at 30 s of its clock, for ``pause_s`` wall seconds (shorter
+    than the stall timeout: as ArduPilot does while it reboots a parameter or arms)."""
+
+    def __init__(self, telemetry_url: str, pause_s: float) -> None:
+        super().__init__(telemetry_url)
+        self.pause_s = pause_s
+        self.paused = False
+
+    def controls(self, timeout_s: float) -> Sequence[float] | None:
+        if not self.paused and self.time_s >= 30.0:
+            self.paused = True
+            time.sleep(self.pause_s)
+        return super().controls(timeout_s)
+
+
+def test_a_pause_of_the_autopilot_does_not_cut_the_live_scorecard(tmp_path: Path) -> None:
+    # GIVEN an autopilot pausing longer than the fusion's idle exit of a run without one
+    port = free_udp_port()
+    autopilot = _PausingAutopilot(f"udpout:127.0.0.1:{port}", FUSION_IDLE_EXIT_S + 1.5)
+    options = UpOptions(autopilot="px4", duration_s=60.0, monitor=False,
+                        autopilot_telemetry=f"udpin:127.0.0.1:{port}", connect_timeout_s=5.0,
+                        stall_timeout_s=8.0, out=tmp_path / "up")
+    # WHEN up flies the whole duration with it
+    summary = run_up(options, log=lambda _line: None, backend=autopilot)
+    # THEN the live scorecard covers the flight after the pause too
+    assert autopilot.paused and summary is not None
+    assert summary["sim_duration_s"] > 55.0
 
 
 def test_the_fusion_waits_for_the_autopilot_as_long_as_the_simulator_does(
