@@ -277,9 +277,27 @@ def compare(
 
     names = parse_methods(methods)
     scn = _load_scenario(scenario, altitude=altitude, airspeed=airspeed, align=align)
-    result = run_compare(scn, names, list(range(seed_base, seed_base + seeds)), out,
-                         progress=None if quiet else
-                         lambda msg: err_console.print(msg, highlight=False))
+    seed_list = list(range(seed_base, seed_base + seeds))
+    with settled_heap():
+        from scenarios.runner import sim_setup
+
+        events = scripted_events(sim_setup(scn))
+    # one bar over every seed's flight; the real-time factor counts each flight on its own
+    with progress_bar(scn.duration_s * len(seed_list), "flying", quiet=quiet,
+                      events=events) as progress:
+
+        flying: list[int] = []
+
+        def flight_progress(seed: int, t_s: float) -> None:
+            if not flying or flying[-1] != seed:
+                flying.append(seed)
+                progress.restart_clock()
+            progress((len(flying) - 1) * scn.duration_s + t_s, event_time_s=t_s)
+
+        result = run_compare(scn, names, seed_list, out,
+                             progress=None if quiet else
+                             lambda msg: err_console.print(msg, highlight=False),
+                             flight_progress=flight_progress)
     console.print(markdown(result), highlight=False)
     console.print(f"compare -> {out / 'compare.json'}")
 

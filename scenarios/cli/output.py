@@ -8,16 +8,16 @@ from __future__ import annotations
 
 import contextlib
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from typing import Any
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 __all__ = [
-    "console", "err_console", "fmt", "print_autopilot", "print_live", "print_summary",
-    "progress_bar", "progress_line", "say_waiting_for_autopilot", "say_warning", "scripted_events",
-    "speed_sentence", "warn_input",
+    "FlightProgress", "console", "err_console", "fmt", "print_autopilot", "print_live",
+    "print_summary", "progress_bar", "progress_line", "say_waiting_for_autopilot", "say_warning",
+    "scripted_events", "speed_sentence", "warn_input",
 ]
 
 err_console = Console(stderr=True, soft_wrap=True)
@@ -44,7 +44,7 @@ def _event_at(events: list[ScriptedEvent], t_s: float) -> str:
                      if start <= t_s and (end is None or t_s < end))
 
 
-class _Progress:
+class FlightProgress:
     """Simulated time against wall time: a rich bar on a terminal, a plain line every 10 % of
     the flight otherwise (CI logs). The real-time factor counts from the first call (a wait
     for an autopilot or a peer is not flight)."""
@@ -52,7 +52,8 @@ class _Progress:
     _STEPS = 10
 
     def __init__(self, total_s: float, label: str, events: list[ScriptedEvent],
-                 bar: Progress | None) -> None:
+                 bar: Progress | None, *, quiet: bool = False) -> None:
+        self.quiet = quiet
         self.total_s = total_s
         self.label = label
         self.events = events
@@ -61,11 +62,16 @@ class _Progress:
         self.first: tuple[float, float] | None = None
         self.next_step = 1
 
-    def __call__(self, t_s: float, info: str | None = None) -> None:
+    def __call__(self, t_s: float, info: str | None = None, *,
+                 event_time_s: float | None = None) -> None:
         """Tell the flight is at ``t_s`` simulated seconds; ``info`` (the real-time factor
-        and event as another process measured them) replaces this one's own."""
+        and event as another process measured them) replaces this one's own;
+        ``event_time_s``: the time in the flight's own timeline, when ``t_s`` counts over
+        several flights."""
+        if self.quiet:
+            return
         if info is None:
-            info = self._info(t_s)
+            info = self._info(t_s, t_s if event_time_s is None else event_time_s)
         if self.bar is not None and self.task is not None:
             self.bar.update(self.task, completed=t_s, info=info)
             return
@@ -76,14 +82,18 @@ class _Progress:
         err_console.print(progress_line(self.label, t_s, self.total_s, info),
                           highlight=False, markup=False)
 
-    def _info(self, t_s: float) -> str:
+    def restart_clock(self) -> None:
+        """Count the real-time factor from the next call (a new flight begins)."""
+        self.first = None
+
+    def _info(self, t_s: float, event_time_s: float) -> str:
         now = time.monotonic()
         if self.first is None:
             self.first = (t_s, now)
         t0_s, wall0 = self.first
         rtf = f"{(t_s - t0_s) / (now - wall0):.1f}x real time" \
             if now > wall0 and t_s > t0_s else ""
-        return ", ".join(x for x in (rtf, _event_at(self.events, t_s)) if x)
+        return ", ".join(x for x in (rtf, _event_at(self.events, event_time_s)) if x)
 
 
 def progress_line(label: str, t_s: float, total_s: float, info: str = "") -> str:
@@ -96,17 +106,14 @@ def progress_line(label: str, t_s: float, total_s: float, info: str = "") -> str
 @contextlib.contextmanager
 def progress_bar(total_s: float, label: str, *, quiet: bool = False,
                  events: list[ScriptedEvent] | None = None
-                 ) -> Iterator[Callable[..., None]]:
+                 ) -> Iterator[FlightProgress]:
     """Progress over ``total_s`` simulated seconds on stderr: a transient bar on a terminal, a
     plain line every 10 % of the flight otherwise, nothing with ``quiet``; each shows the
     real-time factor and the scripted event under way (``events``). Yields the
     ``progress(t_s)`` callback the runners take (``progress(t_s, info)`` with another
     process's own real-time factor and event)."""
-    if quiet:
-        yield lambda *_args: None
-        return
-    if not err_console.is_terminal:
-        yield _Progress(total_s, label, list(events or ()), None)
+    if quiet or not err_console.is_terminal:
+        yield FlightProgress(total_s, label, list(events or ()), None, quiet=quiet)
         return
     bar = Progress(
         TextColumn(f"[bold]{label}"),
@@ -118,7 +125,7 @@ def progress_bar(total_s: float, label: str, *, quiet: bool = False,
         transient=True,
     )
     with bar:
-        yield _Progress(total_s, label, list(events or ()), bar)
+        yield FlightProgress(total_s, label, list(events or ()), bar)
 
 
 def say_warning(text: str) -> None:

@@ -197,3 +197,20 @@ def test_demo_writes_the_report_with_what_it_flew(tmp_path: Path) -> None:
     html = (tmp_path / "report.html").read_text()
     assert "c172x" in html and "tactical" in html
     assert html.count("data:image/png;base64,") == len(list(tmp_path.glob("*.png"))) >= 3
+
+
+def test_compare_counts_every_seeds_flight_in_one_progress(tmp_path: Path) -> None:
+    """GIVEN two seeds of a 20 s scenario with a GNSS outage, WHEN ``compare`` flies them,
+    THEN one progress runs over both flights (40 s) and names the outage in each."""
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text("name: cmp\nduration_s: 20\nsim_rate_hz: 100\nseed: 4\nevents:\n"
+                        "  - {type: gnss_outage, at: 10, duration: 5}\n")
+    res = runner.invoke(app, ["compare", str(scenario), "--out", str(tmp_path / "out"),
+                              "--methods", "none", "--seeds", "2"])
+    assert res.exit_code == 0, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.startswith("flying: ")]
+    assert len(lines) == 10 and lines[-1].startswith("flying: 40/40 s simulated (100 %)")
+    assert [ln for ln in lines if "gnss outage" in ln] == [lines[2], lines[7]]  # 12 s, 32 s
+    quiet = runner.invoke(app, ["compare", str(scenario), "--out", str(tmp_path / "q"),
+                                "--methods", "none", "--seeds", "1", "--quiet"])
+    assert quiet.exit_code == 0 and "flying" not in quiet.output
