@@ -25,6 +25,7 @@ from scenarios.cli.options import (
     zenoh_security_options,
 )
 from scenarios.cli.output import (
+    FLYING,
     console,
     err_console,
     progress_bar,
@@ -233,7 +234,7 @@ def live(
     err_console.print(f"sim: streaming to {url} at {speed:g}x real time"
                       + (" (lockstep)" if lockstep else ""), highlight=False)
     with stop_on_signals() as stop, progress_bar(
-            request.duration_s, "flying", events=scripted_events(request)) as progress:
+            request.duration_s, FLYING, events=scripted_events(request)) as progress:
         report = live_sim(request, url, speed=speed, record=record, zenoh=zenoh,
                           vehicle=vehicle, signing_key=key, bus_access=access,
                           wait_peer_s=wait_peer,

@@ -15,7 +15,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 __all__ = [
-    "FlightProgress", "console", "err_console", "fmt", "print_autopilot", "print_live",
+    "FLYING", "FlightProgress", "console", "err_console", "fmt", "print_autopilot", "print_live",
     "print_summary", "progress_bar", "progress_line", "say_waiting_for_autopilot", "say_warning",
     "scripted_events", "speed_sentence", "warn_input",
 ]
@@ -23,6 +23,9 @@ __all__ = [
 err_console = Console(stderr=True, soft_wrap=True)
 console = Console(soft_wrap=True)
 
+
+FLYING = "flying"
+"""The label of a flight's progress (``up`` reads the sim child's lines by it)."""
 
 ScriptedEvent = tuple[float, float | None, str]
 """A scripted event for the progress line: start and end (None: to the end), simulated s, and

@@ -45,6 +45,7 @@ from scenarios.cli.children import (
     stop_process,
     wait_gone,
 )
+from scenarios.cli.output import FLYING
 from scenarios.cli.up_options import (
     DEFAULT_DURATION_S,
     UpOptions,
@@ -246,7 +247,9 @@ def _run_children(options: UpOptions, listen: str, security: RouterSecurity,
 Progress = Callable[[float, "str | None"], None]
 """``progress(simulated_s, info)``: how far the flight of ``up`` is."""
 
-_SIM_PROGRESS = re.compile(r"^flying: ([0-9.]+)/[0-9.]+ s simulated \([0-9]+ %\)(?:, (.*))?$")
+# what output.progress_line prints for the sim child's flight (``hilnav sim live``)
+_SIM_PROGRESS = re.compile(
+    rf"^{FLYING}: ([0-9.]+)/[0-9.]+ s simulated \([0-9]+ %\)(?:, (.*))?$")
 
 
 class SimLogRelay:
