@@ -9,6 +9,7 @@ data, written as ``compare.json`` (docs/architecture.md) and ``compare.md``.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -47,8 +48,11 @@ def compare(
     *,
     altitude: str | None = None,
     progress: Callable[[str], None] | None = None,
+    flight_progress: Callable[[int, float], None] | None = None,
 ) -> dict[str, Any]:
-    """Run the comparison and write ``compare.json``, ``compare.md`` and per-run summaries."""
+    """Run the comparison and write ``compare.json``, ``compare.md`` and per-run summaries.
+    ``progress(message)`` is told each seed's flight and each method's fusion;
+    ``flight_progress(seed, simulated_s)`` how far a seed's flight is."""
     for m in methods:
         make_bridge(m)
     if not seeds:
@@ -64,7 +68,8 @@ def compare(
         frames: list[Frame] = []
         if progress:
             progress(f"seed {seed}: flying {scn.duration_s:.0f} s")
-        flown = simulate(scn, _appender(frames))
+        flown = simulate(scn, _appender(frames), progress=None if flight_progress is None
+                         else functools.partial(flight_progress, seed))
         ended = [] if flown.ended is None else [f"the flight ended early: {flown.ended}"]
         config = filter_config(scn, altitude)
         for m in methods:

@@ -26,7 +26,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
@@ -67,14 +67,16 @@ def replay(
     settle_s: float = 60.0,
     gnss_off: Sequence[str] = (),
     progress: Callable[[int, int], None] | None = None,
+    setup: Mapping[str, Any] | None = None,
 ) -> ReplayResult:
     """Run the filter over ``log`` (``.tlog`` or ``.ulg``) and write ``summary.json`` and plots
     into ``out_dir``.
 
     ``altitude`` selects the altitude method (``fusion.config.ALTITUDE_METHODS``), replacing
     ``config.altitude.method``; ``gnss_off`` holds ``START:DURATION`` windows (s from the log's
-    first sample) whose fixes are removed. Bad input raises ``ValueError`` with one line that
-    names the cause.
+    first sample) whose fixes are removed; ``setup``: what was flown (aircraft, plan, sensor
+    presets, air), for the scorecard, when the caller knows it. Bad input raises
+    ``ValueError`` with one line that names the cause.
     """
     if altitude not in ALTITUDE_METHODS:
         raise ValueError(
@@ -94,18 +96,19 @@ def replay(
     with open(log, "rb") as f:
         head = f.read(len(_ULOG_MAGIC))
     if head == _ULOG_MAGIC:
-        return _replay_ulog(log, out_dir, config, bridge, altitude, settle_s, windows)
+        return _replay_ulog(log, out_dir, config, bridge, altitude, settle_s, windows, setup)
     if log.suffix.lower() == ".ulg":
         raise ValueError(f"{log}: not a PX4 ULog file (its header is not 'ULog'); a damaged "
                          "or renamed file?")
-    return _replay_tlog(log, out_dir, config, bridge, altitude, settle_s, windows, progress)
+    return _replay_tlog(log, out_dir, config, bridge, altitude, settle_s, windows, progress,
+                        setup)
 
 
 # -------------------------------------------------------------------------------- tlog
 def _replay_tlog(
     log: Path, out_dir: Path, config: FilterConfig, bridge: str, altitude: str,
     settle_s: float, windows: tuple[GnssWindow, ...],
-    progress: Callable[[int, int], None] | None,
+    progress: Callable[[int, int], None] | None, setup: Mapping[str, Any] | None = None,
 ) -> ReplayResult:
     head, year = _tlog_start(log)
     try:
@@ -138,7 +141,7 @@ def _replay_tlog(
     reference = {"source": _TRUTH_LABEL, "topics": ["HIL_STATE_QUATERNION"], "position": True,
                  "height": True, "velocity": True, "attitude": True}
     return _score(log, out_dir, run, bridge, altitude, settle_s, wall, cut, alignment,
-                  reference, inp)
+                  reference, inp, setup)
 
 
 def _tlog_start(log: Path) -> tuple[list[Sample], float | None]:
@@ -177,7 +180,7 @@ def _check_tlog_content(log: Path, run: FusionRun) -> None:
 # -------------------------------------------------------------------------------- ULog
 def _replay_ulog(
     log: Path, out_dir: Path, config: FilterConfig, bridge: str, altitude: str,
-    settle_s: float, windows: tuple[GnssWindow, ...],
+    settle_s: float, windows: tuple[GnssWindow, ...], setup: Mapping[str, Any] | None = None,
 ) -> ReplayResult:
     t0 = time.perf_counter()
     ulog = read_ulog(log)
@@ -221,7 +224,7 @@ def _replay_ulog(
             "those metrics are null (scored: " + ", ".join(
                 k for k in ("position", "height", "velocity", "attitude") if reference[k]) + ")")
     return _score(log, out_dir, run, bridge, altitude, settle_s, wall, cut, alignment,
-                  reference, inp)
+                  reference, inp, setup)
 
 
 def _check_ulog_content(log: Path, ulog: UlogLog) -> None:
@@ -373,7 +376,7 @@ def _mag_check(head: Sequence[Sample], inclination_rad: float, intensity_t: floa
 def _score(
     log: Path, out_dir: Path, run: FusionRun, bridge: str, altitude: str, settle_s: float,
     wall: float, cut: _GnssCut, alignment: dict[str, Any], reference: dict[str, Any],
-    inp: dict[str, Any],
+    inp: dict[str, Any], setup: Mapping[str, Any] | None = None,
 ) -> ReplayResult:
     col = run.collector
     assert col is not None
@@ -389,7 +392,7 @@ def _score(
                          f"{reference['source']} reference ({ref.time_s[0]:.1f}-"
                          f"{ref.time_s[-1]:.1f} s) never overlap")
     info = RunInfo(scenario=log.stem, seed=None, sim_duration_s=col.last_time_us * 1e-6,
-                   wall_s=wall, bridge=bridge, altitude=altitude)
+                   wall_s=wall, bridge=bridge, altitude=altitude, setup=setup)
     scored = score_run(run, info, settle_s=settle_s, fit_settle=True)
     s = scored.summary
     s["reference"] = reference

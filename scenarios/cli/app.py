@@ -10,7 +10,7 @@ it loads no heavy library: each command imports what it runs, so ``--help`` stay
 from __future__ import annotations
 
 import sys
-from typing import Any
+from typing import Annotated, Any
 
 import typer
 from typer.core import TyperGroup
@@ -21,7 +21,8 @@ from scenarios.cli.commands_live import check, monitor, router, up
 from scenarios.cli.commands_run import campaign, compare, demo, list_choices, replay, run, schema
 from scenarios.cli.commands_sim import sim_app
 from scenarios.cli.errors import bad_input
-from scenarios.cli.output import err_console
+from scenarios.cli.first_run import kernel_notice
+from scenarios.cli.output import console, err_console
 from scenarios.cli.quick_exit import QUICK_EXIT_COMMANDS, command_of, freeze_for_exit
 
 __all__ = ["app", "main"]
@@ -44,6 +45,34 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     add_completion=False,
 )
+
+
+def _print_version(value: bool) -> None:
+    """``--version``: hilnav's version, the libraries its numbers depend on and each compiled
+    kernel's state (:func:`hil.build_info.build_info`)."""
+    if not value:
+        return
+    from hil.build_info import build_info
+
+    info = build_info()
+    kernels = info.pop("kernels")
+    console.print(f"hilnav {info.pop('hilnav')} ("
+                  + ", ".join(f"{name} {v}" for name, v in info.items()) + ")",
+                  highlight=False, markup=False)
+    for name, state in dict(kernels).items():  # type: ignore[call-overload]
+        console.print(f"  {name}: {state}", highlight=False, markup=False)
+    raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: Annotated[bool, typer.Option(
+        "--version", is_eager=True, callback=_print_version,
+        help="Print hilnav's version and its compiled kernels' state, and exit.")] = False,
+) -> None:
+    """Hardware-in-the-loop navigation: fly JSBSim, stream MAVLink sensors, fuse, score."""
+
+
 app.add_typer(sim_app)
 app.command()(fusion)
 app.command()(monitor)
@@ -71,6 +100,9 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(bad_input(str(exc)).exit_code) from None
     if deprecation is not None:
         err_console.print(deprecation, highlight=False, markup=False)
+    notice = kernel_notice()
+    if notice is not None:
+        err_console.print(f"[yellow]note:[/] {notice}", highlight=False)
     try:
         app(args)
     finally:

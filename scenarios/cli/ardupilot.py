@@ -15,6 +15,7 @@ from hil.autopilot.servos import ServoMap
 from hil.live_sim import stop_on_signals
 from hil.pipeline import FrameSink, ProgressFn, SimSetup
 from hil.tlog import TlogWriter
+from scenarios.cli.autopilot_hints import ardupilot_command
 
 __all__ = ["flown_sentence", "fly_ardupilot"]
 
@@ -49,8 +50,11 @@ def fly_ardupilot(
             sink = lambda t_us, frame: log.write(frame, t_us)  # noqa: E731
         if on_waiting is not None:
             host, port = backend.local_address
-            on_waiting(f"sim: waiting for ArduPilot SITL servo packets on udp {host}:{port} "
-                       f"(sim_vehicle.py -v ArduPlane --model JSON:<this host>)")
+            on_waiting(f"sim: waiting for ArduPilot SITL servo packets on udp {host}:{port}; "
+                       "start "
+                       + ardupilot_command(setup.flight.start,
+                                           "<this host>" if host not in ("127.0.0.1", "::1")
+                                           else "127.0.0.1"))
         stop = stack.enter_context(stop_on_signals())
         return fly_with_autopilot(setup, backend, on_frame=sink,
                                   connect_timeout_s=connect_timeout_s,

@@ -16,6 +16,7 @@ from scenarios.cli.options import (
     AltitudeOption,
     BridgeOption,
     FoxgloveOption,
+    QuietOption,
     ZenohKeyFileOption,
     ZenohLowLatencyOption,
     ZenohSecurity,
@@ -27,6 +28,9 @@ from scenarios.cli.output import (
     print_autopilot,
     print_live,
     print_summary,
+    progress_bar,
+    say_warning,
+    scripted_events,
 )
 
 __all__ = ["check", "monitor", "router", "up"]
@@ -88,17 +92,31 @@ def up(
     autopilot_telemetry: Annotated[str, typer.Option(
         help="Where the autopilot reports its estimate ('none': not recorded).",
         rich_help_panel="Autopilot in the loop")] = "udpin:127.0.0.1:14550",
+    actuator_map: Annotated[Path | None, typer.Option(
+        help="With --px4: actuator map YAML (default: the legacy HIL order 0 roll, 1 pitch, "
+             "2 yaw, 3 throttle).", rich_help_panel="Autopilot in the loop")] = None,
+    servo_map: Annotated[Path | None, typer.Option(
+        help="With --ardupilot: servo map YAML (default ArduPlane: 1 aileron, 2 elevator, "
+             "3 throttle, 4 rudder).", rich_help_panel="Autopilot in the loop")] = None,
+    ardupilot_mavlink: Annotated[str | None, typer.Option(
+        help="With --ardupilot: its MAVLink port (e.g. tcp:127.0.0.1:5762; 5760 is "
+             "sim_vehicle's MAVProxy) for the SIM_GPS1_* parameters of the GNSS denial; "
+             "without it ArduPilot's own GNSS is not denied.",
+        rich_help_panel="Autopilot in the loop")] = None,
     connect_timeout: Annotated[float, typer.Option(
         help="Wait this long for the autopilot, s.",
         rich_help_panel="Autopilot in the loop")] = 300.0,
     stall_timeout: Annotated[float, typer.Option(
         help="End the run as stalled after this long without controls, s.",
         rich_help_panel="Autopilot in the loop")] = 10.0,
+    quiet: QuietOption = False,
 ) -> None:
     """Run router + fusion + sim (+ monitor) on loopback; Ctrl-C stops everything. With --px4
     or --ardupilot the autopilot flies and both estimates are scored side by side."""
     out_dir(out)
+    from hil.pipeline import SimSetup
     from scenarios.cli.up import UpOptions, run_up
+    from scenarios.cli.up_options import DEFAULT_DURATION_S
 
     if px4 and ardupilot:
         raise ValueError("give --px4 or --ardupilot, not both")
@@ -117,8 +135,15 @@ def up(
                         autopilot_link=autopilot_link,
                         autopilot_telemetry=None if autopilot_telemetry == "none"
                         else autopilot_telemetry,
+                        actuator_map=actuator_map, servo_map=servo_map,
+                        ardupilot_mavlink=ardupilot_mavlink,
                         connect_timeout_s=connect_timeout, stall_timeout_s=stall_timeout)
-    summary = run_up(options, log=lambda text: console.print(text, highlight=False))
+    setup = SimSetup.build(plan=plan, seed=seed, gnss_off=list(gnss_off or ()), imu=imu,
+                           gnss=gnss, duration_s=duration or DEFAULT_DURATION_S)
+    with progress_bar(setup.duration_s, "flying", quiet=quiet,
+                      events=scripted_events(setup)) as progress:
+        summary = run_up(options, log=lambda text: console.print(text, highlight=False),
+                         progress=progress, warn=say_warning)
     if summary is not None:
         console.print("[bold]scorecard of the live run[/]")
         print_summary(summary)
@@ -126,12 +151,17 @@ def up(
         print_live(summary)
     elif duration is not None or kind != "none":
         raise RunFailed("the live run produced no scorecard (see the fusion output above)")
+    failures = list((summary or {}).get("failures") or [])
+    for failure in failures:
+        err_console.print(f"[red]failure:[/] {failure}", highlight=False)
     if summary is not None and (summary.get("autopilot") or {}).get("stalled"):
         raise RunFailed(summary["autopilot"]["stalled"])
     if summary is not None and summary.get("autopilot") and \
             not summary["autopilot"].get("connected"):
         raise RunFailed(f"{summary['autopilot']['source']} did not connect within "
                         f"{connect_timeout:g} s")
+    if failures:
+        raise RunFailed("; ".join(failures))
 
 
 @cli_errors

@@ -34,6 +34,7 @@ from scenarios.cli.options import (
     BridgeOption,
     GnssOption,
     ImuOption,
+    QuietOption,
     SettleOption,
 )
 from scenarios.cli.output import (
@@ -44,6 +45,7 @@ from scenarios.cli.output import (
     print_summary,
     progress_bar,
     say_waiting_for_autopilot,
+    scripted_events,
     warn_input,
 )
 from scenarios.cli.quick_exit import settled_heap
@@ -110,8 +112,9 @@ def demo(
     gnss: Annotated[str, typer.Option(help="GNSS preset (sensor and filter model).")] = "modern",
     airspeed: AirspeedOption = DEFAULT_AIRSPEED_MODE,
     align: AlignOption = DEFAULT_ALIGN_MODE,
+    quiet: QuietOption = False,
 ) -> None:
-    """The main job: fly a racetrack, record it, run the filter with a GNSS outage, score it."""
+    """The main job: fly a racetrack with a GNSS outage, record, fuse, score, report.html."""
     out_dir(out)
     with settled_heap():
         from hil.pipeline import SimSetup, filter_config, record_flight
@@ -123,7 +126,8 @@ def demo(
     config = filter_config(imu, gnss_preset(gnss), airspeed=airspeed, align=align)
     request = SimSetup.build(plan=plan, imu=imu, gnss=gnss, duration_s=duration, seed=seed,
                                gnss_off=[outage])
-    with progress_bar(duration, "flying") as progress:
+    with progress_bar(duration, "flying", quiet=quiet,
+                      events=scripted_events(request)) as progress:
         report = record_flight(request, log, progress=progress)
     console.print(
         f"flew {report.sim_duration_s:.0f} s in {report.wall_s:.1f} s "
@@ -131,9 +135,35 @@ def demo(
     )
     if report.ended is not None:
         raise RunFailed(str(report.ended))
-    result = run_replay(log, out, config=config)
+    result = run_replay(log, out, config=config, setup=_demo_setup(request, plan, imu, gnss))
+    from scenarios.html import write_html
+
+    html = out / "report.html"
+    write_html(result.summary, result.plots, html)
     print_summary(result.summary)
-    console.print(f"summary -> {result.summary_path}; plots in {out}")
+    console.print(f"summary -> {result.summary_path}; report -> {html}; plots in {out}")
+
+
+def _demo_setup(request: Any, plan: str, imu: str, gnss: str) -> dict[str, Any]:
+    """What ``demo`` flew, in the words of a scenario's ``setup`` (see
+    :meth:`scenarios.schema.Scenario.setup_record`)."""
+    import inspect
+
+    from hil.pipeline import SimSetup
+
+    defaults = {name: p.default for name, p in
+                inspect.signature(SimSetup.build).parameters.items()}
+    flight = request.flight
+    return {
+        "description": "hilnav demo",
+        "aircraft": flight.aircraft,
+        "plan": plan,
+        "sensors": {"imu": imu, "gnss": gnss, "baro": defaults["baro"], "mag": defaults["mag"],
+                    "pitot": defaults["pitot"]},
+        "wind_ned_mps": list(flight.wind_ned_mps),
+        "wind_shear_exponent": flight.wind_shear_exponent,
+        "turbulence": flight.turbulence,
+    }
 
 
 @cli_errors
@@ -182,12 +212,12 @@ def run(
     altitude: Annotated[str | None, typer.Option(help="Override the altitude method.")] = None,
     airspeed: AirspeedOverride = None,
     align: AlignOverride = None,
-    quiet: Annotated[bool, typer.Option(help="No progress bar.")] = False,
+    quiet: QuietOption = False,
 ) -> None:
     """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
     out_dir(out)
     with settled_heap():
-        from scenarios.runner import AutopilotAbsent, run_scenario
+        from scenarios.runner import AutopilotAbsent, run_scenario, sim_setup
 
         scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
                              airspeed=airspeed, align=align)
@@ -197,11 +227,9 @@ def run(
     if scn.autopilot.flies:
         say_waiting_for_autopilot(scn)
     try:
-        if quiet:
-            result = run_scenario(scn, out)
-        else:
-            with progress_bar(scn.duration_s, scn.name) as progress:
-                result = run_scenario(scn, out, progress=progress)
+        with progress_bar(scn.duration_s, scn.name, quiet=quiet,
+                          events=scripted_events(sim_setup(scn))) as progress:
+            result = run_scenario(scn, out, progress=progress)
     except AutopilotAbsent as exc:
         raise RunFailed(str(exc)) from None
     s = result.summary
@@ -211,14 +239,21 @@ def run(
         mark = "[green]pass[/]" if c["ok"] else "[red]FAIL[/]"
         console.print(f"  {mark} {c['name']}: {fmt(c['value'], '.3g')} (limit {c['limit']:.3g})",
                       highlight=False)
-    if "flight_ended" in s.get("health", {}):
+    failures = list(s.get("failures") or [])
+    for failure in failures:
+        err_console.print(f"[red]failure:[/] {failure}", highlight=False)
+    if "flight_ended" in s.get("health", {}) and not failures:
         raise RunFailed(f"the flight ended early: {s['health']['flight_ended']}; see {out}")
     console.print(f"summary -> {out / 'summary.json'}; report -> {out / 'report.html'}")
-    if (s.get("autopilot") or {}).get("stalled"):
-        raise RunFailed(f"{s['autopilot']['stalled']}; see {out}")
-    if not result.passed:
-        failed = [c["name"] for c in s.get("criteria", []) if not c["ok"]]
-        raise RunFailed(f"{scn.name}: criteria failed: {', '.join(failed)}")
+    stalled = (s.get("autopilot") or {}).get("stalled")
+    if stalled and stalled not in failures:
+        failures.insert(0, stalled)
+    failed = [c["name"] for c in s.get("criteria", []) if not c["ok"]]
+    if failed:
+        failures.append(f"criteria failed: {', '.join(failed)}")
+    if failures or not result.passed:
+        raise RunFailed(f"{scn.name}: " + ("; ".join(failures) or "did not pass")
+                        + f"; see {out}")
 
 
 @cli_errors
@@ -232,6 +267,7 @@ def compare(
     altitude: Annotated[str | None, typer.Option(help="Override the altitude method.")] = None,
     airspeed: AirspeedOverride = None,
     align: AlignOverride = None,
+    quiet: QuietOption = False,
 ) -> None:
     """Every bridging method on the same sensor data per seed (the papers' Tables 1 and 2)."""
     out_dir(out)
@@ -241,8 +277,27 @@ def compare(
 
     names = parse_methods(methods)
     scn = _load_scenario(scenario, altitude=altitude, airspeed=airspeed, align=align)
-    result = run_compare(scn, names, list(range(seed_base, seed_base + seeds)), out,
-                         progress=lambda msg: err_console.print(msg, highlight=False))
+    seed_list = list(range(seed_base, seed_base + seeds))
+    with settled_heap():
+        from scenarios.runner import sim_setup
+
+        events = scripted_events(sim_setup(scn))
+    # one bar over every seed's flight; the real-time factor counts each flight on its own
+    with progress_bar(scn.duration_s * len(seed_list), "flying", quiet=quiet,
+                      events=events) as progress:
+
+        flying: list[int] = []
+
+        def flight_progress(seed: int, t_s: float) -> None:
+            if not flying or flying[-1] != seed:
+                flying.append(seed)
+                progress.restart_clock()
+            progress((len(flying) - 1) * scn.duration_s + t_s, event_time_s=t_s)
+
+        result = run_compare(scn, names, seed_list, out,
+                             progress=None if quiet else
+                             lambda msg: err_console.print(msg, highlight=False),
+                             flight_progress=flight_progress)
     console.print(markdown(result), highlight=False)
     console.print(f"compare -> {out / 'compare.json'}")
 
@@ -281,6 +336,7 @@ def campaign(
     workers: Annotated[int | None, typer.Option(help="Local cluster workers (default: cores).")
                        ] = None,
     keep_tlogs: Annotated[bool, typer.Option(help="Keep each run's run.tlog.")] = False,
+    quiet: QuietOption = False,
 ) -> None:
     """Monte Carlo sweep over seeds and parameter grids on Dask; exit 1 if any run failed."""
     out_dir(out)
@@ -305,14 +361,22 @@ def campaign(
     seed_list = list(range(seed_base, seed_base + seeds))
     bar = Progress(TextColumn("[bold]campaign"), BarColumn(), MofNCompleteColumn(),
                    TextColumn("runs"), TimeElapsedColumn(), TimeRemainingColumn(),
-                   console=err_console, transient=False)
+                   console=err_console, transient=False,
+                   disable=quiet or not err_console.is_terminal)
     task_id = None
+    next_tenth = 1
 
     def progress(done: int, total: int, _rid: str) -> None:
-        nonlocal task_id
+        nonlocal task_id, next_tenth
         if task_id is None:
             task_id = bar.add_task("runs", total=total)
         bar.update(task_id, completed=done)
+        if quiet or err_console.is_terminal or total <= 0 or done * 10 < next_tenth * total:
+            return
+        while done * 10 >= next_tenth * total:  # a plain line every 10 % of the runs (CI logs)
+            next_tenth += 1
+        err_console.print(f"campaign: {done}/{total} runs ({100 * done / total:.0f} %)",
+                          highlight=False)
 
     with bar:
         result = run_campaign(scenarios, seed_list, grid, out, scheduler=scheduler,

@@ -24,7 +24,15 @@ from scenarios.cli.options import (
     option_group,
     zenoh_security_options,
 )
-from scenarios.cli.output import console, err_console, progress_bar
+from scenarios.cli.output import (
+    FLYING,
+    console,
+    err_console,
+    progress_bar,
+    say_warning,
+    scripted_events,
+    speed_sentence,
+)
 
 __all__ = ["MODES", "FlightOptions", "flight_options", "sim_app"]
 
@@ -174,7 +182,8 @@ def record(
     from hil.pipeline import record_flight
 
     request = flight.setup()
-    with progress_bar(request.duration_s, "flying") as progress:
+    with progress_bar(request.duration_s, "flying",
+                      events=scripted_events(request)) as progress:
         report = record_flight(request, file, progress=progress)
     console.print(
         f"recorded {report.frames} frames, {report.sim_duration_s:.1f} s simulated in "
@@ -224,19 +233,23 @@ def live(
     key = load_key(signing_key_file)
     err_console.print(f"sim: streaming to {url} at {speed:g}x real time"
                       + (" (lockstep)" if lockstep else ""), highlight=False)
-    with stop_on_signals() as stop, progress_bar(request.duration_s, "flying") as progress:
+    with stop_on_signals() as stop, progress_bar(
+            request.duration_s, FLYING, events=scripted_events(request)) as progress:
         report = live_sim(request, url, speed=speed, record=record, zenoh=zenoh,
                           vehicle=vehicle, signing_key=key, bus_access=access,
                           wait_peer_s=wait_peer,
                           lockstep=lockstep, lockstep_window_s=lockstep_window,
                           progress=progress, stop=stop)
+    speed_said, missed = speed_sentence(report.realtime_factor, speed)
     console.print(
         f"sent {report.sent}/{report.frames} frames, {report.sim_duration_s:.1f} s simulated in "
-        f"{report.wall_s:.1f} s ({report.realtime_factor:.2f}x real time, target {speed:g}x)"
+        f"{report.wall_s:.1f} s ({speed_said})"
         + (f" -> {record}" if record is not None else "")
         + ("" if report.peer_seen or wait_peer == 0 else "; no receiver heartbeat seen")
         + (f"; waited {report.lockstep_wait_s:.1f} s for the fusion" if lockstep else "")
     )
+    if missed and report.ended is None and not report.stalled:
+        say_warning(speed_said)
     if report.stalled:
         raise RunFailed("lockstep: the fusion service stopped acknowledging (is it running "
                         f"and listening at {url}?)")
@@ -272,7 +285,8 @@ def px4(
     def listening(where: str) -> None:
         err_console.print(f"sim: waiting for PX4 at {where}", highlight=False, markup=False)
 
-    with stop_on_signals() as stop, progress_bar(request.duration_s, "PX4 flying") as progress:
+    with stop_on_signals() as stop, progress_bar(
+            request.duration_s, "PX4 flying", events=scripted_events(request)) as progress:
         flown = fly_px4(request, url, actuator_map=actuator_map, record=record, speed=speed,
                         stall_timeout_s=stall_timeout, connect_timeout_s=connect_timeout,
                         progress=progress, stop=stop, on_listening=listening)
@@ -293,8 +307,9 @@ def ardupilot(
         help="Servo map YAML (default ArduPlane: 1 aileron, 2 elevator, 3 throttle, 4 rudder, "
              "1000-2000 us).", rich_help_panel=_AUTOPILOT)] = None,
     ardupilot_mavlink: Annotated[str | None, typer.Option(
-        help="ArduPilot's MAVLink port (e.g. tcp:127.0.0.1:5760) for the SIM_GPS1_* parameters "
-             "of the GNSS denial.", rich_help_panel=_AUTOPILOT)] = None,
+        help="ArduPilot's MAVLink port (e.g. tcp:127.0.0.1:5762; 5760 is sim_vehicle's "
+             "MAVProxy) for the SIM_GPS1_* parameters of the GNSS denial.",
+        rich_help_panel=_AUTOPILOT)] = None,
     record: RecordAlsoOption = None,
     stall_timeout: StallTimeoutOption = 10.0,
     connect_timeout: ConnectTimeoutOption = 60.0,
@@ -309,7 +324,8 @@ def ardupilot(
     def say(line: str) -> None:
         err_console.print(line, highlight=False, markup=False)
 
-    with progress_bar(request.duration_s, "flying") as progress:
+    with progress_bar(request.duration_s, "flying",
+                      events=scripted_events(request)) as progress:
         flown = fly_ardupilot(request, url, servo_map_path=servo_map,
                               mavlink_url=ardupilot_mavlink, record=record,
                               connect_timeout_s=connect_timeout, stall_timeout_s=stall_timeout,
@@ -318,7 +334,11 @@ def ardupilot(
     if not flown.connected:
         raise RunFailed(f"no ArduPilot servo packet within {connect_timeout:g} s on {url}")
     console.print(flown_sentence(flown, record), highlight=False, markup=False)
+    for problem in flown.problems:
+        err_console.print(f"[red]failure:[/] {problem}", highlight=False)
     if flown.stalled is not None:
         raise RunFailed(flown.stalled)
     if flown.ended is not None:
         raise RunFailed(str(flown.ended))
+    if flown.problems:
+        raise RunFailed("; ".join(flown.problems))

@@ -25,7 +25,7 @@ from fusion.choices import AIRSPEED_MODES, ALIGN_MODES, ALTITUDE_METHODS, BRIDGE
 
 __all__ = [
     "AirspeedOption", "AirspeedOverride", "AlignOption", "AlignOverride", "AltitudeOption",
-    "BridgeOption", "FoxgloveOption", "GnssOption", "ImuOption", "SettleOption",
+    "BridgeOption", "FoxgloveOption", "GnssOption", "ImuOption", "QuietOption", "SettleOption",
     "SigningKeyFileOption", "ZenohKeyFileOption", "ZenohLowLatencyOption", "ZenohSecurity",
     "option_group", "zenoh_security_options",
 ]
@@ -53,6 +53,9 @@ AlignOverride = Annotated[str | None, typer.Option(
 SettleOption = Annotated[
     float, typer.Option(help="Scorecard: seconds excluded after the start and each outage "
                              "(shortened, with a warning, when a log is too short for it).")]
+
+QuietOption = Annotated[bool, typer.Option(
+    help="No progress (a bar on a terminal, a line every 10 % of the flight otherwise).")]
 
 SigningKeyFileOption = Annotated[Path | None, typer.Option(
     help="MAVLink 2 signing key file (default: env HILNAV_MAVLINK_KEY).")]

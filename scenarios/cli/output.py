@@ -7,37 +7,142 @@ Results go to stdout (:data:`console`); progress, warnings and errors to stderr
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator
+import time
+from collections.abc import Iterator
 from typing import Any
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 __all__ = [
-    "console", "err_console", "fmt", "print_autopilot", "print_live", "print_summary",
-    "progress_bar", "say_waiting_for_autopilot", "warn_input",
+    "FLYING", "FlightProgress", "console", "err_console", "fmt", "print_autopilot", "print_live",
+    "print_summary", "progress_bar", "progress_line", "say_waiting_for_autopilot", "say_warning",
+    "scripted_events", "speed_sentence", "warn_input",
 ]
 
 err_console = Console(stderr=True, soft_wrap=True)
 console = Console(soft_wrap=True)
 
 
+FLYING = "flying"
+"""The label of a flight's progress (``up`` reads the sim child's lines by it)."""
+
+ScriptedEvent = tuple[float, float | None, str]
+"""A scripted event for the progress line: start and end (None: to the end), simulated s, and
+its name."""
+
+
+def scripted_events(setup: Any) -> list[ScriptedEvent]:
+    """The scripted events of a :class:`hil.pipeline.SimSetup` (GNSS windows and faults), for
+    the progress line."""
+    events: list[ScriptedEvent] = [
+        (w.start_s, w.start_s + w.duration_s, "GNSS off") for w in setup.gnss_off]
+    for f in setup.faults or ():
+        events.append((f.start_s, f.end_s, str(f.type).replace("_", " ")))
+    return events
+
+
+def _event_at(events: list[ScriptedEvent], t_s: float) -> str:
+    return ", ".join(name for start, end, name in events
+                     if start <= t_s and (end is None or t_s < end))
+
+
+class FlightProgress:
+    """Simulated time against wall time: a rich bar on a terminal, a plain line every 10 % of
+    the flight otherwise (CI logs). The real-time factor counts from the first call (a wait
+    for an autopilot or a peer is not flight)."""
+
+    _STEPS = 10
+
+    def __init__(self, total_s: float, label: str, events: list[ScriptedEvent],
+                 bar: Progress | None, *, quiet: bool = False) -> None:
+        self.quiet = quiet
+        self.total_s = total_s
+        self.label = label
+        self.events = events
+        self.bar = bar
+        self.task = bar.add_task(label, total=total_s, info="") if bar is not None else None
+        self.first: tuple[float, float] | None = None
+        self.next_step = 1
+
+    def __call__(self, t_s: float, info: str | None = None, *,
+                 event_time_s: float | None = None) -> None:
+        """Tell the flight is at ``t_s`` simulated seconds; ``info`` (the real-time factor
+        and event as another process measured them) replaces this one's own;
+        ``event_time_s``: the time in the flight's own timeline, when ``t_s`` counts over
+        several flights."""
+        if self.quiet:
+            return
+        if info is None:
+            info = self._info(t_s, t_s if event_time_s is None else event_time_s)
+        if self.bar is not None and self.task is not None:
+            self.bar.update(self.task, completed=t_s, info=info)
+            return
+        if self.total_s <= 0 or t_s < self.next_step * self.total_s / self._STEPS:
+            return
+        while t_s >= self.next_step * self.total_s / self._STEPS:
+            self.next_step += 1
+        err_console.print(progress_line(self.label, t_s, self.total_s, info),
+                          highlight=False, markup=False)
+
+    def restart_clock(self) -> None:
+        """Count the real-time factor from the next call (a new flight begins)."""
+        self.first = None
+
+    def _info(self, t_s: float, event_time_s: float) -> str:
+        now = time.monotonic()
+        if self.first is None:
+            self.first = (t_s, now)
+        t0_s, wall0 = self.first
+        rtf = f"{(t_s - t0_s) / (now - wall0):.1f}x real time" \
+            if now > wall0 and t_s > t0_s else ""
+        return ", ".join(x for x in (rtf, _event_at(self.events, event_time_s)) if x)
+
+
+def progress_line(label: str, t_s: float, total_s: float, info: str = "") -> str:
+    """The plain progress line: ``LABEL: T/TOTAL s simulated (P %), INFO``."""
+    pct = 100.0 * t_s / total_s if total_s > 0 else 0.0
+    return f"{label}: {t_s:.0f}/{total_s:.0f} s simulated ({pct:.0f} %)" + (
+        f", {info}" if info else "")
+
+
 @contextlib.contextmanager
-def progress_bar(total_s: float, label: str) -> Iterator[Callable[[float], None]]:
-    """A transient bar on stderr over ``total_s`` simulated seconds (hidden when stderr is not
-    a terminal); yields the ``progress(t_s)`` callback the runners take."""
+def progress_bar(total_s: float, label: str, *, quiet: bool = False,
+                 events: list[ScriptedEvent] | None = None
+                 ) -> Iterator[FlightProgress]:
+    """Progress over ``total_s`` simulated seconds on stderr: a transient bar on a terminal, a
+    plain line every 10 % of the flight otherwise, nothing with ``quiet``; each shows the
+    real-time factor and the scripted event under way (``events``). Yields the
+    ``progress(t_s)`` callback the runners take (``progress(t_s, info)`` with another
+    process's own real-time factor and event)."""
+    if quiet or not err_console.is_terminal:
+        yield FlightProgress(total_s, label, list(events or ()), None, quiet=quiet)
+        return
     bar = Progress(
         TextColumn(f"[bold]{label}"),
         BarColumn(),
         TextColumn("{task.completed:>7.0f}/{task.total:.0f} s"),
         TimeRemainingColumn(),
+        TextColumn("{task.fields[info]}"),
         console=err_console,
         transient=True,
-        disable=not err_console.is_terminal,
     )
     with bar:
-        task = bar.add_task(label, total=total_s)
-        yield lambda t: bar.update(task, completed=t)
+        yield FlightProgress(total_s, label, list(events or ()), bar)
+
+
+def say_warning(text: str) -> None:
+    """One warning line on stderr."""
+    err_console.print(f"[yellow]warning:[/] {text}", highlight=False)
+
+
+def speed_sentence(realtime_factor: float, target: float) -> tuple[str, bool]:
+    """``N.NNx real time`` against the ``target`` speed, and whether the target was missed
+    (by more than 5 %: the pacing's own jitter is not a miss)."""
+    if realtime_factor < 0.95 * target:
+        return (f"{realtime_factor:.2f}x real time: missed the {target:g}x target (the machine "
+                "was too slow)", True)
+    return f"{realtime_factor:.2f}x real time, target {target:g}x", False
 
 
 def fmt(v: Any, spec: str = ".2f") -> str:
@@ -104,6 +209,11 @@ def say_waiting_for_autopilot(scn: Any) -> None:
         f"waiting up to {ap.connect_timeout_s:g} s for {ap.kind} on "
         f"{ap.link or 'its default link'}; its estimate is recorded from "
         f"{ap.telemetry or 'nowhere (telemetry: null)'}", highlight=False)
+    from scenarios.cli.autopilot_hints import ardupilot_command, px4_command
+
+    side = px4_command() if ap.kind == "px4" else ardupilot_command(
+        scn.start_state(), given_as="autopilot.mavlink")
+    err_console.print(f"start {side}", highlight=False, markup=False)
 
 
 def print_autopilot(s: dict[str, Any]) -> None:
@@ -113,8 +223,11 @@ def print_autopilot(s: dict[str, Any]) -> None:
     ap = s.get("autopilot")
     if not ap:
         return
-    console.print(f"[bold]hilnav vs {ap['source']}[/] (same truth, same GNSS denial)",
-                  highlight=False)
+    not_denied = ap.get("outages_not_denied") or []
+    console.print(f"[bold]hilnav vs {ap['source']}[/] (same truth, "
+                  + ("same GNSS denial)" if not not_denied else
+                     f"but {len(not_denied)} GNSS outage(s) of hilnav's NOT denied to "
+                     f"{ap['source']})"), highlight=False)
     for name, mine, theirs in side_by_side_rows(s):
         if mine is None and theirs is None:
             continue

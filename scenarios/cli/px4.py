@@ -20,6 +20,7 @@ from hil.autopilot.px4 import Px4Backend
 from hil.link import LinkUrl
 from hil.pipeline import ProgressFn, SimSetup
 from hil.tlog import TlogWriter
+from scenarios.cli.autopilot_hints import px4_command
 
 __all__ = ["fly_px4", "px4_failure", "px4_report"]
 
@@ -79,9 +80,11 @@ def px4_failure(flown: AutopilotFlown, url: str, connect_timeout_s: float) -> st
     """Why the run failed (exit 1), or None."""
     if not flown.connected and not flown.stopped:
         return (f"PX4 did not connect to {url} within {connect_timeout_s:g} s (start it with "
-                "PX4_SIM_HOSTNAME pointing here, e.g. make px4_sitl none_<airframe>)")
+                f"PX4_SIM_HOSTNAME pointing here: {px4_command()})")
     if flown.stalled is not None:
         return flown.stalled
     if flown.ended is not None:
         return str(flown.ended)
+    if flown.problems:
+        return "; ".join(flown.problems)
     return None

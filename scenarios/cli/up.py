@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import secrets
 import subprocess
 import tempfile
@@ -44,16 +45,18 @@ from scenarios.cli.children import (
     stop_process,
     wait_gone,
 )
+from scenarios.cli.output import FLYING
 from scenarios.cli.up_options import (
     DEFAULT_DURATION_S,
-    FUSION_IDLE_EXIT_S,
     UpOptions,
+    fusion_idle_exit_s,
     settle_s,
 )
 from sim.presets import gnss_preset
 
 # the children's helpers are part of up's interface (tests and benches stop processes by PID)
-__all__ = ["Child", "UpOptions", "free_udp_port", "run_up", "stop_process", "wait_gone"]
+__all__ = ["Child", "Progress", "SimLogRelay", "UpOptions", "free_udp_port", "run_up",
+           "stop_process", "wait_gone"]
 
 _CHILD_USERS = ("fusion", "sim", "monitor")
 
@@ -90,11 +93,14 @@ def _bus_security(options: UpOptions, folder: Path) -> tuple[RouterSecurity, dic
 
 
 def run_up(options: UpOptions, *, log: Callable[[str], None] = print,
-           backend: Any = None) -> dict[str, Any] | None:
+           backend: Any = None, progress: Progress | None = None,
+           warn: Callable[[str], None] | None = None) -> dict[str, Any] | None:
     """Run router, fusion, sim and monitor until the sim is done (or Ctrl-C). With
     ``options.autopilot`` the simulator side runs in this process with the autopilot at the
     controls (:func:`scenarios.cli.up_autopilot.fly_autopilot`; ``backend``: a backend already
-    built, for tests).
+    built, for tests). ``progress(simulated_s, info)`` is told how far the flight is (``info``:
+    the sim child's own real-time factor and scripted event, None when up flies itself);
+    ``warn`` gets the warnings (default: ``log``).
 
     Returns
     -------
@@ -134,9 +140,9 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print,
             endpoint = _start_fusion_and_monitor(options, listen, security, zenoh_args, port,
                                                  children, log, idle_exit=True)
             return fly_autopilot(options, endpoint, port, children, log, summary_path,
-                                 backend=backend)
+                                 backend=backend, progress=progress, warn=warn or log)
         return _run_children(options, listen, security, zenoh_args, port, children, log,
-                             summary_path)
+                             summary_path, SimLogRelay(progress, log, warn or log))
 
 
 def _start_fusion_and_monitor(options: UpOptions, listen: str, security: RouterSecurity,
@@ -163,7 +169,7 @@ def _start_fusion_and_monitor(options: UpOptions, listen: str, security: RouterS
                    "--align", options.align]
     fusion_args += ["--settle", str(settle_s(options))]
     if idle_exit:
-        fusion_args += ["--idle-exit", str(FUSION_IDLE_EXIT_S)]
+        fusion_args += ["--idle-exit", str(fusion_idle_exit_s(options))]
     if options.gcs is not None:
         fusion_args += ["--gcs", options.gcs, "--gcs-tlog", str(out / "shadow.tlog")]
     fusion = Child("fusion", hilnav_argv(*fusion_args), out / "fusion.log")
@@ -188,7 +194,8 @@ def _start_fusion_and_monitor(options: UpOptions, listen: str, security: RouterS
 
 def _run_children(options: UpOptions, listen: str, security: RouterSecurity,
                   zenoh_args: dict[str, list[str]], port: int, children: list[Child],
-                  log: Callable[[str], None], summary_path: Path) -> dict[str, Any] | None:
+                  log: Callable[[str], None], summary_path: Path,
+                  relay: SimLogRelay) -> dict[str, Any] | None:
     out = options.out
     endpoint = _start_fusion_and_monitor(options, listen, security, zenoh_args, port, children,
                                          log, idle_exit=options.duration_s is not None)
@@ -212,10 +219,16 @@ def _run_children(options: UpOptions, listen: str, security: RouterSecurity,
         + (" --zenoh-user USER (password: HILNAV_ZENOH_PASSWORD)"
            if security.users_file is not None else ""))
     try:
-        sim_code = sim.proc.wait()
+        while True:  # the sim child's progress and result lines, as they come
+            try:
+                sim_code = sim.proc.wait(timeout=0.5)
+                break
+            except subprocess.TimeoutExpired:
+                relay.poll(sim.log_path)
+        relay.poll(sim.log_path)
         log(f"sim finished (exit {sim_code})")
         try:
-            fusion.proc.wait(timeout=FUSION_IDLE_EXIT_S + 30.0)
+            fusion.proc.wait(timeout=fusion_idle_exit_s(options) + 30.0)
         except subprocess.TimeoutExpired:
             log("fusion did not stop by itself; stopping it")
     except KeyboardInterrupt:
@@ -223,8 +236,54 @@ def _run_children(options: UpOptions, listen: str, security: RouterSecurity,
     for child in reversed(children):
         code = child.stop()
         log(f"{child.name:<13} pid {child.pid} stopped (exit {code})")
+    relay.poll(sim.log_path)
     if summary_path.is_file():
         loaded: dict[str, Any] = json.loads(summary_path.read_text())
         log(f"summary -> {summary_path}")
         return loaded
     return None
+
+
+Progress = Callable[[float, "str | None"], None]
+"""``progress(simulated_s, info)``: how far the flight of ``up`` is."""
+
+# what output.progress_line prints for the sim child's flight (``hilnav sim live``)
+_SIM_PROGRESS = re.compile(
+    rf"^{FLYING}: ([0-9.]+)/[0-9.]+ s simulated \([0-9]+ %\)(?:, (.*))?$")
+
+
+class SimLogRelay:
+    """Reads the lines the sim child adds to its log: its progress lines (a line every 10 % of
+    the flight, as ``hilnav sim live`` prints them when its output is a file) go to
+    ``progress``, its warnings to ``warn``, its result line to ``log``."""
+
+    def __init__(self, progress: Progress | None, log: Callable[[str], None],
+                 warn: Callable[[str], None]) -> None:
+        self.progress = progress
+        self.log = log
+        self.warn = warn
+        self._offset = 0
+        self._partial = b""
+
+    def poll(self, path: Path) -> None:
+        """Pass on the complete lines written to ``path`` since the last call."""
+        try:
+            with path.open("rb") as f:
+                f.seek(self._offset)
+                data = f.read()
+        except OSError:
+            return
+        self._offset += len(data)
+        *lines, self._partial = (self._partial + data).split(b"\n")
+        for raw in lines:
+            self._line(raw.decode("utf-8", "replace").strip())
+
+    def _line(self, line: str) -> None:
+        match = _SIM_PROGRESS.match(line)
+        if match is not None:
+            if self.progress is not None:
+                self.progress(float(match.group(1)), match.group(2) or "")
+        elif line.startswith("warning: "):
+            self.warn(line.removeprefix("warning: "))
+        elif line.startswith("sent "):
+            self.log(f"sim           {line}")

@@ -35,24 +35,22 @@ from hil.pipeline import SimSetup, SimStep
 from hil.tlog import TlogWriter
 from hil.tracks import truth_track
 from scenarios.autopilot_summary import score_flown
+from scenarios.cli.autopilot_hints import ARDUPILOT_MAVLINK, ardupilot_command, px4_command
 from scenarios.cli.children import Child
-from scenarios.cli.up_options import DEFAULT_DURATION_S, FUSION_IDLE_EXIT_S, UpOptions, settle_s
+from scenarios.cli.up_options import (
+    DEFAULT_DURATION_S,
+    UpOptions,
+    fusion_idle_exit_s,
+    settle_s,
+)
 from scenarios.jsonable import write_json
 from scenarios.metrics import Window
 from sim.samples import Truth
 
-__all__ = ["AUTOPILOT_SIDE_COMMANDS", "fly_autopilot", "up_backend"]
+__all__ = ["autopilot_side_command", "fly_autopilot", "up_backend"]
 
-#: What the user runs on the autopilot's side (printed by ``up``; details in docs/autopilots.md).
-AUTOPILOT_SIDE_COMMANDS = {
-    "px4": "PX4 SITL (lockstep): in PX4-Autopilot, `make px4_sitl none_<airframe>` (it connects "
-           "to TCP 4560 on PX4_SIM_HOSTNAME, default this machine); its estimate comes back on "
-           "its ground-station link, UDP 14550",
-    "ardupilot": "ArduPilot SITL: `sim_vehicle.py -v ArduPlane --model JSON:127.0.0.1 --out "
-                 "udp:127.0.0.1:14550` (JSON servo packets to UDP 9002; its estimate to UDP "
-                 "14550)",
-}
 _TRUTH_PERIOD_US = 20_000  # the truth kept for scoring the autopilot: 50 Hz
+_COVERAGE_SLACK_S = 5.0  # the scorecard may start after the flight (the filter's alignment)
 
 
 def _setup(options: UpOptions) -> SimSetup:
@@ -62,9 +60,31 @@ def _setup(options: UpOptions) -> SimSetup:
 
 
 def up_backend(options: UpOptions) -> AutopilotBackend:
-    """The autopilot's backend for ``up`` (ValueError: a bad link, a missing backend)."""
-    return make_backend(options.autopilot,
-                        BackendSettings(link=options.autopilot_link, setup=_setup(options)))
+    """The autopilot's backend for ``up`` (ValueError: a bad link or map, a missing
+    backend)."""
+    return make_backend(options.autopilot, BackendSettings(
+        link=options.autopilot_link, setup=_setup(options), actuator_map=options.actuator_map,
+        servo_map=options.servo_map, mavlink=options.ardupilot_mavlink))
+
+
+def autopilot_side_command(options: UpOptions) -> str | None:
+    """What the user starts on the autopilot's side (details in docs/autopilots.md)."""
+    if options.autopilot == "px4":
+        return f"PX4 SITL (lockstep): {px4_command()}"
+    if options.autopilot == "ardupilot":
+        return f"ArduPilot SITL: {ardupilot_command(_setup(options).flight.start)}"
+    return None
+
+
+def denial_warning(options: UpOptions) -> str | None:
+    """The warning when the scenario denies GNSS but ArduPilot's own GNSS cannot be (its
+    simulated GPS is reached only through its MAVLink port)."""
+    if options.autopilot == "ardupilot" and options.gnss_off and \
+            options.ardupilot_mavlink is None:
+        return ("ArduPilot's GNSS is NOT denied: its GPS is its own simulation, switched off "
+                "through its MAVLink port; give --ardupilot-mavlink "
+                f"{ARDUPILOT_MAVLINK} (only hilnav's fusion loses GNSS now)")
+    return None
 
 
 def _paced(options: UpOptions) -> float | None:
@@ -75,9 +95,14 @@ def _paced(options: UpOptions) -> float | None:
 
 def fly_autopilot(options: UpOptions, endpoint: str, port: int, children: list[Child],
                   log: Callable[[str], None], summary_path: Path, *,
-                  backend: AutopilotBackend) -> dict[str, Any] | None:
+                  backend: AutopilotBackend,
+                  progress: Callable[[float, str | None], None] | None = None,
+                  warn: Callable[[str], None] | None = None) -> dict[str, Any] | None:
     """Fly with the autopilot, feed the fusion service (``children[0]``), then write and return
-    the live scorecard with its ``autopilot`` section (None: the fusion wrote none)."""
+    the live scorecard with its ``autopilot`` section (None: the fusion wrote none).
+    ``progress(simulated_s, None)`` is told how far the flight is; ``warn`` gets the
+    warnings (default: ``log``)."""
+    warn = warn or log
     fusion = children[0]
     out = options.out
     setup = _setup(options)
@@ -99,14 +124,17 @@ def fly_autopilot(options: UpOptions, endpoint: str, port: int, children: list[C
                 link.tick()  # heartbeats to the fusion service
 
         _wait_for_fusion(link, 30.0)
-        name = options.autopilot if options.autopilot != "none" else backend.name
         where = options.autopilot_link or getattr(backend, "url", "its default link")
         log(f"simulator     in this process: waiting up to {options.connect_timeout_s:g} s "
             f"for {backend.name} on {where}"
             + (f"; its estimate from {options.autopilot_telemetry}"
                if telemetry is not None else "") + f"; recording {out / 'run.tlog'}")
-        if name in AUTOPILOT_SIDE_COMMANDS:
-            log(f"now start     {AUTOPILOT_SIDE_COMMANDS[name]}")
+        side = autopilot_side_command(options)
+        if side is not None:
+            log(f"now start     {side}")
+        denial = denial_warning(options)
+        if denial is not None:
+            warn(denial)
         log(f"subscribe:    hilnav monitor --connect {endpoint} --vehicle {options.vehicle}")
         if telemetry is not None:
             telemetry.start()
@@ -114,7 +142,8 @@ def fly_autopilot(options: UpOptions, endpoint: str, port: int, children: list[C
             flown = fly_with_autopilot(
                 setup, backend, on_frame=on_frame, on_step=on_step, speed=_paced(options),
                 connect_timeout_s=options.connect_timeout_s,
-                stall_timeout_s=options.stall_timeout_s, stop=stop)
+                stall_timeout_s=options.stall_timeout_s, stop=stop,
+                progress=None if progress is None else lambda t_s: progress(t_s, None))
         except KeyboardInterrupt:
             log("stopping ...")
         finally:
@@ -124,7 +153,7 @@ def fly_autopilot(options: UpOptions, endpoint: str, port: int, children: list[C
     if flown is not None:
         log(_flown_line(flown))
         try:
-            fusion.proc.wait(timeout=FUSION_IDLE_EXIT_S + 30.0)
+            fusion.proc.wait(timeout=fusion_idle_exit_s(options) + 30.0)
         except subprocess.TimeoutExpired:
             log("fusion did not stop by itself; stopping it")
     for child in reversed(children):
@@ -134,8 +163,14 @@ def fly_autopilot(options: UpOptions, endpoint: str, port: int, children: list[C
         return None
     summary: dict[str, Any] = json.loads(summary_path.read_text())
     if flown is not None:
+        scored_s = float(summary.get("sim_duration_s") or 0.0)
+        if scored_s < flown.sim_duration_s - _COVERAGE_SLACK_S:
+            warn(f"the live scorecard covers {scored_s:.1f} s of the {flown.sim_duration_s:.1f} s "
+                 f"flown: the fusion service stopped early (see {fusion.log_path})")
         summary["autopilot"] = _section(options, summary, flown, telemetry, truths)
-        if flown.stalled is not None or not flown.connected:
+        if flown.problems:
+            summary["failures"] = [*summary.get("failures", []), *flown.problems]
+        if flown.stalled is not None or not flown.connected or flown.problems:
             summary["passed"] = False
         write_json(summary, summary_path)
     log(f"summary -> {summary_path}")

@@ -6,11 +6,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from fusion.choices import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
 
-__all__ = ["DEFAULT_DURATION_S", "FUSION_IDLE_EXIT_S", "UpOptions", "settle_s"]
+__all__ = ["DEFAULT_DURATION_S", "FUSION_IDLE_EXIT_S", "UpOptions", "fusion_idle_exit_s",
+           "settle_s"]
 
 FUSION_IDLE_EXIT_S = 3.0
 """The fusion service of ``up`` exits after this long without input (once input started)."""
@@ -67,8 +68,34 @@ class UpOptions(BaseModel):
     """Where the simulator meets it (None: the backend's default)."""
     autopilot_telemetry: str | None = "udpin:127.0.0.1:14550"
     """Where it reports its estimate (None: not recorded)."""
+    actuator_map: Path | None = None
+    """PX4: the actuator map YAML (None: the legacy HIL order)."""
+    servo_map: Path | None = None
+    """ArduPilot: the servo map YAML (None: ArduPlane's default)."""
+    ardupilot_mavlink: str | None = None
+    """ArduPilot's MAVLink port for the ``SIM_GPS1_*`` parameters of the GNSS denial (None: its
+    own GNSS is not denied)."""
     connect_timeout_s: float = Field(default=300.0, gt=0.0)
     stall_timeout_s: float = Field(default=10.0, gt=0.0)
+
+    @model_validator(mode="after")
+    def _autopilot_options(self) -> UpOptions:
+        if self.actuator_map is not None and self.autopilot != "px4":
+            raise ValueError("--actuator-map is PX4's: it needs --px4")
+        for name, value in (("--servo-map", self.servo_map),
+                            ("--ardupilot-mavlink", self.ardupilot_mavlink)):
+            if value is not None and self.autopilot != "ardupilot":
+                raise ValueError(f"{name} is ArduPilot's: it needs --ardupilot")
+        return self
+
+
+def fusion_idle_exit_s(options: UpOptions) -> float:
+    """How long the fusion service of ``up`` waits without input before it ends the run: with
+    an autopilot the stream pauses whenever the autopilot does (lockstep), and the simulator
+    side waits ``stall_timeout_s`` for it, so the fusion waits that long too."""
+    if options.autopilot == "none":
+        return FUSION_IDLE_EXIT_S
+    return options.stall_timeout_s + FUSION_IDLE_EXIT_S
 
 
 def settle_s(options: UpOptions) -> float:

@@ -88,3 +88,23 @@ def test_sim_flies_with_the_ardupilot_peer_and_records_every_frame(tmp_path: Pat
            if frame[7] | frame[8] << 8 | frame[9] << 16 == mavlink2.MAVLINK_MSG_ID_HIL_GPS]
     assert gps and not [t for t in gps if 10e6 <= t < 20e6]
     assert max(gps) > 29e6
+
+
+def test_a_denial_ardupilot_did_not_take_exits_1_naming_it(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """GIVEN a flight whose SIM_GPS1_ENABLE step ArduPilot never acknowledged, WHEN ``sim
+    ardupilot`` ends, THEN it exits 1 with that sentence (the flight itself went well)."""
+    import scenarios.cli.ardupilot
+    from hil.autopilot import AutopilotFlown
+
+    problem = "SIM_GPS1_ENABLE = 0 at 10.0 s not acknowledged on tcp:127.0.0.1:5762"
+
+    def fake_fly(*_args: object, **_kw: object) -> AutopilotFlown:
+        return AutopilotFlown("ArduPilot", True, 30.0, 1.0, 3000, 9000, None, None, False, 0,
+                              problems=(problem,))
+
+    monkeypatch.setattr(scenarios.cli.ardupilot, "fly_ardupilot", fake_fly)
+    result = CliRunner().invoke(app, ["sim", "ardupilot", "udpin:127.0.0.1:0", "--duration",
+                                      "30", "--gnss-off", "10:10"])
+    assert result.exit_code == 1
+    assert result.output.count(problem) == 2  # its own line and the exit line

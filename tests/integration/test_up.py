@@ -38,6 +38,9 @@ def test_up_with_duration_finishes_by_itself_and_prints_a_scorecard(tmp_path: Pa
     assert summary["gnss_on"]["horizontal_rmse_m"] is not None
     assert (out / "run.tlog").stat().st_size > 0
     assert "sim finished (exit 0)" in proc.stdout
+    # the sim child's progress (a line every 10 % of the flight in its log) and its result
+    assert "flying: " in proc.stderr and "s simulated (" in proc.stderr
+    assert "sim           sent " in proc.stdout and "x real time" in proc.stdout
 
 
 def test_up_signs_every_link_with_the_key_from_the_environment(tmp_path: Path) -> None:

@@ -41,7 +41,10 @@ def test_up_px4_waits_for_px4_and_writes_the_side_by_side_scorecard(tmp_path: Pa
     assert proc.returncode == 0, text
     assert peer.errors == []
     # where it waits and what to run on the autopilot's side are printed
-    assert f"for PX4 on tcpin:127.0.0.1:{port}" in text and "make px4_sitl" in text
+    assert f"for PX4 on tcpin:127.0.0.1:{port}" in text
+    assert "PX4_SYS_AUTOSTART=1030 PX4_SIM_MODEL=plane ./build/px4_sitl_default/bin/px4" in text
+    # and how far the flight is (a line every 10 % when the output is not a terminal)
+    assert "flying: 90/90 s simulated (100 %)" in text or "flying: 81/90 s" in text
     pids = [int(pid) for _, pid in _PID.findall(text)]
     assert pids and wait_gone(pids), "a child outlived `hilnav up`"
     s = json.loads((out / "summary.json").read_text())
