@@ -285,6 +285,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="rows per kind of air, IMU and pitot (calm, steady wind, turbulent; "
                          "position error on/off): free inertial, air-data-fixed and air-data "
                          "side by side (run_air_rows; --seeds per row, plans cycled)")
+    ap.add_argument("--groups", default=None,
+                    help="--air-rows: only these kinds of air (comma-separated: "
+                         "calm, steady, steady-pe, turbulent)")
     args = ap.parse_args(argv)
     if args.air_rows:
         return run_air_rows(args, argv)
@@ -356,8 +359,11 @@ def run_air_rows(args: argparse.Namespace, argv: list[str] | None) -> int:
     error in the outage, and rms(error / sigma) per group (position, velocity, attitude) in
     the outage and with GNSS on (median and worst flight)."""
     plans = args.plans.split(",")
+    only = set(args.groups.split(",")) if args.groups else None
     tasks = []
     for air, max_wind, turb, pitot, imus in AIR_ROWS:
+        if only is not None and air not in only:
+            continue
         for imu in imus:
             for i in range(args.seeds):
                 tasks.append({

@@ -14,11 +14,14 @@ the part that moves with the angle of attack would otherwise look like turbulenc
 
 While GNSS is good ``|a|`` is known (the INS velocity minus the mean wind), so ``c`` is the
 slope of the ratio ``TAS / |a|`` against ``alpha``: an exponentially weighted least-squares fit
-over ``position_error_window_s``, used once the angle of attack has varied enough for the slope
-to mean anything, bounded by ``position_error_max_per_rad``. ``alpha_ref`` is the window's mean
-angle of attack, so the correction averages to zero where ``k`` is learned. The measured TAS is
-divided by ``1 + c (alpha - alpha_ref)`` before it is fused. In an outage nothing is added and the
-fit holds.
+over ``position_error_window_s``, used once the angle of attack has varied enough and the slope
+stands out of its own uncertainty (twice its standard error, counting one independent point per
+``_POINTS_PER_INDEPENDENT`` 1 Hz points: gusts are correlated over seconds, and in turbulence the
+vertical gusts move the angle of attack while the horizontal ones move the ratio, which a
+plain fit would take for a slope), bounded by ``position_error_max_per_rad``. ``alpha_ref`` is
+the window's mean angle of attack, so the correction averages to zero where ``k`` is learned. The
+measured TAS is divided by ``1 + c (alpha - alpha_ref)`` before it is fused. In an outage nothing
+is added and the fit holds.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import math
 from fusion.config import AirspeedTuning
 
 _MIN_ALPHA_SPREAD_RAD = math.radians(0.5)  # less spread than this: the slope is noise
+_POINTS_PER_INDEPENDENT = 10.0  # 1 Hz points per independent one (gust correlation ~6-10 s)
 
 
 class PositionErrorFit:
@@ -40,7 +44,7 @@ class PositionErrorFit:
         ``fuse_rate_hz`` (the rate of the points).
     """
 
-    __slots__ = ("_alpha", "_cfg", "_sxx", "_sxy", "_y", "alpha_ref_rad", "count")
+    __slots__ = ("_alpha", "_cfg", "_sxx", "_sxy", "_syy", "_y", "alpha_ref_rad", "count")
 
     def __init__(self, cfg: AirspeedTuning) -> None:
         self._cfg = cfg
@@ -48,6 +52,7 @@ class PositionErrorFit:
         self._y = 0.0  # means of x = alpha and y = TAS / |a|, and the (co)variances
         self._sxx = 0.0
         self._sxy = 0.0
+        self._syy = 0.0
         self.count = 0
         """Points taken in."""
         self.alpha_ref_rad = 0.0
@@ -64,16 +69,21 @@ class PositionErrorFit:
         self._y += a * dy
         self._sxx = (1.0 - a) * (self._sxx + a * dx * dx)
         self._sxy = (1.0 - a) * (self._sxy + a * dx * dy)
+        self._syy = (1.0 - a) * (self._syy + a * dy * dy)
 
     @property
     def coefficient_per_rad(self) -> float:
         """The slope ``c`` in use (0 when off, before the angle of attack has varied enough,
-        or with too few points), 1/rad."""
+        with too few points, or when the slope is within twice its standard error), 1/rad."""
         cfg = self._cfg
         if (not cfg.position_error_fit or self.count < cfg.turbulence_min_residuals
                 or self._sxx < _MIN_ALPHA_SPREAD_RAD**2):
             return 0.0
         c = self._sxy / self._sxx
+        n_eff = min(float(self.count), 1.0 / self._alpha) / _POINTS_PER_INDEPENDENT
+        residual_var = max(self._syy - c * self._sxy, 0.0)
+        if c * c <= 4.0 * residual_var / (self._sxx * n_eff):
+            return 0.0
         lim = cfg.position_error_max_per_rad
         return min(lim, max(-lim, c))
 

@@ -88,6 +88,18 @@ def test_the_position_error_slope_is_fitted_against_the_angle_of_attack() -> Non
     assert fit.correct(tas, 0.08) == pytest.approx(50.0, rel=2e-3)
 
 
+def test_no_slope_from_gusts_that_move_the_angle_of_attack_and_the_ratio_apart() -> None:
+    # GIVEN turbulence: the angle of attack moves by ~1.5 deg with vertical gusts and the ratio
+    # by 3 % with horizontal ones, independent of each other (no position error)
+    fit = PositionErrorFit(CFG)
+    alpha = 0.05 + 0.025 * gust_residuals(1.0, 900, seed=8)
+    ratio = 1.0 + 0.03 * gust_residuals(1.0, 900, seed=9)
+    for a, r in zip(alpha, ratio, strict=True):
+        fit.add(float(a), float(r))
+    # THEN no slope is taken from them
+    assert fit.coefficient_per_rad == 0.0
+
+
 def test_no_slope_without_angle_of_attack_variation_and_a_bound_on_it() -> None:
     fit = PositionErrorFit(CFG)
     for _ in range(300):
