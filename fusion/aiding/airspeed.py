@@ -377,11 +377,14 @@ class AirspeedAiding:
 
     def level_noise(self, gnss_active: bool, now_us: int) -> float:
         """Factor on the level-flight wind and scale random walk now: the outage hold while
-        dead-reckoning on a measured airspeed. On the synthetic airspeed (no usable pitot)
-        the wind keeps its noise: that airspeed is a latched guess, and the wind's freedom is
-        what absorbs the real airspeed's excursions from it."""
+        dead-reckoning on a measured airspeed in still air (turbulence estimate at most
+        ``outage_hold_max_turbulence_mps``). In turbulence the wind keeps its noise: the
+        long-wavelength part of the gusts moves the mean wind over minutes. On the synthetic
+        airspeed (no usable pitot) it keeps it too: that airspeed is a latched guess, and the
+        wind's freedom is what absorbs the real airspeed's excursions from it."""
         cfg = self.cfg
-        held = cfg.outage_hold and not gnss_active and self.measured_ok(now_us)
+        held = (cfg.outage_hold and not gnss_active and self.measured_ok(now_us)
+                and self.turbulence.sigma_mps <= cfg.outage_hold_max_turbulence_mps)
         return cfg.outage_noise_factor if held else 1.0
 
     def _flag(self, name: str, now_us: int) -> None:
