@@ -33,7 +33,11 @@ at the end of the outage; the error curve (median over flights, every 5 s) for t
 
 Seeds and plans: the filter's air-data settings were chosen on tuning seeds 1-5 of
 ``manoeuvre`` and ``cruise`` (``--seed-base 1 --plans manoeuvre,cruise``); the reported rows
-are held-out seeds 100.. on ``survey``, ``climb-descent`` and ``racetrack``.
+are held-out seeds 100.. on ``survey``, ``climb-descent`` and ``racetrack``. The settings of the
+turbulence estimate and the outage hold (``AirspeedTuning.gust_sigma_min_mps``,
+``outage_noise_factor``, ``outage_hold_max_turbulence_mps``) were chosen on seeds 1-3 of
+``manoeuvre`` and ``cruise`` in steady wind and turbulence; ``--air-rows`` reports held-out
+seeds 100-102, one flight per plan.
 
     python bench/air_data.py --out bench/results/air_data.json [--seeds 10] [--seed-base 100]
         [--plans survey,climb-descent,racetrack] [--imu industrial-mems] [--outage 300]
