@@ -33,7 +33,11 @@ at the end of the outage; the error curve (median over flights, every 5 s) for t
 
 Seeds and plans: the filter's air-data settings were chosen on tuning seeds 1-5 of
 ``manoeuvre`` and ``cruise`` (``--seed-base 1 --plans manoeuvre,cruise``); the reported rows
-are held-out seeds 100.. on ``survey``, ``climb-descent`` and ``racetrack``.
+are held-out seeds 100.. on ``survey``, ``climb-descent`` and ``racetrack``. The settings of the
+turbulence estimate and the outage hold (``AirspeedTuning.gust_sigma_min_mps``,
+``outage_noise_factor``, ``outage_hold_max_turbulence_mps``) were chosen on seeds 1-3 of
+``manoeuvre`` and ``cruise`` in steady wind and turbulence; ``--air-rows`` reports held-out
+seeds 100-102, one flight per plan.
 
     python bench/air_data.py --out bench/results/air_data.json [--seeds 10] [--seed-base 100]
         [--plans survey,climb-descent,racetrack] [--imu industrial-mems] [--outage 300]
@@ -75,6 +79,11 @@ CURVE_STEP_S = 5.0
 MAX_TURBULENCE = 0.4
 
 
+FIXED_AIR = {"adaptive_turbulence": False, "outage_hold": False, "position_error_fit": False}
+"""``air-data-fixed``: the air-data filter with a fixed turbulence sigma, no outage hold and no
+position-error fit (:class:`fusion.config.AirspeedTuning` switches)."""
+
+
 def _methods() -> list[tuple[str, str, str, bool]]:
     """(name, --airspeed, --bridge, keep the pitot samples)."""
     from fusion.bridging.registry import BRIDGE_METHODS
@@ -82,6 +91,7 @@ def _methods() -> list[tuple[str, str, str, bool]]:
     rows = [
         ("inertial", "off", "none", True),
         ("air-data", "on", "none", True),
+        ("air-data-fixed", "on", "none", True),
         ("no-pitot", "synthetic", "none", False),
     ]
     if "gmdh-airspeed" in BRIDGE_METHODS:
@@ -91,12 +101,18 @@ def _methods() -> list[tuple[str, str, str, bool]]:
     return rows
 
 
-def weather(seed: int, max_wind_mps: float) -> tuple[tuple[float, float, float], float]:
-    """The seed's wind (N, E, D m/s) and turbulence severity: drawn, never chosen."""
+def weather(
+    seed: int, max_wind_mps: float, turbulence_range: tuple[float, float] | None = None
+) -> tuple[tuple[float, float, float], float]:
+    """The seed's wind (N, E, D m/s) and turbulence severity: drawn, never chosen
+    (``turbulence_range``: drawn uniformly in it instead of [0, 0.4])."""
     rng = np.random.default_rng([18, seed])
     speed = float(rng.uniform(0.0, max_wind_mps))
     direction = float(rng.uniform(0.0, 2.0 * math.pi))
     turbulence = float(rng.uniform(0.0, MAX_TURBULENCE))
+    if turbulence_range is not None:
+        lo, hi = turbulence_range
+        turbulence = lo + (hi - lo) * float(rng.uniform())
     return (speed * math.cos(direction), speed * math.sin(direction), 0.0), turbulence
 
 
@@ -110,9 +126,9 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
 
     plan, seed, imu = task["plan"], task["seed"], task["imu"]
     start_s, outage_s = task["outage_start_s"], task["outage_s"]
-    wind, turbulence = weather(seed, task["max_wind_mps"])
+    wind, turbulence = weather(seed, task["max_wind_mps"], task.get("turbulence"))
     setup = SimSetup.build(
-        plan=plan, imu=imu, gnss="modern", seed=seed,
+        plan=plan, imu=imu, gnss="modern", seed=seed, pitot=task.get("pitot", "ms4525do"),
         duration_s=start_s + outage_s + 5.0,
         wind=",".join(f"{w:.3f}" for w in wind), turbulence=turbulence,
         wind_shear_exponent=task.get("wind_shear", 0.0), alt_msl_m=task.get("start_alt_m", 1000.0),
@@ -135,6 +151,8 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
         if name not in task.get("methods", (name,)):
             continue
         cfg = filter_config(imu, receiver, airspeed=airspeed)
+        if name == "air-data-fixed":
+            cfg = cfg.model_copy(update={"airspeed": cfg.airspeed.model_copy(update=FIXED_AIR)})
         run = FusionRun(cfg, bridge)
         t1 = time.perf_counter()
         run.feed(s for s in items if keep_pitot or not isinstance(s, AirspeedSample))
@@ -150,6 +168,8 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
         }  # fmt: skip
         inside = (err.time_s >= start_s) & (err.time_s <= end_s)
         nees = metrics.consistency(err, inside)
+        aided = metrics.consistency(err, (err.time_s >= 120.0) & (err.time_s < start_s))
+        air = run.nav.air_data
         grid = np.arange(0.0, outage_s + 1e-9, CURVE_STEP_S)
         curve = np.interp(start_s + grid, err.time_s, h).tolist()
         modes = col.modes()
@@ -158,6 +178,12 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
         row["methods"][name] = {
             **at,
             "nees_mean": nees.get("nees_mean"),
+            "h_rmse_outage_m": float(np.sqrt(np.mean(h[inside] ** 2))),
+            "rms_z_outage": {g: nees.get(f"rms_z_{g}") for g in ("pos", "vel", "att")},
+            "rms_z_gnss_on": {g: aided.get(f"rms_z_{g}") for g in ("pos", "vel", "att")},
+            "nees_gnss_on": aided.get("nees_mean"),
+            "turbulence_mps": air.turbulence_mps, "turbulence_source": air.turbulence_source,
+            "position_error_per_rad": air.position_error_per_rad, "air_flags": air.flags,
             "mode_at_end": modes[min(k, len(modes) - 1)] if modes else None,
             "curve_m": curve,
             "filter_wall_s": wall,
@@ -175,6 +201,14 @@ def _run_star(task: dict[str, Any]) -> dict[str, Any]:
     print(f"  {row['plan']} seed {row['seed']} wind {row['wind_speed_mps']:.1f} m/s: "
           f"h err at 300 s {parts}", file=sys.stderr, flush=True)
     return row
+
+
+def _fly_all(tasks: list[dict[str, Any]], jobs: int) -> list[dict[str, Any]]:
+    """Every task's row, in order (``jobs`` processes)."""
+    if jobs > 1:
+        with mp.get_context("spawn").Pool(jobs) as pool:
+            return pool.map(_run_star, tasks, chunksize=1)
+    return [_run_star(t) for t in tasks]
 
 
 def _quantile(values: list[float], q: float) -> float | None:
@@ -251,7 +285,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--methods", default=None, help="comma-separated subset (default: all)")
     ap.add_argument("--wind-shear", type=float, default=0.0)
     ap.add_argument("--start-alt", type=float, default=1000.0)
+    ap.add_argument("--air-rows", action="store_true",
+                    help="rows per kind of air, IMU and pitot (calm, steady wind, turbulent; "
+                         "position error on/off): free inertial, air-data-fixed and air-data "
+                         "side by side (run_air_rows; --seeds per row, plans cycled)")
+    ap.add_argument("--groups", default=None,
+                    help="--air-rows: only these kinds of air (comma-separated: "
+                         "calm, steady, steady-pe, turbulent)")
     args = ap.parse_args(argv)
+    if args.air_rows:
+        return run_air_rows(args, argv)
     if args.synthetic:
         return run_synthetic(args.seeds, args.seed_base,
                              args.out or Path("bench/results/air_data_synthetic.json"))
@@ -269,11 +312,7 @@ def main(argv: list[str] | None = None) -> int:
         for p in args.plans.split(",") for i in range(args.seeds)
     ]  # fmt: skip
     t0 = time.perf_counter()
-    if args.jobs > 1:
-        with mp.get_context("spawn").Pool(args.jobs) as pool:
-            rows = pool.map(_run_star, tasks, chunksize=1)
-    else:
-        rows = [_run_star(t) for t in tasks]
+    rows = _fly_all(tasks, args.jobs)
     summary = summarise(rows, args.outage)
     result = {
         "bench": "air_data",
@@ -301,6 +340,100 @@ def main(argv: list[str] | None = None) -> int:
     if args.plot is not None:
         plot(summary, args.outage, args.plot)
     return 0
+
+
+AIR_ROWS: tuple[tuple[str, float, tuple[float, float], str, tuple[str, ...]], ...] = (
+    # (air, max wind m/s, turbulence range, pitot, IMUs)
+    ("calm", 0.0, (0.0, 0.0), "ms4525do", ("industrial-mems", "consumer-mems")),
+    ("steady", 10.0, (0.0, 0.0), "ms4525do", ("industrial-mems", "consumer-mems")),
+    ("steady-pe", 10.0, (0.0, 0.0), "ms4525do-pe", ("industrial-mems",)),
+    ("turbulent", 12.0, (0.1, 0.4), "ms4525do", ("industrial-mems", "consumer-mems")),
+)
+"""The ``--air-rows`` groups: the air (calm; steady wind without turbulence; turbulence
+0.1-0.4), the pitot (``-pe``: with the static-source position error of
+:mod:`sim.pitot`) and the IMUs flown."""
+ROW_METHODS = ("inertial", "air-data-fixed", "air-data")
+
+
+def run_air_rows(args: argparse.Namespace, argv: list[str] | None) -> int:
+    """``--air-rows``: one group per kind of air, pitot and IMU (:data:`AIR_ROWS`), ``--seeds``
+    flights each (seeds from ``--seed-base``, plans cycled), free inertial, today's fixed
+    air-data filter and the adaptive one on the same samples. Per group: the ratio of the
+    summed outage RMSEs to free inertial's, median / p95 / max error at 300 s, the largest
+    error in the outage, and rms(error / sigma) per group (position, velocity, attitude) in
+    the outage and with GNSS on (median and worst flight)."""
+    plans = args.plans.split(",")
+    only = set(args.groups.split(",")) if args.groups else None
+    tasks = []
+    for air, max_wind, turb, pitot, imus in AIR_ROWS:
+        if only is not None and air not in only:
+            continue
+        for imu in imus:
+            for i in range(args.seeds):
+                tasks.append({
+                    "group": f"{air}/{imu}", "plan": plans[i % len(plans)],
+                    "seed": args.seed_base + i, "imu": imu, "pitot": pitot,
+                    "outage_start_s": args.outage_start, "outage_s": args.outage,
+                    "max_wind_mps": max_wind, "turbulence": turb, "methods": ROW_METHODS,
+                })  # fmt: skip
+    t0 = time.perf_counter()
+    rows = _fly_all(tasks, args.jobs)
+    for t, r in zip(tasks, rows, strict=True):
+        r["group"], r["pitot"] = t["group"], t["pitot"]
+    groups: dict[str, Any] = {}
+    for g in dict.fromkeys(t["group"] for t in tasks):
+        rs = [r for r in rows if r["group"] == g]
+        groups[g] = {m: _row_summary(rs, m) for m in ROW_METHODS}
+    result = {
+        "bench": "air_data_rows",
+        "command": "python bench/air_data.py " + " ".join(argv or sys.argv[1:]),
+        "tuned_on": "seeds 1-3 of manoeuvre and cruise (steady wind and turbulence 0.15-0.3, "
+                    "industrial and consumer MEMS)",
+        "plans": plans, "seeds": [args.seed_base, args.seed_base + args.seeds - 1],
+        "outage_start_s": args.outage_start, "outage_s": args.outage,
+        "groups": groups, "rows": rows, "wall_s": time.perf_counter() - t0,
+        "load_average": os.getloadavg(), "machine": platform.processor() or platform.machine(),
+    }  # fmt: skip
+    out = args.out or Path("bench/results/air_data_rows.json")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=1) + "\n")
+    for g, ms in groups.items():
+        for m, a in ms.items():
+            print(f"{g:>28} {m:>15}: rmse {a['h_rmse_outage_m_median']:.0f} m "
+                  f"x{a.get('rmse_ratio_vs_inertial') or 1.0:.2f}; "
+                  f"300 s med {a['h_err_300s_median']:.0f} p95 {a['h_err_300s_p95']:.0f}; "
+                  f"max {a['h_max_m']:.0f}; "
+                  f"rms z out {a['rms_z_outage_median']} on {a['rms_z_gnss_on_median']}")
+    return 0
+
+
+def _row_summary(rows: list[dict[str, Any]], method: str) -> dict[str, Any]:
+    """One method over one group's flights (:func:`run_air_rows`)."""
+    ms = [r["methods"][method] for r in rows]
+    rmse = [m["h_rmse_outage_m"] for m in ms]
+    e300 = [m["h_err_300s_m"] for m in ms if m["h_err_300s_m"] is not None]
+    out: dict[str, Any] = {
+        "h_rmse_outage_m_median": _quantile(rmse, 0.5),
+        "h_err_300s_median": _quantile(e300, 0.5), "h_err_300s_p95": _quantile(e300, 0.95),
+        "h_max_m": max(max(m["curve_m"]) for m in ms),
+        "turbulence_mps": [m["turbulence_mps"] for m in ms],
+    }  # fmt: skip
+    if method != "inertial":
+        base = [r["methods"]["inertial"]["h_rmse_outage_m"] for r in rows]
+        out["rmse_ratio_vs_inertial"] = sum(rmse) / sum(base)
+        out["worst_rmse_ratio_vs_inertial"] = max(a / b for a, b in zip(rmse, base, strict=True))
+    for key in ("rms_z_outage", "rms_z_gnss_on"):
+        out[f"{key}_median"] = {g: _round(_quantile([m[key][g] for m in ms
+                                                     if m[key][g] is not None], 0.5))
+                                for g in ("pos", "vel", "att")}  # fmt: skip
+        out[f"{key}_max"] = {g: _round(max((m[key][g] for m in ms if m[key][g] is not None),
+                                           default=None))
+                             for g in ("pos", "vel", "att")}  # fmt: skip
+    return out
+
+
+def _round(x: float | None) -> float | None:
+    return None if x is None else round(x, 2)
 
 
 def run_synthetic(seeds: int, seed_base: int, out: Path) -> int:

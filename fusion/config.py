@@ -349,6 +349,57 @@ class AirspeedTuning(_Frozen):
     """A learned airspeed model (``--bridge gmdh-airspeed``) trains on ``|v - w|`` only while
     the wind is known to this 1-sigma per axis (m/s): before the wind has converged the target
     would move under the model."""
+    adaptive_turbulence: bool = True
+    """Estimate the turbulence intensity in flight (:mod:`fusion.aiding.turbulence`): while
+    GNSS is good, the variance of the airspeed residual against the mean wind, less the
+    pitot's own noise, sets the gust states' sigma (between ``gust_sigma_min_mps`` and
+    ``gust_sigma_max_mps``; ``gust_sigma_mps`` until enough residuals have been seen); an
+    outage keeps the last estimate. ``False``: ``gust_sigma_mps`` whatever the air."""
+    gust_sigma_min_mps: PositiveFloat = 0.2
+    """Floor of the estimated gust sigma, m/s: still air is never taken as perfectly still
+    (the residual's own scatter at 1 Hz is of this order on calm tuning flights)."""
+    gust_sigma_max_mps: PositiveFloat = 4.0
+    """Ceiling of the estimated gust sigma, m/s (MIL-F-8785C severe turbulence at low altitude
+    is about 3.5-4 m/s horizontally). A residual scatter above it is not air any more but a
+    pitot or model fault: flagged ``turbulence_saturated`` and the ceiling is used."""
+    turbulence_window_s: PositiveFloat = 120.0
+    """Time constant of the exponential window of the turbulence estimate, s: some 20 gust
+    correlation times, so one gust does not move it and a change of weather does within
+    minutes."""
+    turbulence_min_residuals: PositiveInt = 30
+    """Residuals (1 Hz batches with GNSS and a converged wind) needed before the estimate
+    replaces ``gust_sigma_mps``."""
+    outage_hold: bool = True
+    """Hold the mean wind and the airspeed scale through a GNSS outage: their level-flight
+    random walk is multiplied by ``outage_noise_factor`` while GNSS is lost (the climb-driven
+    part of the wind noise stays: the wind does change with height). Without GNSS both are
+    observable only through turns, and a random walk tuned for GNSS-aided flight lets them
+    drift on noise. ``False``: the same noise with and without GNSS."""
+    outage_noise_factor: NonNegativeFloat = 0.0
+    """Level-flight wind and scale noise in an outage over their GNSS-aided values (see
+    ``outage_hold``; 0 and 0.1 alike on the tuning flights, seeds 1-3 of manoeuvre and
+    cruise)."""
+    outage_hold_max_turbulence_mps: PositiveFloat = 0.5
+    """The outage hold applies only while the turbulence in use is at most this, m/s: in
+    turbulence the long-wavelength part of the gusts moves the mean wind over minutes, and
+    holding it cost accuracy on the tuning flights (manoeuvre seed 3, turbulence 0.3: 99 m
+    outage RMSE with the hold alone, 82 m with neither, 84 m with the turbulence estimate
+    alone). Between the floor (still air) and the 0.7-2 m/s estimated in turbulence."""
+    position_error_fit: bool = True
+    """Fit the pitot-static position error against the angle of attack while GNSS is good
+    and remove it from the measured airspeed (:mod:`fusion.aiding.position_error`)."""
+    position_error_window_s: PositiveFloat = 600.0
+    """Time constant of the fit's exponential window, s (the angle of attack varies with
+    turns, climbs and speed changes: minutes of flight see enough of it)."""
+    position_error_max_per_rad: PositiveFloat = 0.5
+    """Bound on the fitted slope of ``TAS / |a|`` against the angle of attack, 1/rad (0.5 is
+    about 5 % of the airspeed over a 6° change, beyond 14 CFR 23.1323(b)'s 3 % limit on the
+    whole system error)."""
+    max_wind_mps: PositiveFloat = 40.0
+    """Plausible bound on the mean wind, m/s: a wind estimate above it (flagged
+    ``wind_implausible``) restarts the air-data states from the next airspeed, and a pitot
+    airspeed further than this from the ground speed (flagged ``pitot_implausible``) is not
+    fused."""
 
 
 

@@ -421,24 +421,32 @@ class ErrorModel:
         phi.put(self._var_idx, self._var_buf)
         return phi
 
-    def air_process_noise(self, dt_s: float, climb_rate_mps: float) -> tuple[float, float]:
+    def air_process_noise(
+        self, dt_s: float, climb_rate_mps: float, level: float = 1.0
+    ) -> tuple[float, float]:
         """Discrete process noise of the air-data block over ``dt_s`` (layouts with it, once
         active): ``(q_wind per axis, q_scale)``, m^2/s^2 and dimensionless.
 
-        ``q_wind = (nsd (1 + scaler |climb rate|))^2 T`` (PX4 EKF2's wind random walk),
-        ``q_scale = nsd_k^2 T``.
+        ``q_wind = (nsd (level + scaler |climb rate|))^2 T`` (PX4 EKF2's wind random walk),
+        ``q_scale = level^2 nsd_k^2 T``; ``level`` scales the level-flight part (1 with GNSS;
+        the outage hold of :class:`fusion.config.AirspeedTuning` lowers it without).
         """
         nz = self.noise
-        w = nz.wind_noise_mps2_rthz * (1.0 + nz.wind_climb_scaler_spm * abs(climb_rate_mps))
-        return w * w * dt_s, nz.airspeed_scale_noise_rthz**2 * dt_s
+        w = nz.wind_noise_mps2_rthz * (level + nz.wind_climb_scaler_spm * abs(climb_rate_mps))
+        k = level * nz.airspeed_scale_noise_rthz
+        return w * w * dt_s, k * k * dt_s
 
-    def gust_transition(self, dt_s: float, airspeed_mps: float) -> tuple[float, float]:
+    def gust_transition(
+        self, dt_s: float, airspeed_mps: float, sigma_mps: float | None = None
+    ) -> tuple[float, float]:
         """The gust block over ``dt_s`` at ``airspeed_mps``: ``(phi, q)``, the Gauss-Markov
         decay ``exp(-T V / L)`` and the discrete driving variance ``sigma^2 (1 - phi^2)``
-        per axis (m^2/s^2); the airspeed is floored at 1 m/s."""
+        per axis (m^2/s^2); the airspeed is floored at 1 m/s. ``sigma_mps``: the gust sigma
+        (default the noise model's ``gust_sigma_mps``; the filter's turbulence estimate)."""
         nz = self.noise
         phi = math.exp(-dt_s * max(airspeed_mps, 1.0) / nz.gust_length_m)
-        return phi, nz.gust_sigma_mps**2 * (1.0 - phi * phi)
+        s = nz.gust_sigma_mps if sigma_mps is None else sigma_mps
+        return phi, s * s * (1.0 - phi * phi)
 
     def add_process_noise(
         self, P: FloatArray, dt_s: float, air_offset: int | None = None, q_wind: float = 0.0,

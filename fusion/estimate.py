@@ -163,6 +163,15 @@ class Health:
     learned_wind_updates: int = 0
     """Air-data epochs whose mean wind moved with the learned wind profile (``--bridge
     gmdh-wind``: GNSS lost, height changed within the profile)."""
+    wind_implausible: int = 0
+    """Air-data epochs whose mean wind was above ``AirspeedTuning.max_wind_mps``: the air-data
+    states start again from the next airspeed."""
+    airspeed_implausible: int = 0
+    """Airspeed samples further from the ground speed than any plausible wind
+    (``max_wind_mps``): not fused."""
+    turbulence_saturated: int = 0
+    """Times the turbulence estimate rose above ``gust_sigma_max_mps`` (the ceiling is then
+    used, and the status flags it)."""
     wind_resets: int = 0
     """Starts of the wind states (from the first airspeed batch, or at zero for sideslip-only
     wind learning without a pitot)."""
@@ -234,6 +243,9 @@ class HealthCounters:
     learned_airspeed_fused: int
     learned_airspeed_rejected: int
     learned_wind_updates: int
+    wind_implausible: int
+    airspeed_implausible: int
+    turbulence_saturated: int
     wind_resets: int
     zupt_fused: int
     zupt_rejected: int
@@ -474,6 +486,20 @@ class AirDataStatus:
     gust_ne_mps : (float, float)
         Gust (turbulence) estimate North, East, on top of the mean wind (NaN while dormant),
         m/s.
+    turbulence_mps : float
+        Gust sigma per axis the filter uses (the turbulence intensity), m/s.
+    turbulence_source : str
+        ``default`` (``AirspeedTuning.gust_sigma_mps``: not estimated, or too few residuals
+        yet), ``estimated`` (from the air-data residuals while GNSS was good; held in an
+        outage) or ``saturated`` (the estimate hit its ceiling: the ceiling is used).
+    flags : str
+        Comma-separated bad-input flags of the last 10 s: ``pitot_implausible`` (an airspeed
+        further from the ground speed than any plausible wind: not fused),
+        ``wind_implausible`` (a mean wind above the plausible bound: the air-data states
+        restarted), ``turbulence_saturated``; ``""`` when none.
+    position_error_per_rad : float
+        Fitted slope of the pitot-static position error against the angle of attack
+        (``TAS_measured / |a| - 1`` per rad; 0 until fitted), 1/rad.
     """
 
     state: str = "off"
@@ -483,6 +509,10 @@ class AirDataStatus:
     tas_mps: float = math.nan
     fault: str = ""
     gust_ne_mps: tuple[float, float] = (math.nan, math.nan)
+    turbulence_mps: float = math.nan
+    turbulence_source: str = ""
+    flags: str = ""
+    position_error_per_rad: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)

@@ -548,9 +548,12 @@ class NavFilter(FilterState):
         if air.state.active:  # the nominal gust decays as its error did
             self._flush()
             air.state.decay(cov.take_gust_decay())
-        air.tick(t, ins, self._past_state, p, temp, self._gnss_ctl.is_active(t), inputs)
+        gnss = self._gnss_ctl.is_active(t)
+        air.tick(t, ins, self._past_state, p, temp, gnss, inputs)
         if air.state.active and self._nom is not None:
             cov.airspeed_mps = air.air_speed_mps(self._nom.ins.v_ned_mps)
+        cov.gust_sigma_mps = air.turbulence.sigma_mps
+        cov.air_level_noise = air.level_noise(gnss, t)
         link.status = air.status(t)
 
     # ------------------------------------------------------------------ GNSS

@@ -196,7 +196,7 @@ class FilterState:
         P[:, lay.air] = 0.0
         P[w, w] = P[w + 1, w + 1] = wind_variance
         P[w + 2, w + 2] = scale_variance
-        P[g, g] = P[g + 1, g + 1] = self.config.airspeed.gust_sigma_mps**2
+        P[g, g] = P[g + 1, g + 1] = air.turbulence.sigma_mps**2
         cov = self._cov
         cov.P = P
         cov.air_offset = w

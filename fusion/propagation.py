@@ -71,6 +71,12 @@ class CovariancePropagator:
     airspeed_mps : float
         Air-relative speed that sets the gust correlation time (the filter updates it at
         its air-data epochs), m/s.
+    gust_sigma_mps : float
+        Gust sigma that drives the gust states (the filter's turbulence estimate, set at its
+        air-data epochs), m/s.
+    air_level_noise : float
+        Factor on the level-flight wind and scale random walk (1 with GNSS; the outage hold
+        lowers it), :meth:`fusion.error_model.ErrorModel.air_process_noise`.
     gust_decay : float
         Product of the gust decay factors since the filter last took it
         (:meth:`take_gust_decay`): the nominal gust decays with its error.
@@ -96,8 +102,10 @@ class CovariancePropagator:
         self.f_n: Vec3 = (0.0, 0.0, -earth.GE)
         self.air_offset: int | None = None
         self.airspeed_mps = 0.0
+        self.gust_sigma_mps = model.noise.gust_sigma_mps
+        self.air_level_noise = 1.0
         self.gust_decay = 1.0
-        self._gust_cache: dict[tuple[float, float], tuple[float, float]] = {}
+        self._gust_cache: dict[tuple[float, float, float], tuple[float, float]] = {}
 
     def take_gust_decay(self) -> float:
         """The gust decay since the last call (the nominal gust is multiplied by it)."""
@@ -187,13 +195,14 @@ class CovariancePropagator:
             model.add_process_noise(P, T)
         else:
             # wind random walk driven harder when climbing (the wind changes with height)
-            qw, qk = model.air_process_noise(T, vd)
+            qw, qk = model.air_process_noise(T, vd, self.air_level_noise)
             # gusts: first-order Gauss-Markov, decaying with the distance flown through the air
-            # (phi and q depend on T and the airspeed, which changes at the air-data epochs only)
-            key = (T, self.airspeed_mps)
+            # (phi and q depend on T, the airspeed and the gust sigma, which change at the
+            # air-data epochs only)
+            key = (T, self.airspeed_mps, self.gust_sigma_mps)
             gust = self._gust_cache.get(key)
             if gust is None:
-                gust = model.gust_transition(T, self.airspeed_mps)
+                gust = model.gust_transition(T, self.airspeed_mps, self.gust_sigma_mps)
                 if len(self._gust_cache) >= 64:
                     self._gust_cache.clear()
                 self._gust_cache[key] = gust

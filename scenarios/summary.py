@@ -362,7 +362,8 @@ def score_run(
     outages: list[metrics.Window] = list(
         metrics.merge_gaps(gaps, denied=denied, merge_s=cfg.outage_merge_s))
     health: dict[str, Any] = {"filter": plain_dict(run.nav.health),
-                              "decoder": plain_dict(run.decoder.counters)}
+                              "decoder": plain_dict(run.decoder.counters),
+                              "air_data": plain_dict(run.nav.air_data)}
     health.update(health_extra or {})
     fitted = None
     if fit_settle:

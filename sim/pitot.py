@@ -5,7 +5,8 @@ Measurement chain, per sample at time ``t``::
 
     q_c   = impact_pressure_pa(TAS, p, T)                       (physconst.airdata, isentropic)
     g     = max(0, 1 − k_α·(α − α_probe)² − k_β·β²)             probe misalignment
-    q_p   = q_c · g · (1 + s)                                   scale error s
+    e_s   = c_s·(α − α_probe)                                   static-source position error
+    q_p   = q_c · (g − e_s) · (1 + s)                           scale error s
     q_lag = first-order lag of q_p with time constant τ         pneumatic line / sensor filter
     q_out = Q( clip( q_lag + b0 + b_gm(t) + b_rw(t) + n ) ),   n ~ N(0, noise²)
 
@@ -20,6 +21,15 @@ Measurement chain, per sample at time ``t``::
   (``k = 1``), which a real tube beats. ``α`` and ``β`` are the truth's angle of attack and
   sideslip (JSBSim ``aero/alpha-rad``, ``aero/beta-rad``); where they are not finite (truth
   decoded from MAVLink carries none) the misalignment term is 0.
+- Static-source position error: the static port sits in the pressure field of the airframe,
+  so it senses ``p + Δp`` and the sensor ``p_t − p − Δp``; ``Δp / q_c`` follows the flow
+  around the fuselage and so the lift coefficient, linear in the angle of attack over the
+  normal flight envelope (Gracey, NASA RP-1046, 1980, ch. 9 on static-pressure errors; the
+  position-error calibration of FAA AC 23-8C, section 23.1323). Off (``c_s = 0``) unless a
+  preset or scenario sets ``static_error_alpha_per_rad``. 14 CFR 23.1323(b) allows a system
+  error of 3 % of the calibrated airspeed; ``c_s = 0.3 /rad`` (the ``-pe`` presets) moves the
+  airspeed by 0.15 % per degree of angle of attack, 1.5 % over a 10° range: inside the
+  limit, as a certified installation is.
 - Scale error ``s``: a fixed part plus a turn-on draw ``N(0, scale_error_sigma²)`` (span
   accuracy of the sensor and the installation's pressure coefficient, the error ArduPilot's
   ``ARSPD_RATIO`` calibration absorbs).
@@ -83,6 +93,8 @@ class PitotConfig(SensorConfigModel):
     k_alpha_per_rad2, k_beta_per_rad2 : probe misalignment loss, fraction of the impact
         pressure per rad² of angle of attack (from the probe's axis) and of sideslip.
     probe_incidence_deg : angle of attack at which the probe points into the flow, deg.
+    static_error_alpha_per_rad : static-source position error, fraction of the impact
+        pressure per rad of angle of attack from ``probe_incidence_deg`` (0 = none).
     temperature_offset_k : sensor temperature minus air temperature, K.
     temperature_noise_k : white temperature noise, 1σ, K.
     temperature_resolution_k : temperature LSB, K (0 = none).
@@ -102,6 +114,7 @@ class PitotConfig(SensorConfigModel):
     k_alpha_per_rad2: NonNegative = 0.0
     k_beta_per_rad2: NonNegative = 0.0
     probe_incidence_deg: Finite = 0.0
+    static_error_alpha_per_rad: Finite = 0.0
     temperature_offset_k: Finite = 0.0
     temperature_noise_k: NonNegative = 0.0
     temperature_resolution_k: NonNegative = 0.0
@@ -125,6 +138,7 @@ class PitotParams:
     k_alpha_per_rad2: float
     k_beta_per_rad2: float
     probe_incidence_rad: float
+    static_error_alpha_per_rad: float
     temperature_offset_k: float
     temperature_noise_k: float
     temperature_resolution_k: float
@@ -147,6 +161,7 @@ class PitotParams:
             k_alpha_per_rad2=c.k_alpha_per_rad2,
             k_beta_per_rad2=c.k_beta_per_rad2,
             probe_incidence_rad=math.radians(c.probe_incidence_deg),
+            static_error_alpha_per_rad=c.static_error_alpha_per_rad,
             temperature_offset_k=c.temperature_offset_k,
             temperature_noise_k=c.temperature_noise_k,
             temperature_resolution_k=c.temperature_resolution_k,
@@ -240,6 +255,8 @@ class PitotModel:
             truth.alpha_rad, truth.beta_rad, p.k_alpha_per_rad2, p.k_beta_per_rad2,
             p.probe_incidence_rad,
         )
+        if p.static_error_alpha_per_rad and math.isfinite(truth.alpha_rad):
+            g -= p.static_error_alpha_per_rad * (truth.alpha_rad - p.probe_incidence_rad)
         q_probe = q_c * g * self.scale
         dt = (t - self._t_last_us) * 1e-6
         if self._first or p.lag_time_constant_s <= 0.0:

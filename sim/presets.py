@@ -247,6 +247,16 @@ _PITOT_PRESETS: dict[str, PitotConfig | None] = {
     "none": None,
 }
 
+# The same sensors with a static-source position error that grows with the angle of attack
+# (sim.pitot: 0.3 of q_c per rad, a class value inside 14 CFR 23.1323(b)'s 3 % system-error
+# limit), named ``<sensor>-pe``; the presets above have none.
+_STATIC_POSITION_ERROR_PER_RAD = 0.3
+for _name in ("ms4525do", "sdp33"):
+    _base = _PITOT_PRESETS[_name]
+    assert _base is not None
+    _PITOT_PRESETS[f"{_name}-pe"] = _base.model_copy(
+        update={"static_error_alpha_per_rad": _STATIC_POSITION_ERROR_PER_RAD})
+
 DEFAULT_PITOT_PRESET = "ms4525do"
 """The default aircraft (c172x) carries a pitot-static probe; this is the sensor fitted."""
 

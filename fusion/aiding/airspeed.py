@@ -61,6 +61,8 @@ from numpy.typing import NDArray
 from fusion import kalman
 from fusion.aiding import Observation, Update
 from fusion.aiding.pitot_monitor import PitotMonitor
+from fusion.aiding.position_error import PositionErrorFit
+from fusion.aiding.turbulence import TurbulenceEstimator
 from fusion.airspeed_model import AirspeedInputs, OnlineAirspeedModel
 from fusion.config import AirspeedTuning
 from fusion.error_model import StateLayout
@@ -74,6 +76,8 @@ from physconst.airdata import air_density_kgpm3, true_airspeed_mps
 FloatArray = NDArray[np.float64]
 Vec3 = tuple[float, float, float]
 _MIN_MODEL_SPEED_MPS = 1.0  # below this the direction of the air-relative velocity is noise
+_FLAG_HOLD_US = 10_000_000  # a flag stays in the status this long after its last occurrence
+_RESIDUAL_MAX_WIND_SIGMA_MPS = 1.0  # the turbulence estimate needs a converged mean wind
 
 
 def tas_model(
@@ -261,6 +265,9 @@ class AirspeedAiding:
         self.layout = layout
         self.state = AirState()
         self.monitor = PitotMonitor(cfg)
+        self.turbulence = TurbulenceEstimator(cfg)
+        self.position_error = PositionErrorFit(cfg)
+        self._flags_until_us: dict[str, int] = {}
         self.gate = kalman.chi2_gate(1, cfg.gate_probability)
         self.beta_gate = kalman.chi2_gate(1, cfg.sideslip_gate_probability)
         self._c = counters
@@ -358,9 +365,30 @@ class AirspeedAiding:
         else:
             mode = "stale"
         nan2 = (math.nan, math.nan)
+        turb = self.turbulence
+        flags = sorted(k for k, t in self._flags_until_us.items() if now_us <= t)
+        if turb.saturated and turb.source == "saturated":
+            flags.append("turbulence_saturated")
         return AirDataStatus(mode, st.active, st.mean_wind_ne_mps if st.active else nan2,
                              st.scale, self.last_tas_mps, self.monitor.fault,
-                             st.gust_ne_mps if st.active else nan2)  # fmt: skip
+                             st.gust_ne_mps if st.active else nan2, turb.sigma_mps,
+                             turb.source, ",".join(flags),
+                             self.position_error.coefficient_per_rad)  # fmt: skip
+
+    def level_noise(self, gnss_active: bool, now_us: int) -> float:
+        """Factor on the level-flight wind and scale random walk now: the outage hold while
+        dead-reckoning on a measured airspeed in still air (turbulence estimate at most
+        ``outage_hold_max_turbulence_mps``). In turbulence the wind keeps its noise: the
+        long-wavelength part of the gusts moves the mean wind over minutes. On the synthetic
+        airspeed (no usable pitot) it keeps it too: that airspeed is a latched guess, and the
+        wind's freedom is what absorbs the real airspeed's excursions from it."""
+        cfg = self.cfg
+        held = (cfg.outage_hold and not gnss_active and self.measured_ok(now_us)
+                and self.turbulence.sigma_mps <= cfg.outage_hold_max_turbulence_mps)
+        return cfg.outage_noise_factor if held else 1.0
+
+    def _flag(self, name: str, now_us: int) -> None:
+        self._flags_until_us[name] = now_us + _FLAG_HOLD_US
 
     # --------------------------------------------------------------- the tick
     def tick(
@@ -394,7 +422,7 @@ class AirspeedAiding:
             self._next_tas_us = now_us + self._tas_period_us - self._tas_slack_us
             batch = self._take_batch()
         if batch is not None:
-            ins = self._measured(batch, now_us, ins, past, static_pa, static_temp_k)
+            ins = self._measured(batch, now_us, ins, past, static_pa, static_temp_k, gnss_active)
         if not st.active:
             # the wind is learned (sideslip, GNSS) for the synthetic or learned airspeed
             learns = cfg.synthetic_when_no_pitot or (self.model is not None and inputs is not None)
@@ -404,6 +432,14 @@ class AirspeedAiding:
                                cfg.scale_sigma**2)  # fmt: skip
                 st.active = True
                 self._c.wind_resets += 1
+            return
+        if math.hypot(*st.mean_wind_ne_mps) > cfg.max_wind_mps:
+            # no plausible air moves this fast: start again from the next airspeed, with the
+            # conservative prior for the turbulence
+            self._flag("wind_implausible", now_us)
+            self._c.wind_implausible += 1
+            st.active = False
+            self.turbulence = TurbulenceEstimator(cfg)
             return
         ins = self._current(ins, past, now_us)
         va = _air_speed(ins.v_ned_mps, st.wind_ne_mps)
@@ -527,9 +563,11 @@ class AirspeedAiding:
     def _measured(
         self, batch: tuple[int, float, float, int], now_us: int, ins: InsState,
         past: Callable[[int], InsState | None], static_pa: float, static_temp_k: float,
+        gnss_active: bool,
     ) -> InsState:  # fmt: skip
-        """One measured batch: start the wind, or fuse / test it through the monitor.
-        Returns the current INS (after a possible update)."""
+        """One measured batch: start the wind, or fuse / test it through the monitor (and,
+        with GNSS, feed the turbulence estimate). Returns the current INS (after a possible
+        update)."""
         cfg, st, c, mon = self.cfg, self.state, self._c, self.monitor
         t_mean, qc, temp, n = batch
         temp_k = temp if math.isfinite(temp) else static_temp_k
@@ -541,6 +579,13 @@ class AirspeedAiding:
         at = past(t_mean)
         if at is None:
             at = ins
+        alpha = _alpha_rad(at, st.wind_ne_mps) if st.active else math.nan
+        tas_raw, tas = tas, self.position_error.correct(tas, alpha)
+        if abs(tas - math.sqrt(sum(v * v for v in at.v_ned_mps))) > cfg.max_wind_mps:
+            # |TAS - ground speed| <= |wind|: no plausible wind explains this reading
+            self._flag("pitot_implausible", now_us)
+            c.airspeed_implausible += n
+            return ins
         if not st.active:
             if tas < cfg.min_airspeed_mps:
                 c.airspeed_low += n
@@ -585,6 +630,8 @@ class AirspeedAiding:
             c.airspeed_blockages += 1
             c.airspeed_blocked += n
             return ins
+        if gnss_active:
+            self._learn_air(at.v_ned_mps, tas, tas_raw, alpha, static_pa, temp_k, n)
         res = self._update(obs, self.gate, AidSource.AIRSPEED, now_us)
         ok = res.test_ratio <= 1.0
         if ok:
@@ -596,12 +643,37 @@ class AirspeedAiding:
             c.airspeed_blockages += 1
         return ins
 
-    def _sigma(self, speed_mps: float, static_pa: float, temp_k: float, n: int) -> float:
-        """TAS sigma of a batch of ``n`` samples at ``speed_mps`` (module docstring)."""
+    def _learn_air(
+        self, v_ned_mps: Vec3, tas_mps: float, tas_raw_mps: float, alpha_rad: float,
+        static_pa: float, temp_k: float, n: int,
+    ) -> None:  # fmt: skip
+        """With GNSS good and the wind converged: feed the turbulence estimate the residual
+        against the mean wind (:mod:`fusion.aiding.turbulence`) and the position-error fit the
+        raw airspeed ratio (:mod:`fusion.aiding.position_error`)."""
+        P, w = self._covariance(), self.layout.WIND
+        if max(float(P[w, w]), float(P[w + 1, w + 1])) > _RESIDUAL_MAX_WIND_SIGMA_MPS**2:
+            return
+        st, turb = self.state, self.turbulence
+        was = turb.saturated
+        va = _air_speed(v_ned_mps, st.mean_wind_ne_mps)
+        if va > _MIN_MODEL_SPEED_MPS:
+            self.position_error.add(alpha_rad, tas_raw_mps / va)
+        r = (1.0 + st.scale) * va - tas_mps
+        s_sensor = self._sensor_sigma(tas_mps, static_pa, temp_k)
+        turb.add(r, s_sensor * s_sensor / n)
+        if turb.saturated and not was:
+            self._c.turbulence_saturated += 1
+
+    def _sensor_sigma(self, speed_mps: float, static_pa: float, temp_k: float) -> float:
+        """TAS sigma of one pitot sample from its pressure noise, ``sigma_qc / (rho V)``."""
         cfg = self.cfg
         rho_v = air_density_kgpm3(static_pa, temp_k) * max(speed_mps, cfg.min_airspeed_mps)
-        s_sensor = cfg.diff_pressure_noise_pa / rho_v
-        return math.sqrt(s_sensor * s_sensor / n + cfg.tas_noise_floor_mps**2)
+        return cfg.diff_pressure_noise_pa / rho_v
+
+    def _sigma(self, speed_mps: float, static_pa: float, temp_k: float, n: int) -> float:
+        """TAS sigma of a batch of ``n`` samples at ``speed_mps`` (module docstring)."""
+        s_sensor = self._sensor_sigma(speed_mps, static_pa, temp_k)
+        return math.sqrt(s_sensor * s_sensor / n + self.cfg.tas_noise_floor_mps**2)
 
     def _sideslip(self, ins: InsState, now_us: int) -> None:
         obs = sideslip_model(self.layout, ins.v_ned_mps, ins.q_nb, self.state.wind_ne_mps,
@@ -618,6 +690,17 @@ class AirspeedAiding:
 def _air_speed(v_ned_mps: Vec3, wind_ne_mps: tuple[float, float]) -> float:
     an, ae = v_ned_mps[0] - wind_ne_mps[0], v_ned_mps[1] - wind_ne_mps[1]
     return math.sqrt(an * an + ae * ae + v_ned_mps[2] ** 2)
+
+
+def _alpha_rad(ins: InsState, wind_ne_mps: tuple[float, float]) -> float:
+    """Angle of attack of the air-relative velocity ``a = v - w`` in body axes,
+    ``atan2(a_b,z, a_b,x)``, rad."""
+    v = ins.v_ned_mps
+    a = (v[0] - wind_ne_mps[0], v[1] - wind_ne_mps[1], v[2])
+    c = dcm_from_quat(ins.q_nb)  # C_nb row-major: a_b = C_nb^T a
+    bx = c[0] * a[0] + c[3] * a[1] + c[6] * a[2]
+    bz = c[2] * a[0] + c[5] * a[1] + c[8] * a[2]
+    return math.atan2(bz, bx)
 
 
 def _no_corrections() -> Vec3:

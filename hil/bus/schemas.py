@@ -215,7 +215,10 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
             "air_data": _d(
                 {"type": ["object", "null"]},
                 "air data: state (off | waiting | fusing | blocked | synthetic | stale), mean "
-                "wind N/E m/s, airspeed scale, last TAS m/s, pitot fault, gust N/E m/s",
+                "wind N/E m/s, airspeed scale, last TAS m/s, pitot fault, gust N/E m/s, "
+                "turbulence_mps (gust sigma in use), turbulence_source (default | estimated | "
+                "saturated), flags (comma-separated: pitot_implausible, wind_implausible, "
+                "turbulence_saturated)",
             ),
             "alignment": _d(
                 {"type": ["object", "null"]},

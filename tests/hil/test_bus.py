@@ -20,7 +20,7 @@ import numpy as np
 import pydantic
 import pytest
 
-from fusion.estimate import Health, NavEstimate, TestRatios
+from fusion.estimate import AirDataStatus, Health, NavEstimate, TestRatios
 from fusion.rotations import euler_to_quat
 from hil.bus import (
     PUBLISHED_TOPICS,
@@ -223,6 +223,19 @@ def test_estimate_payload_units_and_non_finite_values() -> None:
     assert d["yaw_deg"] == pytest.approx(30.0)
     assert d["pos_sigma_ned_m"] == pytest.approx([2.0, 3.0, 4.0])
     assert d["gyro_bias_b_rps"] is None
+
+
+def test_status_payload_carries_the_air_data_turbulence_and_flags() -> None:
+    # GIVEN an estimate whose air data learned its turbulence and flagged a pitot reading
+    air = AirDataStatus("fusing", True, (4.0, -3.0), 0.01, 50.0, "", (0.2, -0.1), 0.4,
+                        "estimated", "pitot_implausible", 0.12)
+    s = status_payload(dataclasses.replace(real_estimate(), air_data=air))
+    # THEN the status payload carries them, valid against the published schema
+    a = s["air_data"]
+    assert a["turbulence_mps"] == 0.4 and a["turbulence_source"] == "estimated"
+    assert a["flags"] == "pitot_implausible" and a["position_error_per_rad"] == 0.12
+    jsonschema.validate(s, SCHEMAS[Topic.STATUS])
+    encode(s)
 
 
 _EDGE_VALUES = [0.0, -0.0, 5e-324, -5e-324, 1e-300, -1e-300, 1.0, -1.0, 1e300, -1e300,

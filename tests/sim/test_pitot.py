@@ -128,6 +128,23 @@ def test_probe_misalignment_loses_impact_pressure_with_the_square_of_the_flow_an
     assert probe_misalignment_factor(3.0, 0.0, 1.0, 0.0) == 0.0  # never negative
 
 
+def test_static_position_error_is_linear_in_the_angle_of_attack() -> None:
+    # GIVEN a static port whose error is 0.3 of q_c per rad of angle of attack
+    cfg = PitotConfig(noise_pa=0.0, static_error_alpha_per_rad=0.3, probe_incidence_deg=1.0)
+    # THEN the sensed pressure is q_c (1 - 0.3 (alpha - alpha_probe)) at every angle
+    for a in (-0.02, 0.05, 0.15):
+        (dp,) = readings(cfg, 0, 1, alpha_rad=a)
+        assert dp == pytest.approx(Q_C * (1.0 - 0.3 * (a - math.radians(1.0))), rel=1e-14)
+    # and an unknown angle (truth decoded from MAVLink) adds nothing
+    (dp,) = readings(cfg, 0, 1, alpha_rad=math.nan)
+    assert dp == Q_C
+    # AND the -pe presets are the plain sensors with this error; the plain ones have none
+    for name in ("ms4525do", "sdp33"):
+        plain, pe = pitot_preset(name), pitot_preset(f"{name}-pe")
+        assert plain is not None and pe is not None and plain.static_error_alpha_per_rad == 0.0
+        assert pe == plain.model_copy(update={"static_error_alpha_per_rad": 0.3})
+
+
 def test_lag_is_the_exact_first_order_response() -> None:
     tau, rate = 0.2, 50.0
     m = PitotModel(PitotConfig(noise_pa=0.0, lag_time_constant_s=tau), np.random.default_rng(0))
@@ -151,9 +168,10 @@ def test_resolution_and_range() -> None:
 
 
 def test_presets_are_listed_with_none_for_no_pitot() -> None:
-    assert set(available_pitot_presets()) == {"ideal", "ms4525do", "none", "sdp33"}
+    assert set(available_pitot_presets()) == {"ideal", "ms4525do", "ms4525do-pe", "none",
+                                             "sdp33", "sdp33-pe"}
     assert pitot_preset("none") is None
-    with pytest.raises(ValueError, match="valid choices: ideal, ms4525do, none, sdp33"):
+    with pytest.raises(ValueError, match="valid choices: ideal, ms4525do, ms4525do-pe, none"):
         pitot_preset("pitot-9000")
     with pytest.raises(ValidationError, match="noise_pa"):
         PitotConfig(noise_pa=-1.0)
