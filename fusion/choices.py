@@ -23,10 +23,9 @@ carries one; ``off`` fuses no air data (samples counted, not fused); ``synthetic
 plus synthetic airspeed on a fixed-wing without a pitot (:class:`fusion.config.AirspeedTuning`)."""
 DEFAULT_AIRSPEED_MODE = "on"
 """The commands' air-data default: the pitot is fused whenever the stream carries one, as PX4
-and ArduPilot do. ``off`` until the gust states: on held-out JSBSim flights (industrial MEMS,
-wind 0-12 m/s, turbulence 0-0.4, ``bench/air_data.py``, 30 flights) fusing the pitot left
-0.99x / 0.87x / 0.82x the free-inertial error 25 / 60 / 300 s into an outage (1.24x at
-300 s before them; bench/README.md, "Air data on JSBSim")."""
+and ArduPilot do: with the gust states the pitot helps on held-out JSBSim flights in calm,
+steady and turbulent air (``bench/air_data.py``; docs/results.md, "Air data"); without them
+(a gust taken for white noise) it made a 300 s outage worse than free inertial."""
 
 ALIGN_MODES: tuple[str, ...] = ("auto", "static", "in-flight")
 """Alignment choices of the commands (``--align``): :attr:`fusion.config.InitConfig.mode` with a

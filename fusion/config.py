@@ -189,7 +189,7 @@ class MagTuning(_Frozen):
     (hard/soft-iron residual, error of the reference field) is correlated over tens of seconds,
     so fusing it as white noise at 5 Hz counts one error ten times and makes the yaw
     overconfident; at 0.5 Hz (tuning seeds 1-2 of ``bench/consistency.py``) the yaw was both
-    more accurate and more consistent (``bench/README.md``)."""
+    more accurate and more consistent (docs/results.md, "Consistency")."""
     learn_rate_hz: PositiveFloat = 5.0
     """Rate at which samples feed the reference-field learning and the hard-iron calibration,
     Hz (their samples are averaged, not fused: their rate is not the heading update's)."""
@@ -242,12 +242,11 @@ class AirspeedTuning(_Frozen):
     fuse_rate_hz: PositiveFloat = 1.0
     """Airspeed samples are averaged over ``1 / fuse_rate_hz`` and fused as one (the sensor
     noise part of the variance divided by the count); sideslip at ``sideslip_rate_hz``.
-    1 Hz, not EKF2's ~10 Hz. Chosen before the gust states, when a gust (correlated over
-    ~6 s, Dryden L/V) was white noise to the filter and faster updates counted it many times
-    (tuning flights, seeds 2-5 x manoeuvre, cruise: 5 Hz / 1 m/s left 2,200 m summed 300 s
-    into the outage, 1 Hz / 2 m/s 1,514 m, free inertial 4,192 m). With the gust states 1 Hz
-    and 2 Hz are alike on the tuning flights (seeds 1-5: 1,366 and 1,404 m; ``bench/
-    README.md``, "Air data on JSBSim")."""
+    1 Hz, not EKF2's ~10 Hz: without gust states a gust (correlated over ~6 s, Dryden L/V)
+    is white noise to the filter and faster updates count it many times (tuning flights,
+    seeds 2-5 x manoeuvre, cruise: 5 Hz / 1 m/s left 2,200 m summed 300 s into the outage,
+    1 Hz / 2 m/s 1,514 m, free inertial 4,192 m). With the gust states 1 Hz and 2 Hz are
+    alike on the tuning flights (seeds 1-5: 1,366 and 1,404 m)."""
     sideslip_rate_hz: PositiveFloat = 5.0
     """Rate of the air-data epochs that fuse the synthetic sideslip (and start the wind states),
     Hz; the TAS is fused at the slower ``fuse_rate_hz``. Without a pitot the wind is learned
@@ -259,9 +258,9 @@ class AirspeedTuning(_Frozen):
     tas_noise_floor_mps: PositiveFloat = 1.0
     """Floor of the TAS sigma of one fused batch, m/s: pitot position error, sensor lag and the
     sideslip the model neglects. Turbulence is not in it: the gust states carry it
-    (``gust_sigma_mps``). 2 m/s before the gust states, when the floor had to cover the gusts;
-    on the tuning flights (seeds 1-5 x manoeuvre, cruise) 1 and 2 m/s left the same summed
-    error 300 s into the outage (1,366 and 1,379 m; ``bench/README.md``)."""
+    (``gust_sigma_mps``); without them the floor would have to cover the gusts (2 m/s). On
+    the tuning flights (seeds 1-5 x manoeuvre, cruise) 1 and 2 m/s left the same summed
+    error 300 s into the outage (1,366 and 1,379 m)."""
     gate_probability: Probability = Field(default=0.999, gt=0.5, lt=1.0)
     """Chi-square gate of the TAS update (0.999: 3.3 sigma; EKF2_TAS_GATE is 3 sigma)."""
     min_airspeed_mps: PositiveFloat = 8.0

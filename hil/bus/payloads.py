@@ -90,7 +90,7 @@ def _fin(x: Any, name: str) -> float:
 def _floats(a: Any) -> list[float]:
     """``np.asarray(a, float64).reshape(-1).tolist()``, straight from a 1-D float64 array (the
     filter's vectors) without the conversions: the estimate is built on the live path, where
-    each numpy call costs tens of microseconds (issue 15, bench/README.md "Live path")."""
+    each numpy call costs tens of microseconds (docs/results.md, "Live latency")."""
     if type(a) is np.ndarray and a.ndim == 1 and a.dtype == np.float64:
         return a.tolist()
     return np.asarray(a, dtype=np.float64).reshape(-1).tolist()

@@ -101,9 +101,10 @@ def test_library_covers_the_rehearsals() -> None:
 
 
 def test_library_covers_long_denial_with_air_data() -> None:
-    """The long-denial air-data scenarios: 300 s and 900 s outages in survey, climb-descent and racetrack flight, wind
-    up to 12 m/s with turbulence and shear, pitot blockages (stuck, zero) inside an outage, an
-    aircraft without a pitot on synthetic airspeed; every one gated at 300 s into the outage."""
+    """The long-denial air-data scenarios: 300 s and 900 s outages in survey, climb-descent
+    and racetrack flight, wind up to 12 m/s with turbulence and shear, pitot blockages
+    (stuck, zero) inside an outage, an aircraft without a pitot on synthetic airspeed; every
+    one gated at 300 s into the outage."""
     long = {}
     for p in LIBRARY:
         s = load_scenario(p)
