@@ -43,7 +43,6 @@ from fusion import earth
 from fusion.aiding.mag import reference_field_n
 from fusion.aiding.zero_motion import StillnessDetector
 from fusion.config import FilterConfig, GnssTuning, ImuTuning, InitConfig, MagTuning
-from fusion.error_model import StateLayout
 from fusion.rotations import (
     dcm_to_quat,
     euler_to_dcm,
@@ -53,6 +52,7 @@ from fusion.rotations import (
     wrap_pi,
 )
 from fusion.samples import GnssFix
+from fusion.state_layout import StateLayout
 from fusion.strapdown import InsState
 
 FloatArray = NDArray[np.float64]

@@ -30,7 +30,8 @@ from fusion.choices import (  # noqa: F401  # re-exported: the commands' choices
     DEFAULT_AIRSPEED_MODE,
     DEFAULT_ALIGN_MODE,
 )
-from fusion.error_model import LayoutName, ProcessNoise
+from fusion.error_model import ProcessNoise
+from fusion.state_layout import LayoutName
 from physconst.geomag import DEFAULT_DECIMAL_YEAR
 
 Probability = float
@@ -666,7 +667,7 @@ class FilterConfig(_Frozen):
     """Everything :class:`fusion.filter.NavFilter` needs."""
 
     state_layout: LayoutName = "ins16"
-    """The error-state layout, by name (:func:`fusion.error_model.layout_for`): ``ins16``: pos,
+    """The error-state layout, by name (:func:`fusion.state_layout.layout_for`): ``ins16``: pos,
     vel, att, accel bias, gyro bias, baro bias. ``ins22``: plus accelerometer and gyro scale
     factors. ``+gnss``: plus the receiver's time-correlated position error as three
     Gauss-Markov states (North, East, Down; sigmas and correlation times in

@@ -17,9 +17,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion import earth
-from fusion.error_model import StateLayout
 from fusion.nominal import NominalState
 from fusion.rotations import quat_product, rotvec_quat
+from fusion.state_layout import StateLayout
 from fusion.strapdown import InsState, sensor_matrix
 
 FloatArray = NDArray[np.float64]

@@ -19,7 +19,7 @@ from fusion import kalman
 from fusion.aiding import Observation
 from fusion.aiding.airspeed import AirspeedAiding
 from fusion.config import FilterConfig
-from fusion.error_model import ErrorModel, StateLayout, layout_for
+from fusion.error_model import ErrorModel
 from fusion.estimate import (
     AidSource,
     AidSourceStatus,
@@ -39,6 +39,7 @@ from fusion.feedback import (
 from fusion.history import InsHistory, span_capacity
 from fusion.nominal import NominalState, with_baro_bias
 from fusion.propagation import CovariancePropagator, decay_gnss_bias
+from fusion.state_layout import StateLayout, layout_for
 from fusion.strapdown import InsState
 
 FloatArray = NDArray[np.float64]

@@ -27,7 +27,7 @@ class NominalState(NamedTuple):
     """The INS state and the sensor-error estimates (all in SI units).
 
     Fields a layout does not estimate keep their value (zero unless set): the feedback only
-    changes the blocks of its layout (:class:`fusion.error_model.StateLayout`).
+    changes the blocks of its layout (:class:`fusion.state_layout.StateLayout`).
     """
 
     ins: InsState
@@ -42,7 +42,7 @@ class NominalState(NamedTuple):
     """Gyro scale-factor estimate per axis (dimensionless)."""
     accel_misalignment_b: tuple[float, ...]
     """Accelerometer misalignment estimate, six off-diagonal entries
-    (:data:`fusion.error_model.OFF_DIAGONAL`)."""
+    (:data:`fusion.state_layout.OFF_DIAGONAL`)."""
     gyro_misalignment_b: tuple[float, ...]
     """Gyro misalignment estimate, six off-diagonal entries."""
     baro_bias_m: float

@@ -338,7 +338,7 @@ def increments_compensated_python(
 def sensor_matrix(scale: Sequence[float], misalignment: Sequence[float]) -> list[list[float]]:
     """The sensor model ``I + diag(scale) + M`` as rows, ``M`` from its six off-diagonal entries
     in the order ``(0,1), (0,2), (1,0), (1,2), (2,0), (2,1)``
-    (:data:`fusion.error_model.OFF_DIAGONAL`)."""
+    (:data:`fusion.state_layout.OFF_DIAGONAL`)."""
     m01, m02, m10, m12, m20, m21 = misalignment
     return [
         [1.0 + scale[0], m01, m02],

@@ -19,7 +19,7 @@ from fusion.config import (
     ImuTuning,
     airspeed_tuning,
 )
-from fusion.error_model import LayoutName
+from fusion.state_layout import LayoutName
 from sim.gnss import GnssConfig
 from sim.imu import ImuParams
 from sim.presets import gnss_preset, imu_preset

@@ -65,10 +65,10 @@ from fusion.aiding.position_error import PositionErrorFit
 from fusion.aiding.turbulence import TurbulenceEstimator
 from fusion.airspeed_model import AirspeedInputs, OnlineAirspeedModel
 from fusion.config import AirspeedTuning
-from fusion.error_model import StateLayout
 from fusion.estimate import AidSource, AirDataStatus, HealthCounters
 from fusion.rotations import dcm_from_quat, euler_from_quat
 from fusion.samples import AirspeedSample
+from fusion.state_layout import StateLayout
 from fusion.strapdown import InsState
 from fusion.wind_model import OnlineWindModel
 from physconst.airdata import air_density_kgpm3, true_airspeed_mps

@@ -28,9 +28,9 @@ from fusion import kalman
 from fusion.aiding import Observation, Update
 from fusion.altitude.atmosphere import P_MAX_PA, P_MIN_PA
 from fusion.config import BaroTuning
-from fusion.error_model import StateLayout
 from fusion.estimate import AidSource, HealthCounters
 from fusion.samples import BaroSample
+from fusion.state_layout import StateLayout
 
 
 def height_model(

@@ -56,10 +56,10 @@ from numpy.typing import NDArray
 from fusion import earth, kalman
 from fusion.aiding import Observation, Update
 from fusion.config import GnssTuning
-from fusion.error_model import StateLayout
 from fusion.estimate import AidSource, HealthCounters
 from fusion.rotations import dcm_from_quat
 from fusion.samples import GnssFix
+from fusion.state_layout import StateLayout
 from fusion.strapdown import InsState
 
 FloatArray = NDArray[np.float64]
@@ -280,7 +280,7 @@ def white_position_sigmas(
         Per-axis horizontal and vertical sigmas (:func:`fix_sigmas`), m.
     cfg : GnssTuning
     layout : StateLayout
-        The filter's layout (:attr:`~fusion.error_model.StateLayout.has_gnss_bias`).
+        The filter's layout (:attr:`~fusion.state_layout.StateLayout.has_gnss_bias`).
 
     Returns
     -------

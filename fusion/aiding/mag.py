@@ -38,10 +38,10 @@ from numpy.typing import NDArray
 from fusion import kalman
 from fusion.aiding import Observation, Update
 from fusion.config import MagTuning
-from fusion.error_model import StateLayout
 from fusion.estimate import AidSource, HealthCounters
 from fusion.rotations import euler_from_quat, quat_to_dcm, wrap_pi
 from fusion.samples import MagSample, as_vec3
+from fusion.state_layout import StateLayout
 from fusion.strapdown import InsState
 from physconst.geomag import REEVALUATE_DISTANCE_M, magnetic_field_ned_t, moved_beyond
 

@@ -16,8 +16,8 @@ from fusion.aiding import Update
 from fusion.aiding.gnss import position_model, velocity_model
 from fusion.bridging.interface import PseudoGnss
 from fusion.config import GnssTuning
-from fusion.error_model import StateLayout
 from fusion.estimate import AidSource
+from fusion.state_layout import StateLayout
 from fusion.strapdown import InsState
 
 

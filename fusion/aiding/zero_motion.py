@@ -42,9 +42,9 @@ import numpy as np
 from fusion import earth, kalman
 from fusion.aiding import Observation, Update
 from fusion.config import ImuTuning, ZeroMotionTuning
-from fusion.error_model import StateLayout
 from fusion.estimate import AidSource, HealthCounters
 from fusion.rotations import quat_to_dcm
+from fusion.state_layout import StateLayout
 from fusion.strapdown import InsState
 
 

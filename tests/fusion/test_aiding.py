@@ -10,8 +10,8 @@ import pytest
 from fusion import earth
 from fusion.aiding import baro, gnss, mag
 from fusion.config import BaroTuning, GnssTuning, MagTuning
-from fusion.error_model import INS16, INS16_GNSS
 from fusion.rotations import euler_to_quat, quat_multiply, quat_to_dcm, rotvec_to_quat
+from fusion.state_layout import INS16, INS16_GNSS
 from fusion.strapdown import InsState
 from physconst.isa import isa_pressure_pa, pressure_altitude_m
 from sim.samples import GnssFix
@@ -195,7 +195,7 @@ def test_baro_h_matches_finite_differences() -> None:
 
 def test_baro_h_with_the_scale_factor_matches_finite_differences() -> None:
     # GIVEN the layout with the baro scale factor, 4 % of scale and 150 m above the reference
-    from fusion.error_model import INS35
+    from fusion.state_layout import INS35
 
     lay = INS35
     bias, scale, h_ref = 12.0, 0.04, TRUE.alt_msl_m - 150.0

@@ -13,10 +13,10 @@ from scipy.stats import chi2
 from fusion import earth
 from fusion.aiding.airspeed import sideslip_model, tas_model
 from fusion.config import AirspeedTuning, FilterConfig
-from fusion.error_model import layout_for
 from fusion.estimate import AidSource, NavEstimate
 from fusion.filter import NavFilter
 from fusion.rotations import euler_to_quat, quat_multiply, rotvec_to_quat
+from fusion.state_layout import layout_for
 from tests.helpers.nav_synth import (
     Flight,
     Prepared,

@@ -8,7 +8,15 @@ import numpy as np
 import pytest
 
 from fusion import earth, strapdown
-from fusion.error_model import (
+from fusion.error_model import ErrorModel, ProcessNoise
+from fusion.rotations import (
+    dcm_from_quat,
+    dcm_to_rotvec,
+    quat_multiply,
+    quat_to_dcm,
+    rotvec_to_quat,
+)
+from fusion.state_layout import (
     INS16,
     INS16_GNSS,
     INS22,
@@ -16,16 +24,7 @@ from fusion.error_model import (
     INS35,
     INS35_GNSS,
     OFF_DIAGONAL,
-    ErrorModel,
-    ProcessNoise,
     StateLayout,
-)
-from fusion.rotations import (
-    dcm_from_quat,
-    dcm_to_rotvec,
-    quat_multiply,
-    quat_to_dcm,
-    rotvec_to_quat,
 )
 from fusion.trajectory import ImuIncrements, ideal_increments
 from tests.helpers.nav_synth import Flight

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from fusion import earth, strapdown
-from fusion.error_model import INS16, INS16_GNSS, INS22, INS22_GNSS, StateLayout
 from fusion.feedback import (
     feedback,
     nav_corrections,
@@ -19,6 +18,7 @@ from fusion.feedback import (
 )
 from fusion.nominal import initial_nominal
 from fusion.rotations import quat_multiply, quat_normalize, rotvec_to_quat
+from fusion.state_layout import INS16, INS16_GNSS, INS22, INS22_GNSS, StateLayout
 from fusion.strapdown import InsState
 
 INS = InsState(0.8, 0.2, 350.0, (40.0, -3.0, 1.5), tuple(quat_normalize([0.9, 0.1, -0.2, 0.3])))

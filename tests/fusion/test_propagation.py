@@ -10,11 +10,12 @@ import pytest
 
 from fusion import earth
 from fusion.config import ImuTuning
-from fusion.error_model import INS16, INS22, ErrorModel, ProcessNoise
+from fusion.error_model import ErrorModel, ProcessNoise
 from fusion.estimate import HealthCounters
 from fusion.propagation import CovariancePropagator, decay_gnss_bias
 from fusion.rotations import dcm_from_quat
 from fusion.screening import SampleScreen
+from fusion.state_layout import INS16, INS22
 from fusion.strapdown import InsState, coast, increments, increments_scaled
 from sim.samples import ImuSample
 

@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from fusion.error_model import layout_for
+from fusion.state_layout import layout_for
 from hil.codec import Decoder
 from hil.pipeline import FusionRun, SimSetup, filter_config, fly
 from physconst.airdata import true_airspeed_mps
