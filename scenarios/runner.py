@@ -28,6 +28,7 @@ methods.
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -35,7 +36,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fusion.config import FilterConfig
-from hil.pipeline import Flown, FrameSink, FusionRun, SimSetup, build_filter, fly, tee
+from hil.pipeline import Flown, FrameSink, FusionRun, SimSetup, SimStep, build_filter, fly, tee
 from hil.pipeline import filter_config as pipeline_filter_config
 from hil.tlog import TlogWriter
 from scenarios.jsonable import plain_dict
@@ -45,6 +46,7 @@ from sim.faults.events import event_type_name
 
 if TYPE_CHECKING:  # the autopilot's modules (its link, its telemetry) load when one flies
     from hil.autopilot import AutopilotBackend, AutopilotFlown
+    from hil.autopilot.commander import Commander
     from hil.autopilot.telemetry import AutopilotTelemetry
     from scenarios.autopilot_summary import ScoredAutopilot
 
@@ -282,10 +284,12 @@ class AutopilotRun:
     the flight with it produced (:meth:`open`, :meth:`fly`, :meth:`score`)."""
 
     def __init__(self, scenario: Scenario, backend: AutopilotBackend,
-                 telemetry: AutopilotTelemetry | None) -> None:
+                 telemetry: AutopilotTelemetry | None,
+                 commander: Commander | None = None) -> None:
         self.scenario = scenario
         self.backend = backend
         self.telemetry = telemetry
+        self.commander = commander
         self.flown: AutopilotFlown | None = None
 
     @classmethod
@@ -312,7 +316,16 @@ class AutopilotRun:
             if callable(watch_armed):  # a backend that cannot see the armed flag itself
                 recorder = telemetry
                 watch_armed(lambda: recorder.armed)
-        return cls(scenario, backend, telemetry)
+            _hold_until_flying(backend, telemetry, ap.kind)
+        commander = None
+        if ap.scripted and telemetry is not None:
+            from hil.autopilot.commander import Commander
+
+            start = scenario.start_state()
+            commander = Commander(ap.kind, scenario.autopilot_script(),
+                                  (start.lat_deg, start.lon_deg, start.alt_msl_m))
+            telemetry.attach(commander)
+        return cls(scenario, backend, telemetry, commander)
 
     def fly(self, sink: FrameSink, progress: ProgressFn | None = None) -> Flown:
         """Fly the scenario with the autopilot at the controls, every frame into ``sink``."""
@@ -322,11 +335,21 @@ class AutopilotRun:
         if self.telemetry is not None:
             self.telemetry.start()
         setup = sim_setup(self.scenario)
+        stop = threading.Event()
+        commander = self.commander
+        on_step = None
+        if commander is not None:
+            def on_step(step: SimStep) -> None:
+                commander.poll(step.truth.time_us * 1e-6)
+                if commander.failure is not None:
+                    stop.set()  # the script cannot go on: score what flew, fail the run
         try:
             flown = fly_with_autopilot(
                 setup, self.backend, on_frame=sink, speed=ap.speed,
                 connect_timeout_s=ap.connect_timeout_s, stall_timeout_s=ap.stall_timeout_s,
-                progress=progress)
+                progress=progress, on_step=on_step, stop=stop)
+            if commander is not None and flown.connected:
+                commander.end(flown.sim_duration_s)
         finally:
             if self.telemetry is not None:
                 self.telemetry.stop()
@@ -347,14 +370,19 @@ class AutopilotRun:
             return ["the autopilot never flew"]
         if flown.stalled is not None:
             return [flown.stalled]
+        if self.commander is not None and self.commander.failure is not None:
+            return []  # the script's failure says why (:meth:`failures`)
         if flown.stopped:
             return [f"the run was stopped at {flown.sim_duration_s:.2f} s"]
         return []
 
     def failures(self) -> list[str]:
         """What the backend could not do for the scenario (:attr:`AutopilotFlown.problems`:
-        a denial step the autopilot did not acknowledge)."""
-        return [] if self.flown is None else list(self.flown.problems)
+        a denial step the autopilot did not acknowledge; a scripted step it did not confirm)."""
+        out = [] if self.flown is None else list(self.flown.problems)
+        if self.commander is not None and self.commander.failure is not None:
+            out.append(self.commander.failure)
+        return out
 
     def check_scorable(self, fusion: FusionRun) -> None:
         """AutopilotAbsent when a stall left hilnav nothing to score."""
@@ -374,6 +402,31 @@ class AutopilotRun:
 
         assert self.flown is not None
         ap = self.scenario.autopilot
-        return score_flown(self.flown, self.telemetry, hilnav.truth, hilnav.outages,
-                           link={"simulator": ap.link, "telemetry": ap.telemetry},
-                           settle_s=SETTLE_S, events=events)
+        scored = score_flown(self.flown, self.telemetry, hilnav.truth, hilnav.outages,
+                             link={"simulator": ap.link, "telemetry": ap.telemetry},
+                             settle_s=SETTLE_S, events=events)
+        hold = getattr(self.backend, "trim_hold", None)
+        commander = self.commander
+        scored.section["armed_s"] = (commander.armed_s if commander is not None
+                                     else getattr(hold, "armed_s", None))
+        scored.section["mode_reached_s"] = (None if commander is None
+                                            else commander.mode_reached_s)
+        scored.section["script"] = None if commander is None else commander.report()
+        return scored
+
+
+def _hold_until_flying(backend: AutopilotBackend, telemetry: AutopilotTelemetry,
+                       kind: str) -> None:
+    """The backend's trim hold lasts until the autopilot's HEARTBEAT on its telemetry says
+    it is in a flying mode, besides armed (:mod:`hil.autopilot.arming`)."""
+    from hil.autopilot.modes import is_flying_mode
+
+    hold = getattr(backend, "trim_hold", None)
+    if hold is None or kind not in ("px4", "ardupilot"):
+        return
+
+    def flying() -> bool | None:
+        mode = telemetry.custom_mode
+        return None if mode is None else is_flying_mode(kind, mode)
+
+    hold.flying = flying

@@ -57,7 +57,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import Any, Final, Protocol
 
 import numpy as np
 
@@ -74,7 +74,8 @@ from hil.link import LinkRole, MavlinkLink
 from hil.signing import Signer
 from hil.tracks import Track
 
-__all__ = ["TELEMETRY_MSG_IDS", "AutopilotTelemetry", "ground_station_role"]
+__all__ = ["COMMAND_REPLY_IDS", "TELEMETRY_MSG_IDS", "AutopilotTelemetry", "LinkClient",
+           "ground_station_role"]
 
 _GPI: Final = int(mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT)
 _ATT: Final = int(mavlink2.MAVLINK_MSG_ID_ATTITUDE)
@@ -87,6 +88,10 @@ _HB: Final = int(mavlink2.MAVLINK_MSG_ID_HEARTBEAT)
 
 TELEMETRY_MSG_IDS: Final = frozenset({_GPI, _ATT, _LPN, _EST, _EKF, _TXT, _ACK})
 """What the recorder accepts besides HEARTBEAT."""
+COMMAND_REPLY_IDS: Final = frozenset({
+    int(mavlink2.MAVLINK_MSG_ID_PARAM_VALUE), int(mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST_INT),
+    int(mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST), int(mavlink2.MAVLINK_MSG_ID_MISSION_ACK)})
+"""What the autopilot answers a commander with (:meth:`AutopilotTelemetry.attach`)."""
 #: Messages asked for at ``rate_hz``: the estimate, and the estimator status each autopilot has.
 _REQUESTED: Final = (_GPI, _ATT, _LPN)
 _STATUS_OF: Final = {int(mavlink2.MAV_AUTOPILOT_PX4): _EST,
@@ -99,6 +104,17 @@ _TEXT_CHUNK: Final = 50  # characters of one STATUSTEXT
 TEXT_CHUNK_TIMEOUT_S: Final = 2.0
 """Autopilot seconds after which an incomplete chunked STATUSTEXT is kept as it stands."""
 _SEVERITY_WARNING: Final = int(mavlink2.MAV_SEVERITY_WARNING)
+_CLIENT_POLL_S: Final = 0.005
+
+
+class LinkClient(Protocol):
+    """Something that talks to the autopilot over the recorder's link
+    (:class:`hil.autopilot.commander.Commander`): it is handed every message received and
+    gives the messages to send, both from the recorder's thread."""
+
+    def deliver(self, msg: Any) -> None: ...
+
+    def take_outgoing(self) -> list[Any]: ...
 
 
 def ground_station_role(autopilot_system_id: int | None = None) -> LinkRole:
@@ -112,7 +128,7 @@ def ground_station_role(autopilot_system_id: int | None = None) -> LinkRole:
         autopilot=int(mavlink2.MAV_AUTOPILOT_INVALID),
         accept_sources=None if autopilot_system_id is None
         else frozenset({(autopilot_system_id, None)}),
-        accept_msg_ids=TELEMETRY_MSG_IDS,
+        accept_msg_ids=TELEMETRY_MSG_IDS | COMMAND_REPLY_IDS,
         lock_to_first_source=autopilot_system_id is None,
     )
 
@@ -184,12 +200,22 @@ class AutopilotTelemetry:
              "statustexts_dropped", "estimator_status", "ekf_status", "interval_requests",
              "interval_acks_ok", "interval_acks_refused"), 0)
         self._link_counters: dict[str, int] | None = None
+        self._client: LinkClient | None = None
+        self._custom_mode: int | None = None
         self.error: str | None = None
         """Why the recording thread ended early (None: it did not)."""
         self.local_address = self._link.local_address
         """Where the link listens (``(host, port)`` for ``udpin`` / ``tcpin``)."""
 
     # -- life cycle --
+    def attach(self, client: LinkClient) -> None:
+        """Let ``client`` talk to the autopilot over this link (before :meth:`start`): the
+        recorder's thread, which owns the link, hands it every message and sends what it
+        gives, polling every ``_CLIENT_POLL_S`` wall seconds."""
+        if self._thread is not None:
+            raise RuntimeError("attach a link client before starting the recorder")
+        self._client = client
+
     def start(self) -> AutopilotTelemetry:
         """Start recording in a background thread; returns self."""
         if self._thread is not None:
@@ -216,9 +242,16 @@ class AutopilotTelemetry:
     def _run(self) -> None:
         link = self._link
         try:
+            client = self._client
+            wait_s = 0.1 if client is None else _CLIENT_POLL_S
             while not self._stop.is_set():
-                for msg in link.recv(0.1):
+                for msg in link.recv(wait_s):
                     self._on_message(msg)
+                    if client is not None:
+                        client.deliver(msg)
+                if client is not None:
+                    for out in client.take_outgoing():
+                        link.send_message(out)
                 if not self._requested and self._autopilot is not None and self.rate_hz:
                     self._request_rates()
             for msg in link.recv(0.0):  # what arrived before the stop
@@ -294,6 +327,7 @@ class AutopilotTelemetry:
         self._count["heartbeats"] += 1
         armed = bool(int(msg.base_mode) & _ARMED)
         self._armed = armed
+        self._custom_mode = int(msg.custom_mode)
         state = {"custom_mode": int(msg.custom_mode), "armed": armed,
                  "system_status": int(msg.system_status)}
         if not self._modes or {k: self._modes[-1][k] for k in state} != state:
@@ -382,6 +416,12 @@ class AutopilotTelemetry:
         """The armed flag of the autopilot's latest HEARTBEAT (None: none heard yet)."""
         with self._lock:
             return self._armed
+
+    @property
+    def custom_mode(self) -> int | None:
+        """The ``custom_mode`` of the autopilot's latest HEARTBEAT (None: none heard yet)."""
+        with self._lock:
+            return self._custom_mode
 
     @property
     def estimate_from_s(self) -> float | None:

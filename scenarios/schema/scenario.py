@@ -7,7 +7,7 @@ import datetime as dt
 import re
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Any, Literal, Self
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Self
 
 from pydantic import (
     BeforeValidator,
@@ -43,6 +43,9 @@ from sim.flight import FlightConfig, StartState, available_aircraft, suggested_s
 from sim.imu import ImuConfig
 from sim.plans import FlightPlan, available_plans, load_plan
 from sim.sensors import SensorSuiteConfig
+
+if TYPE_CHECKING:
+    from hil.autopilot.commander import Script
 
 __all__ = ["InlinePlan", "Scenario"]
 
@@ -192,6 +195,11 @@ class Scenario(Strict):
         if problem is not None:
             raise problem
         self._check_criteria()
+        if self.autopilot.scripted:
+            try:
+                self.autopilot_script()
+            except ValueError as error:  # the parameter file: FILE:LINE: reason
+                raise key_error(str(error), ("autopilot", "params")) from None
         return self
 
     # -- validation helpers ------------------------------------------------------------
@@ -358,6 +366,15 @@ class Scenario(Strict):
             return None
         p = Path(path)
         return p if p.is_absolute() or self._base_dir is None else self._base_dir / p
+
+    def autopilot_script(self) -> Script:
+        """What the ``autopilot`` section tells the autopilot (its parameter file read, its
+        mission at absolute positions). ValueError: a parameter file that cannot be read."""
+        from scenarios.autopilot_script import build_script
+
+        start = self.start_state()
+        return build_script(self.autopilot, (start.lat_deg, start.lon_deg, start.alt_msl_m),
+                            self.autopilot_path(self.autopilot.params))
 
     def criteria(self) -> tuple[Criterion, ...]:
         """Pass criteria for :func:`scenarios.summary.build_summary`."""

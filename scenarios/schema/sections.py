@@ -318,6 +318,86 @@ class FusionSection(Strict):
 AUTOPILOT_KINDS: tuple[str, ...] = ("none", "px4", "ardupilot")
 """Who flies: hilnav's own guidance (none) or an autopilot in the loop."""
 
+MISSION_ITEM_TYPES: tuple[str, ...] = ("takeoff", "waypoint", "loiter", "rtl")
+"""What a mission item of the ``autopilot`` section can be."""
+_ITEM_KEYS: dict[str, tuple[set[str], set[str]]] = {  # type: (required, allowed) keys
+    "takeoff": ({"alt_m"}, {"alt_m", "lat_deg", "lon_deg", "north_m", "east_m", "pitch_deg"}),
+    "waypoint": ({"alt_m"}, {"alt_m", "lat_deg", "lon_deg", "north_m", "east_m"}),
+    "loiter": ({"radius_m"}, {"alt_m", "lat_deg", "lon_deg", "north_m", "east_m", "radius_m",
+                              "turns", "time_s"}),
+    "rtl": (set(), set()),
+}
+
+
+class MissionItemSection(Strict):
+    """One item of the autopilot's mission. Positions are ``lat_deg``/``lon_deg`` or
+    ``north_m``/``east_m`` from the scenario's start; ``alt_m`` is the height above the
+    start's altitude (sent as an altitude above mean sea level)."""
+
+    type: Literal["takeoff", "waypoint", "loiter", "rtl"] = Field(
+        description="takeoff (climb out to alt_m), waypoint, loiter (radius_m and turns or "
+        "time_s; at the given position, else the previous item's), rtl (return to launch).",
+        json_schema_extra=listing("enum", list(MISSION_ITEM_TYPES)))
+    lat_deg: float | None = Field(default=None, ge=-90.0, le=90.0, description="Latitude, deg.")
+    lon_deg: float | None = Field(default=None, ge=-180.0, le=180.0,
+                                  description="Longitude, deg.")
+    north_m: float | None = Field(default=None, description="North of the start, m.")
+    east_m: float | None = Field(default=None, description="East of the start, m.")
+    alt_m: float | None = Field(default=None, ge=-1000.0, le=20000.0,
+                                description="Height above the start's altitude, m.")
+    radius_m: float | None = Field(default=None, description="Loiter radius, m (> 0 "
+                                   "clockwise, < 0 counter-clockwise).")
+    turns: float | None = Field(default=None, gt=0.0, le=255.0, description="Loiter turns.")
+    time_s: float | None = Field(default=None, gt=0.0, le=86400.0,
+                                 description="Loiter time, s.")
+    pitch_deg: float = Field(default=15.0, ge=0.0, le=45.0,
+                             description="Takeoff: climb pitch, deg.")
+
+    @model_validator(mode="after")
+    def _keys_of_type(self) -> Self:
+        required, allowed = _ITEM_KEYS[self.type]
+        given = {k for k in self.model_fields_set if k != "type"}
+        for key in sorted(given - allowed):
+            raise key_error(f"{key} is not a key of a {self.type} item (its keys: "
+                            f"{', '.join(sorted(allowed)) or 'none'})", (key,))
+        for key in sorted(required - given):
+            raise key_error(f"a {self.type} item needs {key}", ())
+        latlon = {"lat_deg", "lon_deg"} & given
+        ne = {"north_m", "east_m"} & given
+        if latlon and ne:
+            raise key_error("give lat_deg/lon_deg or north_m/east_m, not both",
+                            (sorted(ne)[0],))
+        for pair in (latlon, ne):
+            if len(pair) == 1:
+                (key,) = pair
+                other = {"lat_deg": "lon_deg", "lon_deg": "lat_deg", "north_m": "east_m",
+                         "east_m": "north_m"}[key]
+                raise key_error(f"{key} needs {other}", (key,))
+        if self.type == "waypoint" and not (latlon or ne):
+            raise key_error("a waypoint needs lat_deg/lon_deg or north_m/east_m", ())
+        if self.type == "loiter":
+            if (self.turns is None) == (self.time_s is None):
+                raise key_error("a loiter item takes turns or time_s (one of them)", ())
+            if self.radius_m == 0.0:
+                raise key_error("radius_m must not be 0", ("radius_m",))
+        return self
+
+
+class ScriptTimeouts(Strict):
+    """Simulated seconds each scripted step may take before the run fails."""
+
+    heartbeat_s: float = Field(default=60.0, gt=0.0, le=3600.0,
+                               description="Until the autopilot's HEARTBEAT on its link, s.")
+    params_s: float = Field(default=60.0, gt=0.0, le=3600.0,
+                            description="Until every parameter is echoed back, s.")
+    mission_s: float = Field(default=60.0, gt=0.0, le=3600.0,
+                             description="Until the mission upload is acknowledged, s.")
+    arm_s: float = Field(default=120.0, gt=0.0, le=3600.0,
+                         description="Until it reports itself armed (its pre-arm checks "
+                         "may need time), s.")
+    mode_s: float = Field(default=30.0, gt=0.0, le=3600.0,
+                          description="Until its HEARTBEAT reports the mode, s.")
+
 
 class AutopilotSection(Strict):
     """An autopilot in the loop: who flies, where it connects, where its telemetry
@@ -357,6 +437,24 @@ class AutopilotSection(Strict):
     stall_timeout_s: float = Field(
         default=10.0, gt=0.0, le=600.0,
         description="End the run as stalled after this long without controls, s.")
+    # -- the script: what hilnav tells the autopilot, in this order, over its telemetry link
+    params: str | None = Field(
+        default=None, min_length=1,
+        description="Parameter file pushed with PARAM_SET and read back: ArduPilot NAME VALUE "
+        "lines (.parm/.param) or PX4 QGroundControl lines SYSID COMPID NAME VALUE TYPE "
+        "(.params). Relative to this file.")
+    mission: list[MissionItemSection] | None = Field(
+        default=None, min_length=1, max_length=500,
+        description="Mission uploaded with the MAVLink mission protocol (takeoff, waypoint, "
+        "loiter, rtl items).")
+    arm: bool = Field(default=False, description="Arm the autopilot (retried while its "
+                      "pre-arm checks fail).")
+    mode: str | None = Field(
+        default=None, min_length=1,
+        description="Flight mode to set after arming, e.g. ArduPlane AUTO, CRUISE, FBWA; PX4 "
+        "MISSION, HOLD, RTL.")
+    timeouts: ScriptTimeouts = Field(default_factory=lambda: ScriptTimeouts(),
+                                     description="Time each scripted step may take.")
 
     @model_validator(mode="after")
     def _consistent(self) -> Self:
@@ -365,7 +463,26 @@ class AutopilotSection(Strict):
             if getattr(self, key) is not None and self.kind != only:
                 raise key_error(f"{key} is a setting of autopilot kind {only!r}, not "
                                 f"{self.kind!r}", (key,))
+        scripted = [k for k in ("params", "mission", "mode") if getattr(self, k) is not None]
+        scripted += ["arm"] if self.arm else []
+        if scripted and self.kind == "none":
+            raise key_error(f"{scripted[0]} scripts an autopilot: set kind to px4 or ardupilot",
+                            (scripted[0],))
+        if scripted and self.telemetry is None:
+            raise key_error(f"{scripted[0]} is sent over the autopilot's telemetry link: set "
+                            "telemetry", (scripted[0],))
+        if self.mode is not None:
+            from hil.autopilot.modes import mode_names
+
+            valid = mode_names(self.kind)
+            if self.mode.upper() not in valid:
+                raise key_error(unknown_name(f"{self.kind} mode", self.mode, valid), ("mode",))
         return self
+
+    @property
+    def scripted(self) -> bool:
+        """Whether hilnav tells the autopilot anything (parameters, mission, arm, mode)."""
+        return bool(self.params or self.mission or self.arm or self.mode)
 
     @property
     def flies(self) -> bool:

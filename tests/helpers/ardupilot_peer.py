@@ -28,10 +28,15 @@ its plan (a bank of at most 25 degrees), through the servo outputs of a
 
 Booting: for ``disarmed_s`` of its clock it is disarmed, as ArduPlane booting in MANUAL: its
 outputs are neutral (surfaces at their PWM trim, throttle at its minimum) and its HEARTBEATs
-(on its MAVLink port and its telemetry, each telemetry period) have no armed flag; then it arms
-and flies. Its GPS has no fix before ``fix_after_s`` of its clock; until its first fix its
-GLOBAL_POSITION_INT says lat/lon 0/0 at -1000 m (ArduPilot before its EKF has an origin) and
-its EKF_STATUS_REPORT has no absolute position.
+(on its MAVLink port and its telemetry, each telemetry period) have no armed flag and
+``custom_mode`` 0 (MANUAL); then it arms and flies in CRUISE (7), as an operator at a console
+would leave it. Given ``commands`` (:class:`tests.helpers.autopilot_commands.CommandSide`) it
+never arms by itself: the ground station's PARAM_SET, COMMAND_LONG and mission messages on its
+telemetry link are answered there, and it flies only while armed in a mode other than MANUAL
+(MANUAL with nobody at the sticks is neutral surfaces). Its GPS has no fix before
+``fix_after_s`` of its clock; until its first fix its GLOBAL_POSITION_INT says lat/lon 0/0
+at -1000 m (ArduPilot before its EKF has an origin) and its EKF_STATUS_REPORT has no absolute
+position.
 
 Its estimate goes out as telemetry on ``telemetry_url`` (a ``udpout`` MAVLink link, as SITL's
 ``--out``): GLOBAL_POSITION_INT, ATTITUDE and EKF_STATUS_REPORT at ``telemetry_hz`` of its
@@ -56,10 +61,14 @@ from hil.link import LinkRole, MavlinkLink
 from hil.pipeline import SimSetup
 from sim.faults.ardupilot import ARDUPILOT_DEFAULTS
 from sim.flight import Flight
+from tests.helpers.autopilot_commands import CommandSide
 
 __all__ = ["ArduPilotPeer", "PeerPlan", "parse_sim_json", "trimmed_controls"]
 
 _ARMED = int(mavlink2.MAV_MODE_FLAG_SAFETY_ARMED)
+_MANUAL, _CRUISE = 0, 7  # ArduPlane's mode numbers
+_FROM_GCS = frozenset(int(getattr(mavlink2, f"MAVLINK_MSG_ID_{name}")) for name in (
+    "PARAM_SET", "COMMAND_LONG", "MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM"))
 
 # SIM_JSON's key table: (section, key, number of values, required)
 _KEYS = (
@@ -210,7 +219,12 @@ class ArduPilotPeer:
         silent_after: int | None = None,
         disarmed_s: float = 0.0,
         fix_after_s: float = 0.0,
+        commands: CommandSide | None = None,
     ) -> None:
+        self.commands = commands
+        self.custom_mode = _MANUAL
+        if commands is not None:
+            disarmed_s = float("inf")  # it arms when told to, never by itself
         self.disarmed_s = disarmed_s
         self.fix_after_s = fix_after_s
         self.armed_at_s: float | None = None
@@ -242,6 +256,8 @@ class ArduPilotPeer:
         self._sock.settimeout(0.05)
         self._mav = MavlinkLink("tcpin:127.0.0.1:0", self._role()) if mavlink else None
         self._tel = MavlinkLink(telemetry_url, self._role()) if telemetry_url else None
+        if disarmed_s <= 0.0:
+            self.custom_mode = _CRUISE  # armed and flying from the first frame
         self._set_armed(disarmed_s <= 0.0)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -251,7 +267,7 @@ class ArduPilotPeer:
     def _role() -> LinkRole:
         return LinkRole(system_id=1, component_id=1, mav_type=int(mavlink2.MAV_TYPE_FIXED_WING),
                         autopilot=int(mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA),
-                        accept_msg_ids=frozenset({int(mavlink2.MAVLINK_MSG_ID_PARAM_SET)}))
+                        accept_msg_ids=_FROM_GCS)
 
     @property
     def mavlink_url(self) -> str:
@@ -291,14 +307,15 @@ class ArduPilotPeer:
     def _set_armed(self, armed: bool) -> None:
         self.armed = armed
         for link in self._links():
-            link.set_heartbeat_state(base_mode=_ARMED if armed else 0)
+            link.set_heartbeat_state(base_mode=_ARMED if armed else 0,
+                                     custom_mode=self.custom_mode)
 
     def _heartbeat(self) -> None:
         """A HEARTBEAT on every link now (ArduPilot's 1 Hz of its clock, here each telemetry
-        period), so that its armed state is heard in simulated, not wall, time."""
+        period), so that its armed state and mode are heard in simulated, not wall, time."""
         msg = mavlink2.MAVLink_heartbeat_message(
             int(mavlink2.MAV_TYPE_FIXED_WING), int(mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA),
-            _ARMED if self.armed else 0, 0, int(mavlink2.MAV_STATE_ACTIVE), 3)
+            _ARMED if self.armed else 0, self.custom_mode, int(mavlink2.MAV_STATE_ACTIVE), 3)
         for link in self._links():
             link.send_message(msg)
 
@@ -328,13 +345,16 @@ class ArduPilotPeer:
             frame += 1
             self.counters["frames"] = frame
             outputs = self._autopilot(state)
-            if not self.armed:
-                if state["timestamp"][0] < self.disarmed_s:
-                    outputs = [0.0, 0.0, 0.0, 0.0]  # MANUAL, disarmed: neutral, throttle min
-                else:
-                    self.armed_at_s = state["timestamp"][0]
-                    self._set_armed(True)
-                    self._heartbeat()
+            if self.commands is not None:
+                self._serve_commands(state["timestamp"][0])
+            if not self.armed and state["timestamp"][0] >= self.disarmed_s:
+                # armed from a console and switched to CRUISE by its operator
+                self.armed_at_s = state["timestamp"][0]
+                self.custom_mode = _CRUISE
+                self._set_armed(True)
+                self._heartbeat()
+            if not self.armed or self.custom_mode == _MANUAL:
+                outputs = [0.0, 0.0, 0.0, 0.0]  # disarmed / MANUAL: neutral, throttle min
             if self._mav is not None and frame % 10 == 0:
                 self._serve_params()
             if self._tel is not None:
@@ -358,6 +378,25 @@ class ArduPilotPeer:
                 continue
             return parsed
         return None
+
+    def _serve_commands(self, clock_s: float) -> None:
+        """The ground station's parameters, commands and mission on its telemetry link
+        (:class:`tests.helpers.autopilot_commands.CommandSide`)."""
+        side = self.commands
+        assert side is not None
+        if self._tel is None:
+            return
+        replies = side.tick(clock_s)
+        for msg in self._tel.recv(0.0):
+            replies += side.handle(msg, clock_s)
+        for msg in replies:
+            self._tel.send_message(msg)
+        if (side.armed, side.custom_mode) != (self.armed, self.custom_mode):
+            if side.armed and not self.armed:
+                self.armed_at_s = clock_s
+            self.custom_mode = side.custom_mode
+            self._set_armed(side.armed)
+            self._heartbeat()
 
     def _serve_params(self) -> None:
         assert self._mav is not None

@@ -51,12 +51,15 @@ from fusion.rotations import (
     wrap_pi,
 )
 from hil.codec import mavlink2
+from tests.helpers.autopilot_commands import CommandSide
 
 _G = 9.80665
 _R_EARTH = 6_378_137.0
 _PX4 = 12  # MAV_AUTOPILOT_PX4
 _ARMED = 128
 _CUSTOM = 1
+_MANUAL_MODE = 1 << 16  # PX4 custom_mode: main mode MANUAL
+_HOLD_MODE = 4 << 16 | 3 << 24  # AUTO.LOITER ("Hold")
 _ACCEL, _GYRO, _MAG = 0b111, 0b111000, 0b111000000
 _BARO = (1 << 9) | (1 << 11) | (1 << 12)
 _DIFF = 1 << 10
@@ -115,7 +118,9 @@ class Px4Peer:
                  *, outputs: str = "standard_plane", boot_sensors: int = 30,
                  disarmed_controls: int = 20, silent_after_s: float | None = None,
                  restart_at_s: float | None = None, nan_every: int = 0,
-                 out_of_range_every: int = 0, telemetry_rate_hz: float = 10.0) -> None:
+                 out_of_range_every: int = 0, telemetry_rate_hz: float = 10.0,
+                 commands: CommandSide | None = None) -> None:
+        self.commands = commands
         scheme, host, port = sim_url.split(":")
         if scheme != "tcp":
             raise ValueError("the PX4 peer connects as a TCP client: tcp:HOST:PORT")
@@ -205,6 +210,7 @@ class Px4Peer:
         try:
             if self.telemetry is not None:
                 self._tel_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                self._tel_sock.setblocking(False)
             while not self._stop.is_set():
                 sock = self._connect()
                 if sock is None:
@@ -271,6 +277,8 @@ class Px4Peer:
                     and self.clock_us >= self.restart_at_s * 1e6):
                 return "restart"
             self._publish_telemetry()
+            if self.commands is not None:
+                self._serve_commands()
             if self._sensors_since_boot <= self.boot_sensors:
                 return None
             if self.silent_after_s is not None and self.clock_us >= self.silent_after_s * 1e6:
@@ -422,7 +430,7 @@ class Px4Peer:
         roll, pitch, yaw, throttle = self._commands()
         self._sent_since_boot += 1
         n = self.counters["controls"] + 1
-        armed = self._sent_since_boot > self.disarmed_controls
+        armed = self._armed()
         if armed and self.nan_every and n % self.nan_every == 0:
             pitch = math.nan
             self.bad_at.append((n, "nan"))
@@ -430,7 +438,7 @@ class Px4Peer:
             throttle = 1.5
             self.bad_at.append((n, "out_of_range"))
         out = [0.0] * 16
-        if armed:
+        if armed and self._mode() != _MANUAL_MODE:  # MANUAL, nobody at the sticks: zero
             if self.outputs == "legacy":
                 out[:4] = [roll, pitch, yaw, throttle]
             else:  # PX4 standard SITL plane: PWM_MAIN_FUNC3..9
@@ -439,6 +447,42 @@ class Px4Peer:
         msg = mavlink2.MAVLink_hil_actuator_controls_message(
             self.clock_us, out, _CUSTOM | (_ARMED if armed else 0), 1)
         return bytes(msg.pack(self._mav))
+
+    # -- armed state, mode and the ground station's commands --
+    def _armed(self) -> bool:
+        if self.commands is not None:
+            return self.commands.armed
+        return self._sent_since_boot > self.disarmed_controls
+
+    def _mode(self) -> int:
+        """Its custom_mode: the commanded one; without commands MANUAL while disarmed and
+        Hold once armed (an operator arming it and selecting Hold)."""
+        if self.commands is not None:
+            return self.commands.custom_mode
+        return _HOLD_MODE if self._armed() else _MANUAL_MODE
+
+    def _serve_commands(self) -> None:
+        """Answer the ground station on the telemetry socket
+        (:class:`tests.helpers.autopilot_commands.CommandSide`), on PX4's clock."""
+        side, sock = self.commands, self._tel_sock
+        if side is None or sock is None or self.telemetry is None:
+            return
+        clock_s = self.clock_us * 1e-6
+        replies = side.tick(clock_s)
+        while True:
+            try:
+                data = sock.recv(65536)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                break
+            parser = self.__dict__.setdefault("_gcs_parser", mavlink2.MAVLink(None))
+            parser.robust_parsing = True
+            for msg in parser.parse_buffer(data) or []:
+                if msg.get_type() != "BAD_DATA":
+                    replies += side.handle(msg, clock_s)
+        for msg in replies:
+            sock.sendto(bytes(msg.pack(self._tel_mav)), self.telemetry)
 
     # -- telemetry --
     def _publish_telemetry(self) -> None:
@@ -457,7 +501,8 @@ class Px4Peer:
         if self.clock_us >= self._next_heartbeat_us:
             self._next_heartbeat_us = self.clock_us + 1_000_000
             frames.append(mavlink2.MAVLink_heartbeat_message(
-                mavlink2.MAV_TYPE_FIXED_WING, _PX4, _CUSTOM | _ARMED, 0, 4, 3))
+                mavlink2.MAV_TYPE_FIXED_WING, _PX4, _CUSTOM | (_ARMED if self._armed() else 0),
+                self._mode(), 4, 3))
         home = self._home_alt if not math.isnan(self._home_alt) else e.alt_m
         frames.append(mavlink2.MAVLink_global_position_int_message(
             ms, round(math.degrees(e.lat_rad) * 1e7), round(math.degrees(e.lon_rad) * 1e7),

@@ -70,3 +70,67 @@ def test_campaign_and_compare_refuse_a_scenario_flown_by_an_autopilot(tmp_path) 
         plan_runs([path], [1], {})
     with pytest.raises(ValueError, match="not `compare`"):
         compare(load_scenario(path), ["none"], [1], tmp_path)
+
+
+SCRIPT = """
+autopilot:
+  kind: ardupilot
+  params: c172.parm
+  arm: true
+  mode: auto
+  timeouts: {arm_s: 90}
+  mission:
+    - {type: takeoff, alt_m: 100}
+    - {type: waypoint, north_m: 1000, east_m: 0, alt_m: 200}
+    - {type: loiter, radius_m: 300, turns: 2}
+    - {type: waypoint, lat_deg: 47.01, lon_deg: 8.0, alt_m: 150}
+    - {type: rtl}
+"""
+
+
+def test_the_script_keys_become_the_commanders_script(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    (tmp_path / "c172.parm").write_text("ARSPD_SKIP_CAL 1\nTRIM_ARSPD_CM 4500\n")
+    start = "start: {lat_deg: 47.0, lon_deg: 8.0, alt_msl_m: 1000, heading_deg: 0}\n"
+    scn = load_scenario(write(tmp_path, BASE + start + SCRIPT))
+    assert scn.autopilot.scripted
+    script = scn.autopilot_script()
+    assert script.arm and script.mode == "AUTO" and script.timeouts.arm_s == 90.0
+    assert [p.name for p in script.params] == ["ARSPD_SKIP_CAL", "TRIM_ARSPD_CM"]
+    takeoff, wp, loiter, wp2, rtl = script.mission
+    assert (takeoff.lat_deg, takeoff.lon_deg, takeoff.alt_msl_m) == (47.0, 8.0, 1100.0)
+    assert wp.lat_deg == pytest.approx(47.0 + 1000 / 111_180, abs=2e-5)  # ~1 km north
+    assert wp.lon_deg == 8.0 and wp.alt_msl_m == 1200.0
+    # a loiter without a position circles the previous item's, at its altitude
+    assert (loiter.lat_deg, loiter.alt_msl_m, loiter.param1, loiter.param3) == (
+        wp.lat_deg, 1200.0, 2.0, 300.0)
+    assert (wp2.lat_deg, wp2.alt_msl_m) == (47.01, 1150.0)
+    assert rtl.lat_deg is None
+
+
+@pytest.mark.parametrize(("text", "needle"), [
+    ("autopilot: {kind: px4, mode: AUTO}\n",
+     "unknown px4 mode 'AUTO'; valid: MANUAL, STABILIZED, ACRO, ALTCTL, POSCTL, OFFBOARD, HOLD"),
+    ("autopilot: {kind: ardupilot, mode: MISION}\n", "unknown ardupilot mode 'MISION'"),
+    ("autopilot: {kind: none, arm: true}\n", "arm scripts an autopilot"),
+    ("autopilot: {kind: px4, arm: true, telemetry: null}\n", "set telemetry"),
+    ("autopilot: {kind: px4, mission: [{type: waypoint, alt_m: 1}]}\n",
+     "a waypoint needs lat_deg/lon_deg or north_m/east_m"),
+    ("autopilot: {kind: px4, mission: [{type: rtl, alt_m: 1}]}\n",
+     "alt_m is not a key of a rtl item"),
+    ("autopilot: {kind: px4, mission: [{type: loiter, radius_m: 100}]}\n",
+     "turns or time_s"),
+    ("autopilot: {kind: px4, mission: [{type: waypoint, north_m: 1, lat_deg: 2, lon_deg: 3, "
+     "alt_m: 1}]}\n", "not both"),
+    ("autopilot: {kind: px4, mission: [{type: dive}]}\n", "type"),
+    ("autopilot: {kind: px4, params: none.params}\n", "cannot read the parameter file"),
+])
+def test_bad_script_keys_are_one_line_errors(tmp_path, text: str,  # type: ignore[no-untyped-def]
+                                             needle: str) -> None:
+    err = str(error_of(write(tmp_path, BASE + text)))
+    assert needle in err and "\n" not in err
+
+
+def test_a_bad_parameter_file_names_its_line(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    (tmp_path / "bad.params").write_text("1 1 FW_AIRSPD_TRIM 45 9\n1 1 FW_AIRSPD_MAX fast 9\n")
+    err = str(error_of(write(tmp_path, BASE + "autopilot: {kind: px4, params: bad.params}\n")))
+    assert f"{tmp_path / 'bad.params'}:2: the value of FW_AIRSPD_MAX is not a number" in err

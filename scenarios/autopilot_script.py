@@ -1,0 +1,87 @@
+"""The ``autopilot`` section's script (parameter file, mission, arm, mode) as the commander's
+:class:`hil.autopilot.commander.Script`.
+
+Mission positions are turned into absolute ones here, once: ``north_m`` / ``east_m`` from the
+scenario's start (on the WGS-84 ellipsoid's local radii at the start), ``alt_m`` above the
+start's altitude -> an altitude above mean sea level. A takeoff without a position climbs out
+at the start; a loiter without one circles the previous item's position (the start for the
+first), at the previous item's altitude when it has no ``alt_m``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from fusion.earth import principal_radii
+from hil.autopilot.commander import Script, StepTimeouts
+from hil.autopilot.mission import (
+    MissionItem,
+    loiter,
+    return_to_launch,
+    takeoff,
+    waypoint,
+)
+from hil.autopilot.param_file import read_param_file
+from scenarios.schema.sections import AutopilotSection, MissionItemSection
+
+__all__ = ["build_script", "mission_items"]
+
+
+def build_script(section: AutopilotSection, start: tuple[float, float, float],
+                 params_path: Path | None) -> Script:
+    """The script of ``section`` for a flight starting at ``start`` (lat deg, lon deg, alt
+    MSL m); ``params_path`` is ``section.params`` resolved against the scenario's folder.
+
+    Raises
+    ------
+    hil.autopilot.param_file.ParamFileError
+        The parameter file cannot be read (one line, ``FILE:LINE: reason``).
+    """
+    params = tuple(read_param_file(params_path)) if params_path is not None else ()
+    t = section.timeouts
+    return Script(
+        params=params,
+        params_file=str(params_path) if params_path is not None else None,
+        mission=tuple(mission_items(section.mission or [], start)),
+        arm=section.arm,
+        mode=None if section.mode is None else section.mode.upper(),
+        timeouts=StepTimeouts(heartbeat_s=t.heartbeat_s, params_s=t.params_s,
+                              mission_s=t.mission_s, arm_s=t.arm_s, mode_s=t.mode_s),
+    )
+
+
+def mission_items(items: list[MissionItemSection],
+                  start: tuple[float, float, float]) -> list[MissionItem]:
+    """The mission items of the section at absolute positions (see the module docstring)."""
+    lat0, lon0, alt0 = start
+    r_n, r_e = (float(r) for r in principal_radii(math.radians(lat0)))
+    out: list[MissionItem] = []
+    here = (lat0, lon0, alt0)
+    counts: dict[str, int] = {}
+    for item in items:
+        counts[item.type] = counts.get(item.type, 0) + 1
+        label = f"{item.type} {counts[item.type]}"
+        if item.type == "rtl":
+            out.append(return_to_launch(label=label))
+            continue
+        if item.lat_deg is not None and item.lon_deg is not None:
+            lat, lon = item.lat_deg, item.lon_deg
+        elif item.north_m is not None and item.east_m is not None:
+            lat = lat0 + math.degrees(item.north_m / (r_n + alt0))
+            lon = lon0 + math.degrees(item.east_m / ((r_e + alt0) * math.cos(math.radians(lat0))))
+        elif item.type == "takeoff":
+            lat, lon = lat0, lon0
+        else:
+            lat, lon = here[0], here[1]
+        alt = alt0 + item.alt_m if item.alt_m is not None else here[2]
+        if item.type == "takeoff":
+            out.append(takeoff(lat, lon, alt, pitch_deg=item.pitch_deg, label=label))
+        elif item.type == "waypoint":
+            out.append(waypoint(lat, lon, alt, label=label))
+        else:
+            assert item.radius_m is not None
+            out.append(loiter(lat, lon, alt, radius_m=item.radius_m, turns=item.turns,
+                              time_s=item.time_s, label=label))
+        here = (lat, lon, alt)
+    return out
