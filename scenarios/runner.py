@@ -66,7 +66,8 @@ _SCORED_EVENT_KINDS = {
 
 
 class AutopilotAbsent(RuntimeError):
-    """The autopilot never connected, or stalled before there was anything to score."""
+    """The autopilot never connected, or stalled (or failed a scripted step) before there was
+    anything to score."""
 
 
 @dataclass(frozen=True)
@@ -385,16 +386,19 @@ class AutopilotRun:
         return out
 
     def check_scorable(self, fusion: FusionRun) -> None:
-        """AutopilotAbsent when a stall left hilnav nothing to score."""
+        """AutopilotAbsent when a stall or a failed scripted step left hilnav nothing to
+        score."""
         col = fusion.collector
         try:
             if col is not None:
                 col.end_s()
         except ValueError as exc:
-            stalled = self.flown.stalled if self.flown is not None else None
-            if stalled is None:
+            why = self.flown.stalled if self.flown is not None else None
+            if why is None and self.commander is not None:
+                why = self.commander.failure
+            if why is None:
                 raise
-            raise AutopilotAbsent(f"{stalled}; nothing to score: {exc}") from None
+            raise AutopilotAbsent(f"{why}; nothing to score: {exc}") from None
 
     def score(self, hilnav: Scored, events: list[dict[str, Any]]) -> ScoredAutopilot:
         """The autopilot's estimate scored with hilnav's truth, outages, events and settling."""

@@ -1,0 +1,179 @@
+"""``hilnav run`` scripting the autopilot (parameters, mission, arm, mode) over its telemetry
+link, against the ArduPilot and PX4 protocol peers (tests/helpers/ardupilot_peer.py,
+px4_peer.py, answering as tests/helpers/autopilot_commands.py): the script completes while the
+simulator keeps stepping, the trim is held until the autopilot is armed and in a flying mode,
+the times reach summary.json, and a step the autopilot does not confirm fails the run with a
+sentence naming it."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from hil.autopilot.modes import ARDUPLANE_MODES, PX4_MODES
+from scenarios.cli.up import free_udp_port
+from scenarios.runner import AutopilotAbsent, run_scenario, sim_setup
+from scenarios.schema import load_scenario
+from tests.helpers.ardupilot_peer import ArduPilotPeer, trimmed_controls
+from tests.helpers.autopilot_commands import CommandSide
+from tests.helpers.processes import free_tcp_port
+from tests.helpers.px4_peer import PeerPlan as Px4Plan
+from tests.helpers.px4_peer import Px4Peer
+
+STANDARD_PLANE = Path(__file__).resolve().parents[2] / "docs/autopilot/px4-standard-plane.yaml"
+MISSION = """
+  mission:
+    - {type: waypoint, north_m: 3000, east_m: 0, alt_m: 0}
+    - {type: loiter, radius_m: 400, turns: 1}
+    - {type: rtl}
+"""
+
+
+def _scenario(tmp_path: Path, autopilot: str, duration_s: float = 40.0) -> Path:
+    path = tmp_path / "scripted.yaml"
+    path.write_text(f"""
+name: scripted
+duration_s: {duration_s}
+sim_rate_hz: 50
+seed: 4
+sensors:
+  imu: {{preset: industrial-mems, rate_hz: 50}}
+start: {{lat_deg: 47.0, lon_deg: 8.0, alt_msl_m: 1000, heading_deg: 0, airspeed_mps: 50}}
+autopilot:
+{autopilot}""")
+    return path
+
+
+def _arduplane_run(tmp_path: Path, side: CommandSide, script: str,
+                   duration_s: float = 40.0) -> tuple[dict[str, Any], ArduPilotPeer]:
+    port, tport = free_udp_port(), free_udp_port()
+    (tmp_path / "c172.parm").write_text("ARSPD_SKIP_CAL 1\nTRIM_ARSPD_CM 5000\n")
+    path = _scenario(tmp_path, f"""  kind: ardupilot
+  link: udpin:127.0.0.1:{port}
+  telemetry: udpin:127.0.0.1:{tport}
+  connect_timeout_s: 30
+  stall_timeout_s: 20
+{script}""", duration_s)
+    scn = load_scenario(path)
+    peer = ArduPilotPeer(telemetry_url=f"udpout:127.0.0.1:{tport}", home=(47.0, 8.0, 0.0),
+                         trim=trimmed_controls(sim_setup(scn)), frame_rate_hz=50,
+                         commands=side)
+    starter = threading.Timer(0.3, lambda: peer.start(f"udp:127.0.0.1:{port}"))
+    starter.start()
+    try:
+        result = run_scenario(scn, tmp_path / "out", reports=False, tlog=False)
+    finally:
+        starter.cancel()
+        peer.stop()
+    assert peer.error is None
+    return result.summary, peer
+
+
+def _arduplane_side(**kwargs: Any) -> CommandSide:
+    return CommandSide("ardupilot", {"ARSPD_SKIP_CAL": 0.0, "TRIM_ARSPD_CM": 2200.0},
+                       valid_modes=ARDUPLANE_MODES.values(), **kwargs)
+
+
+def test_arduplane_is_scripted_and_the_trim_held_until_it_flies(tmp_path: Path) -> None:
+    side = _arduplane_side(prearm_ok_s=4.0)
+    summary, peer = _arduplane_run(tmp_path, side, """  params: c172.parm
+  arm: true
+  mode: AUTO
+""" + MISSION)
+    assert "failures" not in summary, summary.get("failures")
+    ap = summary["autopilot"]
+    script = ap["script"]
+    assert [s["status"] for s in script["steps"]] == ["done"] * 5
+    assert script["params_confirmed"] == 2 and side.params["TRIM_ARSPD_CM"] == 5000.0
+    # home slot + 3 items, uploaded with MISSION_REQUEST_INT
+    assert side.mission_accepted and len(side.mission) == 4
+    # refused while its pre-arm checks failed, armed once they passed, then AUTO
+    assert side.arm_attempts >= 2 and side.armed_at_s is not None and side.armed_at_s >= 4.0
+    assert ap["armed_s"] is not None and ap["armed_s"] >= side.armed_at_s
+    assert ap["mode_reached_s"] >= ap["armed_s"]
+    assert side.custom_mode == ARDUPLANE_MODES["AUTO"]
+    # armed in MANUAL is still neutral surfaces: the hold lasted until AUTO was reported
+    assert ap["trim_released_s"] >= side.mode_log[0][0]
+    assert ap["trim_released_s"] < ap["mode_reached_s"] + 1.0
+    assert ap["counters"]["disarmed_controls"] > 0
+    assert peer.counters["frames"] > 1500  # the simulator stepped while the script waited
+
+
+def test_arduplane_that_never_arms_fails_the_run_quoting_its_prearm_reason(
+        tmp_path: Path) -> None:
+    side = _arduplane_side(prearm_ok_s=1e9, prearm_reason="Airspeed 1 not healthy")
+    summary, _ = _arduplane_run(tmp_path, side, """  arm: true
+  mode: CRUISE
+  timeouts: {arm_s: 6}
+""", duration_s=300.0)
+    assert summary["passed"] is False
+    (failure,) = summary["failures"]
+    assert failure.startswith("ArduPilot did not arm within 6 s")
+    assert "'PreArm: Airspeed 1 not healthy'" in failure
+    # the run stopped there (6 s of simulated time and at least 2 wall seconds) and what
+    # flew was scored
+    assert 6.0 < summary["sim_duration_s"] < 300.0
+    assert summary["autopilot"]["connected"] and summary["autopilot"]["stalled"] is None
+    assert summary["autopilot"]["script"]["steps"][3]["status"] == "failed"
+    assert summary["autopilot"]["trim_released_s"] is None
+
+
+def test_arduplane_rejecting_a_parameter_fails_the_run_naming_it(tmp_path: Path) -> None:
+    side = _arduplane_side(reject_params={"TRIM_ARSPD_CM"})
+    with pytest.raises(AutopilotAbsent) as err:  # exit 1, at once: nothing flew to score
+        _arduplane_run(tmp_path, side, "  params: c172.parm\n  arm: true\n")
+    failure = str(err.value)
+    assert "nothing to score" in failure
+    assert f"rejected parameter TRIM_ARSPD_CM = 5000 ({tmp_path / 'c172.parm'}:2)" in failure
+    assert "Param write denied" in failure
+    assert not side.armed  # nothing after the failed step was commanded
+
+
+def _px4_run(tmp_path: Path, side: CommandSide, script: str) -> tuple[dict[str, Any], Px4Peer]:
+    port, tport = free_tcp_port(), free_udp_port()
+    (tmp_path / "c172.params").write_text("1\t1\tFW_AIRSPD_TRIM\t45\t9\n1\t1\tNAV_DLL_ACT\t0\t6\n")
+    path = _scenario(tmp_path, f"""  kind: px4
+  link: tcpin:127.0.0.1:{port}
+  telemetry: udpin:127.0.0.1:{tport}
+  actuator_map: {STANDARD_PLANE}
+  connect_timeout_s: 30
+  stall_timeout_s: 20
+{script}""")
+    scn = load_scenario(path)
+    peer = Px4Peer(f"tcp:127.0.0.1:{port}", f"udpout:127.0.0.1:{tport}",
+                   Px4Plan(turns=()), commands=side)
+    with peer:
+        result = run_scenario(scn, tmp_path / "out", reports=False, tlog=False)
+    assert peer.errors == []
+    return result.summary, peer
+
+
+def test_px4_is_scripted_with_its_integer_parameters_and_hold(tmp_path: Path) -> None:
+    side = CommandSide("px4", {"FW_AIRSPD_TRIM": 15.0, "NAV_DLL_ACT": 2.0},
+                       int_params={"NAV_DLL_ACT"}, custom_mode=PX4_MODES["MANUAL"],
+                       valid_modes=PX4_MODES.values(), prearm_ok_s=8.0, legacy_requests=True)
+    summary, _ = _px4_run(tmp_path, side, """  params: c172.params
+  arm: true
+  mode: HOLD
+""" + MISSION)
+    assert "failures" not in summary, summary.get("failures")
+    ap = summary["autopilot"]
+    assert [s["status"] for s in ap["script"]["steps"]] == ["done"] * 5
+    assert side.params == {"FW_AIRSPD_TRIM": 45.0, "NAV_DLL_ACT": 0.0}
+    assert len(side.mission) == 3 and ap["script"]["counters"]["mission_legacy_requests"] == 3
+    assert side.custom_mode == PX4_MODES["HOLD"]
+    assert ap["armed_s"] >= 8.0 and ap["mode_reached_s"] >= ap["armed_s"]
+    assert ap["trim_released_s"] >= ap["armed_s"]
+
+
+def test_px4_that_never_reaches_the_mode_fails_the_run(tmp_path: Path) -> None:
+    side = CommandSide("px4", {}, custom_mode=PX4_MODES["MANUAL"], never_reach_mode=True)
+    summary, _ = _px4_run(tmp_path, side, "  arm: true\n  mode: MISSION\n"
+                          "  timeouts: {mode_s: 4}\n")
+    (failure,) = summary["failures"]
+    assert failure.startswith("PX4 did not reach the mode within 4 s (it reports MANUAL)")
+    # armed in MANUAL (zero outputs): the trim was never released
+    assert summary["autopilot"]["trim_released_s"] is None
