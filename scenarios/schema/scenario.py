@@ -370,7 +370,7 @@ class Scenario(Strict):
     def autopilot_script(self) -> Script:
         """What the ``autopilot`` section tells the autopilot (its parameter file read, its
         mission at absolute positions). ValueError: a parameter file that cannot be read."""
-        from scenarios.autopilot_script import build_script
+        from scenarios.schema.autopilot_script import build_script
 
         start = self.start_state()
         return build_script(self.autopilot, (start.lat_deg, start.lon_deg, start.alt_msl_m),

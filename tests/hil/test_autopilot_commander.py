@@ -90,7 +90,8 @@ def test_parameters_are_set_and_read_back_on_arduplane(tmp_path: Path) -> None:
 
 def test_px4_integer_parameters_travel_bytewise(tmp_path: Path) -> None:
     path = tmp_path / "c172.params"
-    path.write_text("# Onboard parameters\n1\t1\tNAV_DLL_ACT\t0\t6\n1\t1\tFW_AIRSPD_TRIM\t45.0\t9\n")
+    path.write_text("# Onboard parameters\n1\t1\tNAV_DLL_ACT\t0\t6\n"
+                    "1\t1\tFW_AIRSPD_TRIM\t45.0\t9\n")
     side = CommandSide("px4", PX4_PARAMS, int_params={"NAV_DLL_ACT", "COM_ARM_WO_GPS"})
     c = commander("px4", Script(params=tuple(read_param_file(path)), params_file=str(path)))
     run(c, side)

@@ -18,7 +18,8 @@ from hil.autopilot.param_file import (
 
 def test_ardupilot_lines_blank_or_comma_separated_with_comments(tmp_path: Path) -> None:
     path = tmp_path / "a.parm"
-    path.write_text("# C172\nARSPD_SKIP_CAL 1\n\nTRIM_ARSPD_CM,4500  # cruise\nARSPD_OFFSET\t-1.5\n")
+    path.write_text("# C172\nARSPD_SKIP_CAL 1\n\nTRIM_ARSPD_CM,4500  # cruise\n"
+                    "ARSPD_OFFSET\t-1.5\n")
     assert read_param_file(path) == [
         ParamValue("ARSPD_SKIP_CAL", 1.0, PARAM_TYPE_REAL32, 2),
         ParamValue("TRIM_ARSPD_CM", 4500.0, PARAM_TYPE_REAL32, 4),
