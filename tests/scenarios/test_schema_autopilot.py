@@ -134,3 +134,21 @@ def test_a_bad_parameter_file_names_its_line(tmp_path) -> None:  # type: ignore[
     (tmp_path / "bad.params").write_text("1 1 FW_AIRSPD_TRIM 45 9\n1 1 FW_AIRSPD_MAX fast 9\n")
     err = str(error_of(write(tmp_path, BASE + "autopilot: {kind: px4, params: bad.params}\n")))
     assert f"{tmp_path / 'bad.params'}:2: the value of FW_AIRSPD_MAX is not a number" in err
+
+
+@pytest.mark.parametrize(("name", "kind", "mode", "params"), [
+    ("arduplane-mission-gnss-outage.yaml", "ardupilot", "AUTO", 7),
+    ("px4-mission-gnss-outage.yaml", "px4", "MISSION", 9),
+])
+def test_library_mission_scenarios_load_with_their_script(name: str, kind: str, mode: str,
+                                                          params: int) -> None:
+    path = LIBRARY_DIR / "autopilot" / name
+    scn = load_scenario(path)
+    validator = jsonschema.Draft202012Validator(json_schema())
+    assert list(validator.iter_errors(yaml.safe_load(path.read_text()))) == []
+    assert scn.autopilot.kind == kind and scn.duration_s == 600.0
+    script = scn.autopilot_script()
+    assert script.arm and script.mode == mode and len(script.params) == params
+    assert [item.label for item in script.mission] == [
+        "waypoint 1", "waypoint 2", "waypoint 3", "waypoint 4", "loiter 1", "rtl 1"]
+    assert (scn.outage_windows()) == ((200.0, 260.0),)
