@@ -233,6 +233,13 @@ def print_autopilot(s: dict[str, Any]) -> None:
             continue
         console.print(f"  {name}: hilnav {fmt(mine)} | {ap['source']} {fmt(theirs)}",
                       highlight=False)
+    script = ap.get("script")
+    if script:
+        times = [(what, ap.get(key)) for what, key in (
+            ("armed", "armed_s"), (f"in {script.get('mode')}", "mode_reached_s"),
+            ("flying its controls (trim released)", "trim_released_s"))]
+        done = ", ".join(f"{what} at {t:.1f} s" for what, t in times if t is not None)
+        console.print(f"  scripted: {done or 'no step confirmed'}", highlight=False)
     if ap.get("problem"):
         err_console.print(f"[yellow]warning:[/] {ap['source']}'s estimate not scored: "
                           f"{ap['problem']}", highlight=False)
