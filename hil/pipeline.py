@@ -406,6 +406,9 @@ class FusionRun:
             Collector(keep_objects=keep_objects, spill_dir=spill_dir) if collect else None)
         self.samples = 0
         self.fuse_s = 0.0
+        self.on_estimate: Callable[[NavEstimate], None] | None = None
+        """Called with the newest estimate of each frame fused as a sink (``run(time_us,
+        frame)``), e.g. to send it on while the flight goes on."""
 
     def feed(self, items: Iterable[Sample | Truth]) -> list[NavEstimate]:
         """Step the filter with decoded samples (truth is only collected); new estimates."""
@@ -434,8 +437,10 @@ class FusionRun:
 
     def __call__(self, time_us: int, frame: bytes) -> None:
         t0 = time.perf_counter()
-        self.feed_frame(frame)
+        estimates = self.feed_frame(frame)
         self.fuse_s += time.perf_counter() - t0
+        if estimates and self.on_estimate is not None:
+            self.on_estimate(estimates[-1])
 
     def frames(self, batch: Sequence[Frame]) -> None:
         """Sink of a batch of frames (:func:`fly` hands over each lockstep batch): all of them

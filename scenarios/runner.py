@@ -46,6 +46,7 @@ from sim.faults.events import event_type_name
 
 if TYPE_CHECKING:  # the autopilot's modules (its link, its telemetry) load when one flies
     from hil.autopilot import AutopilotBackend, AutopilotFlown
+    from hil.autopilot.aiding import CompanionAiding
     from hil.autopilot.commander import Commander
     from hil.autopilot.telemetry import AutopilotTelemetry
     from scenarios.autopilot_summary import ScoredAutopilot
@@ -245,6 +246,8 @@ def run_scenario(
     fusion = FusionRun(config, bridge, nav=nav)
     flies = backend is not None or scenario.autopilot.flies
     ap_run = AutopilotRun.open(scenario, backend) if flies else None
+    if ap_run is not None and ap_run.aiding is not None:
+        fusion.on_estimate = ap_run.aiding.offer  # hilnav navigates the autopilot
     t0 = time.perf_counter()
 
     def fly_into(sink: FrameSink) -> Flown:
@@ -286,11 +289,15 @@ class AutopilotRun:
 
     def __init__(self, scenario: Scenario, backend: AutopilotBackend,
                  telemetry: AutopilotTelemetry | None,
-                 commander: Commander | None = None) -> None:
+                 commander: Commander | None = None,
+                 aiding: CompanionAiding | None = None) -> None:
         self.scenario = scenario
         self.backend = backend
         self.telemetry = telemetry
         self.commander = commander
+        self.aiding = aiding
+        """hilnav's estimate sent to the autopilot (``aiding: hilnav``): give it the fusion's
+        estimates (:attr:`hil.pipeline.FusionRun.on_estimate`)."""
         self.flown: AutopilotFlown | None = None
 
     @classmethod
@@ -318,15 +325,20 @@ class AutopilotRun:
                 recorder = telemetry
                 watch_armed(lambda: recorder.armed)
             _hold_until_flying(backend, telemetry, ap.kind)
-        commander = None
+        commander = aiding = None
         if ap.scripted and telemetry is not None:
+            from hil.autopilot.aiding import CompanionAiding
             from hil.autopilot.commander import Commander
 
             start = scenario.start_state()
-            commander = Commander(ap.kind, scenario.autopilot_script(),
+            script = scenario.autopilot_script()
+            commander = Commander(ap.kind, script,
                                   (start.lat_deg, start.lon_deg, start.alt_msl_m))
             telemetry.attach(commander)
-        return cls(scenario, backend, telemetry, commander)
+            if script.aiding:
+                aiding = CompanionAiding(ap.kind)
+                telemetry.attach(aiding)
+        return cls(scenario, backend, telemetry, commander, aiding)
 
     def fly(self, sink: FrameSink, progress: ProgressFn | None = None) -> Flown:
         """Fly the scenario with the autopilot at the controls, every frame into ``sink``."""
@@ -416,6 +428,9 @@ class AutopilotRun:
         scored.section["mode_reached_s"] = (None if commander is None
                                             else commander.mode_reached_s)
         scored.section["script"] = None if commander is None else commander.report()
+        scored.section["aiding"] = None if self.aiding is None else {
+            "source": "hilnav", "frames_sent": self.aiding.sent,
+            "message": "GPS_INPUT" if self.aiding.autopilot == "ardupilot" else "ODOMETRY"}
         return scored
 
 

@@ -92,6 +92,9 @@ class Script:
     arm: bool = False
     mode: str | None = None
     timeouts: StepTimeouts = field(default_factory=StepTimeouts)
+    aiding: bool = False
+    """hilnav's estimate is sent as the autopilot's navigation (:mod:`hil.autopilot.aiding`;
+    its parameters are among ``params``)."""
 
     @property
     def empty(self) -> bool:
@@ -387,6 +390,8 @@ class Commander:
                    + (f" and said {said!r}" if said else ""))
 
     def _where(self, p: ParamValue) -> str:
+        if p.line == 0:
+            return " (set for aiding: hilnav)" if self.script.aiding else ""
         if self.script.params_file is None:
             return ""
         return f" ({self.script.params_file}:{p.line})" if p.line else \

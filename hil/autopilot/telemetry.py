@@ -200,7 +200,7 @@ class AutopilotTelemetry:
              "statustexts_dropped", "estimator_status", "ekf_status", "interval_requests",
              "interval_acks_ok", "interval_acks_refused"), 0)
         self._link_counters: dict[str, int] | None = None
-        self._client: LinkClient | None = None
+        self._clients: list[LinkClient] = []
         self._custom_mode: int | None = None
         self.error: str | None = None
         """Why the recording thread ended early (None: it did not)."""
@@ -211,10 +211,11 @@ class AutopilotTelemetry:
     def attach(self, client: LinkClient) -> None:
         """Let ``client`` talk to the autopilot over this link (before :meth:`start`): the
         recorder's thread, which owns the link, hands it every message and sends what it
-        gives, polling every ``_CLIENT_POLL_S`` wall seconds."""
+        gives (pymavlink messages, packed as the ground station, or whole frames, sent with
+        their own ids), polling every ``_CLIENT_POLL_S`` wall seconds."""
         if self._thread is not None:
             raise RuntimeError("attach a link client before starting the recorder")
-        self._client = client
+        self._clients.append(client)
 
     def start(self) -> AutopilotTelemetry:
         """Start recording in a background thread; returns self."""
@@ -242,16 +243,19 @@ class AutopilotTelemetry:
     def _run(self) -> None:
         link = self._link
         try:
-            client = self._client
-            wait_s = 0.1 if client is None else _CLIENT_POLL_S
+            clients = list(self._clients)
+            wait_s = _CLIENT_POLL_S if clients else 0.1
             while not self._stop.is_set():
                 for msg in link.recv(wait_s):
                     self._on_message(msg)
-                    if client is not None:
+                    for client in clients:
                         client.deliver(msg)
-                if client is not None:
+                for client in clients:
                     for out in client.take_outgoing():
-                        link.send_message(out)
+                        if isinstance(out, bytes):
+                            link.send(out)
+                        else:
+                            link.send_message(out)
                 if not self._requested and self._autopilot is not None and self.rate_hz:
                     self._request_rates()
             for msg in link.recv(0.0):  # what arrived before the stop

@@ -14,6 +14,7 @@ import math
 from pathlib import Path
 
 from fusion.earth import principal_radii
+from hil.autopilot.aiding import aiding_params
 from hil.autopilot.commander import Script, StepTimeouts
 from hil.autopilot.mission import (
     MissionItem,
@@ -39,6 +40,10 @@ def build_script(section: AutopilotSection, start: tuple[float, float, float],
         The parameter file cannot be read (one line, ``FILE:LINE: reason``).
     """
     params = tuple(read_param_file(params_path)) if params_path is not None else ()
+    aiding = section.aiding == "hilnav" and section.kind in ("ardupilot", "px4")
+    if aiding:
+        given = {p.name for p in params}
+        params += tuple(p for p in aiding_params(section.kind) if p.name not in given)
     t = section.timeouts
     return Script(
         params=params,
@@ -48,6 +53,7 @@ def build_script(section: AutopilotSection, start: tuple[float, float, float],
         mode=None if section.mode is None else section.mode.upper(),
         timeouts=StepTimeouts(heartbeat_s=t.heartbeat_s, params_s=t.params_s,
                               mission_s=t.mission_s, arm_s=t.arm_s, mode_s=t.mode_s),
+        aiding=aiding,
     )
 
 

@@ -455,6 +455,10 @@ class AutopilotSection(Strict):
         "MISSION, HOLD, RTL.")
     timeouts: ScriptTimeouts = Field(default_factory=lambda: ScriptTimeouts(),
                                      description="Time each scripted step may take.")
+    aiding: Literal["none", "hilnav"] = Field(
+        default="none", description="hilnav: hilnav's estimate is sent to the autopilot as its "
+        "navigation source over the telemetry link (ArduPilot GPS_INPUT on GPS2, PX4 ODOMETRY "
+        "as external vision), the parameters for it set by the script.")
 
     @model_validator(mode="after")
     def _consistent(self) -> Self:
@@ -465,6 +469,7 @@ class AutopilotSection(Strict):
                                 f"{self.kind!r}", (key,))
         scripted = [k for k in ("params", "mission", "mode") if getattr(self, k) is not None]
         scripted += ["arm"] if self.arm else []
+        scripted += ["aiding"] if self.aiding != "none" else []
         if scripted and self.kind == "none":
             raise key_error(f"{scripted[0]} scripts an autopilot: set kind to px4 or ardupilot",
                             (scripted[0],))
@@ -482,7 +487,8 @@ class AutopilotSection(Strict):
     @property
     def scripted(self) -> bool:
         """Whether hilnav tells the autopilot anything (parameters, mission, arm, mode)."""
-        return bool(self.params or self.mission or self.arm or self.mode)
+        return bool(self.params or self.mission or self.arm or self.mode
+                    or self.aiding != "none")
 
     @property
     def flies(self) -> bool:

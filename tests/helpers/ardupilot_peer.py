@@ -53,6 +53,7 @@ import time
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 from hil.autopilot.servos import ServoMap
 from hil.autopilot.sitl_json import LATLON_TO_M, encode_servo_packet
@@ -68,7 +69,8 @@ __all__ = ["ArduPilotPeer", "PeerPlan", "parse_sim_json", "trimmed_controls"]
 _ARMED = int(mavlink2.MAV_MODE_FLAG_SAFETY_ARMED)
 _MANUAL, _CRUISE = 0, 7  # ArduPlane's mode numbers
 _FROM_GCS = frozenset(int(getattr(mavlink2, f"MAVLINK_MSG_ID_{name}")) for name in (
-    "PARAM_SET", "COMMAND_LONG", "MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM"))
+    "PARAM_SET", "COMMAND_LONG", "MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM",
+    "GPS_INPUT"))
 
 # SIM_JSON's key table: (section, key, number of values, required)
 _KEYS = (
@@ -245,7 +247,8 @@ class ArduPilotPeer:
         """Its clock at each GPS fix it used."""
         self.counters = dict.fromkeys(
             ("frames", "resends", "lines", "bad_lines", "fixes", "params_set",
-             "params_unknown", "telemetry"), 0)
+             "params_unknown", "telemetry", "gps_input_fixes"), 0)
+        self._gps_input: Any = None
         self.estimate: dict[str, float] = {}
         self.track: list[tuple[float, float, float, float, float]] = []
         """(t_s, estimated north m, east m, alt m, heading rad) each second of its clock."""
@@ -388,6 +391,9 @@ class ArduPilotPeer:
             return
         replies = side.tick(clock_s)
         for msg in self._tel.recv(0.0):
+            if msg.get_type() == "GPS_INPUT":
+                self._gps_input = msg  # its second GPS, of type MAVLink (GPS2_TYPE 14)
+                continue
             replies += side.handle(msg, clock_s)
         for msg in replies:
             self._tel.send_message(msg)
@@ -397,6 +403,23 @@ class ArduPilotPeer:
             self.custom_mode = side.custom_mode
             self._set_armed(side.armed)
             self._heartbeat()
+
+    def _gps1_denied(self) -> bool:
+        p = self.params
+        return p["SIM_GPS1_ENABLE"] < 0.5 or p["SIM_GPS1_JAM"] >= 0.5
+
+    def _take_gps_input(self) -> tuple[float, float, float, tuple[float, float, float]] | None:
+        """The newest GPS_INPUT not used yet, when its second GPS is of type MAVLink and EKF3
+        may switch to it (GPS2_TYPE 14, GPS_AUTO_SWITCH 1): ArduPilot on GPS2 while GPS1 has
+        no fix."""
+        msg, self._gps_input = self._gps_input, None
+        side = self.commands
+        if msg is None or side is None or side.params.get("GPS2_TYPE") != 14.0 \
+                or side.params.get("GPS_AUTO_SWITCH") != 1.0 or int(msg.fix_type) < 3:
+            return None
+        self.counters["gps_input_fixes"] += 1
+        return (msg.lat * 1e-7, msg.lon * 1e-7, float(msg.alt),
+                (float(msg.vn), float(msg.ve), float(msg.vd)))
 
     def _serve_params(self) -> None:
         assert self._mav is not None
@@ -439,6 +462,8 @@ class ArduPilotPeer:
         fix = self._gps.fix(t, lat_deg, lon_deg, alt_m, (vel[0], vel[1], vel[2]))
         if t < self.fix_after_s:
             fix = None
+        if fix is None and self._gps1_denied():
+            fix = self._take_gps_input()
         if fix is not None:
             self.counters["fixes"] += 1
             self.fix_times.append(t)

@@ -177,3 +177,45 @@ def test_px4_that_never_reaches_the_mode_fails_the_run(tmp_path: Path) -> None:
     assert failure.startswith("PX4 did not reach the mode within 4 s (it reports MANUAL)")
     # armed in MANUAL (zero outputs): the trim was never released
     assert summary["autopilot"]["trim_released_s"] is None
+
+
+def test_arduplane_aided_by_hilnav_navigates_on_hilnavs_estimate_in_the_outage(
+        tmp_path: Path) -> None:
+    side = _arduplane_side()
+    side.params.update({"GPS2_TYPE": 0.0, "GPS_AUTO_SWITCH": 0.0})
+    port, tport = free_udp_port(), free_udp_port()
+    peer = ArduPilotPeer(telemetry_url=f"udpout:127.0.0.1:{tport}", home=(47.0, 8.0, 0.0),
+                         frame_rate_hz=50, mavlink=True, commands=side)
+    path = _scenario(tmp_path, f"""  kind: ardupilot
+  link: udpin:127.0.0.1:{port}
+  telemetry: udpin:127.0.0.1:{tport}
+  mavlink: {peer.mavlink_url}
+  connect_timeout_s: 30
+  stall_timeout_s: 20
+  aiding: hilnav
+  arm: true
+  mode: CRUISE
+events:
+  - {{type: gnss_outage, at: 70, duration: 30}}
+""", duration_s=110.0)
+    scn = load_scenario(path)
+    peer.trim = list(trimmed_controls(sim_setup(scn)))
+    starter = threading.Timer(0.3, lambda: peer.start(f"udp:127.0.0.1:{port}"))
+    starter.start()
+    try:
+        summary = run_scenario(scn, tmp_path / "out", reports=False, tlog=False).summary
+    finally:
+        starter.cancel()
+        peer.stop()
+    assert peer.error is None
+    assert "failures" not in summary, summary.get("failures")
+    ap = summary["autopilot"]
+    # the parameters for it were set by the script's parameter step
+    assert (side.params["GPS2_TYPE"], side.params["GPS_AUTO_SWITCH"]) == (14.0, 1.0)
+    assert ap["script"]["params_confirmed"] == 2
+    assert ap["aiding"]["message"] == "GPS_INPUT" and ap["aiding"]["frames_sent"] > 300
+    # its own GPS was off for 30 s: it navigated on hilnav's GPS_INPUT at 5 Hz meanwhile
+    assert 100 <= peer.counters["gps_input_fixes"] <= 160
+    (mine,) = summary["outages"]
+    (theirs,) = ap["outages"]
+    assert theirs["horizontal_rmse_m"] <= 1.5 * mine["horizontal_rmse_m"] + 3.0
