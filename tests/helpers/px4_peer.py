@@ -26,6 +26,13 @@ outage. It holds altitude and airspeed and flies the heading changes of its :cla
 (GLOBAL_POSITION_INT, ATTITUDE, ESTIMATOR_STATUS, HEARTBEAT; ``time_boot_ms`` = its clock =
 the simulator's time) on a ``udpout`` link when given one.
 
+Armed state and mode: without ``commands`` it arms by itself after ``disarmed_controls`` (an
+operator arming it) and its telemetry HEARTBEAT says MANUAL before, Hold (AUTO.LOITER) after.
+Given ``commands`` (:class:`tests.helpers.autopilot_commands.CommandSide`) it arms and changes
+mode only when the ground station on its telemetry link tells it to (parameters, commands and
+the mission answered there as PX4 does), and sends zero controls while disarmed or in MANUAL
+(nobody at the sticks).
+
 Faults for tests: ``silent_after_s`` (stops sending controls, stays connected),
 ``restart_at_s`` (closes the connection, reboots: a PX4 restart), ``nan_every`` /
 ``out_of_range_every`` (a NaN elevator / a throttle of 1.5 in every N-th message).
