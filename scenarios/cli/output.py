@@ -239,7 +239,7 @@ def print_autopilot(s: dict[str, Any]) -> None:
             ("armed", "armed_s"), (f"in {script.get('mode')}", "mode_reached_s"),
             ("flying its controls (trim released)", "trim_released_s"))]
         done = ", ".join(f"{what} at {t:.1f} s" for what, t in times if t is not None)
-        console.print(f"  scripted: {done or 'no step confirmed'}", highlight=False)
+        console.print(f"  scripted: {done or 'never armed'}", highlight=False)
     if ap.get("problem"):
         err_console.print(f"[yellow]warning:[/] {ap['source']}'s estimate not scored: "
                           f"{ap['problem']}", highlight=False)

@@ -138,7 +138,7 @@ class CommandSide:
         out: list[Any] = []
         if name in self.reject_params:
             if self.flavour == "ardupilot":
-                out.append(_text(f"Param write denied ({name})", mavlink2.MAV_SEVERITY_WARNING))
+                out += _text(f"Param write denied ({name})", mavlink2.MAV_SEVERITY_WARNING)
         else:
             self.params[name] = self._decode(name, float(msg.param_value))
             self.param_log.append((name, self.params[name]))
@@ -176,11 +176,11 @@ class CommandSide:
                 return [_ack(command, mavlink2.MAV_RESULT_ACCEPTED)]
             if clock_s < self.prearm_ok_s:
                 if self.flavour == "ardupilot":
-                    return [_text(f"PreArm: {self.prearm_reason}",
-                                  mavlink2.MAV_SEVERITY_CRITICAL),
+                    return [*_text(f"PreArm: {self.prearm_reason}",
+                                   mavlink2.MAV_SEVERITY_CRITICAL),
                             _ack(command, mavlink2.MAV_RESULT_FAILED)]
-                return [_text(f"Preflight Fail: {self.prearm_reason}",
-                              mavlink2.MAV_SEVERITY_CRITICAL),
+                return [*_text(f"Preflight Fail: {self.prearm_reason}",
+                               mavlink2.MAV_SEVERITY_CRITICAL),
                         _ack(command, mavlink2.MAV_RESULT_TEMPORARILY_REJECTED)]
             if not self.armed:
                 self.armed, self.armed_at_s = True, clock_s
@@ -235,5 +235,16 @@ def _ack(command: int, result: int) -> Any:
     return mavlink2.MAVLink_command_ack_message(command, int(result))
 
 
-def _text(text: str, severity: int) -> Any:
-    return mavlink2.MAVLink_statustext_message(int(severity), text.encode())
+_text_ids = iter(range(1, 1 << 16))
+
+
+def _text(text: str, severity: int) -> list[Any]:
+    """STATUSTEXT as both autopilots send it over MAVLink 2: one message of up to 50
+    characters, or chunks of 50 with a common ``id`` and ``chunk_seq`` 0, 1, ... (the last
+    shorter, or NUL-padded)."""
+    raw = text.encode()
+    if len(raw) <= 50:
+        return [mavlink2.MAVLink_statustext_message(int(severity), raw)]
+    text_id = next(_text_ids)
+    return [mavlink2.MAVLink_statustext_message(int(severity), raw[i:i + 50], text_id, n)
+            for n, i in enumerate(range(0, len(raw), 50))]

@@ -194,6 +194,16 @@ def test_never_arming_fails_quoting_the_prearm_reason() -> None:
     assert "'PreArm: Airspeed 1 not healthy'" in c.failure
 
 
+def test_a_long_prearm_reason_arrives_in_chunks_and_is_quoted_whole() -> None:
+    reason = "Airspeed too high - check airspeed calibration"  # 62 characters with the prefix
+    side = CommandSide("px4", {}, prearm_ok_s=1e9, prearm_reason=reason)
+    c = commander("px4", Script(arm=True, timeouts=StepTimeouts(arm_s=5.0)))
+    run(c, side)
+    assert c.failure is not None
+    assert "MAV_RESULT_TEMPORARILY_REJECTED" in c.failure
+    assert f"its last message: 'Preflight Fail: {reason}'" in c.failure
+
+
 def test_an_arming_command_never_acknowledged_fails() -> None:
     side = CommandSide("px4", {}, never_ack_arm=True)
     c = commander("px4", Script(arm=True, timeouts=StepTimeouts(arm_s=5.0)))

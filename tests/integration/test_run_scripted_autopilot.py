@@ -7,6 +7,10 @@ sentence naming it."""
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 import threading
 from pathlib import Path
 from typing import Any
@@ -14,7 +18,7 @@ from typing import Any
 import pytest
 
 from hil.autopilot.modes import ARDUPLANE_MODES, PX4_MODES
-from scenarios.cli.up import free_udp_port
+from scenarios.cli.up import free_udp_port, stop_process
 from scenarios.runner import AutopilotAbsent, run_scenario, sim_setup
 from scenarios.schema import load_scenario
 from tests.helpers.ardupilot_peer import ArduPilotPeer, trimmed_controls
@@ -219,3 +223,34 @@ events:
     (mine,) = summary["outages"]
     (theirs,) = ap["outages"]
     assert theirs["horizontal_rmse_m"] <= 1.5 * mine["horizontal_rmse_m"] + 3.0
+
+
+def test_hilnav_run_exits_1_with_the_sentence_when_px4_refuses_to_arm(tmp_path: Path) -> None:
+    port, tport = free_tcp_port(), free_udp_port()
+    path = _scenario(tmp_path, f"""  kind: px4
+  link: tcpin:127.0.0.1:{port}
+  telemetry: udpin:127.0.0.1:{tport}
+  actuator_map: {STANDARD_PLANE}
+  arm: true
+  mode: MISSION
+  timeouts: {{arm_s: 5}}
+""", duration_s=300.0)
+    side = CommandSide("px4", {}, custom_mode=PX4_MODES["MANUAL"], prearm_ok_s=1e9)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "scenarios.cli", "run", str(path), "--out",
+         str(tmp_path / "out"), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, start_new_session=True, env={**os.environ, "COLUMNS": "300"})
+    try:
+        with Px4Peer(f"tcp:127.0.0.1:{port}", f"udpout:127.0.0.1:{tport}", Px4Plan(turns=()),
+                     commands=side):
+            out, err = proc.communicate(timeout=300)
+    finally:
+        stop_process(proc)
+    assert proc.returncode == 1, out + err
+    sentence = ("PX4 did not arm within 5 s: last COMMAND_ACK MAV_RESULT_TEMPORARILY_REJECTED "
+                "after ")
+    assert sentence in err and ("its last message: 'Preflight Fail: Airspeed too high - check "
+                                "airspeed calibration'") in err
+    assert "Traceback" not in err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["passed"] is False and summary["failures"][0].startswith(sentence)
