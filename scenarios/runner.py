@@ -362,7 +362,7 @@ class AutopilotRun:
                 connect_timeout_s=ap.connect_timeout_s, stall_timeout_s=ap.stall_timeout_s,
                 progress=progress, on_step=on_step, stop=stop)
             if commander is not None and flown.connected:
-                commander.end(flown.sim_duration_s)
+                commander.end(commander.time_s)  # the last step's simulated time
         finally:
             if self.telemetry is not None:
                 self.telemetry.stop()

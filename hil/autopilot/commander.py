@@ -228,6 +228,11 @@ class Commander:
         return None if self.finished else STEPS[self._current]
 
     @property
+    def time_s(self) -> float:
+        """The simulated time of the latest :meth:`poll`."""
+        return self._time_s
+
+    @property
     def custom_mode(self) -> int | None:
         """The autopilot's latest HEARTBEAT ``custom_mode`` (None: none heard)."""
         return self._custom_mode
