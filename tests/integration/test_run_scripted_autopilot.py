@@ -16,11 +16,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 from hil.autopilot.modes import ARDUPLANE_MODES, PX4_MODES
+from hil.autopilot.param_file import read_param_file
 from scenarios.cli.up import free_udp_port, stop_process
 from scenarios.runner import AutopilotAbsent, run_scenario, sim_setup
-from scenarios.schema import load_scenario
+from scenarios.schema import LIBRARY_DIR, load_scenario
 from tests.helpers.ardupilot_peer import ArduPilotPeer, trimmed_controls
 from tests.helpers.autopilot_commands import CommandSide
 from tests.helpers.processes import free_tcp_port
@@ -254,3 +256,35 @@ def test_hilnav_run_exits_1_with_the_sentence_when_px4_refuses_to_arm(tmp_path: 
     assert "Traceback" not in err
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["passed"] is False and summary["failures"][0].startswith(sentence)
+
+
+def test_the_library_arduplane_mission_script_runs_against_the_peer(tmp_path: Path) -> None:
+    library = LIBRARY_DIR / "autopilot"
+    data = yaml.safe_load((library / "arduplane-mission-gnss-outage.yaml").read_text())
+    params = read_param_file(library / "arduplane-c172x.parm")
+    port, tport = free_udp_port(), free_udp_port()
+    side = CommandSide("ardupilot", {p.name: 0.0 for p in params},
+                       valid_modes=ARDUPLANE_MODES.values(), prearm_ok_s=3.0)
+    peer = ArduPilotPeer(telemetry_url=f"udpout:127.0.0.1:{tport}", home=(47.0, 8.0, 0.0),
+                         frame_rate_hz=250, mavlink=True, commands=side)
+    # the library's script as it stands; only its ports, length and timeline are the test's
+    data["autopilot"].update(link=f"udpin:127.0.0.1:{port}", telemetry=f"udpin:127.0.0.1:{tport}",
+                             mavlink=peer.mavlink_url, params=str(library / "arduplane-c172x.parm"))
+    data.update(duration_s=30, events=[], criteria=[])
+    path = tmp_path / "library.yaml"
+    path.write_text(yaml.safe_dump(data))
+    scn = load_scenario(path)
+    peer.trim = list(trimmed_controls(sim_setup(scn)))
+    starter = threading.Timer(0.3, lambda: peer.start(f"udp:127.0.0.1:{port}"))
+    starter.start()
+    try:
+        summary = run_scenario(scn, tmp_path / "out", reports=False, tlog=False).summary
+    finally:
+        starter.cancel()
+        peer.stop()
+    assert peer.error is None
+    assert "failures" not in summary, summary.get("failures")
+    script = summary["autopilot"]["script"]
+    assert [s["status"] for s in script["steps"]] == ["done"] * 5
+    assert side.params == {p.name: p.value for p in params}
+    assert len(side.mission) == 7 and side.custom_mode == ARDUPLANE_MODES["AUTO"]
