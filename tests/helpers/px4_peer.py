@@ -217,7 +217,8 @@ class Px4Peer:
         try:
             if self.telemetry is not None:
                 self._tel_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                self._tel_sock.setblocking(False)
+                if self.commands is not None:  # answers are read between sensor messages
+                    self._tel_sock.setblocking(False)
             while not self._stop.is_set():
                 sock = self._connect()
                 if sock is None:
