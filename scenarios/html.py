@@ -319,7 +319,26 @@ def _autopilot(summary: Mapping[str, Any]) -> str:
         f"{_e(est.get('pos_horiz_abs_lost_s') or '–')} s, regained at "
         f"{_e(est.get('pos_horiz_abs_regained_s') or '–')} s.</p>",
         "<p>Warnings and failsafes: " + ("; ".join(texts) if texts else "none") + "</p>",
+        _script(ap),
         _kv({"counters": ap.get("counters") or {}, "link": ap.get("link") or {}}),
+    ])
+
+
+def _script(ap: Mapping[str, Any]) -> str:
+    """What the scenario told the autopilot and when it was confirmed (empty without a
+    script)."""
+    script = ap.get("script")
+    if not script:
+        return ""
+    rows = [[_e(step.get("step")), _e(step.get("status")), _num(step.get("started_s"), ".1f"),
+             _num(step.get("done_s"), ".1f")] for step in script.get("steps") or []]
+    times = (f"armed at {_num(ap.get('armed_s'), '.1f')} s, in {_e(script.get('mode') or '–')} "
+             f"at {_num(ap.get('mode_reached_s'), '.1f')} s, trim released at "
+             f"{_num(ap.get('trim_released_s'), '.1f')} s")
+    failure = script.get("failure")
+    return "".join([
+        "<p>Scripted: " + times + (f"; failed: {_e(failure)}" if failure else "") + "</p>",
+        _table(["step", "status", "started (s)", "confirmed (s)"], rows, left=2),
     ])
 
 

@@ -138,7 +138,8 @@ def test_arduplane_rejecting_a_parameter_fails_the_run_naming_it(tmp_path: Path)
     assert not side.armed  # nothing after the failed step was commanded
 
 
-def _px4_run(tmp_path: Path, side: CommandSide, script: str) -> tuple[dict[str, Any], Px4Peer]:
+def _px4_run(tmp_path: Path, side: CommandSide, script: str,
+             reports: bool = False) -> tuple[dict[str, Any], Px4Peer]:
     port, tport = free_tcp_port(), free_udp_port()
     (tmp_path / "c172.params").write_text("1\t1\tFW_AIRSPD_TRIM\t45\t9\n1\t1\tNAV_DLL_ACT\t0\t6\n")
     path = _scenario(tmp_path, f"""  kind: px4
@@ -152,7 +153,7 @@ def _px4_run(tmp_path: Path, side: CommandSide, script: str) -> tuple[dict[str, 
     peer = Px4Peer(f"tcp:127.0.0.1:{port}", f"udpout:127.0.0.1:{tport}",
                    Px4Plan(turns=()), commands=side)
     with peer:
-        result = run_scenario(scn, tmp_path / "out", reports=False, tlog=False)
+        result = run_scenario(scn, tmp_path / "out", reports=reports, tlog=False)
     assert peer.errors == []
     return result.summary, peer
 
@@ -164,7 +165,7 @@ def test_px4_is_scripted_with_its_integer_parameters_and_hold(tmp_path: Path) ->
     summary, _ = _px4_run(tmp_path, side, """  params: c172.params
   arm: true
   mode: HOLD
-""" + MISSION)
+""" + MISSION, reports=True)
     assert "failures" not in summary, summary.get("failures")
     ap = summary["autopilot"]
     assert [s["status"] for s in ap["script"]["steps"]] == ["done"] * 5
@@ -173,6 +174,9 @@ def test_px4_is_scripted_with_its_integer_parameters_and_hold(tmp_path: Path) ->
     assert side.custom_mode == PX4_MODES["HOLD"]
     assert ap["armed_s"] >= 8.0 and ap["mode_reached_s"] >= ap["armed_s"]
     assert ap["trim_released_s"] >= ap["armed_s"]
+    report = (tmp_path / "out" / "report.html").read_text()
+    assert "Scripted: armed at " in report
+    assert '<td class="l">mission</td><td class="l">done</td>' in report
 
 
 def test_px4_that_never_reaches_the_mode_fails_the_run(tmp_path: Path) -> None:
