@@ -365,6 +365,7 @@ class Px4Peer:
         v = np.array([m.vn, m.ve, m.vd], dtype=float) * 1e-2
         e.v_ned = v
         e.last_fix_us = int(m.time_usec)
+        self._ev_learn()
         if not math.isnan(e.baro_alt_m):
             off = gnss_alt - e.baro_alt_m
             e.baro_offset_m = off if math.isnan(e.baro_offset_m) else (
@@ -487,10 +488,62 @@ class Px4Peer:
             parser = self.__dict__.setdefault("_gcs_parser", mavlink2.MAVLink(None))
             parser.robust_parsing = True
             for msg in parser.parse_buffer(data) or []:
-                if msg.get_type() != "BAD_DATA":
+                if msg.get_type() == "ODOMETRY":
+                    self._on_odometry(msg)
+                elif msg.get_type() != "BAD_DATA":
                     replies += side.handle(msg, clock_s)
         for msg in replies:
             sock.sendto(bytes(msg.pack(self._tel_mav)), self.telemetry)
+
+    def _ev_enabled(self) -> bool:
+        side = self.commands
+        return side is not None and bool(int(side.params.get("EKF2_EV_CTRL", 0.0)) & 1)
+
+    def _ev_position(self) -> np.ndarray | None:
+        """The latest ODOMETRY position (its own local frame, m N/E) carried to this clock by
+        its velocity (body axes, turned by its q); None before one."""
+        msg = getattr(self, "_ev_last", None)
+        if msg is None:
+            return None
+        q = np.array([float(v) for v in msg.q])
+        v_ned = quat_to_dcm(q) @ np.array([float(msg.vx), float(msg.vy), float(msg.vz)])
+        age_s = (self.clock_us - int(msg.time_usec)) * 1e-6
+        return np.array([float(msg.x), float(msg.y)]) + v_ned[:2] * age_s
+
+    def _ev_local(self) -> np.ndarray:
+        e = self._est
+        lat0, lon0 = self._ev_ref
+        return np.array([(e.lat_rad - lat0) * _R_EARTH,
+                         (e.lon_rad - lon0) * _R_EARTH * math.cos(lat0)])
+
+    def _ev_learn(self) -> None:
+        """At a GNSS fix: the offset between the ODOMETRY's frame and the estimate's."""
+        if not self._ev_enabled() or math.isnan(self._est.lat_rad):
+            return
+        self.__dict__.setdefault("_ev_ref", (self._est.lat_rad, self._est.lon_rad))
+        odom = self._ev_position()
+        if odom is not None:
+            self._ev_offset = self._ev_local() - odom
+
+    def _on_odometry(self, msg: Any) -> None:
+        """External vision (EKF2_EV_CTRL bit 0: horizontal position): the ODOMETRY position is
+        in a local frame of its own, so at each GNSS fix the offset between that frame and the
+        estimate's is learnt (:meth:`_ev_learn`); while GNSS is lost the position is the
+        ODOMETRY's plus that offset (EKF2 fuses the same, with its own weights)."""
+        if not self._ev_enabled():
+            return
+        self._ev_last = msg
+        offset = getattr(self, "_ev_offset", None)
+        if not self._gnss_lost() or offset is None:
+            return
+        e = self._est
+        lat0, lon0 = self._ev_ref
+        odom = self._ev_position()
+        assert odom is not None
+        n, east = odom + offset
+        e.lat_rad = lat0 + n / _R_EARTH
+        e.lon_rad = lon0 + east / (_R_EARTH * math.cos(lat0))
+        self.counters["ev_fixes"] = self.counters.get("ev_fixes", 0) + 1
 
     # -- telemetry --
     def _publish_telemetry(self) -> None:

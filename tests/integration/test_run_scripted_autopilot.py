@@ -292,3 +292,38 @@ def test_the_library_arduplane_mission_script_runs_against_the_peer(tmp_path: Pa
     assert [s["status"] for s in script["steps"]] == ["done"] * 5
     assert side.params == {p.name: p.value for p in params}
     assert len(side.mission) == 7 and side.custom_mode == ARDUPLANE_MODES["AUTO"]
+
+
+def test_px4_aided_by_hilnav_takes_its_odometry_as_external_vision(tmp_path: Path) -> None:
+    side = CommandSide("px4", {"EKF2_EV_CTRL": 0.0}, int_params={"EKF2_EV_CTRL"},
+                       custom_mode=PX4_MODES["MANUAL"], valid_modes=PX4_MODES.values())
+    port, tport = free_tcp_port(), free_udp_port()
+    path = _scenario(tmp_path, f"""  kind: px4
+  link: tcpin:127.0.0.1:{port}
+  telemetry: udpin:127.0.0.1:{tport}
+  actuator_map: {STANDARD_PLANE}
+  connect_timeout_s: 30
+  stall_timeout_s: 20
+  aiding: hilnav
+  arm: true
+  mode: HOLD
+events:
+  - {{type: gnss_outage, at: 70, duration: 30}}
+""", duration_s=110.0)
+    peer = Px4Peer(f"tcp:127.0.0.1:{port}", f"udpout:127.0.0.1:{tport}", Px4Plan(turns=()),
+                   commands=side)
+    with peer:
+        summary = run_scenario(load_scenario(path), tmp_path / "out", reports=False,
+                               tlog=False).summary
+    assert peer.errors == []
+    assert "failures" not in summary, summary.get("failures")
+    ap = summary["autopilot"]
+    assert side.params["EKF2_EV_CTRL"] == 5.0  # set by the script, an INT32 sent byte-wise
+    assert ap["aiding"]["message"] == "ODOMETRY" and ap["aiding"]["frames_sent"] > 2000
+    # through the 30 s outage it positioned itself on hilnav's ODOMETRY at ~30 Hz
+    assert 600 <= peer.counters["ev_fixes"] <= 1000
+    # aided, its error through the outage stays at its (simple) estimator's GNSS-on level;
+    # unaided, the peer's dead reckoning grows to ~30 m RMSE over these 30 s
+    (theirs,) = ap["outages"]
+    assert theirs["horizontal_rmse_m"] <= ap["gnss_on"]["horizontal_rmse_m"], (
+        theirs, ap["gnss_on"])
