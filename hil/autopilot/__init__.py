@@ -17,6 +17,12 @@ our JSBSim aircraft through its actuator commands.
   (:class:`~hil.autopilot.ardupilot.ArduPilotBackend`), with :mod:`hil.autopilot.sitl_json`
   (its bytes), :mod:`hil.autopilot.servos` (servo outputs -> controls) and
   :mod:`hil.autopilot.sim_params` (the scenario's denial as SIM_* parameters over MAVLink).
+* :mod:`hil.autopilot.commander`: the scenario's script run over the autopilot's telemetry
+  link (:class:`~hil.autopilot.commander.Commander`: parameters read back, the mission, arm,
+  mode), with :mod:`hil.autopilot.param_file` (parameter files),
+  :mod:`hil.autopilot.mission` (mission items and their upload), :mod:`hil.autopilot.modes`
+  (mode names, custom_mode, flying modes) and :mod:`hil.autopilot.aiding` (hilnav's estimate
+  as the autopilot's navigation source).
 """
 
 from hil.autopilot.backend import AutopilotBackend, AutopilotFlown, DenialStep, fly_with_autopilot

@@ -19,6 +19,12 @@ acknowledgements. It asks each autopilot only for what it has: the estimator sta
 ESTIMATOR_STATUS from PX4 (PX4 does not stream EKF_STATUS_REPORT and refuses it) and
 EKF_STATUS_REPORT from ArduPilot; another autopilot is asked for neither.
 
+Talking back
+    The recorder owns the link in its thread; a :class:`LinkClient` attached before the start
+    (:meth:`AutopilotTelemetry.attach`: the scenario's commander, hilnav's aiding frames) is
+    handed every message received and gives what to send, so the link is never used from two
+    threads. PARAM_VALUE and the mission protocol's answers are accepted for it.
+
 Before the autopilot has a position
     A booting ArduPilot sends GLOBAL_POSITION_INT at lat/lon 0/0 (and -1000 m) until its EKF
     has an origin. Position reports are dropped (``positions_before_fix``) until the first
