@@ -13,7 +13,7 @@ import html
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 _CSS = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 1.5em 2em;
@@ -247,7 +247,8 @@ _PLOT_CAPTIONS = {
     "horizontal_vertical": "Horizontal and vertical error with the filter's 3σ bound",
     "errors": "Errors per axis (position, velocity, attitude) with ±3σ",
     "drift": "Horizontal error against time into each outage",
-    "autopilot_side_by_side": "hilnav and the autopilot's estimate against truth",
+    "autopilot_side_by_side": "hilnav and the autopilot's estimate against truth (with an "
+                              "unaided baseline: the unaided autopilot of a second flight too)",
 }
 
 
@@ -296,6 +297,82 @@ def side_by_side_rows(summary: Mapping[str, Any]) -> list[tuple[str, Any, Any]]:
                          (o.get("horizontal_error_m_at") or {}).get(at),
                          (a.get("horizontal_error_m_at") or {}).get(at)))
     return rows
+
+
+class CardRow(NamedTuple):
+    """A row of the aided-vs-unaided card: a figure of the four estimates (``values``: hilnav,
+    the aided autopilot, the unaided autopilot, hilnav in the unaided flight), or a ratio of
+    horizontal RMSE against its ``target`` (``values`` None)."""
+
+    name: str
+    values: tuple[Any, Any, Any, Any] | None
+    ratio: float | None = None
+    target: float | None = None
+
+    @property
+    def met(self) -> bool | None:
+        if self.ratio is None or self.target is None:
+            return None
+        return self.ratio <= self.target
+
+
+def aided_unaided_rows(summary: Mapping[str, Any]) -> list[CardRow]:
+    """The rows of a run scored beside its unaided baseline (``autopilot.aided_vs_unaided``):
+    per outage the horizontal RMSE, max and error at 30 and 60 s of each estimate, then the two
+    ratios of horizontal RMSE with their targets. Empty without a baseline."""
+    card = (summary.get("autopilot") or {}).get("aided_vs_unaided")
+    if not card:
+        return []
+    keys = ("hilnav", "aided", "unaided", "hilnav_unaided_flight")
+    targets = card.get("targets") or {}
+    rows: list[CardRow] = []
+    for i, o in enumerate(card.get("outages") or []):
+        end = o.get("end_s")
+        name = f"outage {i + 1} ({o['start_s']:.0f}-{'?' if end is None else f'{end:.0f}'} s)"
+        for label, key, at in (("horizontal RMSE (m)", "horizontal_rmse_m", None),
+                               ("horizontal max (m)", "horizontal_max_m", None),
+                               ("horizontal error at 30 s (m)", "horizontal_error_m_at", "30"),
+                               ("horizontal error at 60 s (m)", "horizontal_error_m_at", "60")):
+            got = [None if o.get(k) is None else o[k].get(key) for k in keys]
+            if at is not None:
+                got = [None if v is None else v.get(at) for v in got]
+            if any(v is not None for v in got):
+                rows.append(CardRow(f"{name}: {label}", (got[0], got[1], got[2], got[3])))
+        for key, label in (("aided_over_hilnav", "aided / hilnav"),
+                           ("aided_over_unaided", "aided / unaided")):
+            rows.append(CardRow(f"{name}: {label} horizontal RMSE", None, o.get(key),
+                                targets.get(key)))
+    return rows
+
+
+def _verdict(ok: bool | None) -> str:
+    return "–" if ok is None else ("met" if ok else "missed")
+
+
+def _aided_unaided(summary: Mapping[str, Any]) -> str:
+    ap = summary["autopilot"]
+    card = ap["aided_vs_unaided"]
+    source = _e(ap.get("source"))
+    rows = []
+    for row in aided_unaided_rows(summary):
+        if row.values is not None:
+            rows.append([_e(row.name), *(_num(v) for v in row.values)])
+        else:
+            rows.append([_e(f"{row.name} (target <= {_num(row.target)})"), "",
+                         f"{_num(row.ratio)} ({_verdict(row.met)})", "", ""])
+    run = (ap.get("unaided") or {}).get("run") or {}
+    flight = (f"<p>Unaided flight: {_e(run.get('folder'))}, seed {_e(run.get('seed'))}, "
+              f"{_num(run.get('sim_duration_s'), '.1f')} s, "
+              + ("passed" if run.get("passed") else "failed: " + _e(
+                  "; ".join(run.get("failures") or []) or "its criteria")) + "</p>"
+              if run else "")
+    return "".join([
+        _table(["figure", "hilnav", f"{source} aided by hilnav", f"{source} unaided",
+                "hilnav, unaided flight"], rows),
+        f"<p>Not compared: {_e(card['problem'])}</p>" if card.get("problem") else "",
+        flight,
+        f"<p class=meta>{_e(card.get('note'))}</p>",
+    ])
 
 
 def _autopilot(summary: Mapping[str, Any]) -> str:
@@ -393,6 +470,8 @@ def render_html(summary: Mapping[str, Any], plots: Sequence[Path] | Mapping[str,
     ]
     if summary.get("autopilot"):
         parts += ["<h2>Both estimates on one scorecard</h2>", _autopilot(summary)]
+    if (summary.get("autopilot") or {}).get("aided_vs_unaided"):
+        parts += ["<h2>Aided by hilnav and unaided</h2>", _aided_unaided(summary)]
     if summary.get("rejections_outside_events"):
         parts += ["<h2>Rejections outside outages and events</h2>",
                   _labelled(summary["rejections_outside_events"])]

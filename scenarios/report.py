@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import matplotlib as mpl
 import numpy as np
@@ -24,6 +24,9 @@ from hil.tracks import Track
 from scenarios import metrics
 from scenarios.event_metrics import EventWindow
 from scenarios.metrics import Errors, Window
+
+if TYPE_CHECKING:
+    from scenarios.unaided_baseline import UnaidedFlight
 
 EventLike = EventWindow | Mapping[str, Any]
 
@@ -362,22 +365,37 @@ def plot_drift_compare(
 
 def plot_side_by_side(truth: Track, hilnav: Track, hilnav_err: Errors, autopilot_track: Track,
                       autopilot_err: Errors, outages: list[Window], path: Path, *,
-                      autopilot: str = "autopilot") -> None:
+                      autopilot: str = "autopilot", unaided: UnaidedFlight | None = None,
+                      ) -> None:
     """Truth, hilnav's estimate and the autopilot's through the same denial: the ground
     tracks (left), horizontal and height errors of both estimates vs time with the outages
-    shaded (right)."""
+    shaded (right).
+
+    ``unaided``: the autopilot's unaided flight of the same seed
+    (:class:`scenarios.unaided_baseline.UnaidedFlight`: its truth, and its estimate and
+    errors when scored); drawn as a fourth estimate (its errors against its own truth) and
+    its truth dashed, the autopilot's estimate above then being the one aided by hilnav.
+    """
     fig = Figure(figsize=(15, 7))
     grid = fig.add_gridspec(2, 2, width_ratios=(1.0, 1.4))
     ax_t = fig.add_subplot(grid[:, 0])
     lat0, lon0, h0 = truth.lat_rad[0], truth.lon_rad[0], truth.alt_m[0]
-    tracks = ((truth, "truth", "k", 1.4), (hilnav, "hilnav", "tab:blue", 0.9),
-              (autopilot_track, autopilot, "tab:green", 0.9))
+    other = unaided is not None and unaided.track is not None and unaided.errors is not None
+    aided = f"{autopilot} aided by hilnav" if other else autopilot
+    tracks: list[tuple[Track, str, str, float, str]] = [
+        (truth, "truth", "k", 1.4, "-"), (hilnav, "hilnav", "tab:blue", 0.9, "-"),
+        (autopilot_track, aided, "tab:green", 0.9, "-")]
+    curves = [(hilnav_err, "hilnav", "tab:blue"), (autopilot_err, aided, "tab:green")]
+    if unaided is not None and unaided.track is not None and unaided.errors is not None:
+        tracks += [(unaided.truth, "truth, unaided flight", "tab:gray", 1.0, "--"),
+                   (unaided.track, f"{autopilot} unaided", "tab:red", 0.9, "-")]
+        curves.append((unaided.errors, f"{autopilot} unaided (its own flight)", "tab:red"))
     ne = [_local_ne(track, lat0, lon0, h0) for track, *_ in tracks]
     # the track panel is ~6.2 x 7 in, close to the 7 in _path_cell takes: cells ~half a pixel
     cell = _path_cell(fig, 100, *(a for n_e in ne for a in n_e))
-    for (n, e), (_track, label, color, lw) in zip(ne, tracks, strict=True):
+    for (n, e), (_track, label, color, lw, style) in zip(ne, tracks, strict=True):
         k = path_indices(e, n, cell)
-        ax_t.plot(e[k], n[k], color=color, lw=lw, label=label)
+        ax_t.plot(e[k], n[k], style, color=color, lw=lw, label=label)
     ax_t.set_xlabel("east (m)")
     ax_t.set_ylabel("north (m)")
     ax_t.set_aspect("equal", adjustable="datalim")
@@ -386,8 +404,7 @@ def plot_side_by_side(truth: Track, hilnav: Track, hilnav_err: Errors, autopilot
     ax_t.set_title("Ground track")
     a1 = fig.add_subplot(grid[0, 1])
     a2 = fig.add_subplot(grid[1, 1], sharex=a1)
-    for err, label, color in ((hilnav_err, "hilnav", "tab:blue"),
-                              (autopilot_err, autopilot, "tab:green")):
+    for err, label, color in curves:
         t, h, up = err.time_s, err.horizontal_m, -err.pos_ned_m[:, 2]
         i = envelope_indices(t, h, up, bins=_bins(fig, 100))
         a1.plot(t[i], h[i], lw=0.9, color=color, label=label)
@@ -399,7 +416,10 @@ def plot_side_by_side(truth: Track, hilnav: Track, hilnav_err: Errors, autopilot
         ax.legend(loc="upper left", fontsize=8)
     a1.set_ylim(bottom=0.0)
     a2.set_xlabel("time (s)")
-    fig.suptitle(f"truth, hilnav and {autopilot} through the same GNSS denial", fontsize=10)
+    title = (f"truth, hilnav, {autopilot} aided by hilnav and {autopilot} unaided (a second "
+             "flight of the same seed)" if other else
+             f"truth, hilnav and {autopilot} through the same GNSS denial")
+    fig.suptitle(title, fontsize=10)
     _save(fig, path, dpi=100)
 
 

@@ -12,6 +12,11 @@ estimate is recorded from its telemetry (:class:`hil.autopilot.telemetry.Autopil
 and scored beside hilnav's (``summary.json``'s ``autopilot`` section,
 :mod:`scenarios.autopilot_summary`). A stalled autopilot fails the run and says so.
 
+With ``aiding: hilnav`` and ``unaided_baseline`` the scenario is flown twice
+(:func:`scenarios.unaided_baseline.run_with_unaided_baseline`): first unaided, then aided;
+the :class:`~scenarios.unaided_baseline.UnaidedBaseline` given to both runs is recorded by the
+first one's scoring and scored into the second one's card (:func:`score`'s ``baseline``).
+
 A flight that ends early (ground impact, stall of the aircraft, an autopilot that stopped
 sending controls) is scored as far as it flew: events that had not begun are listed in
 ``events_not_reached``, events it cut short are scored up to its end and carry
@@ -50,6 +55,7 @@ if TYPE_CHECKING:  # the autopilot's modules (its link, its telemetry) load when
     from hil.autopilot.commander import Commander
     from hil.autopilot.telemetry import AutopilotTelemetry
     from scenarios.autopilot_summary import ScoredAutopilot
+    from scenarios.unaided_baseline import UnaidedBaseline, UnaidedFlight
 
 ProgressFn = Callable[[float], None]
 
@@ -151,11 +157,13 @@ def score(
     reports: bool = True,
     autopilot: AutopilotRun | None = None,
     failures: list[str] | None = None,
+    baseline: UnaidedBaseline | None = None,
 ) -> tuple[dict[str, Any], list[Path]]:
     """Build ``summary.json`` (+ JUnit XML, plots and HTML when ``reports``) in ``out_dir``;
     with ``autopilot``, its estimate scored beside hilnav's (the ``autopilot`` section).
     ``failures``: sentences on why the run failed besides its criteria; given, the flight
-    ended early (its events are cut as :func:`event_windows` says) and the run failed."""
+    ended early (its events are cut as :func:`event_windows` says) and the run failed.
+    ``baseline``: the unaided baseline of a run aided by hilnav (:func:`_with_baseline`)."""
     col = run.collector
     assert col is not None
     end_s = col.end_s()
@@ -178,6 +186,7 @@ def score(
     if failures:
         summary["failures"] = failures
         summary["passed"] = False
+    unaided = _with_baseline(baseline, scenario, summary, scored, side)
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [out_dir / "summary.json"]
     write_summary(summary, files[0])
@@ -196,12 +205,31 @@ def score(
             path = out_dir / "autopilot_side_by_side.png"
             plot_side_by_side(scored.truth, scored.estimate, scored.errors, side.track,
                               side.errors, scored.outages, path,
-                              autopilot=str(side.section["source"]))
+                              autopilot=str(side.section["source"]), unaided=unaided)
             plots.append(path)
         html = out_dir / "report.html"
         write_html(summary, plots, html)
         files += [junit, *plots, html]
     return summary, files
+
+
+def _with_baseline(baseline: UnaidedBaseline | None, scenario: Scenario,
+                   summary: dict[str, Any], scored: Scored,
+                   side: ScoredAutopilot | None) -> UnaidedFlight | None:
+    """The unaided baseline's part in scoring a run: the baseline run (``aiding: off``)
+    records itself into it; the aided run gets ``autopilot.unaided`` and
+    ``autopilot.aided_vs_unaided`` (and fails when there is nothing to compare). Returns the
+    unaided flight to draw beside the aided one (None: none, or this is the baseline)."""
+    if baseline is None or side is None:
+        return None
+    if scenario.autopilot.aiding == "off":
+        baseline.record(summary, scored.truth, side)
+        return None
+    failure = baseline.add_to(summary)
+    if failure is not None:
+        summary["failures"] = [*summary.get("failures", []), failure]
+        summary["passed"] = False
+    return baseline.flight
 
 
 def _mark_cut_events(summary: dict[str, Any], timeline: list[dict[str, Any]]) -> None:
@@ -230,12 +258,13 @@ def run_scenario(
     tlog: bool = True,
     reports: bool = True,
     backend: AutopilotBackend | None = None,
+    baseline: UnaidedBaseline | None = None,
 ) -> RunResult:
     """Fly, fuse and score one scenario (seed and overrides already applied to ``scenario``).
 
     With ``autopilot: px4 | ardupilot`` (or a ``backend`` given, e.g. by a test) the autopilot
     flies (:class:`AutopilotRun`); :class:`AutopilotAbsent` when it never connects, or stalls
-    before hilnav has an estimate to score.
+    before hilnav has an estimate to score. ``baseline``: see :func:`score`.
     """
     bridge = bridge or scenario.fusion.bridge
     altitude = altitude or scenario.fusion.altitude
@@ -277,7 +306,7 @@ def run_scenario(
     summary, files = score(
         scenario, fusion, out_dir, bridge=bridge, altitude=altitude,
         sim_duration_s=flown.sim_duration_s, wall_s=wall, health_extra=extra,
-        reports=reports, autopilot=ap_run, failures=early)
+        reports=reports, autopilot=ap_run, failures=early, baseline=baseline)
     if tlog:
         files.insert(1, log_path)
     return RunResult(summary, out_dir, files)
@@ -428,9 +457,7 @@ class AutopilotRun:
         scored.section["mode_reached_s"] = (None if commander is None
                                             else commander.mode_reached_s)
         scored.section["script"] = None if commander is None else commander.report()
-        scored.section["aiding"] = None if self.aiding is None else {
-            "source": "hilnav", "frames_sent": self.aiding.sent,
-            "message": "GPS_INPUT" if self.aiding.autopilot == "ardupilot" else "ODOMETRY"}
+        scored.section["aiding"] = _aiding_record(self.scenario, self.aiding)
         return scored
 
 
@@ -449,3 +476,18 @@ def _hold_until_flying(backend: AutopilotBackend, telemetry: AutopilotTelemetry,
         return None if mode is None else is_flying_mode(kind, mode)
 
     hold.flying = flying
+
+
+def _aiding_record(scenario: Scenario, aiding: CompanionAiding | None) -> dict[str, Any] | None:
+    """The ``autopilot.aiding`` record: what hilnav sent (``aiding: hilnav``), or which of the
+    autopilot's parameters were set off (``aiding: off``); None without either."""
+    if aiding is not None:
+        return {"source": "hilnav", "frames_sent": aiding.sent,
+                "message": "GPS_INPUT" if aiding.autopilot == "ardupilot" else "ODOMETRY"}
+    kind = scenario.autopilot.kind
+    if scenario.autopilot.aiding != "off" or kind not in ("ardupilot", "px4"):
+        return None
+    from hil.autopilot.aiding import aiding_off_params
+
+    return {"source": None, "frames_sent": 0, "message": None,
+            "parameters_off": [p.name for p in aiding_off_params(kind)]}

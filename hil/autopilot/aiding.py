@@ -11,11 +11,16 @@ its telemetry link as a companion computer would send it (:class:`hil.shadow.Com
   EKF2 as external vision (``EKF2_EV_CTRL 5``: horizontal position and velocity).
 
 Those parameters (:func:`aiding_params`) are set by the script's parameter step, after the
-parameter file's (a name the file sets is left to the file). The frames are sent from
-hilnav's system id of the vehicle, component MAV_COMP_ID_ONBOARD_COMPUTER (191), only once the
-filter navigates (no frame while it initialises). :class:`CompanionAiding` is a link client
-of the telemetry recorder (:meth:`hil.autopilot.telemetry.AutopilotTelemetry.attach`): the
-simulator thread offers estimates, the recorder's thread sends the frames.
+parameter file's (a name the file sets is left to the file). The unaided autopilot
+(``aiding: off``) has them set off (:func:`aiding_off_params`: ``GPS2_TYPE 0``,
+``EKF2_EV_CTRL 0``) whatever the file says, so that an autopilot whose parameters persist from
+an aided flight (ArduPilot SITL's ``eeprom.bin``, PX4's parameter file) flies unaided.
+
+The frames are sent from hilnav's system id of the vehicle, component
+MAV_COMP_ID_ONBOARD_COMPUTER (191), only once the filter navigates (no frame while it
+initialises). :class:`CompanionAiding` is a link client of the telemetry recorder
+(:meth:`hil.autopilot.telemetry.AutopilotTelemetry.attach`): the simulator thread offers
+estimates, the recorder's thread sends the frames.
 """
 
 from __future__ import annotations
@@ -28,7 +33,7 @@ from hil.autopilot.param_file import PARAM_TYPE_INT32, PARAM_TYPE_REAL32, ParamV
 from hil.codec import mavlink2
 from hil.shadow import CompanionEncoder
 
-__all__ = ["AIDING_RATE_HZ", "CompanionAiding", "aiding_params"]
+__all__ = ["AIDING_RATE_HZ", "CompanionAiding", "aiding_off_params", "aiding_params"]
 
 AIDING_RATE_HZ: Final = {"ardupilot": 5.0, "px4": 30.0}
 """Frames per second of simulated time: GPS_INPUT (ArduPilot), ODOMETRY (PX4)."""
@@ -37,12 +42,22 @@ _PARAMS: Final = {
                                                            PARAM_TYPE_REAL32)),
     "px4": (("EKF2_EV_CTRL", 5.0, PARAM_TYPE_INT32),),
 }
+_OFF: Final = {
+    "ardupilot": (("GPS2_TYPE", 0.0, PARAM_TYPE_REAL32),),
+    "px4": (("EKF2_EV_CTRL", 0.0, PARAM_TYPE_INT32),),
+}
 
 
 def aiding_params(autopilot: str) -> tuple[ParamValue, ...]:
     """What ``autopilot`` needs set to navigate on hilnav's frames (see the module docstring);
     ``line`` 0: not from the parameter file."""
     return tuple(ParamValue(name, value, kind, 0) for name, value, kind in _PARAMS[autopilot])
+
+
+def aiding_off_params(autopilot: str) -> tuple[ParamValue, ...]:
+    """What turns ``autopilot``'s use of hilnav's frames off (its second GPS of type MAVLink;
+    external vision); ``line`` 0: not from the parameter file."""
+    return tuple(ParamValue(name, value, kind, 0) for name, value, kind in _OFF[autopilot])
 
 
 class CompanionAiding:

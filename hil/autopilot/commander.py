@@ -95,6 +95,9 @@ class Script:
     aiding: bool = False
     """hilnav's estimate is sent as the autopilot's navigation (:mod:`hil.autopilot.aiding`;
     its parameters are among ``params``)."""
+    aiding_off: bool = False
+    """The autopilot flies unaided: the parameters that would take hilnav's estimate are set
+    off (among ``params``)."""
 
     @property
     def empty(self) -> bool:
@@ -396,7 +399,8 @@ class Commander:
 
     def _where(self, p: ParamValue) -> str:
         if p.line == 0:
-            return " (set for aiding: hilnav)" if self.script.aiding else ""
+            return (" (set for aiding: hilnav)" if self.script.aiding
+                    else " (set for aiding: off)" if self.script.aiding_off else "")
         if self.script.params_file is None:
             return ""
         return f" ({self.script.params_file}:{p.line})" if p.line else \

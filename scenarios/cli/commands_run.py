@@ -212,6 +212,10 @@ def run(
     altitude: Annotated[str | None, typer.Option(help="Override the altitude method.")] = None,
     airspeed: AirspeedOverride = None,
     align: AlignOverride = None,
+    unaided_baseline: Annotated[bool, typer.Option(
+        "--unaided-baseline", help="With autopilot.aiding: hilnav: first fly the same seed "
+        "with the autopilot unaided (into OUT/unaided), then aided, and score both on one card "
+        "(as the scenario's autopilot.unaided_baseline).")] = False,
     quiet: QuietOption = False,
 ) -> None:
     """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
@@ -224,12 +228,21 @@ def run(
         # the plots' module (matplotlib) too, once the scenario is valid: loaded here, its
         # import runs no collection and the collections while the plots are drawn skip it
         import scenarios.report  # noqa: F401
-    if scn.autopilot.flies:
+    twice = unaided_baseline or scn.autopilot.unaided_baseline
+    if twice and scn.autopilot.aiding != "hilnav":
+        raise ValueError(f"--unaided-baseline compares the autopilot aided by hilnav with it "
+                         f"unaided: {scenario} needs autopilot.aiding: hilnav")
+    if scn.autopilot.flies and not twice:
         say_waiting_for_autopilot(scn)
     try:
-        with progress_bar(scn.duration_s, scn.name, quiet=quiet,
-                          events=scripted_events(sim_setup(scn))) as progress:
-            result = run_scenario(scn, out, progress=progress)
+        if twice:
+            from scenarios.unaided_baseline import run_with_unaided_baseline
+
+            result = run_with_unaided_baseline(scn, out, each_run=_each_flight(out, quiet))
+        else:
+            with progress_bar(scn.duration_s, scn.name, quiet=quiet,
+                              events=scripted_events(sim_setup(scn))) as progress:
+                result = run_scenario(scn, out, progress=progress)
     except AutopilotAbsent as exc:
         raise RunFailed(str(exc)) from None
     s = result.summary
@@ -254,6 +267,33 @@ def run(
     if failures or not result.passed:
         raise RunFailed(f"{scn.name}: " + ("; ".join(failures) or "did not pass")
                         + f"; see {out}")
+
+
+def _each_flight(out: Path, quiet: bool) -> Any:
+    """The two flights of a run with its unaided baseline, each announced, waited for and
+    shown with its own progress bar (:data:`scenarios.unaided_baseline.RunHook`)."""
+    from contextlib import contextmanager
+
+    from scenarios.runner import sim_setup
+    from scenarios.unaided_baseline import UNAIDED_DIR
+
+    @contextmanager
+    def each_flight(role: str, scn: Any) -> Any:
+        ap = scn.autopilot
+        if role == "unaided":
+            err_console.print(f"flight 1 of 2: {ap.kind} unaided (aiding off, the same seed) -> "
+                              f"{out / UNAIDED_DIR}", highlight=False)
+        else:
+            again = "" if getattr(ap, "binary", None) else (
+                f"; start {ap.kind} afresh for it (the first flight's instance has flown)")
+            err_console.print(f"flight 2 of 2: {ap.kind} aided by hilnav -> {out}{again}",
+                              highlight=False)
+        say_waiting_for_autopilot(scn)
+        with progress_bar(scn.duration_s, f"{scn.name} ({role})", quiet=quiet,
+                          events=scripted_events(sim_setup(scn))) as progress:
+            yield progress
+
+    return each_flight
 
 
 @cli_errors

@@ -233,6 +233,7 @@ def print_autopilot(s: dict[str, Any]) -> None:
             continue
         console.print(f"  {name}: hilnav {fmt(mine)} | {ap['source']} {fmt(theirs)}",
                       highlight=False)
+    _print_aided_unaided(s)
     script = ap.get("script")
     if script:
         times = [(what, ap.get(key)) for what, key in (
@@ -245,3 +246,33 @@ def print_autopilot(s: dict[str, Any]) -> None:
                           f"{ap['problem']}", highlight=False)
     for t in (ap.get("health") or {}).get("failsafes") or []:
         console.print(f"  {ap['source']} at {t['time_s']:.1f} s: {t['text']}", highlight=False)
+
+
+def _print_aided_unaided(s: dict[str, Any]) -> None:
+    """The aided-vs-unaided lines of a run flown with its unaided baseline (nothing without
+    one)."""
+    from scenarios.html import aided_unaided_rows
+
+    ap = s["autopilot"]
+    card = ap.get("aided_vs_unaided")
+    if not card:
+        return
+    run = (ap.get("unaided") or {}).get("run") or {}
+    source = ap["source"]
+    console.print(f"[bold]hilnav vs {source} aided by hilnav vs {source} unaided[/] (unaided: a "
+                  f"second flight of the same seed, {run.get('folder') or 'not flown'})",
+                  highlight=False)
+    for row in aided_unaided_rows(s):
+        if row.values is None:
+            verdict = "" if row.met is None else (" met" if row.met else " MISSED")
+            console.print(f"  {row.name}: {fmt(row.ratio)} (target <= {fmt(row.target)})"
+                          f"{verdict}", highlight=False)
+            continue
+        hilnav, aided, unaided, again = row.values
+        console.print(f"  {row.name}: hilnav {fmt(hilnav)} | aided {fmt(aided)} | unaided "
+                      f"{fmt(unaided)} (hilnav in that flight {fmt(again)})", highlight=False)
+    if card.get("problem"):
+        err_console.print(f"[yellow]warning:[/] unaided baseline not compared: "
+                          f"{card['problem']}", highlight=False)
+    for failure in run.get("failures") or []:
+        err_console.print(f"[yellow]warning:[/] the unaided flight: {failure}", highlight=False)

@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 
 from fusion.earth import principal_radii
-from hil.autopilot.aiding import aiding_params
+from hil.autopilot.aiding import aiding_off_params, aiding_params
 from hil.autopilot.commander import Script, StepTimeouts
 from hil.autopilot.mission import (
     MissionItem,
@@ -41,9 +41,14 @@ def build_script(section: AutopilotSection, start: tuple[float, float, float],
     """
     params = tuple(read_param_file(params_path)) if params_path is not None else ()
     aiding = section.aiding == "hilnav" and section.kind in ("ardupilot", "px4")
+    aiding_off = section.aiding == "off" and section.kind in ("ardupilot", "px4")
     if aiding:
         given = {p.name for p in params}
         params += tuple(p for p in aiding_params(section.kind) if p.name not in given)
+    elif aiding_off:  # unaided whatever the file says: its line for the name gives way
+        off = aiding_off_params(section.kind)
+        names = {p.name for p in off}
+        params = tuple(p for p in params if p.name not in names) + off
     t = section.timeouts
     return Script(
         params=params,
@@ -54,6 +59,7 @@ def build_script(section: AutopilotSection, start: tuple[float, float, float],
         timeouts=StepTimeouts(heartbeat_s=t.heartbeat_s, params_s=t.params_s,
                               mission_s=t.mission_s, arm_s=t.arm_s, mode_s=t.mode_s),
         aiding=aiding,
+        aiding_off=aiding_off,
     )
 
 

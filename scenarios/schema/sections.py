@@ -455,10 +455,15 @@ class AutopilotSection(Strict):
         "MISSION, HOLD, RTL.")
     timeouts: ScriptTimeouts = Field(default_factory=lambda: ScriptTimeouts(),
                                      description="Time each scripted step may take.")
-    aiding: Literal["none", "hilnav"] = Field(
+    aiding: Literal["none", "hilnav", "off"] = Field(
         default="none", description="hilnav: hilnav's estimate is sent to the autopilot as its "
         "navigation source over the telemetry link (ArduPilot GPS_INPUT on GPS2, PX4 ODOMETRY "
-        "as external vision), the parameters for it set by the script.")
+        "as external vision), the parameters for it set by the script; off: nothing is sent "
+        "and the script sets those parameters off (the unaided autopilot).")
+    unaided_baseline: bool = Field(
+        default=False, description="With aiding: hilnav, first fly the same scenario and seed "
+        "with aiding: off (into the run folder's unaided/) and score the unaided autopilot "
+        "beside the aided one.")
 
     @model_validator(mode="after")
     def _consistent(self) -> Self:
@@ -476,6 +481,10 @@ class AutopilotSection(Strict):
         if scripted and self.telemetry is None:
             raise key_error(f"{scripted[0]} is sent over the autopilot's telemetry link: set "
                             "telemetry", (scripted[0],))
+        if self.unaided_baseline and self.aiding != "hilnav":
+            raise key_error("unaided_baseline compares the autopilot aided by hilnav with it "
+                            f"unaided: set aiding to hilnav (it is {self.aiding!r})",
+                            ("unaided_baseline",))
         if self.mode is not None:
             from hil.autopilot.modes import mode_names
 

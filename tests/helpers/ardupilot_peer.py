@@ -191,7 +191,8 @@ class ArduPilotPeer:
     channels : int
         16 or 32 outputs per packet (SERVO_32_ENABLE).
     mavlink : bool
-        Serve a MAVLink port (``tcpin`` on a free port: :attr:`mavlink_url`).
+        Serve a MAVLink port (``mavlink_listen``, default ``tcpin`` on a free port:
+        :attr:`mavlink_url`).
     frame_rate_hz : int
         SIM_RATE_HZ sent in the packets.
     resend_s : float
@@ -222,6 +223,7 @@ class ArduPilotPeer:
         disarmed_s: float = 0.0,
         fix_after_s: float = 0.0,
         commands: CommandSide | None = None,
+        mavlink_listen: str = "tcpin:127.0.0.1:0",
     ) -> None:
         self.commands = commands
         self.custom_mode = _MANUAL
@@ -257,7 +259,7 @@ class ArduPilotPeer:
         self._gps = _Gps(self.params)
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sock.settimeout(0.05)
-        self._mav = MavlinkLink("tcpin:127.0.0.1:0", self._role()) if mavlink else None
+        self._mav = MavlinkLink(mavlink_listen, self._role()) if mavlink else None
         self._tel = MavlinkLink(telemetry_url, self._role()) if telemetry_url else None
         if disarmed_s <= 0.0:
             self.custom_mode = _CRUISE  # armed and flying from the first frame
