@@ -385,11 +385,13 @@ def plot_side_by_side(truth: Track, hilnav: Track, hilnav_err: Errors, autopilot
     tracks: list[tuple[Track, str, str, float, str]] = [
         (truth, "truth", "k", 1.4, "-"), (hilnav, "hilnav", "tab:blue", 0.9, "-"),
         (autopilot_track, aided, "tab:green", 0.9, "-")]
-    curves = [(hilnav_err, "hilnav", "tab:blue"), (autopilot_err, aided, "tab:green")]
+    curves = [(hilnav_err, "hilnav", "tab:blue", 3.0), (autopilot_err, aided, "tab:green", 3.0)]
     if unaided is not None and unaided.track is not None and unaided.errors is not None:
         tracks += [(unaided.truth, "truth, unaided flight", "tab:gray", 1.0, "--"),
                    (unaided.track, f"{autopilot} unaided", "tab:red", 0.9, "-")]
-        curves.append((unaided.errors, f"{autopilot} unaided (its own flight)", "tab:red"))
+        # beneath the others: its GNSS-on stretch often lies right on the aided one's
+        curves.append((unaided.errors, f"{autopilot} unaided (its own flight)", "tab:red",
+                       2.0))
     ne = [_local_ne(track, lat0, lon0, h0) for track, *_ in tracks]
     # the track panel is ~6.2 x 7 in, close to the 7 in _path_cell takes: cells ~half a pixel
     cell = _path_cell(fig, 100, *(a for n_e in ne for a in n_e))
@@ -404,11 +406,11 @@ def plot_side_by_side(truth: Track, hilnav: Track, hilnav_err: Errors, autopilot
     ax_t.set_title("Ground track")
     a1 = fig.add_subplot(grid[0, 1])
     a2 = fig.add_subplot(grid[1, 1], sharex=a1)
-    for err, label, color in curves:
+    for err, label, color, z in curves:
         t, h, up = err.time_s, err.horizontal_m, -err.pos_ned_m[:, 2]
         i = envelope_indices(t, h, up, bins=_bins(fig, 100))
-        a1.plot(t[i], h[i], lw=0.9, color=color, label=label)
-        a2.plot(t[i], up[i], lw=0.9, color=color, label=label)
+        a1.plot(t[i], h[i], lw=0.9, color=color, label=label, zorder=z)
+        a2.plot(t[i], up[i], lw=0.9, color=color, label=label, zorder=z)
     for ax, label in ((a1, "horizontal error (m)"), (a2, "height error (m)")):
         _shade(ax, outages)
         ax.set_ylabel(label)

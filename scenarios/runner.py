@@ -216,13 +216,13 @@ def score(
 def _with_baseline(baseline: UnaidedBaseline | None, scenario: Scenario,
                    summary: dict[str, Any], scored: Scored,
                    side: ScoredAutopilot | None) -> UnaidedFlight | None:
-    """The unaided baseline's part in scoring a run: the baseline run (``aiding: off``)
+    """The unaided baseline's part in scoring a run: the baseline run (``aiding: disabled``)
     records itself into it; the aided run gets ``autopilot.unaided`` and
     ``autopilot.aided_vs_unaided`` (and fails when there is nothing to compare). Returns the
     unaided flight to draw beside the aided one (None: none, or this is the baseline)."""
     if baseline is None or side is None:
         return None
-    if scenario.autopilot.aiding == "off":
+    if scenario.autopilot.aiding == "disabled":
         baseline.record(summary, scored.truth, side)
         return None
     failure = baseline.add_to(summary)
@@ -480,12 +480,12 @@ def _hold_until_flying(backend: AutopilotBackend, telemetry: AutopilotTelemetry,
 
 def _aiding_record(scenario: Scenario, aiding: CompanionAiding | None) -> dict[str, Any] | None:
     """The ``autopilot.aiding`` record: what hilnav sent (``aiding: hilnav``), or which of the
-    autopilot's parameters were set off (``aiding: off``); None without either."""
+    autopilot's parameters were set off (``aiding: disabled``); None without either."""
     if aiding is not None:
         return {"source": "hilnav", "frames_sent": aiding.sent,
                 "message": "GPS_INPUT" if aiding.autopilot == "ardupilot" else "ODOMETRY"}
     kind = scenario.autopilot.kind
-    if scenario.autopilot.aiding != "off" or kind not in ("ardupilot", "px4"):
+    if scenario.autopilot.aiding != "disabled" or kind not in ("ardupilot", "px4"):
         return None
     from hil.autopilot.aiding import aiding_off_params
 

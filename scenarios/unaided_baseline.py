@@ -5,9 +5,9 @@ With ``autopilot.aiding: hilnav`` and ``unaided_baseline: true`` (or ``hilnav ru
 --unaided-baseline``) the scenario is flown twice, one after the other
 (:func:`run_with_unaided_baseline`):
 
-1. the **unaided baseline**: the same scenario and seed with ``aiding: off`` (nothing is sent to
-   the autopilot and the script sets its aiding parameters off), a complete run folder of its
-   own in ``unaided/`` of the run's folder;
+1. the **unaided baseline**: the same scenario and seed with ``aiding: disabled`` (nothing is
+   sent to the autopilot and the script sets its aiding parameters off), a complete run folder
+   of its own in ``unaided/`` of the run's folder;
 2. the **aided run** into the run's folder, scored as any run with an autopilot, plus the
    baseline: ``summary.json``'s ``autopilot.unaided`` (the baseline's autopilot section, with
    its run's verdict and hilnav's outage errors in that run) and ``autopilot.aided_vs_unaided``
@@ -54,7 +54,7 @@ _ROW_KEYS: Final = ("horizontal_rmse_m", "horizontal_max_m")
 _AT_S: Final = ("30", "60")
 
 NOTE: Final = (
-    "The unaided row is a second flight of the same scenario and seed (aiding off): the same "
+    "The unaided row is a second flight of the same scenario and seed (aiding disabled): the same "
     "sensor errors, wind and fault timeline, but the autopilot is not deterministic and flies "
     "another path on other navigation, so each estimate is scored against its own flight's "
     "truth.")
@@ -66,8 +66,8 @@ peer that flight meets)."""
 
 
 def unaided_scenario(scenario: Scenario) -> Scenario:
-    """``scenario`` as its unaided baseline: ``aiding: off``, no baseline of its own."""
-    ap = scenario.autopilot.model_copy(update={"aiding": "off", "unaided_baseline": False})
+    """``scenario`` as its unaided baseline: ``aiding: disabled``, no baseline of its own."""
+    ap = scenario.autopilot.model_copy(update={"aiding": "disabled", "unaided_baseline": False})
     return scenario.model_copy(update={"autopilot": ap})
 
 

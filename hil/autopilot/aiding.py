@@ -12,7 +12,7 @@ its telemetry link as a companion computer would send it (:class:`hil.shadow.Com
 
 Those parameters (:func:`aiding_params`) are set by the script's parameter step, after the
 parameter file's (a name the file sets is left to the file). The unaided autopilot
-(``aiding: off``) has them set off (:func:`aiding_off_params`: ``GPS2_TYPE 0``,
+(``aiding: disabled``) has them set off (:func:`aiding_off_params`: ``GPS2_TYPE 0``,
 ``EKF2_EV_CTRL 0``) whatever the file says, so that an autopilot whose parameters persist from
 an aided flight (ArduPilot SITL's ``eeprom.bin``, PX4's parameter file) flies unaided.
 

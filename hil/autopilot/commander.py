@@ -400,7 +400,7 @@ class Commander:
     def _where(self, p: ParamValue) -> str:
         if p.line == 0:
             return (" (set for aiding: hilnav)" if self.script.aiding
-                    else " (set for aiding: off)" if self.script.aiding_off else "")
+                    else " (set for aiding: disabled)" if self.script.aiding_off else "")
         if self.script.params_file is None:
             return ""
         return f" ({self.script.params_file}:{p.line})" if p.line else \

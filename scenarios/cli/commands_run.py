@@ -281,8 +281,8 @@ def _each_flight(out: Path, quiet: bool) -> Any:
     def each_flight(role: str, scn: Any) -> Any:
         ap = scn.autopilot
         if role == "unaided":
-            err_console.print(f"flight 1 of 2: {ap.kind} unaided (aiding off, the same seed) -> "
-                              f"{out / UNAIDED_DIR}", highlight=False)
+            err_console.print(f"flight 1 of 2: {ap.kind} unaided (aiding: disabled, the same "
+                              f"seed) -> {out / UNAIDED_DIR}", highlight=False)
         else:
             again = "" if getattr(ap, "binary", None) else (
                 f"; start {ap.kind} afresh for it (the first flight's instance has flown)")

@@ -41,7 +41,7 @@ def build_script(section: AutopilotSection, start: tuple[float, float, float],
     """
     params = tuple(read_param_file(params_path)) if params_path is not None else ()
     aiding = section.aiding == "hilnav" and section.kind in ("ardupilot", "px4")
-    aiding_off = section.aiding == "off" and section.kind in ("ardupilot", "px4")
+    aiding_off = section.aiding == "disabled" and section.kind in ("ardupilot", "px4")
     if aiding:
         given = {p.name for p in params}
         params += tuple(p for p in aiding_params(section.kind) if p.name not in given)

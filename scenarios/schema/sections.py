@@ -455,14 +455,14 @@ class AutopilotSection(Strict):
         "MISSION, HOLD, RTL.")
     timeouts: ScriptTimeouts = Field(default_factory=lambda: ScriptTimeouts(),
                                      description="Time each scripted step may take.")
-    aiding: Literal["none", "hilnav", "off"] = Field(
+    aiding: Literal["none", "hilnav", "disabled"] = Field(
         default="none", description="hilnav: hilnav's estimate is sent to the autopilot as its "
         "navigation source over the telemetry link (ArduPilot GPS_INPUT on GPS2, PX4 ODOMETRY "
-        "as external vision), the parameters for it set by the script; off: nothing is sent "
-        "and the script sets those parameters off (the unaided autopilot).")
+        "as external vision), the parameters for it set by the script; disabled: nothing is "
+        "sent and the script sets those parameters off (the unaided autopilot).")
     unaided_baseline: bool = Field(
         default=False, description="With aiding: hilnav, first fly the same scenario and seed "
-        "with aiding: off (into the run folder's unaided/) and score the unaided autopilot "
+        "with aiding: disabled (into the run folder's unaided/) and score the unaided autopilot "
         "beside the aided one.")
 
     @model_validator(mode="after")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from fusion.estimate import Health, NavEstimate, TestRatios
-from hil.autopilot.aiding import CompanionAiding, aiding_params
+from hil.autopilot.aiding import CompanionAiding, aiding_off_params, aiding_params
 from hil.codec import mavlink2
 
 
@@ -46,3 +46,10 @@ def test_the_parameters_that_make_each_autopilot_use_them() -> None:
         ("GPS2_TYPE", 14.0, 9), ("GPS_AUTO_SWITCH", 1.0, 9)]
     assert [(p.name, p.value, p.param_type) for p in aiding_params("px4")] == [
         ("EKF2_EV_CTRL", 5.0, 6)]
+
+
+def test_the_parameters_that_turn_it_off_for_the_unaided_autopilot() -> None:
+    assert [(p.name, p.value, p.param_type) for p in aiding_off_params("ardupilot")] == [
+        ("GPS2_TYPE", 0.0, 9)]
+    assert [(p.name, p.value, p.param_type) for p in aiding_off_params("px4")] == [
+        ("EKF2_EV_CTRL", 0.0, 6)]

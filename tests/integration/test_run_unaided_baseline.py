@@ -1,5 +1,5 @@
 """``hilnav run`` with an unaided baseline: the autopilot flies the scenario's seed unaided
-(``aiding: off``) and then aided by hilnav, each flight meeting a fresh protocol peer
+(``aiding: disabled``) and then aided by hilnav, each flight meeting a fresh protocol peer
 (tests/helpers/px4_peer.py, ardupilot_peer.py, answering as autopilot_commands.py), and one
 summary.json, report.html and side-by-side plot score hilnav, the aided and the unaided
 autopilot together."""
@@ -91,7 +91,7 @@ def test_px4_aided_and_unaided_on_one_card(tmp_path: Path) -> None:
 
     @contextmanager
     def each_flight(role: str, flight: Scenario) -> Iterator[None]:
-        assert flight.autopilot.aiding == ("off" if role == "unaided" else "hilnav")
+        assert flight.autopilot.aiding == ("disabled" if role == "unaided" else "hilnav")
         sides[role] = _px4_side()
         peers[role] = Px4Peer(f"tcp:127.0.0.1:{port}", f"udpout:127.0.0.1:{tport}",
                               Px4Plan(turns=()), commands=sides[role])
@@ -188,7 +188,7 @@ def test_cli_flies_arduplane_unaided_then_aided_and_prints_the_card(tmp_path: Pa
     # unaided: its second GPS set off and never used; aided: on, and used in the outage
     assert sides[0].params["GPS2_TYPE"] == 0.0 and peers[0].counters["gps_input_fixes"] == 0
     assert sides[1].params["GPS2_TYPE"] == 14.0 and peers[1].counters["gps_input_fixes"] > 100
-    assert "flight 1 of 2: ardupilot unaided (aiding off, the same seed)" in stderr
+    assert "flight 1 of 2: ardupilot unaided (aiding: disabled, the same seed)" in stderr
     assert "flight 2 of 2: ardupilot aided by hilnav" in stderr
     assert "start ardupilot afresh" in stderr
     summary = json.loads((out / "summary.json").read_text())
