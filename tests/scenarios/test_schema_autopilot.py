@@ -139,6 +139,9 @@ def test_a_bad_parameter_file_names_its_line(tmp_path) -> None:  # type: ignore[
 @pytest.mark.parametrize(("name", "kind", "mode", "params"), [
     ("arduplane-mission-gnss-outage.yaml", "ardupilot", "AUTO", 7),
     ("px4-mission-gnss-outage.yaml", "px4", "MISSION", 9),
+    # the same with aiding: hilnav, its parameters added to the file's
+    ("arduplane-mission-gnss-outage-aided.yaml", "ardupilot", "AUTO", 9),
+    ("px4-mission-gnss-outage-aided.yaml", "px4", "MISSION", 10),
 ])
 def test_library_mission_scenarios_load_with_their_script(name: str, kind: str, mode: str,
                                                           params: int) -> None:
