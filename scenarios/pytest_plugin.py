@@ -66,7 +66,12 @@ class ScenarioItem(pytest.Item):
             scn = scn.with_overrides(**given)
         base = cfg.getoption("hilnav_out")
         root = Path(base) if base else cfg._tmp_path_factory.getbasetemp() / "hilnav"  # type: ignore[attr-defined]
-        result = run_scenario(scn, root / self.path.stem)
+        if scn.autopilot.unaided_baseline:  # both flights, one card
+            from scenarios.unaided_baseline import run_with_unaided_baseline
+
+            result = run_with_unaided_baseline(scn, root / self.path.stem)
+        else:
+            result = run_scenario(scn, root / self.path.stem)
         s = result.summary
         self.user_properties.append(("run_folder", str(result.out_dir)))
         problems = [

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import matplotlib as mpl
 import numpy as np
@@ -25,10 +25,22 @@ from scenarios import metrics
 from scenarios.event_metrics import EventWindow
 from scenarios.metrics import Errors, Window
 
-if TYPE_CHECKING:
-    from scenarios.unaided_baseline import UnaidedFlight
-
 EventLike = EventWindow | Mapping[str, Any]
+
+
+class UnaidedTracks(Protocol):
+    """An autopilot's unaided flight (:class:`scenarios.unaided_baseline.UnaidedFlight`): its
+    truth, and its estimate and errors when they were scored."""
+
+    @property
+    def truth(self) -> Track: ...
+
+    @property
+    def track(self) -> Track | None: ...
+
+    @property
+    def errors(self) -> Errors | None: ...
+
 
 #: Time bins per pixel column of the figure in :func:`envelope_indices` (at least one bin per
 #: pixel column of any axes in it).
@@ -365,7 +377,7 @@ def plot_drift_compare(
 
 def plot_side_by_side(truth: Track, hilnav: Track, hilnav_err: Errors, autopilot_track: Track,
                       autopilot_err: Errors, outages: list[Window], path: Path, *,
-                      autopilot: str = "autopilot", unaided: UnaidedFlight | None = None,
+                      autopilot: str = "autopilot", unaided: UnaidedTracks | None = None,
                       ) -> None:
     """Truth, hilnav's estimate and the autopilot's through the same denial: the ground
     tracks (left), horizontal and height errors of both estimates vs time with the outages
