@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from hil.autopilot.sitl_json import JsonOrigin, json_state_line
+from hil.codec import mavlink2
 from hil.pipeline import SimChain, SimSetup
 from physconst import G0_MPS2
 from physconst.airdata import calibrated_airspeed_mps
@@ -100,25 +101,38 @@ def test_takes_off_under_full_throttle_and_a_scripted_rotation() -> None:
 
 
 def test_the_autopilot_first_sees_an_aircraft_at_rest() -> None:
-    """The first state line ArduPilot's JSON interface reads and the first IMU and pitot
-    samples PX4's HIL_SENSOR carries: no airspeed, 1 g up, no motion."""
+    """The first HIL_SENSOR PX4 reads and the first state line ArduPilot's JSON interface
+    reads: no airspeed, 1 g up, no motion."""
     setup = SimSetup.build(plan="cruise", duration_s=2.0, start_kind="ground",
                            alt_msl_m=FIELD_M, heading_deg=HEADING_DEG)
     setup = dataclasses.replace(setup, flight=setup.flight.model_copy(
         update={"control": "external"}))
     imu: ImuSample | None = None
     pitot: AirspeedSample | None = None
+    parser = mavlink2.MAVLink(None)
+    hil_sensor = None
     with SimChain(setup) as chain:
         for step in chain.steps():
+            for _, frame in step.frames:
+                for message in parser.parse_buffer(frame) or []:
+                    if message.get_type() == "HIL_SENSOR" and hil_sensor is None:
+                        hil_sensor = message
             for sample in step.samples:
                 if isinstance(sample, ImuSample) and imu is None:
                     imu = sample
                 if isinstance(sample, AirspeedSample) and pitot is None:
                     pitot = sample
-            if imu is not None and pitot is not None:
+            if imu is not None and pitot is not None and hil_sensor is not None:
                 truth = step.truth
                 break
-    assert imu is not None and pitot is not None
+    assert imu is not None and pitot is not None and hil_sensor is not None
+    # PX4's view: HIL_SENSOR (m/s^2, rad/s, hPa)
+    np.testing.assert_allclose((hil_sensor.xacc, hil_sensor.yacc, hil_sensor.zacc),
+                               (0.0, 0.0, -G0_MPS2), atol=0.3)
+    np.testing.assert_allclose((hil_sensor.xgyro, hil_sensor.ygyro, hil_sensor.zgyro),
+                               (0.0, 0.0, 0.0), atol=0.01)
+    assert abs(hil_sensor.diff_pressure) < 0.05  # hPa: under 3 m/s
+    # ArduPilot's view: the JSON state line
     airspeed = calibrated_airspeed_mps(pitot.diff_pressure_pa)
     assert airspeed < 3.0  # the pitot's noise and offset around zero
     line = json.loads(json_state_line(truth, JsonOrigin(math.radians(LAT_DEG),
