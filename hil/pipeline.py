@@ -23,6 +23,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
+from typing import Literal
 
 from fusion.bridging.registry import BRIDGE_METHODS, make_bridge
 from fusion.config import (
@@ -100,6 +101,7 @@ class SimSetup:
         alt_msl_m: float = 1000.0,
         heading_deg: float = 0.0,
         airspeed_mps: float = 50.0,
+        start_kind: Literal["air", "ground"] = "air",
         wind: str = "0,0,0",
         turbulence: float = 0.0,
         wind_shear_exponent: float = 0.0,
@@ -119,7 +121,7 @@ class SimSetup:
             aircraft=aircraft,
             rate_hz=rate_hz,
             start=StartState(
-                lat_deg=lat_deg, lon_deg=lon_deg, alt_msl_m=alt_msl_m,
+                kind=start_kind, lat_deg=lat_deg, lon_deg=lon_deg, alt_msl_m=alt_msl_m,
                 heading_deg=heading_deg, airspeed_mps=airspeed_mps,
             ),
             wind_ned_mps=_parse_wind(wind),

@@ -67,6 +67,16 @@ _IO_ELEMENT = re.compile(
     r"<(input|output)\s+[^>]*?(?:/>|>.*?</\1\s*>)", flags=re.DOTALL | re.IGNORECASE
 )
 
+# JSBSim's generic Autopilot system (systems/Autopilot.xml; the c172x and global5000 load it)
+# writes its ground-steering switch to fcs/steer-cmd-norm at every frame -- 0 unless its own
+# autopilot steers -- which takes the nose wheel from every other pilot. The private copy
+# carries that system without this one output, in the aircraft's own Systems/ folder (JSBSim
+# looks there before the shared folder), so the rudder can steer the nose wheel on a ground
+# start. Nothing else reads the property, so a flight in the air is unchanged.
+_GENERIC_AUTOPILOT = "Autopilot"
+_STEERING_OUTPUT = "<output>fcs/steer-cmd-norm</output>"
+
+
 @lru_cache(maxsize=1)
 def _aircraft_dir() -> Path:
     return Path(jsbsim.get_default_root_dir()) / "aircraft"
@@ -84,8 +94,10 @@ def available_aircraft() -> list[str]:
     )
 
 
-def suggested_start(aircraft: str, **overrides: float) -> StartState:
-    """A start state at which ``aircraft`` trims (altitude and airspeed), plus ``overrides``.
+def suggested_start(aircraft: str, **overrides: Any) -> StartState:
+    """A start state at which ``aircraft`` trims (altitude and airspeed), plus ``overrides``
+    (any :class:`~sim.flight_config.StartState` field; a ground start takes the altitude as its
+    runway's elevation).
 
     Raises
     ------
@@ -112,6 +124,7 @@ def load_without_io(fdm: Any, aircraft: str) -> None:
             cleaned = _IO_ELEMENT.sub("", text)
             if cleaned != text:
                 xml.write_text(cleaned, encoding="utf-8", errors="surrogateescape")
+        _free_nose_wheel(folder, root / "systems")
         try:
             with jsbsim_log_discarded():  # load-time warnings of some wheel aircraft
                 loaded = fdm.load_model_with_paths(
@@ -122,6 +135,24 @@ def load_without_io(fdm: Any, aircraft: str) -> None:
     if not loaded:
         raise ValueError(f"JSBSim could not load aircraft {aircraft!r}")
     fdm.disable_output()
+
+
+def _free_nose_wheel(folder: Path, systems: Path) -> None:
+    """Give the aircraft copy in ``folder`` the generic Autopilot system without its
+    ground-steering output (see ``_STEERING_OUTPUT``), when it loads that system."""
+    uses = f'<system file="{_GENERIC_AUTOPILOT}"'
+    if not any(uses in xml.read_text(encoding="utf-8", errors="surrogateescape")
+               for xml in folder.glob("*.xml")):
+        return
+    own = folder / "Systems" / f"{_GENERIC_AUTOPILOT}.xml"
+    source = own if own.is_file() else systems / f"{_GENERIC_AUTOPILOT}.xml"
+    if not source.is_file():
+        return
+    text = source.read_text(encoding="utf-8", errors="surrogateescape")
+    if _STEERING_OUTPUT in text:
+        own.parent.mkdir(exist_ok=True)
+        own.write_text(text.replace(_STEERING_OUTPUT, ""), encoding="utf-8",
+                       errors="surrogateescape")
 
 
 class _DiscardLog(jsbsim.FGLogger):

@@ -1,5 +1,5 @@
-"""JSBSim flight adapter: loads an aircraft, starts it trimmed in the air, flies a plan, and
-returns truth in SI.
+"""JSBSim flight adapter: loads an aircraft, starts it trimmed in the air (or at rest on a
+runway), flies a plan, and returns truth in SI.
 
 This is the only module that knows JSBSim's units (feet, slugs, lbf, psf, Rankine); every
 property is converted once, here.
@@ -48,6 +48,20 @@ aircraft such as the c310 unless the throttle is already near its trimmed value;
 first trim fails the adapter therefore flies the start condition with the guidance law for up
 to two minutes, puts the aircraft back at the requested state with the settled controls, and
 trims again. Only if that fails too does it raise ``ValueError``.
+
+Start on the ground (``StartState.kind = "ground"``, for an autopilot that takes off itself):
+JSBSim's terrain is raised to the runway elevation (``ic/terrain-elevation-ft``), the aircraft
+is placed at rest just above it on ``heading_deg`` with its gear down, every engine is started
+with full mixture and idle throttle, JSBSim's ground trim (``do_trim(2)``) sets it on its gear,
+and it then stands for ``GROUND_SETTLE_S`` with the brakes set, before the flight's time 0,
+while the engine's start-up transient decays to idle and the struts settle; the brakes are
+then released. Measured (c172x, 200 Hz): at idle it stays put (no drift in 30 s), pitch
++0.38 deg and roll +0.29 deg on its gear, specific force (0, 0, -9.80) m/s^2, engine ~750 rpm.
+The nose wheel is steered with the rudder (``fcs/steer-cmd-norm`` = the yaw command, + = nose
+right, as the C172's pedals do; see :mod:`sim.aircraft` for the generic Autopilot system that
+would otherwise hold it at 0). On the ground the flight ends only if the simulation diverges
+or control is lost (bank > 100 deg, pitch > 70 deg); touching the ground and low airspeed are
+normal there, and a stall counts only once airborne.
 
 Turbulence: ``FlightConfig.turbulence`` in [0, 1] drives JSBSim's MIL-F-8785C (Dryden,
 ``atmosphere/turb-type = 3``) model: probability-of-exceedance index ``ceil(7 t)`` (about
@@ -125,6 +139,11 @@ __all__ = [
 
 
 _STALL_PERSIST_S = 0.5
+
+GROUND_SETTLE_S = 10.0
+"""Seconds a ground start stands braked before time 0 (engine to idle, struts settled)."""
+_GROUND_IC_AGL_FT = 5.0  # a first guess above the runway; the ground trim sets the height
+_BRAKES = ("fcs/left-brake-cmd-norm", "fcs/right-brake-cmd-norm", "fcs/center-brake-cmd-norm")
 
 # Properties read after every step, in this order (JSBSim units).
 _READ = (
@@ -243,7 +262,13 @@ class Flight:
             raise ValueError(
                 f"unknown aircraft {config.aircraft!r}: valid aircraft are {', '.join(valid)}"
             )
+        if config.start.on_ground and config.control == "guidance":
+            raise ValueError(
+                "a ground start needs an autopilot to take off: hilnav's guidance law flies "
+                "from an in-air trim only (start kind 'air')"
+            )
         self.config = config
+        self._on_ground_start = config.start.on_ground
         self.plan = plan
         self._wind_profile = config.wind_varies_with_altitude
         self._dt = 1.0 / config.rate_hz
@@ -265,8 +290,9 @@ class Flight:
         try:
             trim = self._start()
         except jsbsim.BaseError as error:
+            where = "on the ground" if self._on_ground_start else "in the air"
             raise ValueError(
-                f"JSBSim could not initialise {config.aircraft!r} in the air: {error}"
+                f"JSBSim could not initialise {config.aircraft!r} {where}: {error}"
             ) from None
         # turbulence after the trim: random gusts would upset the trim's equilibrium search
         self._set_wind()
@@ -292,6 +318,7 @@ class Flight:
         self._n_ail = n("fcs/aileron-cmd-norm")
         self._n_ele = n("fcs/elevator-cmd-norm")
         self._n_rud = n("fcs/rudder-cmd-norm")
+        self._n_steer = n("fcs/steer-cmd-norm")
         pm = self._fdm.get_property_manager()
         count = 0
         while pm.hasNode(f"propulsion/engine[{count}]"):
@@ -314,10 +341,11 @@ class Flight:
         return [get() for get in self._getters]
 
     def _start_wind(self) -> tuple[float, float, float]:
-        """The steady wind at the start altitude (JSBSim's terrain is at sea level: AGL = MSL
-        at the start)."""
-        alt = self.config.start.alt_msl_m
-        return self.config.wind_at(alt, alt)
+        """The steady wind at the start altitude (in the air JSBSim's terrain is at sea level:
+        AGL = MSL at the start; on the ground the start is 0 m above it)."""
+        start = self.config.start
+        alt = start.alt_msl_m
+        return self.config.wind_at(alt, alt - start.terrain_alt_msl_m)
 
     def _set_wind_ic(self, wind_ne_mps: tuple[float, float]) -> None:
         # run_ic() and the trim re-initialise the atmosphere's wind from the initial condition
@@ -382,7 +410,10 @@ class Flight:
         of 1.4 deg, and a 180-degree turn never came within its 1-degree completion tolerance.
         So in a horizontal wind the aircraft is first trimmed without wind (the trim point
         returned), then, for the start state, in the wind. Without wind: one trim, as always.
+        A ground start stands on the runway instead (:meth:`_start_on_ground`).
         """
+        if self._on_ground_start:
+            return self._start_on_ground()
         wn, we, _ = self._start_wind()
         if (wn, we) == (0.0, 0.0):
             return self._trim_in((0.0, 0.0))
@@ -432,6 +463,50 @@ class Flight:
                     "try another start.airspeed_mps or start.alt_msl_m"
                 )
         raw = self._raw = self._sample()
+        return TrimPoint(
+            controls=self._controls_now(),
+            theta_rad=raw[_ITHETA],
+            qbar_pa=raw[_IQBAR] * PSF_PA,
+            phi_rad=raw[_IPHI],
+        )
+
+    def _start_on_ground(self) -> TrimPoint:
+        """At rest on the runway, engines idling, brakes released (see the module docstring);
+        the returned point holds the idle controls and the attitude on the gear."""
+        fdm = self._fdm
+        s = self.config.start
+        fdm["ic/lat-geod-deg"] = s.lat_deg
+        fdm["ic/long-gc-deg"] = s.lon_deg
+        fdm["ic/terrain-elevation-ft"] = s.alt_msl_m / FT_M
+        fdm["ic/h-agl-ft"] = _GROUND_IC_AGL_FT
+        fdm["ic/psi-true-deg"] = s.heading_deg % 360.0
+        fdm["ic/phi-deg"] = 0.0
+        fdm["ic/theta-deg"] = 0.0
+        for axis in ("u", "v", "w"):
+            fdm[f"ic/{axis}-fps"] = 0.0
+        fdm["ic/vw-mag-fps"] = 0.0
+        fdm["gear/gear-cmd-norm"] = 1.0
+        with jsbsim_log_discarded():
+            fdm.run_ic()
+        self._start_engines()
+        for node in self._n_thr:
+            node.set_double_value(0.0)
+        try:
+            with jsbsim_log_discarded():
+                fdm.do_trim(2)  # JSBSim's ground trim: height, pitch and roll on the gear
+        except jsbsim.TrimFailureError:
+            raise ValueError(
+                f"JSBSim cannot set {self.config.aircraft} on its gear at {s.alt_msl_m:.0f} m"
+            ) from None
+        for name in _BRAKES:
+            fdm[name] = 1.0
+        for _ in range(round(GROUND_SETTLE_S / self._dt)):
+            fdm.run()
+        for name in _BRAKES:
+            fdm[name] = 0.0
+        raw = self._raw = self._sample()
+        if not all(math.isfinite(x) for x in raw):
+            raise ValueError(f"JSBSim diverged with {self.config.aircraft} on the runway")
         return TrimPoint(
             controls=self._controls_now(),
             theta_rad=raw[_ITHETA],
@@ -568,6 +643,7 @@ class Flight:
             self._n_ele.set_double_value(-pitch - pitch_trim)
         if yaw is not None:
             self._n_rud.set_double_value(-yaw - yaw_trim)
+            self._n_steer.set_double_value(_clip1(yaw))  # the nose wheel follows the pedals
         throttle = values[CONTROL_INDEX["throttle"]]
         if throttle is not None:
             for node in self._n_thr:
@@ -694,9 +770,12 @@ class Flight:
         t = self.time_s
         if not math.isfinite(math.fsum(raw)):  # any inf or nan makes the sum non-finite
             self._end("the simulation diverged (non-finite state)", t)
-        if raw[_IHAGL] * FT_M < 1.0 or raw[_IWOW] > 0.5:
+        on_ground_start = self._on_ground_start
+        if not on_ground_start and (raw[_IHAGL] * FT_M < 1.0 or raw[_IWOW] > 0.5):
             self._end(f"hit the ground at {raw[_IH]:.1f} m", t)
         alpha_deg = math.degrees(raw[_IALPHA])
+        if on_ground_start and raw[_IWOW] > 0.5:
+            alpha_deg = 0.0  # rolling on the gear: no stall, whatever the air does
         if alpha_deg > self.config.stall_alpha_deg:
             self._stall_s += self._dt
             if self._stall_s >= _STALL_PERSIST_S - 1e-9:
@@ -710,7 +789,7 @@ class Flight:
         phi, theta = math.degrees(raw[_IPHI]), math.degrees(raw[_ITHETA])
         if abs(phi) > 100.0 or abs(theta) > 70.0:
             self._end(f"loss of control: bank {phi:.0f} deg, pitch {theta:.0f} deg", t)
-        if raw[_IVT] * FT_M < 5.0:
+        if raw[_IVT] * FT_M < 5.0 and not on_ground_start:
             self._end(f"airspeed lost ({raw[_IVT] * FT_M:.1f} m/s)", t)
 
     def _end(self, reason: str, time_s: float) -> None:

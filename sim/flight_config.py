@@ -29,15 +29,44 @@ from sim.guidance import GuidanceGains
 
 
 class StartState(BaseModel):
-    """Where and how the aircraft starts: in the air, wings level, on ``heading_deg``."""
+    """Where and how the aircraft starts, on ``heading_deg`` (true).
+
+    ``kind="air"``: in the air at ``alt_msl_m``, wings level, trimmed at ``airspeed_mps``
+    (JSBSim's terrain is then at sea level, so the start is ``alt_msl_m`` above ground; at
+    least 100 m). ``kind="ground"``: at rest on a level runway whose elevation is
+    ``alt_msl_m`` (the terrain under the whole flight is at that height), gear on the ground,
+    brakes off, every engine idling; ``airspeed_mps`` is not used. An autopilot must fly a
+    ground start (see :class:`FlightConfig`).
+    """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
+    kind: Literal["air", "ground"] = "air"
     lat_deg: float = Field(default=47.0, ge=-85.0, le=85.0)
     lon_deg: float = Field(default=8.0, ge=-180.0, le=180.0)
-    alt_msl_m: float = Field(default=1000.0, ge=100.0, le=15000.0)
+    alt_msl_m: float = Field(default=1000.0, ge=-400.0, le=15000.0)
     heading_deg: float = Field(default=0.0, ge=-360.0, le=360.0)
     airspeed_mps: float = Field(default=50.0, gt=10.0, le=350.0)
+
+    @model_validator(mode="after")
+    def _air_start_above_terrain(self) -> Self:
+        if self.kind == "air" and self.alt_msl_m < 100.0:
+            raise ValueError(
+                f"an in-air start needs alt_msl_m >= 100 m (got {self.alt_msl_m:g}): the "
+                "terrain of an in-air start is at sea level; start on the ground with "
+                "kind: ground"
+            )
+        return self
+
+    @property
+    def on_ground(self) -> bool:
+        """True for a start at rest on the runway."""
+        return self.kind == "ground"
+
+    @property
+    def terrain_alt_msl_m(self) -> float:
+        """Height of the terrain under the flight: the runway's, or sea level in the air."""
+        return self.alt_msl_m if self.kind == "ground" else 0.0
 
 
 class FlightConfig(BaseModel):
@@ -59,7 +88,10 @@ class FlightConfig(BaseModel):
     ``guidance``: gains of the guidance law (defaults tuned on c172x and c310).
     ``control``: who flies the aircraft after the trim: ``"guidance"`` (our guidance law flies
     the plan) or ``"external"`` (an autopilot in the loop: the controls given to
-    :meth:`Flight.command` hold until the next command; the plan is not flown).
+    :meth:`Flight.command` hold until the next command; the plan is not flown). The guidance
+    law flies from an in-air trim only: a ground start (``start.kind="ground"``) needs
+    ``"external"`` (checked when the flight starts, :class:`sim.flight.Flight`). With wind
+    shear, a ground start needs ``wind_ref_agl_m`` (its start is 0 m above ground).
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -79,6 +111,12 @@ class FlightConfig(BaseModel):
 
     @model_validator(mode="after")
     def _one_wind_profile(self) -> Self:
+        if (self.start.on_ground and self.wind_shear_exponent > 0.0
+                and self.wind_ref_agl_m is None):
+            raise ValueError(
+                "wind shear from a ground start needs wind_ref_agl_m, the height above ground "
+                "where wind_ned_mps holds (e.g. 10 m)"
+            )
         table = self.wind_table
         if table:
             if any(not all(math.isfinite(x) for x in row) for row in table):
@@ -103,7 +141,7 @@ class FlightConfig(BaseModel):
     def wind_at(self, alt_msl_m: float, alt_agl_m: float) -> tuple[float, float, float]:
         """The steady (non-turbulent) wind at this height, NED m/s (see the class docstring).
 
-        ``alt_agl_m`` is floored at 1 m for the power law (the flight ends below it anyway).
+        ``alt_agl_m`` is floored at 1 m for the power law (an in-air flight ends below it).
         """
         wn, we, wd = self.wind_ned_mps
         if self.wind_table:

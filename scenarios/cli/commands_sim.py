@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import typer
 
@@ -74,6 +74,10 @@ def _flight_template(
         help="Start heading, deg true.", rich_help_panel=_FLIGHT)] = 0.0,
     airspeed: Annotated[float, typer.Option(
         help="Start true airspeed, m/s.", rich_help_panel=_FLIGHT)] = 50.0,
+    start: Annotated[str, typer.Option(
+        help="air: trimmed in the air at --alt and --airspeed; ground: at rest on a runway at "
+             "--alt (its elevation), engine idling, for an autopilot that takes off "
+             "(px4, ardupilot).", rich_help_panel=_FLIGHT)] = "air",
     wind: Annotated[str, typer.Option(
         help="Wind N,E,D in m/s (direction it blows to).", rich_help_panel=_FLIGHT)] = "0,0,0",
     wind_shear: Annotated[float, typer.Option(
@@ -113,12 +117,21 @@ class FlightOptions:
     alt: float = 1000.0
     heading: float = 0.0
     airspeed: float = 50.0
+    start: str = "air"
     wind: str = "0,0,0"
     wind_shear: float = 0.0
     wind_ref_agl: float | None = None
     turbulence: float = 0.0
     gnss_off: list[str] | None = None
     truth_rate: float = 50.0
+
+    def start_kind(self) -> Literal["air", "ground"]:
+        """``--start`` checked (ValueError names the valid kinds)."""
+        if self.start == "air":
+            return "air"
+        if self.start == "ground":
+            return "ground"
+        raise ValueError(f"--start must be air or ground (got {self.start!r})")
 
     def setup(self) -> Any:
         """The validated :class:`hil.pipeline.SimSetup` (ValueError on bad input)."""
@@ -128,11 +141,20 @@ class FlightOptions:
             plan=self.plan, aircraft=self.aircraft, duration_s=self.duration, seed=self.seed,
             rate_hz=self.rate, imu=self.imu, gnss=self.gnss, baro=self.baro, mag=self.mag,
             pitot=self.pitot, lat_deg=self.lat, lon_deg=self.lon, alt_msl_m=self.alt,
-            heading_deg=self.heading, airspeed_mps=self.airspeed, wind=self.wind,
+            heading_deg=self.heading, airspeed_mps=self.airspeed,
+            start_kind=self.start_kind(), wind=self.wind,
             turbulence=self.turbulence, wind_shear_exponent=self.wind_shear,
             wind_ref_agl_m=self.wind_ref_agl, gnss_off=self.gnss_off or [],
             truth_rate_hz=self.truth_rate,
         )
+
+
+def _guided_setup(flight: FlightOptions) -> Any:
+    """The setup of a flight hilnav's guidance law flies: an in-air start only."""
+    if flight.start_kind() == "ground":
+        raise bad_input("--start ground needs an autopilot to take off (hilnav sim px4 or "
+                        "sim ardupilot); hilnav's guidance law flies from an in-air start")
+    return flight.setup()
 
 
 flight_options = option_group("flight", _flight_template, FlightOptions)
@@ -181,7 +203,7 @@ def record(
     out_file(file, "--record")
     from hil.pipeline import record_flight
 
-    request = flight.setup()
+    request = _guided_setup(flight)
     with progress_bar(request.duration_s, "flying",
                       events=scripted_events(request)) as progress:
         report = record_flight(request, file, progress=progress)
@@ -220,7 +242,7 @@ def live(
 ) -> None:
     """Stream the frames live to a MAVLink URL (a fusion service) at --speed x real time."""
     record = _checked_record(record)
-    request = flight.setup()
+    request = _guided_setup(flight)
     access = zenoh_security.access(zenoh)
     from hil.live_sim import live_sim, stop_on_signals
     from hil.signing import load_key

@@ -34,6 +34,7 @@ from scenarios.schema.sections import (
     FusionSection,
     Sensors,
     StartSection,
+    StartSetting,
 )
 from scenarios.summary import Criterion
 from sim import presets
@@ -106,7 +107,10 @@ class Scenario(Strict):
         default="c172x", description="JSBSim aircraft (hilnav list).",
         json_schema_extra=listing("enum", available_aircraft()),
     )
-    start: StartSection = Field(default_factory=lambda: StartSection())
+    start: StartSetting = Field(
+        default_factory=lambda: StartSection(),
+        description="Where the flight starts: in the air, trimmed (the default), or on the "
+        "ground at rest on a runway (kind: ground, or just start: ground; needs an autopilot).")
     plan: PlanRef = Field(
         default="racetrack",
         description="A packaged plan name, a plan YAML path relative to this file, or an "
@@ -185,6 +189,7 @@ class Scenario(Strict):
             self.start_state()
         except (ValueError, ValidationError) as error:
             raise key_error(_message(error), ("start",)) from None
+        self._check_ground_start()
         try:
             self.flight_config()
         except (ValueError, ValidationError) as error:
@@ -203,6 +208,17 @@ class Scenario(Strict):
         return self
 
     # -- validation helpers ------------------------------------------------------------
+    def _check_ground_start(self) -> None:
+        if self.start.kind != "ground":
+            return
+        if self.start.airspeed_mps is not None:
+            raise key_error("a ground start is at rest: remove airspeed_mps",
+                            ("start", "airspeed_mps"))
+        if not self.autopilot.flies:
+            raise key_error(
+                "a ground start needs an autopilot to take off (autopilot: px4 or ardupilot); "
+                "hilnav's guidance law flies from an in-air start", ("start",))
+
     def _resolve_plan(self) -> FlightPlan:
         if isinstance(self.plan, FlightPlan):
             return self.plan

@@ -110,6 +110,18 @@ else:
     AccelOverrides = _overrides(AccelConfig, "AccelOverrides")
 
 
+def _start_shorthand(value: Any) -> Any:
+    return {"kind": value} if isinstance(value, str) else value
+
+
+StartSetting = Annotated[
+    StartSection,
+    BeforeValidator(_start_shorthand,
+                    json_schema_input_type=StartSection | Literal["air", "ground"]),
+]
+"""The ``start`` key: a section, or just the kind (``start: ground``)."""
+
+
 # ------------------------------------------------------------------------------- sensors
 class _PresetSection(Strict):
     """A sensor: a named preset, then field-by-field overrides in the preset's units."""

@@ -155,3 +155,37 @@ def test_library_mission_scenarios_load_with_their_script(name: str, kind: str, 
     assert [item.label for item in script.mission] == [
         "waypoint 1", "waypoint 2", "waypoint 3", "waypoint 4", "loiter 1", "rtl 1"]
     assert (scn.outage_windows()) == ((200.0, 260.0),)
+
+
+def test_ground_start_for_an_autopilot(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    short = load_scenario(write(tmp_path, BASE + "start: ground\nautopilot: ardupilot\n"))
+    start = short.start_state()
+    assert start.on_ground and start.alt_msl_m == 1000.0  # the c172x's suggested altitude
+    full = load_scenario(write(tmp_path, BASE + """
+start: {kind: ground, alt_msl_m: 450, heading_deg: 250}
+autopilot: px4
+""", name="full.yaml"))
+    start = full.start_state()
+    assert (start.kind, start.alt_msl_m, start.heading_deg) == ("ground", 450.0, 250.0)
+    assert full.flight_config().start.terrain_alt_msl_m == 450.0
+    assert load_scenario(write(tmp_path, BASE + "start: air\n", name="air.yaml")).start_state(
+    ).kind == "air"
+    validator = jsonschema.Draft202012Validator(json_schema())
+    assert list(validator.iter_errors({"duration_s": 10, "start": "ground",
+                                       "autopilot": "px4"})) == []
+
+
+@pytest.mark.parametrize(("text", "needle"), [
+    ("start: ground\n", "a ground start needs an autopilot to take off"),
+    ("start: ground\nautopilot: none\n", "ground start needs an autopilot"),
+    ("start: {kind: ground, airspeed_mps: 40}\nautopilot: px4\n",
+     "a ground start is at rest: remove airspeed_mps"),
+    ("start: {alt_msl_m: 50}\n", "in-air start needs alt_msl_m >= 100"),
+    ("start: runway\nautopilot: px4\n", "kind"),
+    ("start: ground\nautopilot: px4\nwind_ned_mps: [5, 0, 0]\nwind_shear_exponent: 0.14\n",
+     "wind_ref_agl_m"),
+])
+def test_bad_ground_starts_are_one_line_errors(tmp_path, text: str,  # type: ignore[no-untyped-def]
+                                               needle: str) -> None:
+    err = error_of(write(tmp_path, BASE + text))
+    assert needle in str(err)
