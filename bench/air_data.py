@@ -58,6 +58,7 @@ blocked pitot detected within 10 s and adding <= 30 m at 300 s (``--synthetic``)
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import multiprocessing as mp
@@ -127,6 +128,7 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
     plan, seed, imu = task["plan"], task["seed"], task["imu"]
     start_s, outage_s = task["outage_start_s"], task["outage_s"]
     wind, turbulence = weather(seed, task["max_wind_mps"], task.get("turbulence"))
+    factor = task.get("sensor_factor", 1.0)
     setup = SimSetup.build(
         plan=plan, imu=imu, gnss="modern", seed=seed, pitot=task.get("pitot", "ms4525do"),
         duration_s=start_s + outage_s + 5.0,
@@ -134,6 +136,8 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
         wind_shear_exponent=task.get("wind_shear", 0.0), alt_msl_m=task.get("start_alt_m", 1000.0),
         gnss_off=[f"{start_s}:{outage_s + 10.0}"],
     )  # fmt: skip
+    if factor != 1.0:  # the sensors fly worse than their preset; the filter keeps the preset
+        setup = dataclasses.replace(setup, sensors=worse_sensors(setup.sensors, factor))
     t0 = time.perf_counter()
     frames: list[bytes] = []
     flown = fly(setup, lambda _t, f: frames.append(f))
@@ -145,6 +149,7 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
         "plan": plan, "seed": seed, "imu": imu, "wind_ned_mps": wind,
         "wind_speed_mps": math.hypot(wind[0], wind[1]), "turbulence": turbulence,
         "sim_s": flown.sim_duration_s, "sim_wall_s": sim_wall, "methods": {},
+        "sensor_factor": factor,
     }  # fmt: skip
     end_s = start_s + outage_s
     for name, airspeed, bridge, keep_pitot in _methods():
@@ -155,7 +160,12 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
             cfg = cfg.model_copy(update={"airspeed": cfg.airspeed.model_copy(update=FIXED_AIR)})
         run = FusionRun(cfg, bridge)
         t1 = time.perf_counter()
-        run.feed(s for s in items if keep_pitot or not isinstance(s, AirspeedSample))
+        # the mean-wind estimate and its sigma at 1 Hz (the wind group's consistency)
+        wind_track: list[tuple[float, float, float, float, float]] = []
+        feed = [s for s in items if keep_pitot or not isinstance(s, AirspeedSample)]
+        for k in range(0, len(feed), 5000):
+            for e in run.feed(feed[k:k + 5000]):
+                _wind_point(run.nav, e, wind_track)
         wall = time.perf_counter() - t1
         col = run.collector
         assert col is not None
@@ -182,6 +192,8 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
             "rms_z_outage": {g: nees.get(f"rms_z_{g}") for g in ("pos", "vel", "att")},
             "rms_z_gnss_on": {g: aided.get(f"rms_z_{g}") for g in ("pos", "vel", "att")},
             "nees_gnss_on": aided.get("nees_mean"),
+            "nees_group_outage": _group_nees(err, inside),
+            "wind": _wind_consistency(wind_track, wind, turbulence, start_s, end_s),
             "turbulence_mps": air.turbulence_mps, "turbulence_source": air.turbulence_source,
             "position_error_per_rad": air.position_error_per_rad, "air_flags": air.flags,
             "mode_at_end": modes[min(k, len(modes) - 1)] if modes else None,
@@ -189,6 +201,81 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
             "filter_wall_s": wall,
         }
     return row
+
+
+def worse_sensors(sensors: Any, factor: float) -> Any:
+    """The suite with its IMU's and pitot's noise and bias terms times ``factor`` (white
+    noise, bias instability, rate random walk, turn-on bias; the pitot's noise, offsets and
+    scale error): sensors worse than the preset the filter is tuned for."""
+    g, a = sensors.imu.gyro, sensors.imu.accel
+    gyro = g.model_copy(update={k: getattr(g, k) * factor for k in (
+        "angle_random_walk_deg_per_rth", "bias_instability_deg_per_h",
+        "rate_random_walk_deg_per_h_per_rth", "turn_on_bias_deg_per_h")})
+    accel = a.model_copy(update={k: getattr(a, k) * factor for k in (
+        "velocity_random_walk_mps_per_rth", "bias_instability_ug", "rate_random_walk_ug_per_rth",
+        "turn_on_bias_mg")})
+    update: dict[str, Any] = {"imu": sensors.imu.model_copy(update={"gyro": gyro, "accel": accel})}
+    p = sensors.pitot
+    if p is not None:
+        update["pitot"] = p.model_copy(update={k: getattr(p, k) * factor for k in (
+            "noise_pa", "offset_sigma_pa", "offset_gm_sigma_pa", "offset_random_walk_pa_per_rth",
+            "scale_error_sigma")})
+    return sensors.model_copy(update=update)
+
+
+def _wind_point(nav: Any, e: Any, track: list[tuple[float, float, float, float, float]]) -> None:
+    """Append (t, wind N, E, sigma N, E) of an estimate with running wind states, at 1 Hz."""
+    air = e.air_data
+    t = e.time_us * 1e-6
+    if air is None or not air.wind_active or (track and t - track[-1][0] < 1.0):
+        return
+    w = nav.layout.WIND
+    pn, pe = float(e.P_diag[w]), float(e.P_diag[w + 1])
+    track.append((t, air.wind_ne_mps[0], air.wind_ne_mps[1], math.sqrt(max(pn, 0.0)),
+                  math.sqrt(max(pe, 0.0))))
+
+
+def _wind_consistency(
+    track: list[tuple[float, float, float, float, float]], wind: tuple[float, float, float],
+    turbulence: float, start_s: float, end_s: float,
+) -> dict[str, float | None]:  # fmt: skip
+    """rms(error / sigma) of the mean-wind estimate with GNSS on (from 120 s) and in the
+    outage, and its mean 2-dof NEES in the outage; only in steady air, where the truth is the
+    drawn wind (in turbulence the air at the aircraft is not one mean wind)."""
+    out: dict[str, float | None] = {"rms_z_gnss_on": None, "rms_z_outage": None,
+                                    "nees_outage": None, "rmse_outage_mps": None}
+    if turbulence > 0.0 or not track:
+        return out
+    arr = np.array(track)
+    zn = (arr[:, 1] - wind[0]) / np.maximum(arr[:, 3], 1e-9)
+    ze = (arr[:, 2] - wind[1]) / np.maximum(arr[:, 4], 1e-9)
+    on = (arr[:, 0] >= 120.0) & (arr[:, 0] < start_s)
+    off = (arr[:, 0] >= start_s) & (arr[:, 0] <= end_s)
+    for key, m in (("rms_z_gnss_on", on), ("rms_z_outage", off)):
+        if m.any():
+            out[key] = float(np.sqrt(np.mean(np.concatenate([zn[m], ze[m]]) ** 2)))
+    if off.any():
+        out["nees_outage"] = float(np.mean(zn[off] ** 2 + ze[off] ** 2))
+        en, ee = arr[off, 1] - wind[0], arr[off, 2] - wind[1]
+        out["rmse_outage_mps"] = float(np.sqrt(np.mean(en**2 + ee**2)))
+    return out
+
+
+def _group_nees(err: Any, mask: Any) -> dict[str, float | None]:
+    """Mean NEES of each 3-dof group (position, velocity, attitude) in the mask (expected 3),
+    from the 3x3 blocks of the covariance the filter reported."""
+    from scenarios import metrics
+
+    out: dict[str, float | None] = {"pos": None, "vel": None, "att": None}
+    if err.cov is None or not mask.any():
+        return out
+    att = err.tilt_rad if err.tilt_rad is not None else err.att_rad
+    cov9 = err.cov[np.flatnonzero(mask)]
+    for name, e, sl in (("pos", err.pos_ned_m, slice(0, 3)), ("vel", err.vel_ned_mps, slice(3, 6)),
+                        ("att", att, slice(6, 9))):  # fmt: skip
+        cov = np.ascontiguousarray(cov9[:, sl, sl])
+        out[name] = float(np.mean(metrics.nees(np.ascontiguousarray(e[mask]), cov)))
+    return out
 
 
 def _run_star(task: dict[str, Any]) -> dict[str, Any]:
@@ -342,16 +429,20 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-AIR_ROWS: tuple[tuple[str, float, tuple[float, float], str, tuple[str, ...]], ...] = (
-    # (air, max wind m/s, turbulence range, pitot, IMUs)
-    ("calm", 0.0, (0.0, 0.0), "ms4525do", ("industrial-mems", "consumer-mems")),
-    ("steady", 10.0, (0.0, 0.0), "ms4525do", ("industrial-mems", "consumer-mems")),
-    ("steady-pe", 10.0, (0.0, 0.0), "ms4525do-pe", ("industrial-mems",)),
-    ("turbulent", 12.0, (0.1, 0.4), "ms4525do", ("industrial-mems", "consumer-mems")),
+AIR_ROWS: tuple[tuple[str, float, tuple[float, float], str, tuple[str, ...], float], ...] = (
+    # (air, max wind m/s, turbulence range, pitot, IMUs, sensor factor)
+    ("calm", 0.0, (0.0, 0.0), "ms4525do", ("industrial-mems", "consumer-mems"), 1.0),
+    ("steady", 10.0, (0.0, 0.0), "ms4525do", ("industrial-mems", "consumer-mems"), 1.0),
+    ("steady-pe", 10.0, (0.0, 0.0), "ms4525do-pe", ("industrial-mems",), 1.0),
+    ("turbulent", 12.0, (0.1, 0.4), "ms4525do", ("industrial-mems", "consumer-mems"), 1.0),
+    ("steady-2x", 10.0, (0.0, 0.0), "ms4525do", ("industrial-mems", "consumer-mems"), 2.0),
+    ("turbulent-2x", 12.0, (0.1, 0.4), "ms4525do", ("industrial-mems", "consumer-mems"), 2.0),
 )
 """The ``--air-rows`` groups: the air (calm; steady wind without turbulence; turbulence
 0.1-0.4), the pitot (``-pe``: with the static-source position error of
-:mod:`sim.pitot`) and the IMUs flown."""
+:mod:`sim.pitot`), the IMUs flown and the sensor factor (``-2x``: the IMU's and the pitot's
+noise and bias terms twice their preset's, :func:`worse_sensors`, while the filter keeps the
+preset's model: the consistency rows)."""
 ROW_METHODS = ("inertial", "air-data-fixed", "air-data")
 
 
@@ -360,12 +451,13 @@ def run_air_rows(args: argparse.Namespace, argv: list[str] | None) -> int:
     flights each (seeds from ``--seed-base``, plans cycled), free inertial, today's fixed
     air-data filter and the adaptive one on the same samples. Per group: the ratio of the
     summed outage RMSEs to free inertial's, median / p95 / max error at 300 s, the largest
-    error in the outage, and rms(error / sigma) per group (position, velocity, attitude) in
-    the outage and with GNSS on (median and worst flight)."""
+    error in the outage, and rms(error / sigma) per group (position, velocity, attitude; the
+    mean wind in steady air) in the outage and with GNSS on (median and worst flight), and
+    the mean NEES per 3-dof group in the outage (worst flight; 3 is consistent)."""
     plans = args.plans.split(",")
     only = set(args.groups.split(",")) if args.groups else None
     tasks = []
-    for air, max_wind, turb, pitot, imus in AIR_ROWS:
+    for air, max_wind, turb, pitot, imus, factor in AIR_ROWS:
         if only is not None and air not in only:
             continue
         for imu in imus:
@@ -375,6 +467,7 @@ def run_air_rows(args: argparse.Namespace, argv: list[str] | None) -> int:
                     "seed": args.seed_base + i, "imu": imu, "pitot": pitot,
                     "outage_start_s": args.outage_start, "outage_s": args.outage,
                     "max_wind_mps": max_wind, "turbulence": turb, "methods": ROW_METHODS,
+                    "sensor_factor": factor,
                 })  # fmt: skip
     t0 = time.perf_counter()
     rows = _fly_all(tasks, args.jobs)
@@ -401,9 +494,11 @@ def run_air_rows(args: argparse.Namespace, argv: list[str] | None) -> int:
         for m, a in ms.items():
             print(f"{g:>28} {m:>15}: rmse {a['h_rmse_outage_m_median']:.0f} m "
                   f"x{a.get('rmse_ratio_vs_inertial') or 1.0:.2f}; "
-                  f"300 s med {a['h_err_300s_median']:.0f} p95 {a['h_err_300s_p95']:.0f}; "
+                  f"300 s med {a['h_err_300s_median']} p95 {a['h_err_300s_p95']}; "
                   f"max {a['h_max_m']:.0f}; "
-                  f"rms z out {a['rms_z_outage_median']} on {a['rms_z_gnss_on_median']}")
+                  f"rms z out {a['rms_z_outage_max']} on {a['rms_z_gnss_on_max']} "
+                  f"nees3 out {a['nees_group_outage_max']} "
+                  f"wind z on {a['wind_rms_z_gnss_on_max']} out {a['wind_rms_z_outage_max']}")
     return 0
 
 
@@ -429,6 +524,12 @@ def _row_summary(rows: list[dict[str, Any]], method: str) -> dict[str, Any]:
         out[f"{key}_max"] = {g: _round(max((m[key][g] for m in ms if m[key][g] is not None),
                                            default=None))
                              for g in ("pos", "vel", "att")}  # fmt: skip
+    out["nees_group_outage_max"] = {g: _round(max(
+        (m["nees_group_outage"][g] for m in ms if m["nees_group_outage"][g] is not None),
+        default=None)) for g in ("pos", "vel", "att")}  # fmt: skip
+    for key in ("rms_z_gnss_on", "rms_z_outage", "nees_outage", "rmse_outage_mps"):
+        out[f"wind_{key}_max"] = _round(max((m["wind"][key] for m in ms
+                                             if m["wind"][key] is not None), default=None))
     return out
 
 

@@ -602,7 +602,7 @@ class AirspeedAiding:
             return ins
         va = _air_speed(at.v_ned_mps, st.wind_ne_mps)
         fault = mon.assess(t_mean, tas, at.v_ned_mps, self._corrections(), st.wind_ne_mps,
-                           st.scale, static_pa, temp_k)  # fmt: skip
+                           st.scale, static_pa, temp_k, at.q_nb, alpha)  # fmt: skip
         if tas < cfg.min_airspeed_mps:
             c.airspeed_low += n
             if mon.blocked:
