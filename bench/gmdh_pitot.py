@@ -78,21 +78,20 @@ def _costs(model: Any, step_s: float) -> dict[str, Any]:
     repeats), against the filter's cost per IMU sample."""
     from fusion.pitot_model import PitotInputs
 
-    learner = model._learner
-    pairs = list(learner._pairs)
+    pairs = list(model._pairs)
     if len(pairs) < 8:
         return {"pairs": len(pairs)}
     t_last = pairs[-1][0]
     fits = []
     for _ in range(5):
         t0 = time.perf_counter()
-        learner._refit(t_last)
+        model._refit(t_last)
         fits.append(time.perf_counter() - t0)
     x = PitotInputs(*pairs[-1][1])
     n = 2000
     t0 = time.perf_counter()
     for _ in range(n):
-        model.correction(x)
+        model.error_mps(x)
     pred = (time.perf_counter() - t0) / n
     return {
         "pairs": len(pairs), "refit_ms": 1e3 * statistics.median(fits),
@@ -155,7 +154,7 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
             out.update({
                 "state": st.state, "pairs": st.samples, "refits": st.refits,
                 "held_out_rmse_mps": st.validation_rmse_mps,
-                "constant_rmse_mps": st.constant_rmse_mps, "skilled": model.skilled,
+                "filter_rmse_mps": st.constant_rmse_mps, "skilled": model.skilled,
                 "corrections": model.corrections, "out_of_range": model.out_of_range,
                 "polynomial": st.polynomial,
                 "cost": _costs(model, wall / max(1, n_imu)),

@@ -278,14 +278,6 @@ class OnlineAirspeedModel:
         return AirspeedPrediction(max(tas, 0.0) if self._non_negative else tas, sigma)
 
     @property
-    def training_range(self) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
-        """Lowest and highest value of each input in the last fit's training part (``None``
-        before the first fit)."""
-        if self._lo is None or self._hi is None:
-            return None
-        return tuple(self._lo.tolist()), tuple(self._hi.tolist())
-
-    @property
     def held_out_ratio(self) -> float:
         """Held-out RMS error of the last fit over a constant's (< 1: it learned something;
         NaN before the first fit)."""

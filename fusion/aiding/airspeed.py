@@ -254,9 +254,10 @@ class AirspeedAiding:
         ``learned_wind_updates``).
     pitot_model : OnlinePitotErrorModel, optional
         A learned pitot position error (``--bridge gmdh-pitot``): while GNSS is good and the
-        wind has converged it learns the measured TAS minus ``(1 + k) |v - w_mean|`` against
-        the flow angles and the TAS; with GNSS lost its correction is removed from each
-        measured TAS before the monitor and the update.
+        wind has converged it learns the measured TAS minus ``|v - w_mean|`` against the
+        flow angles and the TAS; with GNSS lost ``(1 + k) (TAS - e)`` replaces each measured
+        TAS before the monitor and the update (the learned error in place of the held
+        scale).
     """
 
     def __init__(
@@ -590,7 +591,10 @@ class AirspeedAiding:
         alpha = _alpha_rad(at, st.wind_ne_mps) if st.active else math.nan
         tas_raw, tas = tas, self.position_error.correct(tas, alpha)
         if self.pitot_model is not None and st.active and not gnss_active:
-            tas -= self.pitot_model.correction(_pitot_inputs(at, st.mean_wind_ne_mps, tas))
+            # the learned error replaces the held scale state: (1 + k) (TAS - e)
+            e = self.pitot_model.error_mps(_pitot_inputs(at, st.mean_wind_ne_mps, tas))
+            if e is not None:
+                tas = (1.0 + st.scale) * (tas - e)
         if abs(tas - math.sqrt(sum(v * v for v in at.v_ned_mps))) > cfg.max_wind_mps:
             # |TAS - ground speed| <= |wind|: no plausible wind explains this reading
             self._flag("pitot_implausible", now_us)
@@ -678,7 +682,8 @@ class AirspeedAiding:
 
     def _learn_pitot(self, t_us: int, at: InsState, tas_mps: float) -> None:
         """With GNSS good and the wind converged: one pair of the learned pitot error, the
-        measured TAS minus ``(1 + k) |v - w_mean|`` (:mod:`fusion.pitot_model`)."""
+        measured TAS minus ``|v - w_mean|``, with the filter's own prediction of it,
+        ``k |v - w_mean|`` (:mod:`fusion.pitot_model`)."""
         model, st = self.pitot_model, self.state
         assert model is not None
         P, w = self._covariance(), self.layout.WIND
@@ -686,8 +691,8 @@ class AirspeedAiding:
             return
         va = _air_speed(at.v_ned_mps, st.mean_wind_ne_mps)
         if va > _MIN_MODEL_SPEED_MPS:
-            model.observe(t_us, _pitot_inputs(at, st.mean_wind_ne_mps, tas_mps),
-                          tas_mps - (1.0 + st.scale) * va)  # fmt: skip
+            model.observe(t_us, _pitot_inputs(at, st.mean_wind_ne_mps, tas_mps), tas_mps - va,
+                          st.scale * va)  # fmt: skip
 
     def _sensor_sigma(self, speed_mps: float, static_pa: float, temp_k: float) -> float:
         """TAS sigma of one pitot sample from its pressure noise, ``sigma_qc / (rho V)``."""
