@@ -255,9 +255,8 @@ class AirspeedAiding:
     pitot_model : OnlinePitotErrorModel, optional
         A learned pitot position error (``--bridge gmdh-pitot``): while GNSS is good and the
         wind has converged it learns the measured TAS minus ``|v - w_mean|`` against the
-        flow angles and the TAS; with GNSS lost ``(1 + k) (TAS - e)`` replaces each measured
-        TAS before the monitor and the update (the learned error in place of the held
-        scale).
+        flow angles and the TAS; with GNSS lost its change from the conditions the scale state
+        last absorbed is removed from each measured TAS before the monitor and the update.
     """
 
     def __init__(
@@ -591,10 +590,9 @@ class AirspeedAiding:
         alpha = _alpha_rad(at, st.wind_ne_mps) if st.active else math.nan
         tas_raw, tas = tas, self.position_error.correct(tas, alpha)
         if self.pitot_model is not None and st.active and not gnss_active:
-            # the learned error replaces the held scale state: (1 + k) (TAS - e)
-            e = self.pitot_model.error_mps(_pitot_inputs(at, st.mean_wind_ne_mps, tas))
+            e = self.pitot_model.correction_mps(_pitot_inputs(at, st.mean_wind_ne_mps, tas))
             if e is not None:
-                tas = (1.0 + st.scale) * (tas - e)
+                tas -= e
         if abs(tas - math.sqrt(sum(v * v for v in at.v_ned_mps))) > cfg.max_wind_mps:
             # |TAS - ground speed| <= |wind|: no plausible wind explains this reading
             self._flag("pitot_implausible", now_us)
