@@ -86,17 +86,17 @@ def test_status_before_any_data_and_the_bridge_hands_the_model_over() -> None:
 
 def test_in_the_filter_it_learns_with_gnss_and_without_a_position_error_does_no_harm() -> None:
     # GIVEN a short version of the air-data tests' flight (turns, a climb and a descent, an
-    # airspeed wave), a pitot with white noise and no position error, GNSS lost for 100 s
+    # airspeed wave), a pitot with white noise and no position error, GNSS lost for 70 s
     from fusion.filter import NavFilter
     from tests.fusion.test_airspeed import CFG, ERRORS, TAS_NOISE_MPS, WIND, horizontal_error_m
     from tests.helpers.nav_synth import Flight, airspeed_samples, make_scenario, merge, prepare
 
-    turns = [(20.0, 35.0, 0.2), (60.0, 75.0, -0.2), (130.0, 145.0, 0.2), (190.0, 205.0, 0.2)]
-    prep = prepare(Flight(duration_s=250.0, speed_mps=30.0, wind_ne_mps=WIND, turns=turns,
-                          climbs=[(80.0, 95.0, 3.0), (170.0, 185.0, -3.0)],
+    turns = [(20.0, 35.0, 0.2), (60.0, 75.0, -0.2), (110.0, 125.0, 0.2), (160.0, 175.0, 0.2)]
+    prep = prepare(Flight(duration_s=200.0, speed_mps=30.0, wind_ne_mps=WIND, turns=turns,
+                          climbs=[(80.0, 95.0, 3.0), (140.0, 155.0, -3.0)],
                           speed_wave_mps=2.0))  # fmt: skip
-    rng = np.random.default_rng(43)
-    sc = make_scenario(prep, rng, ERRORS, gnss_outages=[(150.0, 250.0)])
+    rng = np.random.default_rng(45)
+    sc = make_scenario(prep, rng, ERRORS, gnss_outages=[(130.0, 200.0)])
     samples = merge(sc.samples, airspeed_samples(sc, WIND, rng, tas_noise_mps=TAS_NOISE_MPS))
     errs = {}
     for name in ("none", "gmdh-pitot"):
