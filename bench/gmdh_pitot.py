@@ -21,6 +21,12 @@ single-outage ratio; per flight the physics slope taken, whether the learned cor
 applied and its selected polynomial. Cost: a GMDH refit on the learned model's own window
 (median of repeats) and one prediction, against the filter's mean cost per IMU sample.
 
+``--cost`` times a refit on a full window and a prediction through the whole correction path
+against a filter step measured in the same process (the flights' own timings above are taken
+while other jobs share the machine, and their prediction is mostly the gate's early return):
+
+    python bench/gmdh_pitot.py --cost [--out bench/results/gmdh_pitot_cost.json]
+
 Seeds and plans, decided before any held-out run: the flights must change their angle of
 attack (climbs, descents, pitch and bank changes), so ``climb-descent`` and ``manoeuvre``;
 the learned model's settings (window, skill ratio, range margin, inputs) were looked at on
@@ -100,6 +106,64 @@ def _costs(model: Any, step_s: float) -> dict[str, Any]:
         "predict_us": 1e6 * pred, "filter_step_us": 1e6 * step_s,
         "predict_over_step": pred / step_s if step_s > 0 else None,
     }  # fmt: skip
+
+
+def run_cost(out: Path, argv: list[str] | None) -> int:
+    """``--cost``: a refit on a full window (600 pairs: ten minutes of an angle-of-attack
+    sweep with a position error, the unit tests' case) and one prediction through the whole
+    path (skilled, in range), against a filter step (the air-data filter on the air-data
+    tests' synthetic flight, per IMU sample) measured in the same process."""
+    from fusion.bridging.registry import make_bridge
+    from fusion.filter import NavFilter
+    from fusion.pitot_model import PitotInputs
+    from tests.fusion.test_airspeed import CFG, ERRORS, TAS_NOISE_MPS, WIND
+    from tests.fusion.test_pitot_model import _fly
+    from tests.helpers.nav_synth import Flight, airspeed_samples, make_scenario, merge, prepare
+
+    bridge = make_bridge("gmdh-pitot")
+    model = bridge.pitot_model
+    assert model is not None
+    _fly(model, np.random.default_rng(1), 0.05)
+    x = PitotInputs(math.radians(3.0), 0.0, 31.0)
+    assert model.correction_mps(x) is not None, "the cost case must be skilled and in range"
+    t_last = model._pairs[-1][0]
+    fits = []
+    for _ in range(7):
+        t0 = time.perf_counter()
+        model._refit(t_last)
+        fits.append(time.perf_counter() - t0)
+    n = 20000
+    t0 = time.perf_counter()
+    for _ in range(n):
+        model.correction_mps(x)
+    pred_s = (time.perf_counter() - t0) / n
+    prep = prepare(Flight(duration_s=120.0, speed_mps=30.0, wind_ne_mps=WIND,
+                          turns=[(20.0, 35.0, 0.2), (60.0, 75.0, -0.2)]))  # fmt: skip
+    rng = np.random.default_rng(1)
+    sc = make_scenario(prep, rng, ERRORS)
+    samples = merge(sc.samples, airspeed_samples(sc, WIND, rng, tas_noise_mps=TAS_NOISE_MPS))
+    n_imu = sum(1 for s in sc.samples if type(s).__name__ == "ImuSample")
+    steps = []
+    for _ in range(3):
+        nav = NavFilter(CFG)
+        t0 = time.perf_counter()
+        for s in samples:
+            nav.step(s)  # type: ignore[arg-type]
+        steps.append((time.perf_counter() - t0) / n_imu)
+    step_s = min(steps)
+    result = {
+        "bench": "gmdh_pitot_cost",
+        "command": "python bench/gmdh_pitot.py " + " ".join(argv or sys.argv[1:]),
+        "pairs": len(model._pairs), "refit_ms_median": 1e3 * statistics.median(fits),
+        "refit_ms_max": 1e3 * max(fits), "predict_us": 1e6 * pred_s,
+        "filter_step_us": 1e6 * step_s, "predict_over_step": pred_s / step_s,
+        "targets": {"refit_ms": 50.0, "predict_over_step": 0.3},
+        "load_average": os.getloadavg(), "machine": platform.processor() or platform.machine(),
+    }  # fmt: skip
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=1) + "\n")
+    print(json.dumps(result))
+    return 0
 
 
 def run_flight(task: dict[str, Any]) -> dict[str, Any]:
@@ -214,7 +278,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--plans", default="climb-descent,manoeuvre")
     ap.add_argument("--groups", default="pe-on,pe-off")
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument("--cost", action="store_true",
+                    help="only the cost of a refit and a prediction against a filter step "
+                         "(run_cost; default --out bench/results/gmdh_pitot_cost.json)")
     args = ap.parse_args(argv)
+    if args.cost:
+        out = args.out if "--out" in (argv or sys.argv) else Path(
+            "bench/results/gmdh_pitot_cost.json")
+        return run_cost(out, argv)
     groups = args.groups.split(",")
     if bad := set(groups) - set(PITOTS):
         ap.error(f"unknown groups {sorted(bad)}; known: {', '.join(PITOTS)}")
