@@ -17,9 +17,9 @@ when GNSS is lost (:mod:`fusion.aiding.airspeed`).
 ``gmdh-pitot`` (:class:`PitotErrorBridge`) hands the filter an
 :class:`~fusion.pitot_model.OnlinePitotErrorModel`: the air-data aiding trains it on the
 measured airspeed's error against the angle of attack, the sideslip and the airspeed while
-GNSS is good, and with GNSS lost removes the predicted error from each measured airspeed
-before fusing it (behind its skill gate, inside its trained range). Its status is ``active``
-while the last airspeed was corrected.
+GNSS is good, and with GNSS lost removes the learned error's change from the window's mean
+from each measured airspeed before fusing it (behind its skill gate, inside its trained
+range). Its status is ``active`` while the last airspeed was corrected.
 """
 
 from __future__ import annotations
