@@ -9,7 +9,8 @@ re-export them.
 from __future__ import annotations
 
 BRIDGE_METHODS: tuple[str, ...] = (
-    "none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel", "gmdh-airspeed", "gmdh-wind"
+    "none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel", "gmdh-airspeed", "gmdh-wind",
+    "gmdh-pitot",
 )
 """Names accepted by :func:`fusion.bridging.registry.make_bridge`."""
 

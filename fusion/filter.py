@@ -177,7 +177,8 @@ class NavFilter(FilterState):
         self._air: AirspeedAiding | None = (
             AirspeedAiding(cfg.airspeed, lay, self._c, self._correct, self._current_covariance,
                            self._activate_air, self._velocity_corrections,
-                           self.bridge.airspeed_model, self.bridge.wind_model)
+                           self.bridge.airspeed_model, self.bridge.wind_model,
+                           self.bridge.pitot_model)
             if self._air_on else None
         )  # fmt: skip
         self._learns_airspeed = self._air is not None and self._air.model is not None

@@ -66,6 +66,7 @@ from fusion.aiding.turbulence import TurbulenceEstimator
 from fusion.airspeed_model import AirspeedInputs, OnlineAirspeedModel
 from fusion.config import AirspeedTuning
 from fusion.estimate import AidSource, AirDataStatus, HealthCounters
+from fusion.pitot_model import OnlinePitotErrorModel, PitotInputs
 from fusion.rotations import dcm_from_quat, euler_from_quat
 from fusion.samples import AirspeedSample
 from fusion.state_layout import StateLayout
@@ -251,6 +252,11 @@ class AirspeedAiding:
         known it learns the mean-wind estimate against the INS height; with GNSS lost the
         mean wind moves with the profile as the height changes (counted in
         ``learned_wind_updates``).
+    pitot_model : OnlinePitotErrorModel, optional
+        A learned pitot position error (``--bridge gmdh-pitot``): while GNSS is good and the
+        wind has converged it learns the measured TAS minus ``|v - w_mean|`` against the
+        flow angles and the TAS; with GNSS lost its change from the conditions the scale state
+        last absorbed is removed from each measured TAS before the monitor and the update.
     """
 
     def __init__(
@@ -260,6 +266,7 @@ class AirspeedAiding:
         corrections: Callable[[], Vec3] | None = None,
         model: OnlineAirspeedModel | None = None,
         wind_model: OnlineWindModel | None = None,
+        pitot_model: OnlinePitotErrorModel | None = None,
     ) -> None:  # fmt: skip
         self.cfg = cfg
         self.layout = layout
@@ -277,6 +284,7 @@ class AirspeedAiding:
         self._corrections = corrections if corrections is not None else _no_corrections
         self.model = model
         self.wind_model = wind_model
+        self.pitot_model = pitot_model
         self._profile_last: tuple[float, float] | None = None
         self._timeout_us = round(cfg.timeout_s * 1e6)
         self._sum_t = 0
@@ -581,6 +589,10 @@ class AirspeedAiding:
             at = ins
         alpha = _alpha_rad(at, st.wind_ne_mps) if st.active else math.nan
         tas_raw, tas = tas, self.position_error.correct(tas, alpha)
+        if self.pitot_model is not None and st.active and not gnss_active:
+            e = self.pitot_model.correction_mps(_pitot_inputs(at, st.mean_wind_ne_mps, tas))
+            if e is not None:
+                tas -= e
         if abs(tas - math.sqrt(sum(v * v for v in at.v_ned_mps))) > cfg.max_wind_mps:
             # |TAS - ground speed| <= |wind|: no plausible wind explains this reading
             self._flag("pitot_implausible", now_us)
@@ -632,6 +644,8 @@ class AirspeedAiding:
             return ins
         if gnss_active:
             self._learn_air(at.v_ned_mps, tas, tas_raw, alpha, static_pa, temp_k, n)
+            if self.pitot_model is not None:
+                self._learn_pitot(t_mean, at, tas)
         res = self._update(obs, self.gate, AidSource.AIRSPEED, now_us)
         ok = res.test_ratio <= 1.0
         if ok:
@@ -663,6 +677,20 @@ class AirspeedAiding:
         turb.add(r, s_sensor * s_sensor / n)
         if turb.saturated and not was:
             self._c.turbulence_saturated += 1
+
+    def _learn_pitot(self, t_us: int, at: InsState, tas_mps: float) -> None:
+        """With GNSS good and the wind converged: one pair of the learned pitot error, the
+        measured TAS minus ``|v - w_mean|``, with the filter's own prediction of it,
+        ``k |v - w_mean|`` (:mod:`fusion.pitot_model`)."""
+        model, st = self.pitot_model, self.state
+        assert model is not None
+        P, w = self._covariance(), self.layout.WIND
+        if max(float(P[w, w]), float(P[w + 1, w + 1])) > _RESIDUAL_MAX_WIND_SIGMA_MPS**2:
+            return
+        va = _air_speed(at.v_ned_mps, st.mean_wind_ne_mps)
+        if va > _MIN_MODEL_SPEED_MPS:
+            model.observe(t_us, _pitot_inputs(at, st.mean_wind_ne_mps, tas_mps), tas_mps - va,
+                          st.scale * va)  # fmt: skip
 
     def _sensor_sigma(self, speed_mps: float, static_pa: float, temp_k: float) -> float:
         """TAS sigma of one pitot sample from its pressure noise, ``sigma_qc / (rho V)``."""
@@ -701,6 +729,20 @@ def _alpha_rad(ins: InsState, wind_ne_mps: tuple[float, float]) -> float:
     bx = c[0] * a[0] + c[3] * a[1] + c[6] * a[2]
     bz = c[2] * a[0] + c[5] * a[1] + c[8] * a[2]
     return math.atan2(bz, bx)
+
+
+def _pitot_inputs(ins: InsState, wind_ne_mps: tuple[float, float], tas_mps: float) -> PitotInputs:
+    """The learned pitot error's inputs: angle of attack and sideslip of ``a = v - w`` in body
+    axes, and the measured TAS."""
+    v = ins.v_ned_mps
+    a = (v[0] - wind_ne_mps[0], v[1] - wind_ne_mps[1], v[2])
+    c = dcm_from_quat(ins.q_nb)  # C_nb row-major: a_b = C_nb^T a
+    bx = c[0] * a[0] + c[3] * a[1] + c[6] * a[2]
+    by = c[1] * a[0] + c[4] * a[1] + c[7] * a[2]
+    bz = c[2] * a[0] + c[5] * a[1] + c[8] * a[2]
+    speed = math.sqrt(bx * bx + by * by + bz * bz)
+    beta = math.asin(max(-1.0, min(1.0, by / speed))) if speed > 0.0 else math.nan
+    return PitotInputs(math.atan2(bz, bx), beta, tas_mps)
 
 
 def _no_corrections() -> Vec3:

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from fusion.airspeed_model import OnlineAirspeedModel
+from fusion.pitot_model import OnlinePitotErrorModel
 from fusion.strapdown import InsState
 from fusion.wind_model import OnlineWindModel
 
@@ -166,11 +167,12 @@ class BridgeStatus:
     active : bool
         A correction or pseudo-fix is being applied now.
     model : str
-        A learned model's selected polynomial (``gmdh-airspeed``; ``gmdh-wind``: one per wind
-        axis), readable; empty for the other strategies.
+        A learned model's selected polynomial (``gmdh-airspeed``, ``gmdh-pitot``; ``gmdh-wind``:
+        one per wind axis), readable; empty for the other strategies.
     model_rmse : float
         That model's RMS error on the most recent, held-out part of its training window, in
-        its target's units (m/s of true airspeed or of wind); NaN before its first fit.
+        its target's units (m/s of true airspeed, of wind or of airspeed error); NaN before its
+        first fit.
     """
 
     method: str
@@ -232,6 +234,12 @@ class Bridge(Protocol):
         at construction; None for the other strategies."""
         ...
 
+    @property
+    def pitot_model(self) -> OnlinePitotErrorModel | None:
+        """A learned pitot position error for the filter's air-data aiding (``gmdh-pitot``),
+        read once at construction; None for the other strategies."""
+        ...
+
     def on_gnss(self, epoch: BridgeEpoch, error: InsError) -> None:
         """One fused (or attempted) GNSS fix: the training pair."""
         ...
@@ -256,6 +264,7 @@ class NoBridge:
     virtual_outage_count = 0
     airspeed_model: OnlineAirspeedModel | None = None
     wind_model: OnlineWindModel | None = None
+    pitot_model: OnlinePitotErrorModel | None = None
 
     @property
     def status(self) -> BridgeStatus:

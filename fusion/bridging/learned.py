@@ -62,6 +62,7 @@ from fusion.bridging.interface import (
 )
 from fusion.bridging.models import Candidate, ComponentModel
 from fusion.config import BridgeConfig
+from fusion.pitot_model import OnlinePitotErrorModel
 from fusion.wind_model import OnlineWindModel
 
 FloatArray = NDArray[np.float64]
@@ -158,6 +159,7 @@ class LearnedBridge:
 
     airspeed_model: OnlineAirspeedModel | None = None
     wind_model: OnlineWindModel | None = None
+    pitot_model: OnlinePitotErrorModel | None = None
     """These strategies correct position and velocity, not the air data."""
 
     @property

@@ -23,6 +23,11 @@
 ``gmdh-wind``             a learned wind profile: GMDH learns the filter's mean wind against
                           height while GNSS is good; with GNSS lost the filter fuses its
                           prediction at the current height (:mod:`fusion.wind_model`)
+``gmdh-pitot``            a learned pitot position error: GMDH learns the measured airspeed's
+                          error against angle of attack, sideslip and airspeed while GNSS is
+                          good; with GNSS lost the filter removes the predicted error from
+                          the measured airspeed, behind a skill gate and inside the trained
+                          range (:mod:`fusion.pitot_model`)
 ========================  =====================================================================
 
 What each method achieves on held-out flights is measured by ``bench/bridging.py`` and
@@ -35,7 +40,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from fusion.bridging.airspeed import AirspeedModelBridge, WindModelBridge
+from fusion.bridging.airspeed import AirspeedModelBridge, PitotErrorBridge, WindModelBridge
 from fusion.bridging.interface import Bridge, NoBridge
 from fusion.bridging.learned import LearnedBridge
 from fusion.bridging.models import ComponentModel, NarxModel, StatelessModel
@@ -82,7 +87,7 @@ def make_bridge(name: str, config: BridgeConfig | None = None) -> Bridge:
     ----------
     name : str
         ``none``, ``gmdh``, ``gmdh-pseudo``, ``mlp``, ``rbf``, ``bp-parallel``,
-        ``gmdh-airspeed`` or ``gmdh-wind``.
+        ``gmdh-airspeed``, ``gmdh-wind`` or ``gmdh-pitot``.
     config : BridgeConfig, optional
         Training and model settings. Fields not set explicitly take the method's
         :data:`METHOD_DEFAULTS`, then ``BridgeConfig``'s defaults; ``features=None`` picks
@@ -108,6 +113,8 @@ def make_bridge(name: str, config: BridgeConfig | None = None) -> Bridge:
         return AirspeedModelBridge()
     if name == "gmdh-wind":
         return WindModelBridge()
+    if name == "gmdh-pitot":
+        return PitotErrorBridge()
     # the method's defaults fill in whatever the caller did not set explicitly
     given = {} if config is None else config.model_dump(include=config.model_fields_set)
     cfg = BridgeConfig(**{**METHOD_DEFAULTS.get(name, {}), **given})

@@ -507,8 +507,8 @@ def test_every_method_runs_in_the_filter_through_an_outage(turning: Prepared, na
     if name == "none":
         assert st.state == "off" and all(e.mode == "free-inertial" for e in during)
         return
-    if name in ("gmdh-airspeed", "gmdh-wind"):
-        # they learn from controls and rpm, or the air data's wind: this stream has neither
+    if name in ("gmdh-airspeed", "gmdh-wind", "gmdh-pitot"):
+        # they learn from controls and rpm, or the air data: this stream has neither
         # (tests/fusion/test_airspeed.py, test_wind_model.py)
         assert st.state == "no inputs" and all(e.mode == "free-inertial" for e in during)
         return
