@@ -156,6 +156,7 @@ def test_list_json() -> None:
     assert "c172x" in choices["aircraft"] and "c310" in choices["aircraft"]
     assert set(choices["plans"]) == {"cruise", "racetrack", "climb-descent", "survey", "manoeuvre"}
     assert {"consumer-mems", "industrial-mems", "tactical", "paper-p2"} <= set(choices["imu"])
+    assert choices["imu_thermal"] == ["adis1646x", "bmi088", "icm20948", "icm42688p", "off"]
     assert choices["align"] == ["auto", "static", "in-flight"]
 
 
