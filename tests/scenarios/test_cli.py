@@ -31,6 +31,7 @@ def _run(*args: str) -> tuple[int, str]:
         (["--plan", "loop-the-loop"], "climb-descent, cruise, manoeuvre"),
         (["--aircraft", "sopwith"], "c172x"),
         (["--imu", "gold-plated"], "industrial-mems"),
+        (["--imu-thermal", "bmi089"], "adis1646x, bmi088"),
         (["--gnss", "galileo-prs"], "modern"),
         (["--duration", "-5"], "duration"),
         (["--rate", "1000"], "rate_hz"),
