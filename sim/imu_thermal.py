@@ -293,7 +293,8 @@ class ImuThermalModel:
         self._phi_heat = math.exp(-THERMAL_STEP_S / part.heater_time_constant_s)
         self._w_k = part.hysteresis_width_k
         self._t0_us: int | None = None
-        self._next_us = 0
+        self._step_us = round(THERMAL_STEP_S * 1e6)
+        self._next_us = -(2**62)
         self._next_report_us = 0
         self._report_period_us = round(part.temperature_update_s * 1e6)
         self.bias = [0.0] * 6
@@ -365,8 +366,9 @@ class ImuThermalModel:
 
     def _report(self) -> None:
         part = self.config.part
-        t_c = (self.die_temperature_k - KELVIN_AT_0_C + self.unit.sensor_offset_k
-               + part.temperature_noise_k * float(self._rng.standard_normal()))
+        t_c = self.die_temperature_k - KELVIN_AT_0_C + self.unit.sensor_offset_k
+        if part.temperature_noise_k > 0.0:
+            t_c += part.temperature_noise_k * float(self._rng.standard_normal())
         q = part.temperature_resolution_k
         if q > 0.0:
             z = part.temperature_zero_c
@@ -380,10 +382,12 @@ class ImuThermalModel:
         Updates :attr:`bias`, :attr:`scale`, the temperatures and
         :attr:`reported_temperature_k`. The first call sets the start.
         """
+        step_us = self._step_us
+        if time_us < self._next_us + step_us and time_us < self._next_report_us:
+            return  # the usual IMU sample: nothing is due
         if self._t0_us is None:
             self._start(time_us, alt_msl_m)
             self._errors()
-        step_us = round(THERMAL_STEP_S * 1e6)
         changed = False
         t0 = self._t0_us
         assert t0 is not None
