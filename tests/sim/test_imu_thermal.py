@@ -229,3 +229,16 @@ def test_default_suite_stream_is_the_one_before_the_thermal_generator_existed() 
     ref = ImuModel(cfg.imu, np.random.default_rng(np.random.SeedSequence(9).spawn(5)[0]), 200.0)
     np.testing.assert_array_equal(suite.imu.turn_on_bias, ref.turn_on_bias)
     np.testing.assert_array_equal(suite.imu.transfer, ref.transfer)
+
+
+def test_the_curve_is_not_a_low_order_polynomial_in_temperature() -> None:
+    # the knee (tanh) leaves a cubic least-squares fit over the part's range a visible residual
+    m = _model(seed=2)
+    ref_k = 25.0 + KELVIN_AT_0_C
+    t = np.linspace(-40.0, 85.0, 251) + KELVIN_AT_0_C
+    g = static_curve(m.unit, t, ref_k)[:, 3:]
+    x = (t - t.mean()) / 50.0
+    basis = np.vander(x, 4)
+    residual = g - basis @ np.linalg.lstsq(basis, g, rcond=None)[0]
+    spread = g.max(axis=0) - g.min(axis=0)
+    assert np.max(np.abs(residual).max(axis=0) / spread) > 0.02
