@@ -96,6 +96,7 @@ class SimSetup:
         baro: str = "ms5611",
         mag: str = "consumer",
         pitot: str = presets.DEFAULT_PITOT_PRESET,
+        imu_thermal: str = presets.IMU_THERMAL_OFF,
         lat_deg: float = 47.0,
         lon_deg: float = 8.0,
         alt_msl_m: float = 1000.0,
@@ -112,7 +113,8 @@ class SimSetup:
     ) -> SimSetup:
         """A setup from human-facing options (preset names, ``N,E,D`` wind, ``START:DUR``
         outages); ValueError / ValidationError name the bad one. ``pitot="none"``: an
-        aircraft without an airspeed sensor (no ``diff_pressure`` in the stream)."""
+        aircraft without an airspeed sensor (no ``diff_pressure`` in the stream);
+        ``imu_thermal``: a thermal IMU part powered on at the start, or ``off``."""
         if not duration_s > 0:
             raise ValueError(f"duration must be > 0 s (got {duration_s})")
         if seed < 0:
@@ -133,7 +135,8 @@ class SimSetup:
         return cls(
             flight=flight,
             plan=load_plan(plan),
-            sensors=presets.suite_config(imu=imu, gnss=gnss, baro=baro, mag=mag, pitot=pitot),
+            sensors=presets.suite_config(imu=imu, gnss=gnss, baro=baro, mag=mag, pitot=pitot,
+                                         imu_thermal=imu_thermal),
             duration_s=duration_s,
             seed=seed,
             gnss_off=tuple(GnssWindow.parse(w) for w in gnss_off),
@@ -189,7 +192,8 @@ class SimChain:
             if s.faults is not None:
                 self.faults = FaultInjector(s.faults, seed=s.seed, t0_us=self.flight.time_us)
             self.streamer = SensorStreamer(truth_rate_hz=s.truth_rate_hz, gnss_off=s.gnss_off,
-                                           faults=self.faults)
+                                           faults=self.faults,
+                                           imu_temperature=s.sensors.imu_thermal is not None)
         except BaseException:
             self.flight.__exit__(None, None, None)
             raise

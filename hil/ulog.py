@@ -12,7 +12,10 @@ Sensors (instance 0 of each topic; other instances are counted, not used)
         its integration interval ``gyro_integral_dt`` (µs as uint32; seconds in releases
         before v1.8, where the field is a float) -> :class:`ImuSample` at ``timestamp`` (the
         gyro's; the accelerometer's is ``timestamp + accelerometer_timestamp_relative``,
-        within one sample). A row with a non-finite value is dropped (``dropped``).
+        within one sample). A row with a non-finite value is dropped (``dropped``). The
+        sample's temperature is the IMU's: the latest ``sensor_accel`` ``temperature`` °C at
+        or before it (else ``vehicle_imu_status`` ``temperature_accel``; PX4 logs either at
+        about 1 Hz), NaN before the first or when neither is logged.
     ``vehicle_gps_position`` (else ``sensor_gps``)
         ``latitude_deg`` / ``longitude_deg`` / ``altitude_msl_m`` (v1.14 on) or ``lat`` /
         ``lon`` degE7 and ``alt`` mm MSL (before); ``vel_n_m_s`` ... NED m/s; ``eph`` /
@@ -86,6 +89,7 @@ TOPICS: Final = (
     "sensor_combined", "vehicle_gps_position", "sensor_gps", "vehicle_air_data",
     "vehicle_magnetometer", "airspeed", "actuator_controls_0", "actuator_outputs",
     "vehicle_attitude", "vehicle_global_position", "vehicle_local_position",
+    "sensor_accel", "vehicle_imu_status",
 )  # fmt: skip
 
 FloatArray = NDArray[np.float64]
@@ -187,7 +191,7 @@ def read_ulog(path: str | os.PathLike[str]) -> UlogLog:
     out.duration_s = max(0, int(ulog.last_timestamp) - t0) * 1e-6
     samples: list[Sample] = []
     if "sensor_combined" in data:
-        samples += _imu(data["sensor_combined"], t0, out)
+        samples += _imu(data["sensor_combined"], t0, out, _imu_temperature(data, t0))
     gps_topic = next((n for n in ("vehicle_gps_position", "sensor_gps") if n in data), None)
     if gps_topic is not None:
         out.gnss_topic = gps_topic
@@ -239,7 +243,22 @@ def _drop(out: UlogLog, topic: str, ok: NDArray[np.bool_]) -> None:
 
 
 # ------------------------------------------------------------------------------ sensors
-def _imu(d: Any, t0: int, out: UlogLog) -> list[Sample]:
+def _imu_temperature(data: dict[str, Any], t0: int) -> tuple[FloatArray, FloatArray] | None:
+    """Times (µs) and temperatures (K) of the IMU's logged temperature, finite rows only."""
+    for topic, name in (("sensor_accel", "temperature"),
+                        ("vehicle_imu_status", "temperature_accel")):
+        d = data.get(topic)
+        col = None if d is None else _col(d, name)
+        if d is not None and col is not None:
+            temp = col.astype(float) + 273.15
+            ok = np.isfinite(temp)
+            if np.any(ok):
+                return _times_us(d, t0)[ok].astype(float), temp[ok]
+    return None
+
+
+def _imu(d: Any, t0: int, out: UlogLog,
+         temperature: tuple[FloatArray, FloatArray] | None = None) -> list[Sample]:
     t = _times_us(d, t0)
     w = _vec(d, "gyro_rad")
     f = _vec(d, "accelerometer_m_s2")
@@ -248,7 +267,14 @@ def _imu(d: Any, t0: int, out: UlogLog) -> list[Sample]:
     dt_s = dt if _field_type(d, "gyro_integral_dt") == "float" else dt * 1e-6
     ok = np.isfinite(w).all(axis=1) & np.isfinite(f).all(axis=1) & np.isfinite(dt_s)
     _drop(out, "sensor_combined", ok)
-    return [ImuSample(int(t[i]), float(dt_s[i]), f[i], w[i]) for i in np.flatnonzero(ok)]
+    temp_k = np.full(len(t), np.nan)
+    if temperature is not None:
+        times, values = temperature
+        order = np.argsort(times, kind="stable")
+        k = np.searchsorted(times[order], t, side="right") - 1  # the latest at or before
+        temp_k = np.where(k >= 0, values[order][np.maximum(k, 0)], np.nan)
+    return [ImuSample(int(t[i]), float(dt_s[i]), f[i], w[i], float(temp_k[i]))
+            for i in np.flatnonzero(ok)]
 
 
 def _gnss(d: Any, t0: int, out: UlogLog) -> list[Sample]:

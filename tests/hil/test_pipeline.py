@@ -251,3 +251,29 @@ def test_batched_steps_fly_the_same_steps_up_to_the_end_of_the_flight() -> None:
     by_one = sunk(1)
     assert by_one == sunk(64)
     assert [f for _, f in by_one[0]] == [f for s in one[0] for _, f in s[3]]
+
+
+def test_a_thermal_imu_flies_with_its_temperature_on_the_wire() -> None:
+    """GIVEN a flight with a BMI088's thermal model WHEN it is flown and decoded THEN every IMU
+    sample carries the part's reported temperature (0.125 K steps about 23 C) and every
+    barometer sample the barometer's; without the model the IMU gets the barometer's."""
+    from hil.codec.wire import KELVIN_AT_0_CELSIUS
+    from sim.samples import BaroSample, ImuSample
+
+    def decoded(thermal: str) -> tuple[list[float], list[float]]:
+        frames: list[bytes] = []
+        fly(SimSetup.build(duration_s=3.0, seed=2, imu_thermal=thermal),
+            lambda t, f: frames.append(f))
+        dec = Decoder()
+        out = [d.sample for f in frames for d in dec.feed(f)]
+        return ([s.temperature_k for s in out if isinstance(s, ImuSample)],
+                [s.temperature_k for s in out if isinstance(s, BaroSample)])
+
+    imu, baro = decoded("bmi088")
+    n = (np.array(imu) - KELVIN_AT_0_CELSIUS - 23.0) / 0.125
+    np.testing.assert_allclose(n, np.round(n), atol=1e-9)
+    plain_imu, plain_baro = decoded("off")
+    assert set(plain_imu[1:]) <= set(plain_baro)  # the barometer's, as before
+    assert baro == plain_baro  # the barometer's own, in its own frame
+    grid = (np.array(plain_imu[1:]) - KELVIN_AT_0_CELSIUS - 23.0) / 0.125
+    assert np.max(np.abs(grid - np.round(grid))) > 0.01  # not the part's steps

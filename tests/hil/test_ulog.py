@@ -126,3 +126,19 @@ def test_a_cut_log_reads_what_it_holds(tmp_path: Path) -> None:
 def test_a_dropped_topic_is_absent(tmp_path: Path) -> None:
     log = read_ulog(filter_ulog(EVENTS, tmp_path / "x.ulg", drop_topics={"vehicle_magnetometer"}))
     assert log.count(MagSample) == 0 and log.count(ImuSample) == 7783
+
+
+def test_imu_samples_carry_the_logged_imu_temperature() -> None:
+    """The CubeOrange log's heated IMU: sensor_accel's ~1 Hz temperature, held until the next
+    one, on every IMU sample after the first; NaN before it (never a made-up value)."""
+    log = read_ulog(SMALL)
+    raw = ULog(str(SMALL))
+    accel = next(d for d in raw.data_list if d.name == "sensor_accel" and d.multi_id == 0)
+    logged_c = np.asarray(accel.data["temperature"], dtype=float)
+    imu = [s for s in log.samples if isinstance(s, ImuSample)]
+    temps_c = np.array([s.temperature_k for s in imu]) - 273.15
+    known = temps_c[np.isfinite(temps_c)]
+    assert 0 < len(known) < len(temps_c)
+    assert not np.any(np.isfinite(temps_c[:np.argmax(np.isfinite(temps_c))]))
+    assert set(np.round(known, 4)) <= set(np.round(logged_c, 4))
+    assert 35.0 < known.mean() < 45.0  # held near 40 C by the board's heater
