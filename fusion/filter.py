@@ -100,6 +100,7 @@ from fusion.samples import (
 )
 from fusion.screening import SampleScreen
 from fusion.strapdown import InsState
+from fusion.thermal.link import ThermalLink
 from physconst.isa import pressure_altitude_m
 
 __all__ = ["Health", "NavEstimate", "NavFilter"]  # the filter, its output and counters
@@ -198,6 +199,11 @@ class NavFilter(FilterState):
         # happened
         self._est_ratios = TestRatios()
         self._est_aiding = AidingStatus()
+        model = self.bridge.thermal_model
+        self._thermal = (
+            ThermalLink(cfg.thermal, lay, self._c, model)
+            if cfg.thermal.mode != "off" or model is not None else None
+        )  # fmt: skip
 
     def step(self, sample: Sample) -> list[NavEstimate]:
         """Process one sample of any kind (in time order per sensor).
@@ -370,6 +376,9 @@ class NavFilter(FilterState):
 
     # ------------------------------------------------------------------ IMU
     def _on_imu(self, s: ImuSample) -> list[NavEstimate]:
+        thermal = self._thermal
+        if thermal is not None:
+            s = thermal.pre(s)  # screened; calibrated with cal
         step = self._screen_imu(s)
         if step is None:
             if self._screen.rebase_pending:
@@ -418,6 +427,8 @@ class NavFilter(FilterState):
         if not good:
             # integrated from the last good sample: the sensors did not see this interval
             cov.add_unknown_motion(dt)
+        if thermal is not None:
+            self._thermal_step(thermal, t)
         self._history_push(t, ins)
         zero = self._zero
         if zero is not None and good:
@@ -450,6 +461,21 @@ class NavFilter(FilterState):
                 self._next_out_us = t + self._out_period_us
             return [self._make_estimate()]
         return []
+
+    def _thermal_step(self, thermal: ThermalLink, t: int) -> None:
+        """Move the bias estimate with the die temperature (:mod:`fusion.thermal.link`)."""
+        nom = self._nom
+        assert nom is not None
+        ba, bg = nom.accel_bias_b_mps2, nom.gyro_bias_b_rps
+        step = thermal.bias_step(self._gnss_ctl.is_active(t), t, (ba, bg))
+        if step is None:
+            return
+        da, dg, d_t = step
+        self._cov.thermal_dt_k += d_t
+        if da != _ZERO3 or dg != _ZERO3:
+            self._nom = nom._replace(
+                accel_bias_b_mps2=(ba[0] + da[0], ba[1] + da[1], ba[2] + da[2]),
+                gyro_bias_b_rps=(bg[0] + dg[0], bg[1] + dg[1], bg[2] + dg[2]))  # fmt: skip
 
     def _coast(self, t: int, gap_s: float) -> None:
         """IMU data missing for ``gap_s``: constant-velocity dead reckoning, covariance grown by
@@ -529,6 +555,8 @@ class NavFilter(FilterState):
         self._history.push(time_us, state)
         self._gnss.control.start(time_us)
         self._next_out_us = time_us
+        if self._thermal is not None:
+            self._thermal.start()
         self._outage.restart()
         self._alt.restart()  # a (re)start also restarts the altitude channel
         air = self._air

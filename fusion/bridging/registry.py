@@ -23,6 +23,10 @@
 ``gmdh-wind``             a learned wind profile: GMDH learns the filter's mean wind against
                           height while GNSS is good; with GNSS lost the filter fuses its
                           prediction at the current height (:mod:`fusion.wind_model`)
+``gmdh-thermal``          a learned IMU bias against die temperature and its rate: GMDH learns
+                          the filter's bias estimate while GNSS is good; with GNSS lost the
+                          filter moves its bias by the predicted change
+                          (:mod:`fusion.thermal.bias_model`)
 ========================  =====================================================================
 
 What each method achieves on held-out flights is measured by ``bench/bridging.py`` and
@@ -39,6 +43,7 @@ from fusion.bridging.airspeed import AirspeedModelBridge, WindModelBridge
 from fusion.bridging.interface import Bridge, NoBridge
 from fusion.bridging.learned import LearnedBridge
 from fusion.bridging.models import ComponentModel, NarxModel, StatelessModel
+from fusion.bridging.thermal import ThermalModelBridge
 from fusion.choices import BRIDGE_METHODS
 from fusion.config import BridgeConfig
 from fusion.gmdh import GmdhRegressor
@@ -82,7 +87,7 @@ def make_bridge(name: str, config: BridgeConfig | None = None) -> Bridge:
     ----------
     name : str
         ``none``, ``gmdh``, ``gmdh-pseudo``, ``mlp``, ``rbf``, ``bp-parallel``,
-        ``gmdh-airspeed`` or ``gmdh-wind``.
+        ``gmdh-airspeed``, ``gmdh-wind`` or ``gmdh-thermal``.
     config : BridgeConfig, optional
         Training and model settings. Fields not set explicitly take the method's
         :data:`METHOD_DEFAULTS`, then ``BridgeConfig``'s defaults; ``features=None`` picks
@@ -108,6 +113,8 @@ def make_bridge(name: str, config: BridgeConfig | None = None) -> Bridge:
         return AirspeedModelBridge()
     if name == "gmdh-wind":
         return WindModelBridge()
+    if name == "gmdh-thermal":
+        return ThermalModelBridge(config)
     # the method's defaults fill in whatever the caller did not set explicitly
     given = {} if config is None else config.model_dump(include=config.model_fields_set)
     cfg = BridgeConfig(**{**METHOD_DEFAULTS.get(name, {}), **given})
