@@ -78,6 +78,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from fusion.config import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
 from fusion.estimate import Mode, NavEstimate
+from fusion.thermal.tuning import ThermalTuning
 from hil.bus import BusAccess, Topic
 from hil.codec import TRUTH_COMPONENT_ID, mavlink2
 from hil.codec.wire import STANDARD_MODES_DIALECT
@@ -146,6 +147,8 @@ class FusionOptions(BaseModel):
     airspeed: str = DEFAULT_AIRSPEED_MODE
     """Air data: ``on``, ``off`` or ``synthetic`` (:data:`fusion.config.AIRSPEED_MODES`)."""
     align: str = DEFAULT_ALIGN_MODE
+    thermal: ThermalTuning | None = None
+    """The IMU thermal strategy (``None``: the filter's default, ``off``)."""
     """Alignment: ``auto``, ``static`` or ``in-flight`` (:data:`fusion.config.ALIGN_MODES`)."""
     gcs: str | None = None
     gcs_tlog: Path | None = None
@@ -326,7 +329,7 @@ class FusionService:
         self.options = options
         self.bus_access = bus_access or BusAccess()
         self.config = filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
-                                    options.airspeed, options.align)
+                                    options.airspeed, options.align, options.thermal)
         self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None,
                                 spill_dir=options.out)
         self.nav = self.fusion.nav

@@ -28,41 +28,47 @@ class _Frozen(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
 
-class ThermalCalibration(_Frozen):
-    """A bias-versus-temperature calibration polynomial, as PX4 and ArduPilot store it.
+class ThermalPolynomial(_Frozen):
+    """One sensor's bias-versus-temperature polynomial, as PX4 and ArduPilot store it.
 
     ``offset(T) = c0 + c1 x + c2 x^2 + c3 x^3`` per axis with ``x = clamp(T, t_min_k,
     t_max_k) - t_ref_k``; the corrected sample is ``raw - (offset(T) - offset(T_cal))`` where
-    ``T_cal`` is ``*_cal_temp_k`` (ArduPilot: the temperature of the ordinary offset
+    ``T_cal`` is ``cal_temp_k`` (ArduPilot: the temperature of the ordinary offset
     calibration) or, when it is ``None``, the offset is absolute (PX4: ``corrected = raw -
     offset(T)``).
     """
 
-    source: Literal["px4", "ardupilot"]
-    gyro_poly_rps: tuple[Vec3, Vec3, Vec3, Vec3]
-    """Gyro coefficients ``c0..c3`` (ascending powers), each per axis, rad/s/K^i."""
-    accel_poly_mps2: tuple[Vec3, Vec3, Vec3, Vec3]
-    """Accelerometer coefficients ``c0..c3``, m/s^2/K^i."""
+    coeffs: tuple[Vec3, Vec3, Vec3, Vec3]
+    """``c0..c3`` (ascending powers), each per axis, SI per K^i (rad/s or m/s^2)."""
     t_ref_k: float
     t_min_k: float
     t_max_k: float
-    gyro_cal_temp_k: float | None = None
-    accel_cal_temp_k: float | None = None
+    cal_temp_k: float | None = None
 
-    def offsets(self, temperature_k: float) -> tuple[Vec3, Vec3]:
-        """``(gyro rad/s, accel m/s^2)`` to subtract from a raw sample at ``temperature_k``."""
-        g = _eval(self.gyro_poly_rps, self._x(temperature_k))
-        a = _eval(self.accel_poly_mps2, self._x(temperature_k))
-        if self.gyro_cal_temp_k is not None:
-            g0 = _eval(self.gyro_poly_rps, self._x(self.gyro_cal_temp_k))
-            g = (g[0] - g0[0], g[1] - g0[1], g[2] - g0[2])
-        if self.accel_cal_temp_k is not None:
-            a0 = _eval(self.accel_poly_mps2, self._x(self.accel_cal_temp_k))
-            a = (a[0] - a0[0], a[1] - a0[1], a[2] - a0[2])
-        return g, a
+    def offset(self, temperature_k: float) -> Vec3:
+        """What to subtract from a raw sample at ``temperature_k``."""
+        o = _eval(self.coeffs, self._x(temperature_k))
+        if self.cal_temp_k is None:
+            return o
+        o0 = _eval(self.coeffs, self._x(self.cal_temp_k))
+        return (o[0] - o0[0], o[1] - o0[1], o[2] - o0[2])
 
     def _x(self, t_k: float) -> float:
         return min(max(t_k, self.t_min_k), self.t_max_k) - self.t_ref_k
+
+
+class ThermalCalibration(_Frozen):
+    """A unit's thermal calibration: the gyro and the accelerometer polynomial."""
+
+    source: Literal["px4", "ardupilot"]
+    gyro: ThermalPolynomial
+    """rad/s."""
+    accel: ThermalPolynomial
+    """m/s^2."""
+
+    def offsets(self, temperature_k: float) -> tuple[Vec3, Vec3]:
+        """``(gyro rad/s, accel m/s^2)`` to subtract from a raw sample at ``temperature_k``."""
+        return self.gyro.offset(temperature_k), self.accel.offset(temperature_k)
 
 
 def _eval(poly: tuple[Vec3, Vec3, Vec3, Vec3], x: float) -> Vec3:

@@ -23,6 +23,7 @@ from fusion.choices import (
     BRIDGE_METHODS,
     DEFAULT_AIRSPEED_MODE,
     DEFAULT_ALIGN_MODE,
+    DEFAULT_THERMAL_MODE,
 )
 from scenarios.cli.errors import RunFailed, check_choice, cli_errors, out_dir, out_file
 from scenarios.cli.options import (
@@ -36,6 +37,8 @@ from scenarios.cli.options import (
     ImuOption,
     QuietOption,
     SettleOption,
+    ThermalCalOption,
+    ThermalOption,
 )
 from scenarios.cli.output import (
     console,
@@ -66,6 +69,8 @@ def replay(
     settle: SettleOption = 60.0,
     imu: ImuOption = "industrial-mems",
     gnss: GnssOption = "modern",
+    thermal: ThermalOption = DEFAULT_THERMAL_MODE,
+    thermal_cal: ThermalCalOption = None,
     gnss_off: Annotated[
         list[str] | None,
         typer.Option("--gnss-off", help="Cut GNSS START:DURATION s, from the log's first "
@@ -78,6 +83,7 @@ def replay(
     with settled_heap():
         from hil.pipeline import filter_config
         from hil.streamer import GnssWindow
+        from hil.thermal_cal import thermal_tuning
         from scenarios.replay import replay as run_replay
         from sim.presets import gnss_preset
 
@@ -90,8 +96,10 @@ def replay(
         GnssWindow.parse(w)
     if not settle >= 0.0:
         raise ValueError(f"--settle must be >= 0 s (got {settle:g})")
+    therm = thermal_tuning(thermal, thermal_cal)
     result = run_replay(log, out,
-                        config=filter_config(imu, gnss_preset(gnss), altitude, airspeed, align),
+                        config=filter_config(imu, gnss_preset(gnss), altitude, airspeed, align,
+                                             therm),
                         bridge=bridge, altitude=altitude, settle_s=settle, gnss_off=windows)
     console.print(f"scored against: {result.summary['reference']['source']}")
     print_summary(result.summary)

@@ -14,7 +14,7 @@ from fusion.filter import NavFilter
 from fusion.state_layout import layout_for, with_thermal
 from fusion.thermal.bias_model import ThermalBiasModel
 from fusion.thermal.screen import TemperatureScreen
-from fusion.thermal.tuning import ThermalCalibration, ThermalTuning
+from fusion.thermal.tuning import ThermalCalibration, ThermalPolynomial, ThermalTuning
 from sim.samples import ImuSample
 from tests.helpers.nav_synth import Flight, SensorErrors, make_scenario
 
@@ -43,9 +43,10 @@ def test_screen_rejects_and_counts_bad_temperatures() -> None:
 def _cal(source: str, cal_temp: float | None) -> ThermalCalibration:
     g = ((1e-3, 0.0, 0.0), (1e-4, 2e-4, 0.0), (1e-6, 0.0, 0.0), (1e-8, 0.0, 0.0))
     a = ((0.01, 0.0, 0.0), (1e-3, 0.0, 0.0), _Z, _Z)
-    return ThermalCalibration(source=source, gyro_poly_rps=g, accel_poly_mps2=a,  # type: ignore[arg-type]
-                              t_ref_k=298.15, t_min_k=283.15, t_max_k=333.15,
-                              gyro_cal_temp_k=cal_temp, accel_cal_temp_k=cal_temp)  # fmt: skip
+    rng = {"t_ref_k": 298.15, "t_min_k": 283.15, "t_max_k": 333.15, "cal_temp_k": cal_temp}
+    return ThermalCalibration(source=source,  # type: ignore[arg-type]
+                              gyro=ThermalPolynomial(coeffs=g, **rng),
+                              accel=ThermalPolynomial(coeffs=a, **rng))  # fmt: skip
 
 
 def test_calibration_polynomial_px4_absolute_ardupilot_relative_and_clamped() -> None:
