@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 from fusion.config import FilterConfig
 from hil.pipeline import Flown, FrameSink, FusionRun, SimSetup, build_filter, fly, tee
 from hil.pipeline import filter_config as pipeline_filter_config
+from hil.thermal_cal import thermal_tuning
 from hil.tlog import TlogWriter
 from scenarios.jsonable import plain_dict
 from scenarios.schema import Scenario
@@ -95,9 +96,16 @@ def filter_config(scenario: Scenario, altitude: str | None = None) -> FilterConf
     model (position-bias states for a time-correlated receiver), with its altitude method
     its air-data choice (``fusion.airspeed``), its alignment (``fusion.align``), and the
     magnetic reference at the scenario's date (``date``)."""
+    fusion = scenario.fusion
+    cal = None
+    if fusion.thermal_cal is not None:
+        cal = Path(fusion.thermal_cal)
+        base = scenario.source_dir
+        if not cal.is_absolute() and base is not None:
+            cal = base / cal
     config = pipeline_filter_config(scenario.imu_preset, scenario.sensor_config().gnss,
-                                    altitude or scenario.fusion.altitude,
-                                    scenario.fusion.airspeed, scenario.fusion.align)
+                                    altitude or fusion.altitude, fusion.airspeed, fusion.align,
+                                    thermal_tuning(fusion.thermal, cal))
     mag = config.mag.model_copy(update={"decimal_year": scenario.decimal_year})
     return config.model_copy(update={"mag": mag})
 

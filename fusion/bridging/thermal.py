@@ -35,4 +35,5 @@ class ThermalModelBridge(NoBridge):
             text = (f"on: {on}; trained {st.t_min_k - 273.15:.1f}..{st.t_max_k - 273.15:.1f}"
                     f" degC; {text}")  # fmt: skip
         return BridgeStatus(self.name, st.state, samples=st.samples, refits=st.refits,
-                            model=text)  # fmt: skip
+                            active=st.active, model=text,
+                            fallback=tuple(not o for o in st.on_axes))  # type: ignore[arg-type]

@@ -45,6 +45,7 @@ class ThermalModelStatus:
     t_min_k: float
     t_max_k: float
     on_axes: tuple[bool, ...]
+    active: bool
 
 
 class _Fitted:
@@ -94,7 +95,10 @@ class ThermalBiasModel:
         self.margin_k = margin_k
         self.fitted: _Fitted | None = None
         self.refits = 0
-        self.last_fit_s = 0.0
+        self.has_inputs = False
+        """A good temperature has been read (``no inputs`` until then)."""
+        self.active = False
+        """The filter is feeding the predicted bias change forward now."""
         self._next_fit_us: int | None = None
         # held-out trials: (start time, model, inputs at the start, bias at the start)
         self._trials: deque[tuple[int, _Fitted, float, float, tuple[float, ...]]] = deque()
@@ -130,6 +134,8 @@ class ThermalBiasModel:
                 nets.append(GmdhRegressor(max_layers=3).fit(X, y))
             except (ValueError, np.linalg.LinAlgError):
                 nets.append(None)
+        if all(n is None for n in nets):
+            return  # nothing varied (a constant temperature teaches nothing)
         self.fitted = _Fitted(nets, float(X[:, 0].min()), float(X[:, 0].max()))
         self.refits += 1
 
@@ -173,7 +179,7 @@ class ThermalBiasModel:
         """State, pairs, refits, the selected polynomials, the trained range, the axes on."""
         f = self.fitted
         if f is None:
-            state = "untrained"
+            state = "untrained" if self.has_inputs else "no inputs"
             poly = ""
             t_min = t_max = math.nan
         else:
@@ -182,4 +188,5 @@ class ThermalBiasModel:
             poly = "; ".join(f"{a}: {net.polynomial(4)}" for a, net in pairs if net is not None)
             t_min, t_max = f.t_min, f.t_max
         return ThermalModelStatus(state, len(self._X), self.refits, poly, t_min, t_max,
-                                  tuple(not x for x in self.gate.fallback))  # fmt: skip
+                                  tuple(not x for x in self.gate.fallback),
+                                  self.active)  # fmt: skip

@@ -108,6 +108,8 @@ class ThermalLink:
             temp = math.nan
         if scr.add(t_us, temp):
             self._new = True
+            if self.model is not None:
+                self.model.has_inputs = True
             self._update_rate(t_us * 1e-6, temp)
             if self._cal is not None:
                 self._cal_g, self._cal_a = self._cal.offsets(temp)
@@ -170,11 +172,13 @@ class ThermalLink:
             rate = self.rate_k_per_s
             if gnss_active:
                 self._pred_anchor = None
+                model.active = False
                 model.add(time_us, temp, rate, (*bias[0], *bias[1]))
             else:
                 model.outage_restart()
                 pred = model.predict(temp, rate)
                 prev = self._pred_anchor
+                model.active = pred is not None and any(v != 0.0 for v in pred)
                 if pred is not None:
                     if prev is not None:
                         for i in range(3):

@@ -220,6 +220,9 @@ def run(
     altitude: Annotated[str | None, typer.Option(help="Override the altitude method.")] = None,
     airspeed: AirspeedOverride = None,
     align: AlignOverride = None,
+    thermal: Annotated[str | None, typer.Option(
+        help="Override the scenario's IMU thermal strategy (off, blind, states, cal: the "
+             "scenario's fusion.thermal_cal file).")] = None,
     quiet: QuietOption = False,
 ) -> None:
     """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
@@ -228,7 +231,7 @@ def run(
         from scenarios.runner import AutopilotAbsent, run_scenario, sim_setup
 
         scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
-                             airspeed=airspeed, align=align)
+                             airspeed=airspeed, align=align, thermal=thermal)
         # the plots' module (matplotlib) too, once the scenario is valid: loaded here, its
         # import runs no collection and the collections while the plots are drawn skip it
         import scenarios.report  # noqa: F401
