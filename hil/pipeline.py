@@ -188,7 +188,8 @@ class SimChain:
             if s.faults is not None:
                 self.faults = FaultInjector(s.faults, seed=s.seed, t0_us=self.flight.time_us)
             self.streamer = SensorStreamer(truth_rate_hz=s.truth_rate_hz, gnss_off=s.gnss_off,
-                                           faults=self.faults)
+                                           faults=self.faults,
+                                           imu_temperature=s.sensors.imu_thermal is not None)
         except BaseException:
             self.flight.__exit__(None, None, None)
             raise

@@ -2,7 +2,9 @@
 
 The streamer is the only place where simulator output meets the wire. Per IMU sample it sends one
 HIL_SENSOR carrying the IMU fields plus any baro / magnetometer / airspeed sample of the same
-step (their ``fields_updated`` bits set only then; the airspeed as ``diff_pressure``, bit 10),
+step (their ``fields_updated`` bits set only then; the airspeed as ``diff_pressure``, bit 10;
+with a thermal IMU the IMU frame carries its temperature and the others follow in a frame of
+their own),
 HIL_GPS for each GNSS fix (emitted when the receiver outputs it, stamped with its time of
 validity), and the truth as HIL_STATE_QUATERNION from the simulator's truth component at
 ``truth_rate_hz``. The vehicle state a flight controller would report
@@ -71,6 +73,12 @@ class SensorStreamer:
         ``gnss_suppressed``).
     faults : FaultInjector, optional
         Applied to every step's samples before encoding (and before ``gnss_off``).
+    imu_temperature : bool
+        Send each IMU sample's temperature (a thermal IMU model): every IMU frame carries it
+        in HIL_SENSOR ``temperature`` (bit 12), and the barometer, magnetometer and airspeed
+        of the step go in a second HIL_SENSOR frame of the same time with the barometer's
+        temperature. Off (the default): one frame per step, the temperature only with the
+        barometer.
     """
 
     def __init__(
@@ -80,6 +88,7 @@ class SensorStreamer:
         truth_rate_hz: float = 50.0,
         gnss_off: Sequence[GnssWindow] = (),
         faults: FaultInjector | None = None,
+        imu_temperature: bool = False,
     ) -> None:
         if truth_rate_hz <= 0:
             raise ValueError("truth_rate_hz must be > 0")
@@ -89,6 +98,7 @@ class SensorStreamer:
         self._gnss_off = tuple(gnss_off)
         self.gnss_suppressed = 0
         self.faults = faults
+        self.imu_temperature = imu_temperature
         self.last_samples: Sequence[Sample] = ()
         """The samples of the last :meth:`frames` call as sent: after the fault timeline (the
         GNSS windows, which drop whole fixes, not applied)."""
@@ -117,7 +127,8 @@ class SensorStreamer:
         for s in samples:
             if isinstance(s, ImuSample):
                 if imu is not None:
-                    out.append((imu.time_us, self.encoder.sensors(imu)))
+                    out.append((imu.time_us, self.encoder.sensors(
+                        imu, imu_temperature=self.imu_temperature)))
                 imu = s
             elif isinstance(s, BaroSample):
                 baro = s
@@ -134,7 +145,12 @@ class SensorStreamer:
                 vehicle.append((s.time_us, self.encoder.actuators(s)))
             elif isinstance(s, RpmSample):
                 vehicle.append((s.time_us, self.encoder.rpm(s)))
-        if imu is not None or baro is not None or mag is not None or airspeed is not None:
+        if self.imu_temperature and imu is not None:
+            out.append((imu.time_us, self.encoder.sensors(imu, imu_temperature=True)))
+            if baro is not None or mag is not None or airspeed is not None:
+                out.append((imu.time_us, self.encoder.sensors(
+                    None, baro, mag, time_us=imu.time_us, airspeed=airspeed)))
+        elif imu is not None or baro is not None or mag is not None or airspeed is not None:
             t = imu.time_us if imu is not None else truth.time_us
             out.append(
                 (t, self.encoder.sensors(imu, baro, mag, time_us=t, airspeed=airspeed))

@@ -435,13 +435,17 @@ class ImuModel:
         return np.concatenate(errs), np.concatenate(biases)
 
     # ------------------------------------------------------------------ outputs
-    def measure_list(self, u: list[float]) -> list[float]:
+    def measure_list(self, u: list[float], extra_bias: list[float] | None = None) -> list[float]:
         """One IMU sample, plain floats (the suite's hot path).
 
         Parameters
         ----------
         u : list of 6 float
             True ``[fx, fy, fz (m/s²), wx, wy, wz (rad/s)]`` averaged over the interval.
+        extra_bias : list of 6 float, optional
+            A bias from outside this model (a thermal one, :mod:`sim.imu_thermal`), same
+            order and units, added to the sample's error row before saturation and
+            quantisation.
 
         Returns
         -------
@@ -455,6 +459,8 @@ class ImuModel:
             rows = self._err_rows = self._err.tolist()
         e = rows[self._idx]
         self._idx += 1
+        if extra_bias is not None:
+            e = [a + b for a, b in zip(e, extra_bias, strict=True)]
         return imu_output(u, e, self.output_params)
 
     def measure6(self, u: NDArray[np.float64]) -> NDArray[np.float64]:

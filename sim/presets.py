@@ -21,6 +21,7 @@ from typing import TypeVar
 from sim.baro import BaroConfig
 from sim.gnss import GnssConfig
 from sim.imu import AccelConfig, GyroConfig, ImuConfig
+from sim.imu_thermal import ImuThermalPart
 from sim.mag import MagConfig
 from sim.pitot import PitotConfig
 from sim.sensors import SensorSuiteConfig
@@ -261,6 +262,112 @@ DEFAULT_PITOT_PRESET = "ms4525do"
 """The default aircraft (c172x) carries a pitot-static probe; this is the sensor fitted."""
 
 
+# Thermal behaviour of IMU parts (sim.imu_thermal), a separate choice from the IMU preset:
+# ``sensors.imu.thermal.preset`` in a scenario. Natural pairs: consumer-mems (its noise figures
+# are the ICM-42688-P's) with icm42688p, bmi088 or icm20948; industrial-mems (ADIS16465) with
+# adis1646x. "Verified" below means the figure was read in the cited document's text; "as
+# quoted" that it is the commonly quoted datasheet figure whose table was not available to
+# check here; "class value" that no datasheet gives it. Tempcos given as "±x" are used as 1σ.
+# The self-heating, warm-up and case time constants of every part are class values for an
+# IMU on a flight-controller board (or, for the ADIS, in its aluminium housing): the die
+# settles some 5-10 K above its case over a few minutes, the case follows the air over a
+# quarter of an hour.
+_IMU_THERMAL_PRESETS: dict[str, ImuThermalPart] = {
+    # Bosch Sensortec BMI088, data sheet BST-BMI088-DS001-13 (rev. 1.3, May 2018).
+    "bmi088": ImuThermalPart(
+        gyro_tempco_dps_per_k=0.015,  # zero-rate offset TCO ±0.015 °/s/K (as quoted, Table 2)
+        accel_tempco_mg_per_k=0.2,  # offset temperature drift < 0.2 mg/K (as quoted, Table 1)
+        gyro_scale_tempco_ppm_per_k=100.0,  # class value
+        accel_scale_tempco_ppm_per_k=100.0,  # class value
+        gyro_hysteresis_dps=0.02,  # class value
+        accel_hysteresis_mg=0.5,  # class value
+        gyro_rate_dps_per_k_per_min=0.005,  # class value
+        accel_rate_mg_per_k_per_min=0.05,  # class value
+        self_heating_k=10.0,  # class value
+        warmup_time_constant_s=240.0,  # class value
+        ambient_time_constant_s=900.0,  # class value
+        # Temperature sensor, verified (section 5.3.7, registers 0x22-0x23): 11-bit two's
+        # complement, 0.125 °C/LSB, value = n·0.125 + 23 °C, updated every 1.28 s.
+        temperature_resolution_k=0.125,
+        temperature_zero_c=23.0,
+        temperature_update_s=1.28,
+        temperature_offset_k=1.0,  # class value
+        temperature_min_c=-104.0,  # the register's span: -1024·0.125 + 23
+        temperature_max_c=150.875,  # 1023·0.125 + 23
+    ),
+    # TDK InvenSense ICM-42688-P, datasheet DS-000347.
+    "icm42688p": ImuThermalPart(
+        gyro_tempco_dps_per_k=0.005,  # ZRO variation vs temperature ±0.005 °/s/°C (as quoted)
+        accel_tempco_mg_per_k=0.15,  # zero-g level change vs temperature ±0.15 mg/°C (as quoted)
+        gyro_scale_tempco_ppm_per_k=100.0,  # class value
+        accel_scale_tempco_ppm_per_k=100.0,  # class value
+        gyro_hysteresis_dps=0.01,  # class value
+        accel_hysteresis_mg=0.3,  # class value
+        gyro_rate_dps_per_k_per_min=0.002,  # class value
+        accel_rate_mg_per_k_per_min=0.04,  # class value
+        self_heating_k=8.0,  # class value
+        warmup_time_constant_s=240.0,  # class value
+        ambient_time_constant_s=900.0,  # class value
+        # Temperature register TEMP_DATA/132.48 + 25 °C (as recalled from DS-000347; the FIFO
+        # carries an 8-bit value of 1/2.07 °C per LSB instead); updated with each sample.
+        temperature_resolution_k=1.0 / 132.48,
+        temperature_zero_c=25.0,
+        temperature_offset_k=1.0,  # class value
+    ),
+    # TDK InvenSense ICM-20948, datasheet DS-000189 (rev. 1.3).
+    "icm20948": ImuThermalPart(
+        gyro_tempco_dps_per_k=0.05,  # ZRO variation over temperature ±0.05 °/s/°C (as quoted,
+        # Table 1)
+        accel_tempco_mg_per_k=0.80,  # zero-g level change vs temperature ±0.80 mg/°C, 0..85 °C
+        # (verified, Table 2)
+        gyro_scale_tempco_ppm_per_k=200.0,  # class value
+        accel_scale_tempco_ppm_per_k=260.0,  # sensitivity change vs temperature ±0.026 %/°C,
+        # -40..85 °C (verified, Table 2)
+        gyro_hysteresis_dps=0.05,  # class value
+        accel_hysteresis_mg=2.0,  # class value
+        gyro_rate_dps_per_k_per_min=0.015,  # class value
+        accel_rate_mg_per_k_per_min=0.2,  # class value
+        self_heating_k=8.0,  # class value
+        warmup_time_constant_s=240.0,  # class value
+        ambient_time_constant_s=900.0,  # class value
+        # TEMP_degC = (TEMP_OUT - RoomTemp_Offset)/333.87 + 21 (as recalled from DS-000189).
+        temperature_resolution_k=1.0 / 333.87,
+        temperature_zero_c=21.0,
+        temperature_offset_k=1.0,  # class value
+    ),
+    # Analog Devices ADIS1646x (ADIS16465 / ADIS16460 family), factory-compensated over
+    # -40..85 °C. Hysteresis: ADI's engineers on EngineerZone (thread "ADIS16460: Gyro bias of
+    # cold-to-hot vs hot-to-cold question"): "on individual units, the bias hysteresis can be
+    # in the 0.1 deg/sec region" -- used as 2σ of the heating-to-cooling difference. The
+    # residual tempcos after the factory compensation are class values: the ADIS16465
+    # datasheet's temperature coefficients were not available to check here.
+    "adis1646x": ImuThermalPart(
+        gyro_tempco_dps_per_k=0.001,  # class value (compensated part)
+        accel_tempco_mg_per_k=0.01,  # class value
+        gyro_scale_tempco_ppm_per_k=20.0,  # class value
+        accel_scale_tempco_ppm_per_k=20.0,  # class value
+        gyro_hysteresis_dps=0.05,  # ADI EngineerZone: "can be in the 0.1 °/s region" (2σ)
+        accel_hysteresis_mg=0.1,  # class value
+        hysteresis_width_k=5.0,  # class value
+        gyro_rate_dps_per_k_per_min=0.002,  # class value
+        accel_rate_mg_per_k_per_min=0.01,  # class value
+        self_heating_k=6.0,  # class value (some 0.15 W in the housing)
+        warmup_time_constant_s=420.0,  # class value (aluminium housing)
+        ambient_time_constant_s=1200.0,  # class value
+        # TEMP_OUT 0.1 °C/LSB (as recalled from the ADIS16465 datasheet), updated with each
+        # sample; the kernel driver calls it "a coarse measurement of the temperature inside".
+        temperature_resolution_k=0.1,
+        temperature_zero_c=25.0,
+        temperature_offset_k=2.0,  # class value
+        temperature_min_c=-40.0,
+        temperature_max_c=105.0,
+    ),
+}
+
+IMU_THERMAL_OFF = "off"
+"""The thermal preset name that leaves the IMU without a temperature model (the default)."""
+
+
 def _lookup(kind: str, table: dict[str, T], name: str) -> T:
     try:
         return table[name]
@@ -272,6 +379,24 @@ def _lookup(kind: str, table: dict[str, T], name: str) -> T:
 def available_imu_presets() -> list[str]:
     """Names accepted by :func:`imu_preset`, sorted."""
     return sorted(_IMU_PRESETS)
+
+
+def available_imu_thermal_presets() -> list[str]:
+    """Names accepted by :func:`imu_thermal_preset`, sorted, and ``off``."""
+    return sorted([*_IMU_THERMAL_PRESETS, IMU_THERMAL_OFF])
+
+
+def imu_thermal_preset(name: str) -> ImuThermalPart | None:
+    """An IMU part's thermal figures by name; None for ``off``.
+
+    Raises
+    ------
+    ValueError
+        Unknown name; the message lists the valid choices.
+    """
+    if name == IMU_THERMAL_OFF:
+        return None
+    return _lookup("IMU thermal", {**_IMU_THERMAL_PRESETS, IMU_THERMAL_OFF: None}, name)
 
 
 def available_gnss_presets() -> list[str]:

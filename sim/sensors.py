@@ -20,11 +20,15 @@ Timing (all from simulated time, ``Truth.time_us``):
 - The barometer's optional static-port position error takes the truth's air-relative body
   velocity (``sim.pitot.air_velocity_b_mps``).
 
-Determinism: ``numpy.random.SeedSequence(seed).spawn(5)`` gives the IMU, GNSS, barometer,
-magnetometer and pitot generators (in that order; the first four are the children
-``spawn(4)`` gave before the pitot existed), so one sensor's configuration never changes
-another sensor's noise -- fitting a pitot or not leaves the other streams bit-identical --
-and the same scenario and seed give bit-identical streams.
+Determinism: ``numpy.random.SeedSequence(seed).spawn(6)`` gives the IMU, GNSS, barometer,
+magnetometer, pitot and IMU-thermal generators (in that order; a child does not depend on how
+many are spawned after it), so one sensor's configuration never changes another sensor's
+noise -- fitting a pitot or a thermal IMU model or not leaves the other streams bit-identical
+-- and the same scenario and seed give bit-identical streams.
+
+A thermal IMU model (``imu_thermal``, off by default) adds its bias to the IMU's error and
+its scale-factor error to the true input, and the IMU sample then carries the temperature the
+part reports instead of the air's.
 
 Cost: about 17-19 µs per :meth:`SensorSuite.step` at 200 Hz with 200 Hz IMU, 50 Hz baro and
 magnetometer, 5 Hz GNSS (2-core CI-class machine; 2.5 µs of it is building the frozen
@@ -44,6 +48,7 @@ from sim._sensor_common import Finite, Positive, RateSchedule, SensorConfigModel
 from sim.baro import BaroConfig, BaroModel
 from sim.gnss import GnssConfig, GnssModel
 from sim.imu import AccelConfig, GyroConfig, ImuConfig, ImuModel
+from sim.imu_thermal import ImuThermalConfig, ImuThermalModel
 from sim.mag import MagConfig, MagModel
 from sim.pitot import PitotConfig, PitotModel, air_velocity_b_mps
 from sim.samples import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample, Truth
@@ -57,6 +62,8 @@ __all__ = [
     "GyroConfig",
     "ImuConfig",
     "ImuModel",
+    "ImuThermalConfig",
+    "ImuThermalModel",
     "MagConfig",
     "MagModel",
     "PitotConfig",
@@ -80,6 +87,8 @@ class SensorSuiteConfig(SensorConfigModel):
         default 50 Hz is what PX4's simulator sends in HIL_SENSOR).
     decimal_year : the simulated date, e.g. 2026.5: the magnetometer's Earth field is the
         World Magnetic Model's at this date (:mod:`physconst.geomag`).
+    imu_thermal : the IMU's temperature and thermal errors (:mod:`sim.imu_thermal`); None
+        (the default): none, and the IMU's samples carry the air's temperature.
     """
 
     imu: ImuConfig
@@ -92,6 +101,7 @@ class SensorSuiteConfig(SensorConfigModel):
     pitot: PitotConfig | None = None
     pitot_rate_hz: Positive = 50.0
     decimal_year: Finite = DEFAULT_DECIMAL_YEAR
+    imu_thermal: ImuThermalConfig | None = None
 
 
 class SensorSuite:
@@ -114,6 +124,8 @@ class SensorSuite:
         Built at the first step; follows the truth's position (World Magnetic Model).
     pitot : PitotModel or None
         None when no pitot is configured.
+    imu_thermal : ImuThermalModel or None
+        None when no thermal model is configured.
     imu_decimation : int
         Simulation steps per IMU sample.
 
@@ -150,8 +162,8 @@ class SensorSuite:
         self.config = config
         self.sim_rate_hz = float(sim_rate_hz)
         self.imu_decimation = decimation
-        rng_imu, rng_gnss, rng_baro, rng_mag, rng_pitot = (
-            np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(5)
+        rng_imu, rng_gnss, rng_baro, rng_mag, rng_pitot, rng_thermal = (
+            np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(6)
         )
         self.imu = ImuModel(config.imu, rng_imu, imu_rate)
         self.gnss = GnssModel(config.gnss, rng_gnss)
@@ -164,6 +176,11 @@ class SensorSuite:
         self._mag_schedule = RateSchedule(config.mag_rate_hz)
         self.pitot = PitotModel(config.pitot, rng_pitot) if config.pitot is not None else None
         self._pitot_schedule = RateSchedule(config.pitot_rate_hz)
+        self.imu_thermal = (
+            None if config.imu_thermal is None
+            else ImuThermalModel(config.imu_thermal, rng_thermal,
+                                 config.baro.sea_level_temperature_offset_k)
+        )
         self._baro_air = config.baro.has_position_error
         self._gnss_latency_us = self.gnss.params.latency_us
         self._gnss_queue: deque[tuple[int, GnssFix]] = deque()
@@ -225,8 +242,16 @@ class SensorSuite:
                 self._count = 0
                 self._prev = x
         if u is not None:
-            y = np.array(self.imu.measure_list(u))
-            out.append(ImuSample(t, self._imu_dt_s, y[:3], y[3:], truth.temperature_k))
+            thermal = self.imu_thermal
+            if thermal is None:
+                y = np.array(self.imu.measure_list(u))
+                out.append(ImuSample(t, self._imu_dt_s, y[:3], y[3:], truth.temperature_k))
+            else:
+                thermal.step(t, truth.alt_msl_m)
+                u = [v * (1.0 + s) for v, s in zip(u, thermal.scale, strict=True)]
+                y = np.array(self.imu.measure_list(u, thermal.bias))
+                out.append(ImuSample(t, self._imu_dt_s, y[:3], y[3:],
+                                     thermal.reported_temperature_k))
 
         bs = self._baro_schedule
         if t >= bs.next_us and bs.due(t):

@@ -22,10 +22,15 @@ Messages written (:class:`Encoder`)
     HIL_SENSOR ``fields_updated`` carries only the bits of what was given (bits 0-2 accel,
     3-5 gyro, 6-8 mag, 9 abs_pressure, 10 diff_pressure, 11 pressure_alt, 12 temperature).
     Following PX4's reading ("temperature only updated with baro"), the temperature field and
-    bits 11/12 are sent only together with a barometer sample; ``pressure_alt`` is the ISA
-    pressure altitude of the static pressure. An IMU's own temperature is therefore not
-    transmitted, nor an airspeed sample's (PX4's simulator gives the differential-pressure
-    report the HIL_SENSOR temperature; the decoder does the same).
+    bits 11/12 are sent by default only together with a barometer sample; ``pressure_alt`` is
+    the ISA pressure altitude of the static pressure. An airspeed sample's temperature is not
+    transmitted (PX4's simulator gives the differential-pressure report the HIL_SENSOR
+    temperature; the decoder does the same). An IMU's own temperature is transmitted only when
+    asked (``imu_temperature=True``, a thermal IMU model): then the frame carries the IMU and
+    its temperature (bit 12) and no barometer, and the barometer travels in a frame of its
+    own, so each temperature reaches the samples of its own sensor (the decoder gives a
+    sample the last temperature of its source, PX4 sets each sensor's temperature from the
+    frame that updates it).
     ``diff_pressure`` is float32 hPa (PX4: ``diff_pressure * 100`` = Pa): a round trip loses
     at most half a float32 ulp, <= 2**-24 relative (4e-5 Pa at 700 Pa).
 
@@ -121,6 +126,7 @@ _IMU_BITS: Final = HilSensorField.IMU
 _MAG_BITS: Final = HilSensorField.MAG
 _BARO_BITS: Final = HilSensorField.BARO
 _DIFF_PRESSURE_BIT: Final = HilSensorField.DIFF_PRESSURE
+_TEMPERATURE_BIT: Final = HilSensorField.TEMPERATURE
 _HIL_SENSOR_PAYLOAD: Final = HIL_SENSOR.pack_fields
 _HIL_GPS_PAYLOAD: Final = HIL_GPS.pack_wire_order
 if HIL_GPS.wire_fields != ("time_usec", "lat", "lon", "alt", "eph", "epv", "vel", "vn", "ve", "vd",
@@ -284,6 +290,7 @@ class Encoder:
         time_us: int | None = None,
         diff_pressure_pa: float | None = None,
         airspeed: AirspeedSample | None = None,
+        imu_temperature: bool = False,
     ) -> bytes:
         """One HIL_SENSOR frame with ``fields_updated`` bits for exactly what is given.
 
@@ -291,7 +298,7 @@ class Encoder:
         ----------
         imu : ImuSample or None
             Specific force (m/s^2, FRD) and angular rate (rad/s) -> bits 0-5.
-            ``dt_s`` and ``temperature_k`` are not transmitted.
+            ``dt_s`` is not transmitted, ``temperature_k`` only with ``imu_temperature``.
         baro : BaroSample or None
             Static pressure -> ``abs_pressure`` hPa (bit 9), ISA ``pressure_alt`` (bit 11),
             temperature degC (bit 12).
@@ -305,6 +312,9 @@ class Encoder:
         airspeed : AirspeedSample, optional
             The same from a sample (its time and sensor id are checked like the others'; its
             temperature is not transmitted). Give this or ``diff_pressure_pa``, not both.
+        imu_temperature : bool
+            Send the IMU sample's ``temperature_k`` (degC, bit 12); needs ``imu`` and no
+            ``baro`` (one temperature field per frame).
 
         Returns
         -------
@@ -316,6 +326,9 @@ class Encoder:
         ValueError
             Nothing given, samples disagreeing on time or sensor id, non-finite values.
         """
+        if imu_temperature and (imu is None or baro is not None):
+            raise ValueError("imu_temperature needs an imu sample and no baro sample "
+                             "(one temperature field per frame)")
         if airspeed is not None:
             if diff_pressure_pa is not None:
                 raise ValueError("give airspeed or diff_pressure_pa, not both")
@@ -369,6 +382,10 @@ class Encoder:
             else:
                 ax, ay, az, gx, gy, gz = self._imu_checked(f, w)
             bits = _IMU_BITS
+            if imu_temperature:
+                temp_c = self._f32(_finite(imu.temperature_k, "imu.temperature_k")
+                                   - KELVIN_AT_0_CELSIUS, "HIL_SENSOR.temperature")
+                bits |= _TEMPERATURE_BIT
         if mag is not None:
             b_gauss = [x / TESLA_PER_GAUSS for x in _vec(mag.field_b_tesla, "mag.field_b_tesla")]
             mx, my, mz = self._f32_vec(b_gauss, ("xmag", "ymag", "zmag"), "HIL_SENSOR")

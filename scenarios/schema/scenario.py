@@ -188,6 +188,7 @@ class Scenario(Strict):
             where = "wind_table" if self.wind_table else "wind_ned_mps"
             raise key_error(_message(error), (where,)) from None
         self._check_rates()
+        self._check_heater()
         problem = _timeline_problem(self)
         if problem is not None:
             raise problem
@@ -234,6 +235,17 @@ class Scenario(Strict):
                     ("sensors", key, "rate_hz"),
                 )
 
+    def _check_heater(self) -> None:
+        thermal = self.sensors.imu.thermal
+        heater = None if thermal is None else thermal.heater
+        if heater is not None and heater.fails_at_s is not None and (
+                heater.fails_at_s >= self.duration_s):
+            raise key_error(
+                f"the heater fails at {heater.fails_at_s:g} s, at or after the end of the "
+                f"flight (duration_s {self.duration_s:g})",
+                ("sensors", "imu", "thermal", "heater", "fails_at_s"),
+            )
+
     def _check_criteria(self) -> None:
         spans = [
             (e.duration_s if e.duration_s is not None else self.duration_s - e.start_s)
@@ -276,10 +288,16 @@ class Scenario(Strict):
         """What is flown, in words a scorecard shows: aircraft, plan, sensor presets (``+
         overrides`` where the file changes a preset), wind and turbulence."""
         def preset(section: Any) -> str:
-            extra = section.model_dump(exclude_defaults=True, exclude={"preset"})
+            extra = section.model_dump(exclude_defaults=True, exclude={"preset", "thermal"})
             return str(section.preset) + (" + overrides" if extra else "")
 
         plan = self.plan if isinstance(self.plan, str) else "inline plan"
+        thermal = self.sensors.imu.thermal
+        extra: dict[str, Any] = {}
+        if thermal is not None and thermal.preset != presets.IMU_THERMAL_OFF:
+            state = thermal.model_dump(exclude_unset=True, exclude={"preset"})
+            extra["imu_thermal"] = " ".join(
+                [thermal.preset, *(f"{k}={v}" for k, v in state.items())])
         return {
             "description": self.description,
             "aircraft": self.aircraft,
@@ -289,6 +307,7 @@ class Scenario(Strict):
             "wind_ned_mps": list(self.wind_ned_mps),
             "wind_shear_exponent": self.wind_shear_exponent,
             "turbulence": self.turbulence,
+            **extra,
         }
 
     def start_state(self) -> StartState:
@@ -329,6 +348,7 @@ class Scenario(Strict):
             mag_rate_hz=s.mag.rate_hz,
             pitot_rate_hz=s.pitot.rate_hz,
             decimal_year=self.decimal_year,
+            imu_thermal=None if s.imu.thermal is None else s.imu.thermal.config(),
         )
 
     @property

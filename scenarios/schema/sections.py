@@ -36,6 +36,7 @@ from sim.baro import BaroConfig
 from sim.flight import StartState
 from sim.gnss import GnssConfig
 from sim.imu import AccelConfig, GyroConfig
+from sim.imu_thermal import ImuThermalConfig, ImuThermalPart
 from sim.mag import MagConfig
 from sim.pitot import PitotConfig
 
@@ -45,7 +46,9 @@ __all__ = [
     "FusionSection",
     "GnssSection",
     "GyroOverrides",
+    "HeaterSection",
     "ImuSection",
+    "ImuThermalSection",
     "MagSection",
     "PitotSection",
     "Sensors",
@@ -101,6 +104,7 @@ if TYPE_CHECKING:
     StartSection = StartState
     GyroOverrides = GyroConfig
     AccelOverrides = AccelConfig
+    ThermalPartOverrides = ImuThermalPart
 else:
     StartSection = _overrides(StartState, "StartSection")
     StartSection.__doc__ = (
@@ -109,6 +113,7 @@ else:
     )
     GyroOverrides = _overrides(GyroConfig, "GyroOverrides")
     AccelOverrides = _overrides(AccelConfig, "AccelOverrides")
+    ThermalPartOverrides = _overrides(ImuThermalPart, "ThermalPartOverrides")
 
 
 # ------------------------------------------------------------------------------- sensors
@@ -156,13 +161,98 @@ def _section_field(kind: str, names: list[str], default: str) -> Any:
     )
 
 
+class HeaterSection(Strict):
+    """A heated IMU: the heater holds its case at least at the set point until it fails."""
+
+    setpoint_c: float = Field(
+        ge=-40.0, le=85.0, description="Heater set point, °C (PX4's SENS_IMU_TEMP is 55).")
+    fails_at_s: float | None = Field(
+        default=None, ge=0.0, allow_inf_nan=False,
+        description="When the heater stops, s from the start; omitted: it never does.")
+
+
+class ImuThermalSection(Strict):
+    """The IMU's temperature (sim.imu_thermal): a part's thermal preset, the flight's thermal
+    state, and overrides of the part's figures. Preset ``off`` (the default) gives the IMU
+    no temperature model."""
+
+    preset: str = Field(
+        default=presets.IMU_THERMAL_OFF,
+        description="Thermal preset of the IMU part (sim.presets): "
+        + ", ".join(presets.available_imu_thermal_presets()),
+        json_schema_extra=listing("enum", presets.available_imu_thermal_presets()),
+    )
+    start_temperature_c: float | None = Field(
+        default=None, ge=-60.0, le=85.0,
+        description="Temperature of the IMU's case at the start, °C (a cold soak); omitted: "
+        "in equilibrium with the air (with a heater: at its set point).")
+    power_on_s: float = Field(
+        default=0.0, le=0.0, ge=-86400.0,
+        description="When the IMU was powered on, s from the start (<= 0); 0: it warms up "
+        "during the flight.")
+    ambient_offset_k: float = Field(
+        default=0.0, ge=-30.0, le=60.0,
+        description="Air around the IMU minus the outside air, K (a hot day on the ramp, a "
+        "warm avionics bay).")
+    heater: HeaterSection | None = None
+    part: ThermalPartOverrides | None = None
+
+    @field_validator("preset", mode="before")
+    @classmethod
+    def _yaml_off(cls, value: Any) -> Any:
+        # YAML 1.1 reads a bare ``off`` as false
+        return presets.IMU_THERMAL_OFF if value is False else value
+
+    @field_validator("preset")
+    @classmethod
+    def _known_preset(cls, value: str) -> str:
+        names = presets.available_imu_thermal_presets()
+        if value not in names:
+            raise ValueError(unknown_name("IMU thermal preset", value, names))
+        return value
+
+    def config(self) -> ImuThermalConfig | None:
+        """The thermal model's configuration; None for preset ``off``."""
+        part = presets.imu_thermal_preset(self.preset)
+        if part is None:
+            return None
+        if self.part is not None:
+            part = part.model_copy(update=self.part.model_dump(exclude_unset=True))
+        heater = self.heater
+        return ImuThermalConfig(
+            part=part,
+            preset=self.preset,
+            start_temperature_c=self.start_temperature_c,
+            power_on_s=self.power_on_s,
+            ambient_offset_k=self.ambient_offset_k,
+            heater_setpoint_c=None if heater is None else heater.setpoint_c,
+            heater_fails_at_s=None if heater is None else heater.fails_at_s,
+        )
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Self:
+        if self.preset == presets.IMU_THERMAL_OFF:
+            extra = [k for k in self.model_dump(exclude_unset=True) if k != "preset"]
+            if extra:
+                raise ValueError(
+                    f"IMU thermal preset 'off' has no temperature model: remove "
+                    f"{', '.join(extra)}")
+            return self
+        try:
+            self.config()
+        except ValidationError as error:
+            loc, msg = first_error(error)
+            raise key_error(msg, ("part", *loc[1:]) if loc[:1] == ("part",) else loc) from None
+        return self
+
+
 class ImuSection(_PresetSection):
     """IMU: preset, output rate and datasheet-unit overrides of the gyro and accelerometer."""
 
     _kind = "IMU"
     _names = tuple(presets.available_imu_presets())
     _lookup = staticmethod(presets.imu_preset)
-    _not_config = ("preset", "rate_hz")
+    _not_config = ("preset", "rate_hz", "thermal")
 
     preset: str = _section_field("IMU", presets.available_imu_presets(), "industrial-mems")
     rate_hz: float | None = Field(
@@ -171,6 +261,8 @@ class ImuSection(_PresetSection):
     )
     gyro: GyroOverrides | None = None
     accel: AccelOverrides | None = None
+    thermal: ImuThermalSection | None = Field(
+        default=None, description="The IMU's temperature and thermal errors; omitted: none.")
 
 
 class _OptionalSensorSection(_PresetSection):
