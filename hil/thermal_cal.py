@@ -26,6 +26,7 @@ from pathlib import Path
 
 from fusion.choices import THERMAL_MODES
 from fusion.thermal.tuning import ThermalCalibration, ThermalPolynomial, ThermalTuning
+from sim.imu_thermal import ImuThermalPart
 
 _C0_K = 273.15
 _AP_TREF_C = 35.0
@@ -140,3 +141,22 @@ def thermal_tuning(mode: str, calibration: Path | None = None,
     cal = load_calibration(calibration) if calibration is not None else None
     base = base or ThermalTuning()
     return base.model_copy(update={"mode": mode, "calibration": cal})
+
+
+_DEG = math.pi / 180.0
+_MG = 9.80665e-3
+
+
+def part_thermal_tuning(part: ImuThermalPart, base: ThermalTuning | None = None) -> ThermalTuning:
+    """What the filter's thermal strategies assume about a part: its datasheet temperature
+    coefficients (1 sigma over units), its temperature sensor's range, resolution and update
+    period (:mod:`sim.imu_thermal`'s preset figures)."""
+    base = base or ThermalTuning()
+    return base.model_copy(update={
+        "gyro_tempco_rps_per_k": max(part.gyro_tempco_dps_per_k * _DEG, 1e-9),
+        "accel_tempco_mps2_per_k": max(part.accel_tempco_mg_per_k * _MG, 1e-9),
+        "min_k": part.temperature_min_c + _C0_K,
+        "max_k": part.temperature_max_c + _C0_K,
+        "quantum_k": part.temperature_resolution_k,
+        "update_period_s": max(part.temperature_update_s, 0.01),
+    })
