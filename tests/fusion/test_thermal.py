@@ -142,3 +142,52 @@ def test_learned_bias_model_predicts_inside_its_range_only() -> None:
     p = model.predict(298.15, 5.0 / 150.0 / 1.28)  # on the warm-up curve
     assert p is not None and p[5] == pytest.approx(1e-4 * 5 + 2e-6 * 25, rel=0.2)
     assert model.predict(st.t_max_k + 2.0, 0.0) is None
+
+
+def test_bad_temperatures_in_the_filter_are_counted_and_the_tempco_feed_holds() -> None:
+    # GIVEN the coefficient states with a known coefficient, and a stream whose temperature
+    # turns NaN, jumps and leaves the range
+    cfg = FilterConfig(thermal=ThermalTuning(mode="states"))
+    # no rest detection: nothing but the temperature moves the bias here
+    cfg = cfg.model_copy(update={"zero_motion": cfg.zero_motion.model_copy(
+        update={"enabled": False})})
+    nav = NavFilter(cfg)
+    th = nav._thermal
+    assert th is not None
+    th.tempco_gyro[2] = 1e-4
+    nav.initialize(1_000_000, 0.8, 0.15, 500.0, np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]))
+    th.start()
+    f = np.array([0.0, 0.0, -9.80665])
+    temps = [300.0, 300.2, math.nan, math.nan, 330.0, 500.0, 300.4]
+    biases = []
+    t_us = 1_000_000
+    for temp in temps:  # each reading held for 1.3 s of 100 Hz samples, as a part updates it
+        for _ in range(130):
+            t_us += 10_000
+            nav.step(ImuSample(t_us, 0.01, f, np.zeros(3), temp))
+        nom = nav.nominal_state
+        assert nom is not None
+        biases.append(nom.gyro_bias_b_rps[2])
+    h = nav.health
+    # THEN each bad reading is counted once, the bias moved only with the good ones
+    assert (h.temperature_nan, h.temperature_jump, h.temperature_out_of_range) == (1, 1, 1)
+    assert biases[1] == pytest.approx(1e-4 * 0.2)
+    assert biases[2] == biases[3] == biases[4] == biases[5] == biases[1]
+    assert biases[6] == pytest.approx(1e-4 * 0.4)
+
+
+def test_cal_mode_removes_the_polynomial_before_the_filter() -> None:
+    from fusion.thermal.link import ThermalLink
+
+    cal = _cal("px4", None)
+    tuning = ThermalTuning(mode="cal", calibration=cal)
+    link = ThermalLink(tuning, layout_for("ins16"), HealthCounters())
+    s = ImuSample(10_000, 0.01, np.array([0.0, 0.0, -9.8]), np.array([0.01, 0.0, 0.0]), 308.15)
+    out = link.pre(s)
+    g, a = cal.offsets(308.15)
+    np.testing.assert_allclose(out.angular_rate_b_rps, [0.01 - g[0], -g[1], -g[2]])
+    np.testing.assert_allclose(out.specific_force_b_mps2, [-a[0], -a[1], -9.8 - a[2]])
+    # a NaN temperature: the correction of the last good one holds
+    out2 = link.pre(ImuSample(20_000, 0.01, s.specific_force_b_mps2, s.angular_rate_b_rps,
+                              math.nan))
+    np.testing.assert_allclose(out2.angular_rate_b_rps, out.angular_rate_b_rps)
