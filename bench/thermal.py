@@ -357,6 +357,34 @@ def plot(summary: dict[str, Any], outage_s: float, path: Path, title: str) -> No
     fig.savefig(path)
 
 
+def table(summary: dict[str, Any]) -> str:
+    """The summary as the Markdown table of docs/results.md."""
+    def f(v: Any, fmt: str = ".0f") -> str:
+        return "n/a" if v is None else format(v, fmt)
+
+    lines = ["| row | h err 60 s (m) | 300 s | 900 s | 300 s vs states | 300 s vs blind "
+             "| worst 300 s vs blind | roll/pitch RMS (deg) | heading RMS (deg) "
+             "| rms(err/sigma) pos, vel, att |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for suffix in ("-nopitot", ""):
+        for s in STRATEGIES:
+            a = summary.get(s + suffix)
+            if not a:
+                continue
+            h300 = a.get("h_err_300s_m", {})
+            lines.append(
+                f"| {s + suffix} | {f(a.get('h_err_60s_m', {}).get('median'))} "
+                f"| {f(h300.get('median'))} | {f(a.get('h_err_900s_m', {}).get('median'))} "
+                f"| {f(h300.get('ratio_vs_states'), '.2f')} "
+                f"| {f(h300.get('ratio_vs_blind'), '.2f')} "
+                f"| {f(h300.get('worst_ratio_vs_blind'), '.2f')} "
+                f"| {f(a.get('roll_pitch_rms_deg_median'), '.2f')} "
+                f"| {f(a.get('heading_rms_deg_median'), '.2f')} "
+                f"| {f(a.get('rms_z_pos_median'), '.2f')}, {f(a.get('rms_z_vel_median'), '.2f')}, "
+                f"{f(a.get('rms_z_att_median'), '.2f')} |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, default=Path("bench/results/thermal.json"))
@@ -369,7 +397,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--outage", type=float, default=900.0)
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--plot", type=Path, default=None)
+    ap.add_argument("--table", type=Path, default=None,
+                    help="print the Markdown tables of an existing result file and exit")
     args = ap.parse_args(argv)
+    if args.table is not None:
+        res = json.loads(args.table.read_text())
+        print("all flights\n" + table(res["summary"]))
+        for cls, summ in res.get("by_class", {}).items():
+            print(f"\n{cls}\n" + table(summ))
+        print("\ncost: " + json.dumps(res["summary"].get("gmdh_cost")))
+        return 0
     plans = args.plans.split(",")
     tasks = [{"plan": plans[(i + j) % len(plans)], "seed": args.seed_base + i, "part": part,
               "profile": profile, "outage_start_s": args.outage_start, "outage_s": args.outage}
