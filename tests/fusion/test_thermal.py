@@ -94,7 +94,7 @@ def _thermal_scenario(k_gz: float, seconds: float) -> tuple[list[object], float]
     """A flight with a gyro-z bias linear in a warming die temperature; its samples and the
     temperature at the end."""
     rng = np.random.default_rng(3)
-    fl = Flight(duration_s=seconds, turns=[(60.0, 90.0, 0.05), (200.0, 230.0, -0.05)])
+    fl = Flight(duration_s=seconds, turns=[(60.0, 90.0, 0.05), (150.0, 180.0, -0.05)])
     sc = make_scenario(fl, rng, SensorErrors.from_config(FilterConfig()), imu_rate_hz=50.0,
                        mag_rate_hz=None)
     out: list[object] = []
@@ -114,7 +114,7 @@ def _thermal_scenario(k_gz: float, seconds: float) -> tuple[list[object], float]
 def test_tempco_states_learn_the_coefficient_of_a_warming_gyro() -> None:
     # GIVEN a gyro z bias that moves 0.015 deg/s per K while the die warms by 15 K
     k = math.radians(0.015)
-    samples, _ = _thermal_scenario(k, 400.0)
+    samples, _ = _thermal_scenario(k, 240.0)
     nav = NavFilter(FilterConfig(thermal=ThermalTuning(mode="states")))
     # WHEN the filter with temperature-coefficient states runs with GNSS
     for s in samples:
