@@ -160,3 +160,19 @@ def part_thermal_tuning(part: ImuThermalPart, base: ThermalTuning | None = None)
         "quantum_k": part.temperature_resolution_k,
         "update_period_s": max(part.temperature_update_s, 0.01),
     })
+
+
+DEFAULT_THERMAL_PART = "bmi088"
+"""The part the commands' thermal strategies assume when none is named (``--thermal-part``)."""
+
+
+def command_thermal_tuning(mode: str, calibration: Path | None = None,
+                           part: str = DEFAULT_THERMAL_PART) -> ThermalTuning:
+    """:func:`thermal_tuning` for the part named by a thermal preset (ValueError lists the
+    valid ones)."""
+    from sim.presets import imu_thermal_preset
+
+    figures = imu_thermal_preset(part)
+    if figures is None:
+        raise ValueError(f"--thermal-part needs a part, not {part!r}")
+    return thermal_tuning(mode, calibration, part_thermal_tuning(figures))

@@ -21,6 +21,7 @@ from scenarios.cli.options import (
     SigningKeyFileOption,
     ThermalCalOption,
     ThermalOption,
+    ThermalPartOption,
     ZenohLowLatencyOption,
     ZenohSecurity,
     zenoh_security_options,
@@ -53,6 +54,7 @@ def fusion(
     align: AlignOption = DEFAULT_ALIGN_MODE,
     thermal: ThermalOption = DEFAULT_THERMAL_MODE,
     thermal_cal: ThermalCalOption = None,
+    thermal_part: ThermalPartOption = "bmi088",
     gcs: Annotated[
         str | None,
         typer.Option(help="Shadow vehicle for ground stations, e.g. udpout:127.0.0.1:14550."),
@@ -105,9 +107,9 @@ def fusion(
         from hil.bus.security import check_peer_link
 
         check_peer_link([zenoh_listen], access.security)
-    from hil.thermal_cal import thermal_tuning
+    from hil.thermal_cal import command_thermal_tuning
 
-    therm = thermal_tuning(thermal, thermal_cal)
+    therm = command_thermal_tuning(thermal, thermal_cal, thermal_part)
     options = FusionOptions(
         mavlink=mavlink, source=source, zenoh=zenoh, zenoh_listen=zenoh_listen,
         zenoh_low_latency=zenoh_low_latency, vehicle=vehicle, imu=imu, gnss=gnss,

@@ -39,6 +39,7 @@ from scenarios.cli.options import (
     SettleOption,
     ThermalCalOption,
     ThermalOption,
+    ThermalPartOption,
 )
 from scenarios.cli.output import (
     console,
@@ -71,6 +72,7 @@ def replay(
     gnss: GnssOption = "modern",
     thermal: ThermalOption = DEFAULT_THERMAL_MODE,
     thermal_cal: ThermalCalOption = None,
+    thermal_part: ThermalPartOption = "bmi088",
     gnss_off: Annotated[
         list[str] | None,
         typer.Option("--gnss-off", help="Cut GNSS START:DURATION s, from the log's first "
@@ -83,7 +85,7 @@ def replay(
     with settled_heap():
         from hil.pipeline import filter_config
         from hil.streamer import GnssWindow
-        from hil.thermal_cal import thermal_tuning
+        from hil.thermal_cal import command_thermal_tuning
         from scenarios.replay import replay as run_replay
         from sim.presets import gnss_preset
 
@@ -96,7 +98,7 @@ def replay(
         GnssWindow.parse(w)
     if not settle >= 0.0:
         raise ValueError(f"--settle must be >= 0 s (got {settle:g})")
-    therm = thermal_tuning(thermal, thermal_cal)
+    therm = command_thermal_tuning(thermal, thermal_cal, thermal_part)
     result = run_replay(log, out,
                         config=filter_config(imu, gnss_preset(gnss), altitude, airspeed, align,
                                              therm),

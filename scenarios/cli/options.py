@@ -32,7 +32,8 @@ from fusion.choices import (
 __all__ = [
     "AirspeedOption", "AirspeedOverride", "AlignOption", "AlignOverride", "AltitudeOption",
     "BridgeOption", "FoxgloveOption", "GnssOption", "ImuOption", "QuietOption", "SettleOption",
-    "SigningKeyFileOption", "ThermalCalOption", "ThermalOption", "ZenohKeyFileOption",
+    "SigningKeyFileOption", "ThermalCalOption", "ThermalOption",
+    "ThermalPartOption", "ZenohKeyFileOption",
     "ZenohLowLatencyOption", "ZenohSecurity",
     "option_group", "zenoh_security_options",
 ]
@@ -61,6 +62,10 @@ ThermalOption = Annotated[str, typer.Option(
     help=f"IMU thermal strategy: {', '.join(THERMAL_MODES)} (off: the datasheet's bias noise; "
          "blind: bias noise widened for the part's thermal drift; states: temperature-"
          "coefficient states; cal: a calibration file, --thermal-cal).")]
+ThermalPartOption = Annotated[str, typer.Option(
+    help="The IMU part whose datasheet temperature coefficients and temperature sensor the "
+         "thermal strategies assume (a thermal preset: bmi088, icm42688p, icm20948, "
+         "adis1646x).")]
 ThermalCalOption = Annotated[Path | None, typer.Option(
     help="IMU thermal calibration file (PX4 TC_G0_*/TC_A0_* or ArduPilot INS_TCAL1_* "
          "parameters); implies --thermal cal.")]

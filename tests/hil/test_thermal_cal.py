@@ -98,3 +98,17 @@ def test_replay_with_a_bad_calibration_file_exits_2_with_one_line(tmp_path: Path
                                       "--thermal-cal", str(bad)])  # fmt: skip
     assert result.exit_code == 2
     assert "thermal calibration" in result.output and "Traceback" not in result.output
+
+
+def test_thermal_part_sets_the_tempcos_and_a_bad_one_exits_2(tmp_path: Path) -> None:
+    from hil.thermal_cal import command_thermal_tuning
+
+    adis = command_thermal_tuning("blind", part="adis1646x")
+    bmi = command_thermal_tuning("blind")
+    assert adis.gyro_tempco_rps_per_k < bmi.gyro_tempco_rps_per_k
+    assert bmi.quantum_k == 0.125 and bmi.update_period_s == 1.28
+    log = tmp_path / "x.tlog"
+    log.write_bytes(b"")
+    result = CliRunner().invoke(app, ["replay", str(log), "--out", str(tmp_path / "o"),
+                                      "--thermal", "states", "--thermal-part", "bmi99"])
+    assert result.exit_code == 2 and "bmi088" in result.output
