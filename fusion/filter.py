@@ -100,7 +100,7 @@ from fusion.samples import (
 )
 from fusion.screening import SampleScreen
 from fusion.strapdown import InsState
-from fusion.thermal.link import ThermalLink
+from fusion.thermal.link import ThermalLink, ThermalStatus
 from physconst.isa import pressure_altitude_m
 
 __all__ = ["Health", "NavEstimate", "NavFilter"]  # the filter, its output and counters
@@ -266,6 +266,13 @@ class NavFilter(FilterState):
         """The air-data status (``off`` without air-data states or with air data disabled)."""
         air = self._air
         return AIR_OFF if air is None else air.status(self._t_us)
+
+    @property
+    def thermal_status(self) -> ThermalStatus | None:
+        """The IMU thermal strategy's state (``None`` with ``--thermal off`` and no learned
+        thermal model)."""
+        thermal = self._thermal
+        return None if thermal is None else thermal.status()
 
     @property
     def bridge_status(self) -> BridgeStatus:

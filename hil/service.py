@@ -485,7 +485,8 @@ class FusionService:
             return
         if self._bus is not None and self._bus.due(Topic.STATUS, est.time_us):
             # counters only when it is sent
-            self._bus.publish_status(est, links=self.link_counters())
+            self._bus.publish_status(est, links=self.link_counters(),
+                                     thermal=self.nav.thermal_status)
         if self.companion is not None and est.time_us >= self._next_companion_us:
             kind = self.options.companion_kind
             frame = (self.companion.gps_input(est) if kind == "gps_input"
@@ -657,7 +658,7 @@ class FusionService:
         if self._bus is not None and self.last_estimate is not None:
             with contextlib.suppress(ValueError):
                 self._bus.publish_status(self.last_estimate, links=self.link_counters(),
-                                         force=True)
+                                         force=True, thermal=self.nav.thermal_status)
 
     # ---------------------------------------------------------------- scorecard
     def live_section(self) -> dict[str, Any]:

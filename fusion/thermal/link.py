@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -32,6 +33,25 @@ from fusion.thermal.tuning import ThermalTuning
 
 Vec3 = tuple[float, float, float]
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True, slots=True)
+class ThermalStatus:
+    """The thermal strategy at one moment (``fusion/status`` ``thermal``, ``summary.json``
+    ``health.thermal``)."""
+
+    mode: str
+    """``off``, ``blind``, ``states`` or ``cal``."""
+    temperature_k: float
+    """The last good die temperature, K (NaN before the first)."""
+    temperature_good: bool
+    """The latest reading was accepted (false: the corrections hold)."""
+    rate_k_per_s: float
+    """Die-temperature rate over the last minute, K/s."""
+    tempco_accel_mps2_per_k: tuple[float, float, float]
+    """``states``: the accelerometer coefficient estimates (zero otherwise)."""
+    tempco_gyro_rps_per_k: tuple[float, float, float]
+    """``states``: the gyro coefficient estimates (zero otherwise)."""
 
 
 class CalibratedImu:
@@ -189,6 +209,13 @@ class ThermalLink:
                 else:
                     self._pred_anchor = None
         return (da[0], da[1], da[2]), (dg[0], dg[1], dg[2]), d_t
+
+    def status(self) -> ThermalStatus:
+        """The strategy's state now."""
+        ka, kg = self.tempco_accel, self.tempco_gyro
+        return ThermalStatus(self.tuning.mode, self.screen.temperature_k, self.screen.good,
+                             self.rate_k_per_s, (ka[0], ka[1], ka[2]),
+                             (kg[0], kg[1], kg[2]))  # fmt: skip
 
     def correct_tempco(self, d: list[float]) -> None:
         """Feedback of the temperature-coefficient error estimate (``+therm`` layouts)."""
