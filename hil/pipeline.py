@@ -96,6 +96,7 @@ class SimSetup:
         baro: str = "ms5611",
         mag: str = "consumer",
         pitot: str = presets.DEFAULT_PITOT_PRESET,
+        imu_thermal: str = presets.IMU_THERMAL_OFF,
         lat_deg: float = 47.0,
         lon_deg: float = 8.0,
         alt_msl_m: float = 1000.0,
@@ -111,7 +112,8 @@ class SimSetup:
     ) -> SimSetup:
         """A setup from human-facing options (preset names, ``N,E,D`` wind, ``START:DUR``
         outages); ValueError / ValidationError name the bad one. ``pitot="none"``: an
-        aircraft without an airspeed sensor (no ``diff_pressure`` in the stream)."""
+        aircraft without an airspeed sensor (no ``diff_pressure`` in the stream);
+        ``imu_thermal``: a thermal IMU part powered on at the start, or ``off``."""
         if not duration_s > 0:
             raise ValueError(f"duration must be > 0 s (got {duration_s})")
         if seed < 0:
@@ -132,7 +134,8 @@ class SimSetup:
         return cls(
             flight=flight,
             plan=load_plan(plan),
-            sensors=presets.suite_config(imu=imu, gnss=gnss, baro=baro, mag=mag, pitot=pitot),
+            sensors=presets.suite_config(imu=imu, gnss=gnss, baro=baro, mag=mag, pitot=pitot,
+                                         imu_thermal=imu_thermal),
             duration_s=duration_s,
             seed=seed,
             gnss_off=tuple(GnssWindow.parse(w) for w in gnss_off),

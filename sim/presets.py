@@ -21,7 +21,7 @@ from typing import TypeVar
 from sim.baro import BaroConfig
 from sim.gnss import GnssConfig
 from sim.imu import AccelConfig, GyroConfig, ImuConfig
-from sim.imu_thermal import ImuThermalPart
+from sim.imu_thermal import ImuThermalConfig, ImuThermalPart
 from sim.mag import MagConfig
 from sim.pitot import PitotConfig
 from sim.sensors import SensorSuiteConfig
@@ -474,6 +474,11 @@ def mag_preset(name: str) -> MagConfig:
     return _lookup("magnetometer", _MAG_PRESETS, name)
 
 
+def _thermal_config(name: str) -> ImuThermalConfig | None:
+    part = imu_thermal_preset(name)
+    return None if part is None else ImuThermalConfig(part=part, preset=name)
+
+
 def suite_config(
     imu: str = "industrial-mems",
     gnss: str = "modern",
@@ -481,12 +486,16 @@ def suite_config(
     mag: str = "consumer",
     pitot: str = DEFAULT_PITOT_PRESET,
     *,
+    imu_thermal: str = IMU_THERMAL_OFF,
     imu_rate_hz: float | None = None,
     baro_rate_hz: float = 50.0,
     mag_rate_hz: float = 50.0,
     pitot_rate_hz: float = 50.0,
 ) -> SensorSuiteConfig:
     """A :class:`~sim.sensors.SensorSuiteConfig` assembled from preset names.
+
+    ``imu_thermal``: a part's thermal preset (the IMU powered on at the start, the air's
+    temperature around it, no heater), or ``off``.
 
     Raises
     ------
@@ -501,6 +510,7 @@ def suite_config(
         baro=baro_preset(baro),
         mag=mag_preset(mag),
         pitot=pitot_preset(pitot),
+        imu_thermal=_thermal_config(imu_thermal),
         imu_rate_hz=imu_rate_hz,
         baro_rate_hz=baro_rate_hz,
         mag_rate_hz=mag_rate_hz,

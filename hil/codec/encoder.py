@@ -29,8 +29,8 @@ Messages written (:class:`Encoder`)
     asked (``imu_temperature=True``, a thermal IMU model): then the frame carries the IMU and
     its temperature (bit 12) and no barometer, and the barometer travels in a frame of its
     own, so each temperature reaches the samples of its own sensor (the decoder gives a
-    sample the last temperature of its source, PX4 sets each sensor's temperature from the
-    frame that updates it).
+    sample the last temperature of its source; PX4 takes the barometer group as bits 9, 11
+    and 12 together, so an IMU frame's temperature never reaches its barometer).
     ``diff_pressure`` is float32 hPa (PX4: ``diff_pressure * 100`` = Pa): a round trip loses
     at most half a float32 ulp, <= 2**-24 relative (4e-5 Pa at 700 Pa).
 

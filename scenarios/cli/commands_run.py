@@ -189,6 +189,7 @@ def list_choices(
         "aircraft": available_aircraft(),
         "plans": available_plans(),
         "imu": presets.available_imu_presets(),
+        "imu_thermal": presets.available_imu_thermal_presets(),
         "gnss": presets.available_gnss_presets(),
         "baro": presets.available_baro_presets(),
         "mag": presets.available_mag_presets(),

@@ -64,6 +64,10 @@ def _flight_template(
     pitot: Annotated[str, typer.Option(
         help="Pitot (airspeed) preset; none = an aircraft without one.",
         rich_help_panel=_FLIGHT)] = "ms4525do",
+    imu_thermal: Annotated[str, typer.Option(
+        help="Thermal preset of the IMU part (its temperature, warming up from the start, "
+             "moves its biases; the stream carries it); off = none.",
+        rich_help_panel=_FLIGHT)] = "off",
     lat: Annotated[float, typer.Option(
         help="Start latitude, deg.", rich_help_panel=_FLIGHT)] = 47.0,
     lon: Annotated[float, typer.Option(
@@ -108,6 +112,7 @@ class FlightOptions:
     baro: str = "ms5611"
     mag: str = "consumer"
     pitot: str = "ms4525do"
+    imu_thermal: str = "off"
     lat: float = 47.0
     lon: float = 8.0
     alt: float = 1000.0
@@ -127,7 +132,8 @@ class FlightOptions:
         return SimSetup.build(
             plan=self.plan, aircraft=self.aircraft, duration_s=self.duration, seed=self.seed,
             rate_hz=self.rate, imu=self.imu, gnss=self.gnss, baro=self.baro, mag=self.mag,
-            pitot=self.pitot, lat_deg=self.lat, lon_deg=self.lon, alt_msl_m=self.alt,
+            pitot=self.pitot, imu_thermal=self.imu_thermal, lat_deg=self.lat,
+            lon_deg=self.lon, alt_msl_m=self.alt,
             heading_deg=self.heading, airspeed_mps=self.airspeed, wind=self.wind,
             turbulence=self.turbulence, wind_shear_exponent=self.wind_shear,
             wind_ref_agl_m=self.wind_ref_agl, gnss_off=self.gnss_off or [],

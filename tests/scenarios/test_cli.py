@@ -31,6 +31,7 @@ def _run(*args: str) -> tuple[int, str]:
         (["--plan", "loop-the-loop"], "climb-descent, cruise, manoeuvre"),
         (["--aircraft", "sopwith"], "c172x"),
         (["--imu", "gold-plated"], "industrial-mems"),
+        (["--imu-thermal", "bmi089"], "adis1646x, bmi088"),
         (["--gnss", "galileo-prs"], "modern"),
         (["--duration", "-5"], "duration"),
         (["--rate", "1000"], "rate_hz"),
@@ -156,6 +157,7 @@ def test_list_json() -> None:
     assert "c172x" in choices["aircraft"] and "c310" in choices["aircraft"]
     assert set(choices["plans"]) == {"cruise", "racetrack", "climb-descent", "survey", "manoeuvre"}
     assert {"consumer-mems", "industrial-mems", "tactical", "paper-p2"} <= set(choices["imu"])
+    assert choices["imu_thermal"] == ["adis1646x", "bmi088", "icm20948", "icm42688p", "off"]
     assert choices["align"] == ["auto", "static", "in-flight"]
 
 

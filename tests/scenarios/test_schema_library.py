@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import jsonschema
@@ -170,3 +171,36 @@ def test_json_schema_rejects_what_the_models_reject() -> None:
     assert validator.is_valid(
         {"duration_s": 60, "events": [{"type": "gnss_outage", "at": "5 min"}]}
     )
+
+
+def test_the_scenarios_page_lists_every_library_file() -> None:
+    page = (Path(__file__).resolve().parents[2] / "docs" / "scenarios.md").read_text("utf-8")
+    listed = set(re.findall(r"^\| `([a-z0-9-]+\.yaml)` \|", page, flags=re.MULTILINE))
+    assert listed == {p.name for p in LIBRARY}
+    assert f"holds {len(LIBRARY)} scenarios" in page
+
+
+def test_library_covers_the_thermal_rehearsals() -> None:
+    """A warm-up outage (power-on at the start, GNSS lost within 10 min), a cold soak in a
+    climb, a hot day and a heater failure inside an outage, each on a thermal IMU preset."""
+    thermal = {}
+    for p in LIBRARY:
+        s = load_scenario(p)
+        t = s.sensor_config().imu_thermal
+        if t is not None:
+            thermal[p.stem] = (s, t)
+    warm = thermal["thermal-warmup-outage"]
+    (outage,) = warm[0].fault_events()
+    assert isinstance(outage, faults.GnssOutage)
+    assert warm[1].power_on_s == 0.0 and outage.start_s < 600.0 and outage.duration_s == 300.0
+    cold = thermal["thermal-cold-soak-climb"]
+    assert cold[1].start_temperature_c is not None and cold[1].start_temperature_c < 0.0
+    assert cold[0].plan == "climb-descent"
+    hot = thermal["thermal-hot-day"]
+    assert hot[0].sensor_config().baro.sea_level_temperature_offset_k > 0.0
+    heater = thermal["thermal-heater-failure"]
+    fails = heater[1].heater_fails_at_s
+    (outage,) = heater[0].fault_events()
+    assert isinstance(outage, faults.GnssOutage) and outage.duration_s is not None
+    assert fails is not None and outage.start_s < fails < outage.start_s + outage.duration_s
+    assert {t.preset for _, t in thermal.values()} >= {"bmi088", "icm42688p", "adis1646x"}
