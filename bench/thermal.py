@@ -397,6 +397,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--outage", type=float, default=900.0)
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--plot", type=Path, default=None)
+    ap.add_argument("--resume", action="store_true",
+                    help="keep the flights already in OUT.partial.jsonl, fly the rest")
     ap.add_argument("--table", type=Path, default=None,
                     help="print the Markdown tables of an existing result file and exit")
     args = ap.parse_args(argv)
@@ -413,11 +415,32 @@ def main(argv: list[str] | None = None) -> int:
              for j, part in enumerate(args.parts.split(","))
              for profile in args.profiles.split(",") for i in range(args.seeds)]  # fmt: skip
     t0 = time.perf_counter()
-    if args.jobs > 1:
-        with mp.get_context("spawn").Pool(args.jobs) as pool:
-            rows = pool.map(_run_star, tasks, chunksize=1)
-    else:
-        rows = [_run_star(t) for t in tasks]
+    # each flight's row is also appended to a side file as it lands (a long run interrupted
+    # keeps what it flew; ``--resume`` reads it back and flies only what is missing)
+    partial = args.out.with_suffix(".partial.jsonl")
+    done: list[dict[str, Any]] = []
+    if args.resume and partial.exists():
+        done = [json.loads(line) for line in partial.read_text().splitlines() if line.strip()]
+    key = ("plan", "seed", "part", "profile")
+    have = {tuple(r[k] for k in key) for r in done}
+    todo = [t for t in tasks if tuple(t[k] for k in key) not in have]
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    with partial.open("a") as side:
+        if args.jobs > 1 and len(todo) > 1:
+            with mp.get_context("spawn").Pool(min(args.jobs, len(todo))) as pool:
+                for row in pool.imap_unordered(_run_star, todo, chunksize=1):
+                    side.write(json.dumps(row) + "\n")
+                    side.flush()
+                    done.append(row)
+        else:
+            for t in todo:
+                row = _run_star(t)
+                side.write(json.dumps(row) + "\n")
+                side.flush()
+                done.append(row)
+    order = {tuple(t[k] for k in key): i for i, t in enumerate(tasks)}
+    rows = sorted((r for r in done if tuple(r[k] for k in key) in order),
+                  key=lambda r: order[tuple(r[k] for k in key)])
     summary = summarise(rows, args.outage)
     by_class = {}
     for cls, parts in (("consumer", ("bmi088", "icm20948", "icm42688p")),
@@ -435,8 +458,8 @@ def main(argv: list[str] | None = None) -> int:
         "wall_s": time.perf_counter() - t0,
         "load_average": os.getloadavg(), "machine": platform.processor() or platform.machine(),
     }  # fmt: skip
-    args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=1))
+    partial.unlink(missing_ok=True)
     if args.plot is not None:
         plot(summary, args.outage, args.plot,
              f"{len(rows)} flights (seeds {result['seeds']}), parts {args.parts}, "
