@@ -194,7 +194,7 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
         "calibration_sweep_c": cal_info, "rows": {},
     }  # fmt: skip
     end_s = start_s + outage_s
-    for strategy in STRATEGIES:
+    for strategy in task.get("strategies", STRATEGIES):
         for airspeed in ("on", "off"):
             name = strategy + ("" if airspeed == "on" else "-nopitot")
             mode = "blind" if strategy == "gmdh-thermal" else strategy
@@ -397,6 +397,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--outage", type=float, default=900.0)
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--plot", type=Path, default=None)
+    ap.add_argument("--strategies", default=",".join(STRATEGIES),
+                    help="the rows to run (each with and without the pitot)")
     ap.add_argument("--resume", action="store_true",
                     help="keep the flights already in OUT.partial.jsonl, fly the rest")
     ap.add_argument("--table", type=Path, default=None,
@@ -411,7 +413,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     plans = args.plans.split(",")
     tasks = [{"plan": plans[(i + j) % len(plans)], "seed": args.seed_base + i, "part": part,
-              "profile": profile, "outage_start_s": args.outage_start, "outage_s": args.outage}
+              "profile": profile, "outage_start_s": args.outage_start, "outage_s": args.outage,
+              "strategies": args.strategies.split(",")}
              for j, part in enumerate(args.parts.split(","))
              for profile in args.profiles.split(",") for i in range(args.seeds)]  # fmt: skip
     t0 = time.perf_counter()
