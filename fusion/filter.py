@@ -434,8 +434,8 @@ class NavFilter(FilterState):
         if not good:
             # integrated from the last good sample: the sensors did not see this interval
             cov.add_unknown_motion(dt)
-        if thermal is not None:
-            self._thermal_step(thermal, t)
+        if thermal is not None:  # the bias moves with the die temperature
+            self._nom = thermal.move_bias(self._nom, self._gnss_ctl.is_active(t), t, self._cov)
         self._history_push(t, ins)
         zero = self._zero
         if zero is not None and good:
@@ -468,21 +468,6 @@ class NavFilter(FilterState):
                 self._next_out_us = t + self._out_period_us
             return [self._make_estimate()]
         return []
-
-    def _thermal_step(self, thermal: ThermalLink, t: int) -> None:
-        """Move the bias estimate with the die temperature (:mod:`fusion.thermal.link`)."""
-        nom = self._nom
-        assert nom is not None
-        ba, bg = nom.accel_bias_b_mps2, nom.gyro_bias_b_rps
-        step = thermal.bias_step(self._gnss_ctl.is_active(t), t, (ba, bg))
-        if step is None:
-            return
-        da, dg, d_t = step
-        self._cov.thermal_dt_k += d_t
-        if da != _ZERO3 or dg != _ZERO3:
-            self._nom = nom._replace(
-                accel_bias_b_mps2=(ba[0] + da[0], ba[1] + da[1], ba[2] + da[2]),
-                gyro_bias_b_rps=(bg[0] + dg[0], bg[1] + dg[1], bg[2] + dg[2]))  # fmt: skip
 
     def _coast(self, t: int, gap_s: float) -> None:
         """IMU data missing for ``gap_s``: constant-velocity dead reckoning, covariance grown by

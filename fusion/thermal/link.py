@@ -26,6 +26,8 @@ from typing import Any
 import numpy as np
 
 from fusion.estimate import HealthCounters
+from fusion.nominal import NominalState
+from fusion.propagation import CovariancePropagator
 from fusion.state_layout import StateLayout
 from fusion.thermal.bias_model import ThermalBiasModel
 from fusion.thermal.screen import TemperatureScreen
@@ -216,6 +218,22 @@ class ThermalLink:
         return ThermalStatus(self.tuning.mode, self.screen.temperature_k, self.screen.good,
                              self.rate_k_per_s, (ka[0], ka[1], ka[2]),
                              (kg[0], kg[1], kg[2]))  # fmt: skip
+
+    def move_bias(self, nom: NominalState, gnss_active: bool, time_us: int,
+                  cov: CovariancePropagator) -> NominalState:  # fmt: skip
+        """After an IMU step: ``nom`` with its bias estimate moved by :meth:`bias_step`, the
+        temperature change handed to the covariance transition (``cov.thermal_dt_k``)."""
+        ba, bg = nom.accel_bias_b_mps2, nom.gyro_bias_b_rps
+        step = self.bias_step(gnss_active, time_us, (ba, bg))
+        if step is None:
+            return nom
+        da, dg, d_t = step
+        cov.thermal_dt_k += d_t
+        if da == _ZERO3 and dg == _ZERO3:
+            return nom
+        return nom._replace(
+            accel_bias_b_mps2=(ba[0] + da[0], ba[1] + da[1], ba[2] + da[2]),
+            gyro_bias_b_rps=(bg[0] + dg[0], bg[1] + dg[1], bg[2] + dg[2]))  # fmt: skip
 
     def correct_tempco(self, d: list[float]) -> None:
         """Feedback of the temperature-coefficient error estimate (``+therm`` layouts)."""
