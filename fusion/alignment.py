@@ -105,6 +105,10 @@ def initial_variances(layout: StateLayout, config: FilterConfig) -> FloatArray:
         d[lay.mg] = cfg.imu.gyro_misalignment_sigma_rad**2
     if lay.has_baro_scale:
         d[lay.bs] = cfg.baro.scale_sigma**2
+    if lay.has_thermal:  # the unit's coefficient: the part's tempco is its 1-sigma spread
+        th = cfg.thermal
+        d[lay.KA : lay.KA + 3] = th.accel_tempco_mps2_per_k**2
+        d[lay.KG : lay.KG + 3] = th.gyro_tempco_rps_per_k**2
     return d
 
 

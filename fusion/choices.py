@@ -10,7 +10,7 @@ from __future__ import annotations
 
 BRIDGE_METHODS: tuple[str, ...] = (
     "none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel", "gmdh-airspeed", "gmdh-wind",
-    "gmdh-pitot",
+    "gmdh-pitot", "gmdh-thermal",
 )
 """Names accepted by :func:`fusion.bridging.registry.make_bridge`."""
 
@@ -34,3 +34,9 @@ hyphen."""
 DEFAULT_ALIGN_MODE = "auto"
 """The commands' alignment default: the path follows from the data
 (:class:`fusion.config.InitConfig`)."""
+
+THERMAL_MODES: tuple[str, ...] = ("off", "blind", "states", "cal")
+"""Thermal strategies of the commands (``--thermal``; ``cal`` takes a calibration file):
+:attr:`fusion.thermal.tuning.ThermalTuning.mode`."""
+DEFAULT_THERMAL_MODE = "off"
+"""The commands' thermal default: no temperature model and the datasheet's bias noise."""

@@ -32,6 +32,7 @@ from fusion.choices import (  # noqa: F401  # re-exported: the commands' choices
 )
 from fusion.error_model import ProcessNoise
 from fusion.state_layout import LayoutName
+from fusion.thermal.tuning import ThermalTuning, widened_bias_sigma
 from physconst.geomag import DEFAULT_DECIMAL_YEAR
 
 Probability = float
@@ -690,17 +691,33 @@ class FilterConfig(_Frozen):
     altitude: AltitudeConfig = AltitudeConfig()
     airspeed: AirspeedTuning = AirspeedTuning()
     zero_motion: ZeroMotionTuning = ZeroMotionTuning()
+    thermal: ThermalTuning = ThermalTuning()
+    """The thermal strategy (``off`` by default; :mod:`fusion.thermal`)."""
 
     def process_noise(self) -> ProcessNoise:
-        """The error model's process-noise parameters from the sensor tunings (SI units)."""
+        """The error model's process-noise parameters from the sensor tunings (SI units); a
+        thermal strategy widens the bias random walk by its share of the thermal drift
+        (:meth:`fusion.thermal.tuning.ThermalTuning.thermal_rate_density`)."""
         imu, baro, gnss, air = self.imu, self.baro, self.gnss, self.airspeed
+        th = self.thermal
+        gyro_sigma, accel_sigma = imu.gyro_bias_sigma_rps, imu.accel_bias_sigma_mps2
+        kg = ka = 0.0
+        share = th.residual_share()
+        if share > 0.0:
+            qg, qa = th.thermal_rate_density()
+            gyro_sigma = widened_bias_sigma(gyro_sigma, imu.gyro_bias_tau_s, share * qg)
+            accel_sigma = widened_bias_sigma(accel_sigma, imu.accel_bias_tau_s, share * qa)
+        if th.mode == "states":
+            kg, ka = th.tempco_walk_density()
         return ProcessNoise(
             gyro_noise=imu.gyro_noise_density_rps_rthz,
             accel_noise=imu.accel_noise_density_mps2_rthz,
-            gyro_bias_sigma=imu.gyro_bias_sigma_rps,
+            gyro_bias_sigma=gyro_sigma,
             gyro_bias_tau_s=imu.gyro_bias_tau_s,
-            accel_bias_sigma=imu.accel_bias_sigma_mps2,
+            accel_bias_sigma=accel_sigma,
             accel_bias_tau_s=imu.accel_bias_tau_s,
+            gyro_tempco_walk=kg,
+            accel_tempco_walk=ka,
             baro_bias_sigma=baro.bias_sigma_m,
             baro_bias_tau_s=baro.bias_tau_s,
             gyro_scale_sigma=imu.gyro_scale_sigma,

@@ -29,6 +29,9 @@ same structure as KF-GINS ``gi_engine.cpp`` with our sign of ``phi``)::
             - C_nb dM_g omega_b + C_nb w_g
     dba'  = w_ba                      (likewise dbg, dsa, dsg, dma, dmg, dbs)
     dbb'  = -dbb / tau_b + w_bb       (likewise db_gnss)
+    dka'  = w_ka, dkg' = w_kg         (+therm; over a propagation interval in which the die
+                                      temperature changed by dT: dba += dT dka, dbg += dT dkg,
+                                      written into Phi by fusion.propagation)
 
 with ``N_ie``, ``N_en`` the derivatives of ``omega_ie_n``, ``omega_en_n`` w.r.t. position error
 and ``N_env`` that of ``omega_en_n`` w.r.t. velocity error; ``F_vr = [v×](2 N_ie + N_en) + dg``,
@@ -117,6 +120,11 @@ class ProcessNoise:
     wind_climb_scaler_spm: float = 0.5
     """The wind noise is multiplied by ``1 + scaler |climb rate|`` (s/m; EKF2's
     ``wind_vel_nsd_scaler``): a climbing aircraft flies through the wind profile."""
+    gyro_tempco_walk: float = 0.0
+    """Random-walk density of the gyro temperature coefficients, (rad/s/K)^2/s (``+therm``
+    layouts)."""
+    accel_tempco_walk: float = 0.0
+    """Random-walk density of the accelerometer temperature coefficients, (m/s^2/K)^2/s."""
     airspeed_scale_noise_rthz: float = 1e-4
     """Airspeed scale random-walk driving noise, 1/sqrt(s) (PX4 WEST_SC_P_NOISE)."""
     gust_sigma_mps: float = 1.5
@@ -527,6 +535,9 @@ class ErrorModel:
             q[lay.mg] = gm(nz.gyro_misalignment_sigma, nz.gyro_scale_tau_s)
         if lay.has_baro_scale:
             q[lay.bs] = gm(nz.baro_scale_sigma, nz.baro_scale_tau_s)
+        if lay.has_thermal:
+            q[lay.KA : lay.KA + 3] = nz.accel_tempco_walk * dt_s
+            q[lay.KG : lay.KG + 3] = nz.gyro_tempco_walk * dt_s
         if lay.has_gnss_bias:
             g = lay.GNSS
             q[g] = q[g + 1] = gm(nz.gnss_bias_sigma_h_m, nz.gnss_bias_tau_h_s)

@@ -183,6 +183,16 @@ class Health:
     """Zero-angular-rate updates fused (one per still block of the rest detector)."""
     zaru_rejected: int = 0
     """Zero-angular-rate updates refused by the gate (a slow rotation, not rest)."""
+    temperature_nan: int = 0
+    """IMU temperature readings that were not finite (thermal strategies only,
+    :mod:`fusion.thermal.screen`): the thermal corrections hold."""
+    temperature_stuck: int = 0
+    """IMU temperature streams found stuck (the same reading for longer than the sensor's
+    update period allows)."""
+    temperature_out_of_range: int = 0
+    """IMU temperature readings outside the part's operating range."""
+    temperature_jump: int = 0
+    """IMU temperature readings further from the last good one than the die can move."""
 
 
 HEALTH_FIELDS = tuple(f.name for f in fields(Health))
@@ -251,6 +261,10 @@ class HealthCounters:
     zupt_rejected: int
     zaru_fused: int
     zaru_rejected: int
+    temperature_nan: int
+    temperature_stuck: int
+    temperature_out_of_range: int
+    temperature_jump: int
 
     def __init__(self) -> None:
         for name in HEALTH_FIELDS:

@@ -100,6 +100,7 @@ from fusion.samples import (
 )
 from fusion.screening import SampleScreen
 from fusion.strapdown import InsState
+from fusion.thermal.link import ThermalLink, ThermalStatus
 from physconst.isa import pressure_altitude_m
 
 __all__ = ["Health", "NavEstimate", "NavFilter"]  # the filter, its output and counters
@@ -199,6 +200,11 @@ class NavFilter(FilterState):
         # happened
         self._est_ratios = TestRatios()
         self._est_aiding = AidingStatus()
+        model = self.bridge.thermal_model
+        self._thermal = (
+            ThermalLink(cfg.thermal, lay, self._c, model)
+            if cfg.thermal.mode != "off" or model is not None else None
+        )  # fmt: skip
 
     def step(self, sample: Sample) -> list[NavEstimate]:
         """Process one sample of any kind (in time order per sensor).
@@ -261,6 +267,13 @@ class NavFilter(FilterState):
         """The air-data status (``off`` without air-data states or with air data disabled)."""
         air = self._air
         return AIR_OFF if air is None else air.status(self._t_us)
+
+    @property
+    def thermal_status(self) -> ThermalStatus | None:
+        """The IMU thermal strategy's state (``None`` with ``--thermal off`` and no learned
+        thermal model)."""
+        thermal = self._thermal
+        return None if thermal is None else thermal.status()
 
     @property
     def bridge_status(self) -> BridgeStatus:
@@ -371,6 +384,9 @@ class NavFilter(FilterState):
 
     # ------------------------------------------------------------------ IMU
     def _on_imu(self, s: ImuSample) -> list[NavEstimate]:
+        thermal = self._thermal
+        if thermal is not None:
+            s = thermal.pre(s)  # screened; calibrated with cal
         step = self._screen_imu(s)
         if step is None:
             if self._screen.rebase_pending:
@@ -419,6 +435,8 @@ class NavFilter(FilterState):
         if not good:
             # integrated from the last good sample: the sensors did not see this interval
             cov.add_unknown_motion(dt)
+        if thermal is not None:  # the bias moves with the die temperature
+            self._nom = thermal.move_bias(self._nom, self._gnss_ctl.is_active(t), t, self._cov)
         self._history_push(t, ins)
         zero = self._zero
         if zero is not None and good:
@@ -530,6 +548,8 @@ class NavFilter(FilterState):
         self._history.push(time_us, state)
         self._gnss.control.start(time_us)
         self._next_out_us = time_us
+        if self._thermal is not None:
+            self._thermal.start()
         self._outage.restart()
         self._alt.restart()  # a (re)start also restarts the altitude channel
         air = self._air

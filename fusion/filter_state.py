@@ -39,8 +39,9 @@ from fusion.feedback import (
 from fusion.history import InsHistory, span_capacity
 from fusion.nominal import NominalState, with_baro_bias
 from fusion.propagation import CovariancePropagator, decay_gnss_bias
-from fusion.state_layout import StateLayout, layout_for
+from fusion.state_layout import StateLayout, layout_for, with_thermal
 from fusion.strapdown import InsState
+from fusion.thermal.link import ThermalLink
 
 FloatArray = NDArray[np.float64]
 _ZERO3 = (0.0, 0.0, 0.0)
@@ -63,7 +64,11 @@ class FilterState:
 
     def __init__(self, config: FilterConfig) -> None:
         self.config = config
-        self.layout: StateLayout = layout_for(config.state_layout)
+        layout = layout_for(config.state_layout)
+        self.layout: StateLayout = (
+            with_thermal(layout) if config.thermal.mode == "states" else layout
+        )
+        self._thermal: ThermalLink | None = None  # the subclass's, when a strategy needs it
         self._model = ErrorModel(self.layout, config.process_noise())
         self._misalign = self.layout.has_misalignment
         self._gnss_bias_states = self.layout.has_gnss_bias
@@ -138,6 +143,9 @@ class FilterState:
         air = self._air
         if air is not None and air.state.active:
             air.state.correct(d, lay)
+        therm = self._thermal
+        if therm is not None and lay.has_thermal:
+            therm.correct_tempco(d)
         if self._misalign:
             self._ta_inv, self._tg_inv = sensor_inverses(
                 nom.accel_scale_b, nom.accel_misalignment_b, nom.gyro_scale_b,

@@ -77,6 +77,9 @@ class CovariancePropagator:
     air_level_noise : float
         Factor on the level-flight wind and scale random walk (1 with GNSS; the outage hold
         lowers it), :meth:`fusion.error_model.ErrorModel.air_process_noise`.
+    thermal_dt_k : float
+        Die-temperature change since the last propagation (``+therm`` layouts: the filter
+        adds each accepted change), K.
     gust_decay : float
         Product of the gust decay factors since the filter last took it
         (:meth:`take_gust_decay`): the nominal gust decays with its error.
@@ -106,6 +109,8 @@ class CovariancePropagator:
         self.air_level_noise = 1.0
         self.gust_decay = 1.0
         self._gust_cache: dict[tuple[float, float, float], tuple[float, float]] = {}
+        self._therm = lay.has_thermal
+        self.thermal_dt_k = 0.0
 
     def take_gust_decay(self) -> float:
         """The gust decay since the last call (the nominal gust is multiplied by it)."""
@@ -185,6 +190,14 @@ class CovariancePropagator:
             f_b = w_b = _ZERO3
         model = self.model
         Phi = model.first_order_transition(lat, h, v, c_nb, f_n, T, f_b, w_b, lt, scratch=True)
+        if self._therm:
+            # b = b0 + k (T - T_ref): the bias moved by k dT over the interval, so its error
+            # by dk dT (every propagation writes these entries of the cached matrix)
+            lay, d_t = self.layout, self.thermal_dt_k
+            self.thermal_dt_k = 0.0
+            for i in range(3):
+                Phi[lay.BA + i, lay.KA + i] = d_t
+                Phi[lay.BG + i, lay.KG + i] = d_t
         # P = Phi P Phi^T + Q  (Q diagonal: white sensor noise and Gauss-Markov driving noise)
         # (np.dot: the same GEMMs as @, with less dispatch overhead on these small matrices.
         # Phi^T stays a transposed view: a contiguous copy is a little faster at 43 states but

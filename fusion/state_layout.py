@@ -43,6 +43,13 @@ Error definitions (every error is *estimated minus true*):
   added by :class:`fusion.propagation.CovariancePropagator` only once the filter activated
   it), so a stream without air data navigates as the same layout without the block.
 
+- optional ``dka`` (KA) / ``dkg`` (KG), the ``+therm`` block: error of the linear temperature
+  coefficient of each accelerometer / gyro bias axis, m/s^2/K and rad/s/K (``--thermal
+  states``): the bias is ``b0 + k (T - T_ref)``, so it moves by ``k dT`` when the die
+  temperature changes by ``dT``; the filter moves its bias estimate by ``k^ dT`` and the
+  transition couples the blocks, ``dbg <- dbg + dT dkg`` (:mod:`fusion.propagation`). The
+  coefficients are random walks.
+
 The dynamics of these errors (F, Phi, Q) are in :mod:`fusion.error_model`.
 """
 
@@ -94,6 +101,8 @@ class StateLayout:
     bs: slice | None = None
     air: slice | None = None
     """Wind North, wind East, airspeed scale (``+air`` layouts)."""
+    therm: slice | None = None
+    """Accelerometer then gyro temperature coefficients (``+therm`` layouts)."""
 
     def _optional_offset(self, block: slice | None, what: str) -> int:
         if block is None:
@@ -174,6 +183,21 @@ class StateLayout:
     def GUST(self) -> int:
         """Offset of the gust block (North, East; ValueError if the layout has none)."""
         return self._optional_offset(self.air, "air-data states") + 3
+
+    @cached_property
+    def KA(self) -> int:
+        """Offset of the accelerometer temperature-coefficient block (ValueError if none)."""
+        return self._optional_offset(self.therm, "temperature-coefficient states")
+
+    @cached_property
+    def KG(self) -> int:
+        """Offset of the gyro temperature-coefficient block (ValueError if none)."""
+        return self._optional_offset(self.therm, "temperature-coefficient states") + 3
+
+    @cached_property
+    def has_thermal(self) -> bool:
+        """The layout carries the temperature-coefficient states (``+therm``)."""
+        return self.therm is not None
 
     @cached_property
     def has_air(self) -> bool:
@@ -289,7 +313,32 @@ _BASE_LAYOUTS = (INS16, INS16_GNSS, INS22, INS22_GNSS, INS35, INS35_GNSS)
 #: (40), ``ins35+gnss+air`` (43 states, the commands' default).
 AIR_LAYOUTS = tuple(_with_air(lay) for lay in _BASE_LAYOUTS)
 
-LAYOUTS: dict[str, StateLayout] = {lay.name: lay for lay in (*_BASE_LAYOUTS, *AIR_LAYOUTS)}
+_THERM_LABELS = (
+    "accel_tempco_x_mps2pk", "accel_tempco_y_mps2pk", "accel_tempco_z_mps2pk",
+    "gyro_tempco_x_rpspk", "gyro_tempco_y_rpspk", "gyro_tempco_z_rpspk",
+)  # fmt: skip
+
+
+def with_thermal(base: StateLayout) -> StateLayout:
+    """``base`` plus the temperature-coefficient block (six states appended), named
+    ``<base>+therm`` (``--thermal states``)."""
+    if base.therm is not None:
+        return base
+    n = base.n
+    return StateLayout(
+        name=cast(LayoutName, f"{base.name}+therm"), n=n + 6, pos=base.pos, vel=base.vel,
+        att=base.att, ba=base.ba, bg=base.bg, baro=base.baro, sa=base.sa, sg=base.sg,
+        labels=(*base.labels, *_THERM_LABELS), gnss=base.gnss, ma=base.ma, mg=base.mg,
+        bs=base.bs, air=base.air, therm=slice(n, n + 6),
+    )  # fmt: skip
+
+
+#: Every layout with the temperature-coefficient block appended (``+therm``).
+THERMAL_LAYOUTS = tuple(with_thermal(lay) for lay in (*_BASE_LAYOUTS, *AIR_LAYOUTS))
+
+LAYOUTS: dict[str, StateLayout] = {
+    lay.name: lay for lay in (*_BASE_LAYOUTS, *AIR_LAYOUTS, *THERMAL_LAYOUTS)
+}
 
 
 def layout_for(name: str) -> StateLayout:

@@ -36,6 +36,7 @@ from fusion.config import (
 )
 from fusion.estimate import NavEstimate
 from fusion.filter import NavFilter
+from fusion.thermal.tuning import ThermalTuning
 from hil.codec import Decoder
 from hil.streamer import GnssWindow, SensorStreamer
 from hil.tlog import TlogWriter
@@ -345,6 +346,7 @@ def record_flight(setup: SimSetup, path: Path, *, progress: ProgressFn | None = 
 def filter_config(
     imu: str, receiver: GnssConfig, altitude: str = "ekf",
     airspeed: str = DEFAULT_AIRSPEED_MODE, align: str = DEFAULT_ALIGN_MODE,
+    thermal: ThermalTuning | None = None,
 ) -> FilterConfig:
     """The filter every command builds: tuned from the IMU datasheet preset ``imu``, modelling
     the GNSS ``receiver`` (its time-correlated error as bias states when it has one), with the
@@ -362,6 +364,7 @@ def filter_config(
         "state_layout": gnss_state_layout(receiver, config.state_layout),
         "airspeed": airspeed_tuning(airspeed, config.airspeed),
         "init": init_for_align(align, config.init),
+        "thermal": thermal if thermal is not None else config.thermal,
     })
 
 

@@ -78,6 +78,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from fusion.config import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
 from fusion.estimate import Mode, NavEstimate
+from fusion.thermal.tuning import ThermalTuning
 from hil.bus import BusAccess, Topic
 from hil.codec import TRUTH_COMPONENT_ID, mavlink2
 from hil.codec.wire import STANDARD_MODES_DIALECT
@@ -146,6 +147,8 @@ class FusionOptions(BaseModel):
     airspeed: str = DEFAULT_AIRSPEED_MODE
     """Air data: ``on``, ``off`` or ``synthetic`` (:data:`fusion.config.AIRSPEED_MODES`)."""
     align: str = DEFAULT_ALIGN_MODE
+    thermal: ThermalTuning | None = None
+    """The IMU thermal strategy (``None``: the filter's default, ``off``)."""
     """Alignment: ``auto``, ``static`` or ``in-flight`` (:data:`fusion.config.ALIGN_MODES`)."""
     gcs: str | None = None
     gcs_tlog: Path | None = None
@@ -326,7 +329,7 @@ class FusionService:
         self.options = options
         self.bus_access = bus_access or BusAccess()
         self.config = filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
-                                    options.airspeed, options.align)
+                                    options.airspeed, options.align, options.thermal)
         self.fusion = FusionRun(self.config, options.bridge, collect=options.out is not None,
                                 spill_dir=options.out)
         self.nav = self.fusion.nav
@@ -482,7 +485,8 @@ class FusionService:
             return
         if self._bus is not None and self._bus.due(Topic.STATUS, est.time_us):
             # counters only when it is sent
-            self._bus.publish_status(est, links=self.link_counters())
+            self._bus.publish_status(est, links=self.link_counters(),
+                                     thermal=self.nav.thermal_status)
         if self.companion is not None and est.time_us >= self._next_companion_us:
             kind = self.options.companion_kind
             frame = (self.companion.gps_input(est) if kind == "gps_input"
@@ -654,7 +658,7 @@ class FusionService:
         if self._bus is not None and self.last_estimate is not None:
             with contextlib.suppress(ValueError):
                 self._bus.publish_status(self.last_estimate, links=self.link_counters(),
-                                         force=True)
+                                         force=True, thermal=self.nav.thermal_status)
 
     # ---------------------------------------------------------------- scorecard
     def live_section(self) -> dict[str, Any]:

@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING, Any
 from fusion.config import FilterConfig
 from hil.pipeline import Flown, FrameSink, FusionRun, SimSetup, SimStep, build_filter, fly, tee
 from hil.pipeline import filter_config as pipeline_filter_config
+from hil.thermal_cal import part_thermal_tuning, thermal_tuning
 from hil.tlog import TlogWriter
 from scenarios.jsonable import plain_dict
 from scenarios.schema import Scenario
@@ -105,9 +106,19 @@ def filter_config(scenario: Scenario, altitude: str | None = None) -> FilterConf
     model (position-bias states for a time-correlated receiver), with its altitude method
     its air-data choice (``fusion.airspeed``), its alignment (``fusion.align``), and the
     magnetic reference at the scenario's date (``date``)."""
-    config = pipeline_filter_config(scenario.imu_preset, scenario.sensor_config().gnss,
-                                    altitude or scenario.fusion.altitude,
-                                    scenario.fusion.airspeed, scenario.fusion.align)
+    fusion = scenario.fusion
+    cal = None
+    if fusion.thermal_cal is not None:
+        cal = Path(fusion.thermal_cal)
+        base = scenario.source_dir
+        if not cal.is_absolute() and base is not None:
+            cal = base / cal
+    sensors = scenario.sensor_config()
+    part = None if sensors.imu_thermal is None else sensors.imu_thermal.part
+    part_tuning = None if part is None else part_thermal_tuning(part)
+    config = pipeline_filter_config(scenario.imu_preset, sensors.gnss,
+                                    altitude or fusion.altitude, fusion.airspeed, fusion.align,
+                                    thermal_tuning(fusion.thermal, cal, part_tuning))
     mag = config.mag.model_copy(update={"decimal_year": scenario.decimal_year})
     return config.model_copy(update={"mag": mag})
 

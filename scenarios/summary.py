@@ -364,6 +364,9 @@ def score_run(
     health: dict[str, Any] = {"filter": plain_dict(run.nav.health),
                               "decoder": plain_dict(run.decoder.counters),
                               "air_data": plain_dict(run.nav.air_data)}
+    thermal = run.nav.thermal_status
+    if thermal is not None:  # a thermal strategy ran (--thermal, --bridge gmdh-thermal)
+        health["thermal"] = plain_dict(thermal)
     health.update(health_extra or {})
     fitted = None
     if fit_settle:

@@ -21,12 +21,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from fusion.airspeed_model import OnlineAirspeedModel
 from fusion.pitot_model import OnlinePitotErrorModel
 from fusion.strapdown import InsState
 from fusion.wind_model import OnlineWindModel
+
+if TYPE_CHECKING:  # the model imports the bridging gate, which imports this module
+    from fusion.thermal.bias_model import ThermalBiasModel
 
 Vec3 = tuple[float, float, float]
 Vec6 = tuple[float, float, float, float, float, float]
@@ -240,6 +243,12 @@ class Bridge(Protocol):
         read once at construction; None for the other strategies."""
         ...
 
+    @property
+    def thermal_model(self) -> ThermalBiasModel | None:
+        """A learned bias-versus-temperature model (``gmdh-thermal``), read once at
+        construction; None for the other strategies."""
+        ...
+
     def on_gnss(self, epoch: BridgeEpoch, error: InsError) -> None:
         """One fused (or attempted) GNSS fix: the training pair."""
         ...
@@ -265,6 +274,7 @@ class NoBridge:
     airspeed_model: OnlineAirspeedModel | None = None
     wind_model: OnlineWindModel | None = None
     pitot_model: OnlinePitotErrorModel | None = None
+    thermal_model: ThermalBiasModel | None = None
 
     @property
     def status(self) -> BridgeStatus:

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -64,6 +65,9 @@ from fusion.bridging.models import Candidate, ComponentModel
 from fusion.config import BridgeConfig
 from fusion.pitot_model import OnlinePitotErrorModel
 from fusion.wind_model import OnlineWindModel
+
+if TYPE_CHECKING:  # the model imports the bridging gate, which imports this module
+    from fusion.thermal.bias_model import ThermalBiasModel
 
 FloatArray = NDArray[np.float64]
 
@@ -160,6 +164,7 @@ class LearnedBridge:
     airspeed_model: OnlineAirspeedModel | None = None
     wind_model: OnlineWindModel | None = None
     pitot_model: OnlinePitotErrorModel | None = None
+    thermal_model: ThermalBiasModel | None = None
     """These strategies correct position and velocity, not the air data."""
 
     @property

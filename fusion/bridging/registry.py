@@ -28,6 +28,10 @@
                           good; with GNSS lost the filter removes the predicted error from
                           the measured airspeed, behind a skill gate and inside the trained
                           range (:mod:`fusion.pitot_model`)
+``gmdh-thermal``          a learned IMU bias against die temperature and its rate: GMDH learns
+                          the filter's bias estimate while GNSS is good; with GNSS lost the
+                          filter moves its bias by the predicted change
+                          (:mod:`fusion.thermal.bias_model`)
 ========================  =====================================================================
 
 What each method achieves on held-out flights is measured by ``bench/bridging.py`` and
@@ -44,6 +48,7 @@ from fusion.bridging.airspeed import AirspeedModelBridge, PitotErrorBridge, Wind
 from fusion.bridging.interface import Bridge, NoBridge
 from fusion.bridging.learned import LearnedBridge
 from fusion.bridging.models import ComponentModel, NarxModel, StatelessModel
+from fusion.bridging.thermal import ThermalModelBridge
 from fusion.choices import BRIDGE_METHODS
 from fusion.config import BridgeConfig
 from fusion.gmdh import GmdhRegressor
@@ -87,7 +92,7 @@ def make_bridge(name: str, config: BridgeConfig | None = None) -> Bridge:
     ----------
     name : str
         ``none``, ``gmdh``, ``gmdh-pseudo``, ``mlp``, ``rbf``, ``bp-parallel``,
-        ``gmdh-airspeed``, ``gmdh-wind`` or ``gmdh-pitot``.
+        ``gmdh-airspeed``, ``gmdh-wind``, ``gmdh-pitot`` or ``gmdh-thermal``.
     config : BridgeConfig, optional
         Training and model settings. Fields not set explicitly take the method's
         :data:`METHOD_DEFAULTS`, then ``BridgeConfig``'s defaults; ``features=None`` picks
@@ -115,6 +120,8 @@ def make_bridge(name: str, config: BridgeConfig | None = None) -> Bridge:
         return WindModelBridge()
     if name == "gmdh-pitot":
         return PitotErrorBridge()
+    if name == "gmdh-thermal":
+        return ThermalModelBridge(config)
     # the method's defaults fill in whatever the caller did not set explicitly
     given = {} if config is None else config.model_dump(include=config.model_fields_set)
     cfg = BridgeConfig(**{**METHOD_DEFAULTS.get(name, {}), **given})

@@ -318,6 +318,7 @@ def status_payload(
     bridge: Any = None,
     links: Mapping[str, Any] | None = None,
     bus: BusStats | Mapping[str, Any] | None = None,
+    thermal: Any = None,
 ) -> dict[str, Any]:
     """Payload of ``fusion/status``.
 
@@ -331,6 +332,9 @@ def status_payload(
     links : mapping of name -> ``hil.link.LinkCounters`` (or mapping), optional
     bus : BusStats or mapping, optional
         The publishing bus's counters (:meth:`Bus.stats`).
+    thermal : dataclass or mapping, optional
+        The IMU thermal strategy's state (:class:`fusion.thermal.link.ThermalStatus`);
+        ``null`` when none runs.
     """
     ratios = getattr(est, "test_ratios", None)
     health = getattr(est, "health", None)
@@ -357,6 +361,7 @@ def status_payload(
         "air_data": None if getattr(est, "air_data", None) is None else _plain(est.air_data),
         "alignment": (None if getattr(est, "alignment", None) is None
                       else _plain(est.alignment)),
+        "thermal": None if thermal is None else _plain(thermal),
     }
 
 

@@ -226,9 +226,15 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
                 "static_gyrocompass | given) and at_rest (zero-velocity and zero-angular-rate "
                 "updates running: the fine alignment at rest)",
             ),
+            "thermal": _d(
+                {"type": ["object", "null"]},
+                "IMU thermal strategy: mode (off | blind | states | cal), temperature_k (last "
+                "good die temperature), temperature_good, rate_k_per_s, the temperature "
+                "coefficient estimates (states); null when none runs",
+            ),
         },
         optional=("time_since_gnss_s", "state_layout", "bridge", "links", "bus", "air_data",
-                  "alignment"),
+                  "alignment", "thermal"),
     ),
     Topic.INNOVATIONS: _schema(
         Topic.INNOVATIONS,

@@ -373,13 +373,15 @@ class Bus:
         bridge: Any = None,
         links: Mapping[str, Any] | None = None,
         force: bool = False,
+        thermal: Any = None,
     ) -> bool:
         """Publish ``fusion/status`` with this bus's own counters in ``bus``."""
         if not force and not self.due(Topic.STATUS, getattr(est, "time_us", None)):
             with self._lock:
                 self._c["decimated"] += 1
             return False
-        payload = status_payload(est, bridge=bridge, links=links, bus=self.stats())
+        payload = status_payload(est, bridge=bridge, links=links, bus=self.stats(),
+                                 thermal=thermal)
         return self.publish(Topic.STATUS, payload, force=force)
 
     def publish_error(self, est: Any, truth: Any) -> bool:

@@ -8,7 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
-from fusion.choices import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
+from fusion.choices import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE, DEFAULT_THERMAL_MODE
 from scenarios.cli.errors import cli_errors, out_dir
 from scenarios.cli.options import (
     AirspeedOption,
@@ -19,6 +19,9 @@ from scenarios.cli.options import (
     ImuOption,
     SettleOption,
     SigningKeyFileOption,
+    ThermalCalOption,
+    ThermalOption,
+    ThermalPartOption,
     ZenohLowLatencyOption,
     ZenohSecurity,
     zenoh_security_options,
@@ -49,6 +52,9 @@ def fusion(
     altitude: AltitudeOption = "ekf",
     airspeed: AirspeedOption = DEFAULT_AIRSPEED_MODE,
     align: AlignOption = DEFAULT_ALIGN_MODE,
+    thermal: ThermalOption = DEFAULT_THERMAL_MODE,
+    thermal_cal: ThermalCalOption = None,
+    thermal_part: ThermalPartOption = "bmi088",
     gcs: Annotated[
         str | None,
         typer.Option(help="Shadow vehicle for ground stations, e.g. udpout:127.0.0.1:14550."),
@@ -101,6 +107,9 @@ def fusion(
         from hil.bus.security import check_peer_link
 
         check_peer_link([zenoh_listen], access.security)
+    from hil.thermal_cal import command_thermal_tuning
+
+    therm = command_thermal_tuning(thermal, thermal_cal, thermal_part)
     options = FusionOptions(
         mavlink=mavlink, source=source, zenoh=zenoh, zenoh_listen=zenoh_listen,
         zenoh_low_latency=zenoh_low_latency, vehicle=vehicle, imu=imu, gnss=gnss,
@@ -109,12 +118,12 @@ def fusion(
         shadow_system_id=shadow_sysid, companion=companion,
         companion_kind=companion_kind,  # type: ignore[arg-type]  # pydantic checks the literal
         companion_system_id=companion_sysid, duration_s=duration, idle_exit_s=idle_exit, out=out,
-        settle_s=settle,
+        settle_s=settle, thermal=therm,
     )
     # a bad preset, method or source -> exit 2 before any socket opens
     if source is not None:
         parse_source(source)
-    build_filter(filter_config(imu, gnss_preset(gnss), altitude, airspeed, align), bridge)
+    build_filter(filter_config(imu, gnss_preset(gnss), altitude, airspeed, align, therm), bridge)
     from hil.signing import load_key
 
     key = load_key(signing_key_file)

@@ -23,6 +23,7 @@ from fusion.choices import (
     BRIDGE_METHODS,
     DEFAULT_AIRSPEED_MODE,
     DEFAULT_ALIGN_MODE,
+    DEFAULT_THERMAL_MODE,
 )
 from scenarios.cli.errors import RunFailed, check_choice, cli_errors, out_dir, out_file
 from scenarios.cli.options import (
@@ -36,6 +37,9 @@ from scenarios.cli.options import (
     ImuOption,
     QuietOption,
     SettleOption,
+    ThermalCalOption,
+    ThermalOption,
+    ThermalPartOption,
 )
 from scenarios.cli.output import (
     console,
@@ -66,6 +70,9 @@ def replay(
     settle: SettleOption = 60.0,
     imu: ImuOption = "industrial-mems",
     gnss: GnssOption = "modern",
+    thermal: ThermalOption = DEFAULT_THERMAL_MODE,
+    thermal_cal: ThermalCalOption = None,
+    thermal_part: ThermalPartOption = "bmi088",
     gnss_off: Annotated[
         list[str] | None,
         typer.Option("--gnss-off", help="Cut GNSS START:DURATION s, from the log's first "
@@ -78,6 +85,7 @@ def replay(
     with settled_heap():
         from hil.pipeline import filter_config
         from hil.streamer import GnssWindow
+        from hil.thermal_cal import command_thermal_tuning
         from scenarios.replay import replay as run_replay
         from sim.presets import gnss_preset
 
@@ -90,8 +98,10 @@ def replay(
         GnssWindow.parse(w)
     if not settle >= 0.0:
         raise ValueError(f"--settle must be >= 0 s (got {settle:g})")
+    therm = command_thermal_tuning(thermal, thermal_cal, thermal_part)
     result = run_replay(log, out,
-                        config=filter_config(imu, gnss_preset(gnss), altitude, airspeed, align),
+                        config=filter_config(imu, gnss_preset(gnss), altitude, airspeed, align,
+                                             therm),
                         bridge=bridge, altitude=altitude, settle_s=settle, gnss_off=windows)
     console.print(f"scored against: {result.summary['reference']['source']}")
     print_summary(result.summary)
@@ -217,6 +227,9 @@ def run(
         "--unaided-baseline", help="With autopilot.aiding: hilnav: first fly the same seed "
         "with the autopilot unaided (into OUT/unaided), then aided, and score both on one card "
         "(as the scenario's autopilot.unaided_baseline).")] = False,
+    thermal: Annotated[str | None, typer.Option(
+        help="Override the scenario's IMU thermal strategy (off, blind, states, cal: the "
+             "scenario's fusion.thermal_cal file).")] = None,
     quiet: QuietOption = False,
 ) -> None:
     """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
@@ -225,7 +238,7 @@ def run(
         from scenarios.runner import AutopilotAbsent, run_scenario, sim_setup
 
         scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
-                             airspeed=airspeed, align=align)
+                             airspeed=airspeed, align=align, thermal=thermal)
         # the plots' module (matplotlib) too, once the scenario is valid: loaded here, its
         # import runs no collection and the collections while the plots are drawn skip it
         import scenarios.report  # noqa: F401

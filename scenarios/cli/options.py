@@ -21,12 +21,20 @@ from typing import Annotated, Any, TypeVar
 
 import typer
 
-from fusion.choices import AIRSPEED_MODES, ALIGN_MODES, ALTITUDE_METHODS, BRIDGE_METHODS
+from fusion.choices import (
+    AIRSPEED_MODES,
+    ALIGN_MODES,
+    ALTITUDE_METHODS,
+    BRIDGE_METHODS,
+    THERMAL_MODES,
+)
 
 __all__ = [
     "AirspeedOption", "AirspeedOverride", "AlignOption", "AlignOverride", "AltitudeOption",
     "BridgeOption", "FoxgloveOption", "GnssOption", "ImuOption", "QuietOption", "SettleOption",
-    "SigningKeyFileOption", "ZenohKeyFileOption", "ZenohLowLatencyOption", "ZenohSecurity",
+    "SigningKeyFileOption", "ThermalCalOption", "ThermalOption",
+    "ThermalPartOption", "ZenohKeyFileOption",
+    "ZenohLowLatencyOption", "ZenohSecurity",
     "option_group", "zenoh_security_options",
 ]
 
@@ -50,6 +58,17 @@ AlignOption = Annotated[str, typer.Option(
          "the magnetometer when slower than 5 m/s), static, in-flight.")]
 AlignOverride = Annotated[str | None, typer.Option(
     help=f"Override the scenario's alignment: {', '.join(ALIGN_MODES)}.")]
+ThermalOption = Annotated[str, typer.Option(
+    help=f"IMU thermal strategy: {', '.join(THERMAL_MODES)} (off: the datasheet's bias noise; "
+         "blind: bias noise widened for the part's thermal drift; states: temperature-"
+         "coefficient states; cal: a calibration file, --thermal-cal).")]
+ThermalPartOption = Annotated[str, typer.Option(
+    help="The IMU part whose datasheet temperature coefficients and temperature sensor the "
+         "thermal strategies assume (a thermal preset: bmi088, icm42688p, icm20948, "
+         "adis1646x).")]
+ThermalCalOption = Annotated[Path | None, typer.Option(
+    help="IMU thermal calibration file (PX4 TC_G0_*/TC_A0_* or ArduPilot INS_TCAL1_* "
+         "parameters); implies --thermal cal.")]
 SettleOption = Annotated[
     float, typer.Option(help="Scorecard: seconds excluded after the start and each outage "
                              "(shortened, with a warning, when a log is too short for it).")]

@@ -434,6 +434,7 @@ class Scenario(Strict):
         duration_s: float | None = None,
         airspeed: str | None = None,
         align: str | None = None,
+        thermal: str | None = None,
     ) -> Scenario:
         """A re-validated copy with command-line overrides applied.
 
@@ -448,7 +449,7 @@ class Scenario(Strict):
             data["seed"] = seed
         if duration_s is not None:
             data["duration_s"] = duration_s
-        if any(v is not None for v in (bridge, altitude, airspeed, align)):
+        if any(v is not None for v in (bridge, altitude, airspeed, align, thermal)):
             fusion = dict(data.get("fusion", {}))
             if bridge is not None:
                 fusion["bridge"] = bridge
@@ -458,6 +459,8 @@ class Scenario(Strict):
                 fusion["airspeed"] = airspeed
             if align is not None:
                 fusion["align"] = align
+            if thermal is not None:
+                fusion["thermal"] = thermal
             data["fusion"] = fusion
         try:
             return Scenario.model_validate(data, context={"base_dir": self._base_dir})

@@ -22,6 +22,7 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 
 from fusion.bridging.registry import BRIDGE_METHODS
+from fusion.choices import DEFAULT_THERMAL_MODE, THERMAL_MODES
 from fusion.config import (
     AIRSPEED_MODES,
     ALIGN_MODES,
@@ -382,6 +383,7 @@ _FUSION_CHOICES: dict[str, tuple[str, tuple[str, ...]]] = {
     "altitude": ("altitude method", tuple(ALTITUDE_METHODS)),
     "airspeed": ("airspeed mode", tuple(AIRSPEED_MODES)),
     "align": ("alignment", tuple(ALIGN_MODES)),
+    "thermal": ("thermal strategy", tuple(THERMAL_MODES)),
 }
 """The fusion section's named choices: what the error calls them, and the valid ones."""
 
@@ -410,7 +412,19 @@ class FusionSection(Strict):
         json_schema_extra=listing("enum", list(ALIGN_MODES)),
     )
 
-    @field_validator("bridge", "altitude", "airspeed", "align")
+    thermal: str = Field(
+        default=DEFAULT_THERMAL_MODE,
+        description="IMU thermal strategy: off, blind (bias noise widened for the part's "
+        "thermal drift), states (temperature-coefficient states), cal (thermal_cal file).",
+        json_schema_extra=listing("enum", list(THERMAL_MODES)),
+    )
+    thermal_cal: str | None = Field(
+        default=None, min_length=1,
+        description="IMU thermal calibration file (PX4 TC_G0_*/TC_A0_* or ArduPilot "
+        "INS_TCAL1_* parameters), relative to the scenario file; with thermal: cal.",
+    )
+
+    @field_validator("bridge", "altitude", "airspeed", "align", "thermal")
     @classmethod
     def _known_choice(cls, value: str, info: ValidationInfo) -> str:
         what, valid = _FUSION_CHOICES[str(info.field_name)]

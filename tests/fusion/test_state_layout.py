@@ -21,7 +21,7 @@ def test_layouts_are_contiguous_and_named() -> None:
     for layout in LAYOUTS.values():
         covered = []
         for name in ("pos", "vel", "att", "ba", "bg", "baro", "sa", "sg", "ma", "mg", "bs",
-                     "gnss", "air"):
+                     "gnss", "air", "therm"):
             sl = getattr(layout, name)
             if sl is not None:
                 covered += list(range(layout.n))[sl]

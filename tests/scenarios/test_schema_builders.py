@@ -116,7 +116,7 @@ def test_with_overrides(tmp_path: Path) -> None:
 def test_method_lists() -> None:
     assert BRIDGE_METHODS == (
         "none", "gmdh", "gmdh-pseudo", "mlp", "rbf", "bp-parallel", "gmdh-airspeed", "gmdh-wind",
-        "gmdh-pitot",
+        "gmdh-pitot", "gmdh-thermal",
     )
     assert ALTITUDE_METHODS == ("ekf", "loop", "loop-mpc", "loop-kf")
 
