@@ -6,6 +6,7 @@ import jsonschema
 import pytest
 import yaml
 
+from hil.autopilot.param_file import read_param_file
 from scenarios.schema import LIBRARY_DIR, json_schema, load_scenario
 from tests.scenarios.test_schema import error_of, write
 
@@ -136,22 +137,27 @@ def test_a_bad_parameter_file_names_its_line(tmp_path) -> None:  # type: ignore[
     assert f"{tmp_path / 'bad.params'}:2: the value of FW_AIRSPD_MAX is not a number" in err
 
 
-@pytest.mark.parametrize(("name", "kind", "mode", "params"), [
-    ("arduplane-mission-gnss-outage.yaml", "ardupilot", "AUTO", 7),
-    ("px4-mission-gnss-outage.yaml", "px4", "MISSION", 9),
+@pytest.mark.parametrize(("name", "kind", "mode", "added"), [
+    ("arduplane-mission-gnss-outage.yaml", "ardupilot", "AUTO", 0),
+    ("px4-mission-gnss-outage.yaml", "px4", "MISSION", 0),
     # the same with aiding: hilnav, its parameters added to the file's
-    ("arduplane-mission-gnss-outage-aided.yaml", "ardupilot", "AUTO", 9),
-    ("px4-mission-gnss-outage-aided.yaml", "px4", "MISSION", 10),
+    ("arduplane-mission-gnss-outage-aided.yaml", "ardupilot", "AUTO", 2),
+    ("px4-mission-gnss-outage-aided.yaml", "px4", "MISSION", 1),
 ])
 def test_library_mission_scenarios_load_with_their_script(name: str, kind: str, mode: str,
-                                                          params: int) -> None:
+                                                          added: int) -> None:
     path = LIBRARY_DIR / "autopilot" / name
     scn = load_scenario(path)
     validator = jsonschema.Draft202012Validator(json_schema())
     assert list(validator.iter_errors(yaml.safe_load(path.read_text()))) == []
     assert scn.autopilot.kind == kind and scn.duration_s == 600.0
     script = scn.autopilot_script()
-    assert script.arm and script.mode == mode and len(script.params) == params
+    params_path = scn.autopilot_path(scn.autopilot.params)
+    assert params_path is not None
+    shipped = read_param_file(params_path)
+    assert script.arm and script.mode == mode
+    assert len(script.params) == len(shipped) + added
+    assert [p.name for p in script.params[:len(shipped)]] == [p.name for p in shipped]
     assert [item.label for item in script.mission] == [
         "waypoint 1", "waypoint 2", "waypoint 3", "waypoint 4", "loiter 1", "rtl 1"]
     assert (scn.outage_windows()) == ((200.0, 260.0),)
