@@ -19,6 +19,12 @@ sending controls) is scored as far as it flew: events that had not begun are lis
 (the early end, a stalled autopilot, a denial step the autopilot did not acknowledge) is one
 sentence in ``failures`` (present only when there is one) and ``passed`` is false.
 
+With ``autopilot.binary`` hilnav starts the autopilot's SITL binary itself
+(:mod:`hil.autopilot.launch`): on free loopback ports, its output in ``autopilot.log`` of the
+run folder, the simulator link, the telemetry and ArduPilot's MAVLink port pointed at it, and
+stopped by PID when the flight ends, however it ends. The summary's ``autopilot.process``
+records the binary, its version, instance, ports and how it ended.
+
 The flight and the fusion are the pipeline's (:mod:`hil.pipeline`); this module turns a
 :class:`~scenarios.schema.Scenario` into its :class:`~hil.pipeline.SimSetup` and filter, scores
 the run with the one scorer (:func:`scenarios.summary.score_run`) and writes the run folder.
@@ -28,6 +34,8 @@ methods.
 
 from __future__ import annotations
 
+import contextlib
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -45,6 +53,7 @@ from sim.faults.events import event_type_name
 
 if TYPE_CHECKING:  # the autopilot's modules (its link, its telemetry) load when one flies
     from hil.autopilot import AutopilotBackend, AutopilotFlown
+    from hil.autopilot.launch import AutopilotProcess, LaunchPlan
     from hil.autopilot.telemetry import AutopilotTelemetry
     from scenarios.autopilot_summary import ScoredAutopilot
 
@@ -241,7 +250,7 @@ def run_scenario(
     log_path = out_dir / "run.tlog"
     fusion = FusionRun(config, bridge, nav=nav)
     flies = backend is not None or scenario.autopilot.flies
-    ap_run = AutopilotRun.open(scenario, backend) if flies else None
+    ap_run = AutopilotRun.open(scenario, backend, out_dir=out_dir) if flies else None
     t0 = time.perf_counter()
 
     def fly_into(sink: FrameSink) -> Flown:
@@ -282,69 +291,119 @@ class AutopilotRun:
     the flight with it produced (:meth:`open`, :meth:`fly`, :meth:`score`)."""
 
     def __init__(self, scenario: Scenario, backend: AutopilotBackend,
-                 telemetry: AutopilotTelemetry | None) -> None:
+                 telemetry: AutopilotTelemetry | None, launch: LaunchPlan | None = None,
+                 out_dir: Path | None = None) -> None:
         self.scenario = scenario
         self.backend = backend
         self.telemetry = telemetry
+        self.launch = launch
+        """The SITL binary hilnav starts (``autopilot.binary``), else None."""
+        self.out_dir = out_dir
+        self.process: AutopilotProcess | None = None
         self.flown: AutopilotFlown | None = None
 
     @classmethod
-    def open(cls, scenario: Scenario, backend: AutopilotBackend | None = None) -> AutopilotRun:
+    def open(cls, scenario: Scenario, backend: AutopilotBackend | None = None, *,
+             out_dir: Path | None = None) -> AutopilotRun:
         """Build the scenario's backend (:func:`hil.autopilot.make_backend`, unless one is
-        given) and start recording its telemetry. ValueError: a bad setting or URL."""
+        given) and start recording its telemetry; with ``autopilot.binary``, plan its start on
+        free ports (:func:`hil.autopilot.launch.plan_launch`; its log goes to ``out_dir``).
+        ValueError: a bad setting, URL or binary."""
         from hil.autopilot import BackendSettings, close_backend, make_backend
         from hil.autopilot.telemetry import AutopilotTelemetry
 
         ap = scenario.autopilot
+        launch = None
+        link, telemetry_url, mavlink = ap.link, ap.telemetry, ap.mavlink
+        if ap.binary is not None and backend is None:
+            from hil.autopilot.launch import plan_launch
+
+            binary = scenario.autopilot_path(ap.binary)
+            assert binary is not None
+            launch = plan_launch(ap.kind, binary, telemetry=ap.telemetry is not None)
+            link, telemetry_url, mavlink = launch.link, launch.telemetry_url, launch.mavlink_url
         if backend is None:
             backend = make_backend(ap.kind, BackendSettings(
-                link=ap.link, actuator_map=scenario.autopilot_path(ap.actuator_map),
-                servo_map=scenario.autopilot_path(ap.servo_map), mavlink=ap.mavlink,
+                link=link, actuator_map=scenario.autopilot_path(ap.actuator_map),
+                servo_map=scenario.autopilot_path(ap.servo_map), mavlink=mavlink,
                 setup=sim_setup(scenario)))
+        if launch is not None:
+            launch = _with_home(launch, backend, scenario)
         telemetry = None
-        if ap.telemetry is not None:
+        if telemetry_url is not None:
             try:
-                telemetry = AutopilotTelemetry(ap.telemetry, rate_hz=ap.telemetry_rate_hz)
+                telemetry = AutopilotTelemetry(telemetry_url, rate_hz=ap.telemetry_rate_hz)
             except ValueError as exc:
                 close_backend(backend)
-                raise ValueError(f"autopilot telemetry {ap.telemetry}: {exc}") from None
+                raise ValueError(f"autopilot telemetry {telemetry_url}: {exc}") from None
             watch_armed = getattr(backend, "watch_armed", None)
             if callable(watch_armed):  # a backend that cannot see the armed flag itself
                 recorder = telemetry
                 watch_armed(lambda: recorder.armed)
-        return cls(scenario, backend, telemetry)
+        return cls(scenario, backend, telemetry, launch, out_dir)
 
     def fly(self, sink: FrameSink, progress: ProgressFn | None = None) -> Flown:
         """Fly the scenario with the autopilot at the controls, every frame into ``sink``."""
         from hil.autopilot import close_backend, fly_with_autopilot
 
         ap = self.scenario.autopilot
-        if self.telemetry is not None:
-            self.telemetry.start()
+        exited = threading.Event()  # the started binary ended by itself: stop waiting for it
         setup = sim_setup(self.scenario)
-        try:
-            flown = fly_with_autopilot(
-                setup, self.backend, on_frame=sink, speed=ap.speed,
-                connect_timeout_s=ap.connect_timeout_s, stall_timeout_s=ap.stall_timeout_s,
-                progress=progress)
-        finally:
-            if self.telemetry is not None:
-                self.telemetry.stop()
-            close_backend(self.backend)
+        with contextlib.ExitStack() as stack:
+            try:
+                if self.launch is not None:
+                    from hil.autopilot.launch import launched
+
+                    log = (self.out_dir or Path.cwd()) / "autopilot.log"
+                    self.process = stack.enter_context(launched(self.launch, log,
+                                                                on_exit=exited))
+                if self.telemetry is not None:
+                    self.telemetry.start()
+                flown = fly_with_autopilot(
+                    setup, self.backend, on_frame=sink, speed=ap.speed,
+                    connect_timeout_s=ap.connect_timeout_s,
+                    stall_timeout_s=ap.stall_timeout_s, progress=progress, stop=exited)
+            finally:
+                if self.telemetry is not None:
+                    self.telemetry.stop()
+                close_backend(self.backend)
         self.flown = flown
         if not flown.connected:
-            raise AutopilotAbsent(
-                f"{flown.autopilot} did not connect within {ap.connect_timeout_s:g} s "
-                f"(link {ap.link or 'the backend default'})")
+            self._never_connected()
         return Flown(flown.sim_duration_s, flown.wall_s, flown.frames, flown.ended,
                      flown.fault_log, flown.fault_counters)
 
+    def _never_connected(self) -> None:
+        """LaunchError (bad input) when the started binary exited before it connected, else
+        AutopilotAbsent."""
+        ap = self.scenario.autopilot
+        flown = self.flown
+        assert flown is not None
+        process = self.process
+        if process is None:
+            raise AutopilotAbsent(
+                f"{flown.autopilot} did not connect within {ap.connect_timeout_s:g} s "
+                f"(link {ap.link or 'the backend default'})")
+        from hil.autopilot.launch import LaunchError
+
+        if process.stopped_by == "exited":
+            raise LaunchError(f"autopilot binary {process.describe_exit()} (before it "
+                              f"connected; is it {ap.kind}'s SITL? log "
+                              f"{process.log_path})")
+        raise AutopilotAbsent(
+            f"{flown.autopilot} ({process.plan.binary}, instance {process.plan.instance}) did "
+            f"not connect within {ap.connect_timeout_s:g} s on {process.plan.link}; its last "
+            f"output: {process.last_lines()} (log {process.log_path})")
+
     def early_end(self) -> list[str]:
         """Why the flight with the autopilot ended before the scenario did (its stall, a stop
-        asked for), as sentences; empty when it flew to the end."""
+        asked for, the started binary's exit), as sentences; empty when it flew to the end."""
         flown = self.flown
         if flown is None or not flown.connected:
             return ["the autopilot never flew"]
+        if self.process is not None and self.process.stopped_by == "exited":
+            return [f"the autopilot process ended at {flown.sim_duration_s:.2f} s: "
+                    f"{self.process.describe_exit()}"]
         if flown.stalled is not None:
             return [flown.stalled]
         if flown.stopped:
@@ -374,6 +433,28 @@ class AutopilotRun:
 
         assert self.flown is not None
         ap = self.scenario.autopilot
-        return score_flown(self.flown, self.telemetry, hilnav.truth, hilnav.outages,
-                           link={"simulator": ap.link, "telemetry": ap.telemetry},
-                           settle_s=SETTLE_S, events=events)
+        link = ({"simulator": ap.link, "telemetry": ap.telemetry} if self.launch is None else
+                {"simulator": self.launch.link, "telemetry": self.launch.telemetry_url})
+        scored = score_flown(self.flown, self.telemetry, hilnav.truth, hilnav.outages,
+                             link=link, settle_s=SETTLE_S, events=events)
+        if self.process is not None:
+            texts = [] if self.telemetry is None else [
+                str(t["text"]) for t in self.telemetry.health()["statustext"]]
+            scored.section["process"] = self.process.record(texts)
+        return scored
+
+
+def _with_home(launch: LaunchPlan, backend: AutopilotBackend, scenario: Scenario) -> LaunchPlan:
+    """ArduPilot's ``--home``: the backend's JSON origin (the position hilnav sends is measured
+    from it) and the scenario's start heading; PX4 takes its home from the simulated GPS."""
+    import dataclasses
+    import math
+
+    from hil.autopilot.launch import Home
+
+    origin = getattr(backend, "origin", None)
+    if launch.kind != "ardupilot" or origin is None:
+        return launch
+    home = Home(math.degrees(origin.lat_rad), math.degrees(origin.lon_rad), origin.alt_msl_m,
+                scenario.start_state().heading_deg)
+    return dataclasses.replace(launch, home=home)

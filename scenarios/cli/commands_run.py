@@ -24,6 +24,7 @@ from fusion.choices import (
     DEFAULT_AIRSPEED_MODE,
     DEFAULT_ALIGN_MODE,
 )
+from scenarios.cli.autopilot_hints import AutopilotBinaryOption, with_autopilot_binary
 from scenarios.cli.errors import RunFailed, check_choice, cli_errors, out_dir, out_file
 from scenarios.cli.options import (
     AirspeedOption,
@@ -212,6 +213,7 @@ def run(
     altitude: Annotated[str | None, typer.Option(help="Override the altitude method.")] = None,
     airspeed: AirspeedOverride = None,
     align: AlignOverride = None,
+    autopilot_binary: AutopilotBinaryOption = None,
     quiet: QuietOption = False,
 ) -> None:
     """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
@@ -221,11 +223,13 @@ def run(
 
         scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
                              airspeed=airspeed, align=align)
+        if autopilot_binary is not None:
+            scn = with_autopilot_binary(scn, autopilot_binary)
         # the plots' module (matplotlib) too, once the scenario is valid: loaded here, its
         # import runs no collection and the collections while the plots are drawn skip it
         import scenarios.report  # noqa: F401
     if scn.autopilot.flies:
-        say_waiting_for_autopilot(scn)
+        say_waiting_for_autopilot(scn, out)
     try:
         with progress_bar(scn.duration_s, scn.name, quiet=quiet,
                           events=scripted_events(sim_setup(scn))) as progress:

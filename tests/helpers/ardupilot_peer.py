@@ -180,7 +180,8 @@ class ArduPilotPeer:
     channels : int
         16 or 32 outputs per packet (SERVO_32_ENABLE).
     mavlink : bool
-        Serve a MAVLink port (``tcpin`` on a free port: :attr:`mavlink_url`).
+        Serve a MAVLink port (``mavlink_listen``, default ``tcpin`` on a free port:
+        :attr:`mavlink_url`).
     frame_rate_hz : int
         SIM_RATE_HZ sent in the packets.
     resend_s : float
@@ -210,6 +211,7 @@ class ArduPilotPeer:
         silent_after: int | None = None,
         disarmed_s: float = 0.0,
         fix_after_s: float = 0.0,
+        mavlink_listen: str = "tcpin:127.0.0.1:0",
     ) -> None:
         self.disarmed_s = disarmed_s
         self.fix_after_s = fix_after_s
@@ -240,7 +242,7 @@ class ArduPilotPeer:
         self._gps = _Gps(self.params)
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sock.settimeout(0.05)
-        self._mav = MavlinkLink("tcpin:127.0.0.1:0", self._role()) if mavlink else None
+        self._mav = MavlinkLink(mavlink_listen, self._role()) if mavlink else None
         self._tel = MavlinkLink(telemetry_url, self._role()) if telemetry_url else None
         self._set_armed(disarmed_s <= 0.0)
         self._stop = threading.Event()
@@ -507,6 +509,7 @@ class ArduPilotPeer:
 
     def _telemetry(self, t: float) -> None:
         assert self._tel is not None
+        self._tel.recv(0.0)  # a tcpin link (SITL's SERIAL0) accepts its client here
         e = self.estimate
         boot_ms = round(t * 1000.0) & 0xFFFF_FFFF
         lat, lon, _ = self._location((e["n"], e["e"], 0.0))

@@ -1,0 +1,127 @@
+"""Fake autopilot SITL binaries for the launcher's tests: small executable Python scripts
+written into a test's folder that take the command line, environment and working folder
+hilnav gives the real ``arduplane`` / ``px4`` and run the protocol peers
+(:mod:`tests.helpers.ardupilot_peer`, :mod:`tests.helpers.px4_peer`) on the ports that
+command line implies, so the launch contract itself is exercised; plus fakes that misbehave
+(exit at once, ignore SIGTERM, never connect).
+
+Each fake writes ``fake.json`` into the folder named by ``FAKE_SITL_REPORT`` (when set): its
+argv, its working folder, the environment keys that matter and its PID, for the test to check.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+
+_PRELUDE = f"""#!{sys.executable}
+import json, os, signal, sys, time
+sys.path.insert(0, {str(REPO)!r})
+
+def report(**extra):
+    folder = os.environ.get("FAKE_SITL_REPORT")
+    if folder:
+        data = {{"argv": sys.argv, "cwd": os.getcwd(), "pid": os.getpid(),
+                 "env": {{k: v for k, v in os.environ.items() if k.startswith("PX4_")}},
+                 **extra}}
+        with open(os.path.join(folder, "fake.json"), "w") as f:
+            json.dump(data, f)
+
+def option(name, default=None):
+    return sys.argv[sys.argv.index(name) + 1] if name in sys.argv else default
+"""
+
+ARDUPLANE = _PRELUDE + """
+from tests.helpers.ardupilot_peer import ArduPilotPeer, PeerPlan
+
+model = option("--model")
+if model is None or not model.startswith("JSON:"):
+    print("You must specify a vehicle model.", flush=True)
+    sys.exit(1)
+n = int(option("-I", "0"))
+lat, lon, alt, hdg = (float(x) for x in option("--home", "0,0,0,0").split(","))
+open("eeprom.bin", "wb").close()  # as ArduPilot: its storage in the working folder
+trim = [float(x) for x in os.environ.get("FAKE_SITL_TRIM", "0,0,0,0.6").split(",")]
+print("ArduPlane V4.7.0-dev (f4k3f4k3)", flush=True)
+print("JSON control interface set to 127.0.0.1:%d" % (9002 + 10 * n), flush=True)
+serial0 = option("--serial0", "tcp:0:wait")
+telemetry = "tcpin:127.0.0.1:%d" % (5760 + 10 * n)
+report(instance=n, home=[lat, lon, alt, hdg], serial0=serial0)
+peer = ArduPilotPeer(telemetry_url=telemetry if serial0 == "tcp:0:wait" else None,
+                     plan=PeerPlan(headings=((10.0, hdg + 20.0),)), home=(lat, lon, alt),
+                     trim=trim, mavlink=True, disarmed_s=2.0, fix_after_s=1.0,
+                     mavlink_listen="tcpin:127.0.0.1:%d" % (5762 + 10 * n))
+print("SERIAL0 on TCP port %d" % (5760 + 10 * n), flush=True)
+peer.start("udp:127.0.0.1:%d" % (9002 + 10 * n))
+while True:
+    time.sleep(0.2)
+    if peer.error is not None:
+        print("peer error: %r" % (peer.error,), flush=True)
+        sys.exit(3)
+"""
+
+PX4 = _PRELUDE + """
+from tests.helpers.px4_peer import PeerPlan, Px4Peer
+
+n = int(option("-i", "0"))
+workdir = option("-w")
+data = sys.argv[-1]
+if "-d" not in sys.argv or option("-s") != "etc/init.d-posix/rcS" or workdir is None:
+    print("Usage: px4 [-h|-d] [-s <startup_file>] ...", flush=True)
+    sys.exit(1)
+if not os.path.isfile(os.path.join(data, "init.d-posix", "rcS")):
+    print("ERROR [px4] no startup script in " + data, flush=True)
+    sys.exit(1)
+os.symlink(data, os.path.join(workdir, "etc"))  # as px4: the data folder linked into rootfs
+print("INFO  [px4] instance: %d" % n, flush=True)
+print("INFO  [init] PX4_SIM_HOSTNAME: localhost", flush=True)
+report(instance=n)
+peer = Px4Peer("tcp:127.0.0.1:%d" % (4560 + n), "udpin:127.0.0.1:%d" % (18570 + n),
+               PeerPlan(turns=((10.0, 20.0),)))
+peer.start()
+while True:
+    time.sleep(0.2)
+    if peer.errors:
+        print("peer error: %s" % peer.errors[0], flush=True)
+        sys.exit(3)
+"""
+
+EXITS_AT_ONCE = _PRELUDE + """
+print("starting", flush=True)
+print("fake: unrecognized option '--model'", file=sys.stderr, flush=True)
+sys.exit(3)
+"""
+
+NEVER_CONNECTS = _PRELUDE + """
+report()
+print("Waiting for connection ....", flush=True)
+while True:
+    time.sleep(0.2)
+"""
+
+IGNORES_SIGTERM = _PRELUDE + """
+signal.signal(signal.SIGTERM, signal.SIG_IGN)
+report()
+print("ignoring SIGTERM", flush=True)
+while True:
+    time.sleep(0.2)
+"""
+
+
+def write_fake(folder: Path, name: str, script: str) -> Path:
+    """``script`` as an executable file ``folder/name``."""
+    path = folder / name
+    path.write_text(script)
+    path.chmod(0o755)
+    return path
+
+
+def px4_build(folder: Path, script: str = PX4) -> Path:
+    """A fake PX4 SITL build folder: ``folder/build/bin/px4`` and ``build/etc/init.d-posix/rcS``."""
+    build = folder / "build"
+    (build / "bin").mkdir(parents=True)
+    (build / "etc" / "init.d-posix").mkdir(parents=True)
+    (build / "etc" / "init.d-posix" / "rcS").write_text("#!/bin/sh\n")
+    return write_fake(build / "bin", "px4", script)
