@@ -34,7 +34,7 @@ methods.
 
 from __future__ import annotations
 
-import contextlib
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -53,7 +53,7 @@ from sim.faults.events import event_type_name
 
 if TYPE_CHECKING:  # the autopilot's modules (its link, its telemetry) load when one flies
     from hil.autopilot import AutopilotBackend, AutopilotFlown
-    from hil.autopilot.launch import AutopilotProcess, LaunchPlan
+    from hil.autopilot.launch import AutopilotProcess
     from hil.autopilot.telemetry import AutopilotTelemetry
     from scenarios.autopilot_summary import ScoredAutopilot
 
@@ -258,11 +258,15 @@ def run_scenario(
             return ap_run.fly(sink, progress)
         return simulate(scenario, sink, progress=progress)
 
-    if tlog:
-        with TlogWriter(log_path) as log:
-            flown = fly_into(tee(lambda t, f: log.write(f, t), fusion))
-    else:
-        flown = fly_into(fusion)
+    try:
+        if tlog:
+            with TlogWriter(log_path) as log:
+                flown = fly_into(tee(lambda t, f: log.write(f, t), fusion))
+        else:
+            flown = fly_into(fusion)
+    finally:
+        if ap_run is not None:
+            ap_run.close()  # a started autopilot binary never outlives the flight
     wall = time.perf_counter() - t0
     extra: dict[str, Any] = {
         "faults": flown.fault_counters,
@@ -291,44 +295,74 @@ class AutopilotRun:
     the flight with it produced (:meth:`open`, :meth:`fly`, :meth:`score`)."""
 
     def __init__(self, scenario: Scenario, backend: AutopilotBackend,
-                 telemetry: AutopilotTelemetry | None, launch: LaunchPlan | None = None,
-                 out_dir: Path | None = None) -> None:
+                 telemetry: AutopilotTelemetry | None, *, out_dir: Path | None = None) -> None:
         self.scenario = scenario
         self.backend = backend
         self.telemetry = telemetry
-        self.launch = launch
-        """The SITL binary hilnav starts (``autopilot.binary``), else None."""
         self.out_dir = out_dir
         self.process: AutopilotProcess | None = None
+        """The SITL binary hilnav started (``autopilot.binary``), else None."""
+        self.exited = threading.Event()
+        """Set when the started binary exits by itself (the flight then stops)."""
         self.flown: AutopilotFlown | None = None
 
     @classmethod
     def open(cls, scenario: Scenario, backend: AutopilotBackend | None = None, *,
              out_dir: Path | None = None) -> AutopilotRun:
         """Build the scenario's backend (:func:`hil.autopilot.make_backend`, unless one is
-        given) and start recording its telemetry; with ``autopilot.binary``, plan its start on
-        free ports (:func:`hil.autopilot.launch.plan_launch`; its log goes to ``out_dir``).
-        ValueError: a bad setting, URL or binary."""
+        given) and its telemetry recorder. With ``autopilot.binary``, first start the binary
+        on a free instance (:mod:`hil.autopilot.launch`; its output to ``out_dir /
+        autopilot.log``) and wait until it is ready; :meth:`close` stops it.
+        ValueError: a bad setting, URL or binary (LaunchError: it exited before it was
+        ready); AutopilotAbsent: it was not ready within ``connect_timeout_s``."""
+        ap = scenario.autopilot
+        if ap.binary is None or backend is not None:
+            return cls(scenario, *cls._links(scenario, backend, ap.link, ap.telemetry,
+                                             ap.mavlink), out_dir=out_dir)
+        from hil.autopilot.launch import AutopilotProcess, Home, plan_launch
+
+        binary = scenario.autopilot_path(ap.binary)
+        assert binary is not None
+        home = None
+        if ap.kind == "ardupilot":  # PX4 takes its home from the simulated GPS
+            from hil.autopilot.ardupilot import json_origin
+
+            origin = json_origin(sim_setup(scenario))
+            home = Home(math.degrees(origin.lat_rad), math.degrees(origin.lon_rad),
+                        origin.alt_msl_m, scenario.start_state().heading_deg)
+        launch = plan_launch(ap.kind, binary, home=home, telemetry=ap.telemetry is not None)
+        process = AutopilotProcess(launch, (out_dir or Path.cwd()) / "autopilot.log").start()
+        try:
+            exited = threading.Event()
+            process.watch(exited)
+            if not process.wait_ready(ap.connect_timeout_s):
+                ports = launch.ports
+                raise AutopilotAbsent(
+                    f"{ap.kind} SITL {launch.binary} (instance {launch.instance}) did not get "
+                    f"ready within {ap.connect_timeout_s:g} s (its MAVLink ports "
+                    f"{ports['serial0_tcp']} and {ports['serial1_tcp']} never listened); its "
+                    f"last output: {process.last_lines()} (log {process.log_path})")
+            run = cls(scenario, *cls._links(scenario, None, launch.link, launch.telemetry_url,
+                                            launch.mavlink_url), out_dir=out_dir)
+        except BaseException:
+            process.stop()
+            raise
+        run.process, run.exited = process, exited
+        return run
+
+    @staticmethod
+    def _links(scenario: Scenario, backend: AutopilotBackend | None, link: str | None,
+               telemetry_url: str | None, mavlink: str | None
+               ) -> tuple[AutopilotBackend, AutopilotTelemetry | None]:
         from hil.autopilot import BackendSettings, close_backend, make_backend
         from hil.autopilot.telemetry import AutopilotTelemetry
 
         ap = scenario.autopilot
-        launch = None
-        link, telemetry_url, mavlink = ap.link, ap.telemetry, ap.mavlink
-        if ap.binary is not None and backend is None:
-            from hil.autopilot.launch import plan_launch
-
-            binary = scenario.autopilot_path(ap.binary)
-            assert binary is not None
-            launch = plan_launch(ap.kind, binary, telemetry=ap.telemetry is not None)
-            link, telemetry_url, mavlink = launch.link, launch.telemetry_url, launch.mavlink_url
         if backend is None:
             backend = make_backend(ap.kind, BackendSettings(
                 link=link, actuator_map=scenario.autopilot_path(ap.actuator_map),
                 servo_map=scenario.autopilot_path(ap.servo_map), mavlink=mavlink,
                 setup=sim_setup(scenario)))
-        if launch is not None:
-            launch = _with_home(launch, backend, scenario)
         telemetry = None
         if telemetry_url is not None:
             try:
@@ -340,33 +374,32 @@ class AutopilotRun:
             if callable(watch_armed):  # a backend that cannot see the armed flag itself
                 recorder = telemetry
                 watch_armed(lambda: recorder.armed)
-        return cls(scenario, backend, telemetry, launch, out_dir)
+        return backend, telemetry
+
+    def close(self) -> None:
+        """Stop the started binary, if any, by PID (idempotent)."""
+        if self.process is not None:
+            self.process.stop()
 
     def fly(self, sink: FrameSink, progress: ProgressFn | None = None) -> Flown:
-        """Fly the scenario with the autopilot at the controls, every frame into ``sink``."""
+        """Fly the scenario with the autopilot at the controls, every frame into ``sink``;
+        the started binary (if any) is stopped at the end."""
         from hil.autopilot import close_backend, fly_with_autopilot
 
         ap = self.scenario.autopilot
-        exited = threading.Event()  # the started binary ended by itself: stop waiting for it
         setup = sim_setup(self.scenario)
-        with contextlib.ExitStack() as stack:
-            try:
-                if self.launch is not None:
-                    from hil.autopilot.launch import launched
-
-                    log = (self.out_dir or Path.cwd()) / "autopilot.log"
-                    self.process = stack.enter_context(launched(self.launch, log,
-                                                                on_exit=exited))
-                if self.telemetry is not None:
-                    self.telemetry.start()
-                flown = fly_with_autopilot(
-                    setup, self.backend, on_frame=sink, speed=ap.speed,
-                    connect_timeout_s=ap.connect_timeout_s,
-                    stall_timeout_s=ap.stall_timeout_s, progress=progress, stop=exited)
-            finally:
-                if self.telemetry is not None:
-                    self.telemetry.stop()
-                close_backend(self.backend)
+        try:
+            if self.telemetry is not None:
+                self.telemetry.start()
+            flown = fly_with_autopilot(
+                setup, self.backend, on_frame=sink, speed=ap.speed,
+                connect_timeout_s=ap.connect_timeout_s, stall_timeout_s=ap.stall_timeout_s,
+                progress=progress, stop=self.exited)
+        finally:
+            if self.telemetry is not None:
+                self.telemetry.stop()
+            close_backend(self.backend)
+            self.close()
         self.flown = flown
         if not flown.connected:
             self._never_connected()
@@ -433,8 +466,9 @@ class AutopilotRun:
 
         assert self.flown is not None
         ap = self.scenario.autopilot
-        link = ({"simulator": ap.link, "telemetry": ap.telemetry} if self.launch is None else
-                {"simulator": self.launch.link, "telemetry": self.launch.telemetry_url})
+        link = ({"simulator": ap.link, "telemetry": ap.telemetry} if self.process is None else
+                {"simulator": self.process.plan.link,
+                 "telemetry": self.process.plan.telemetry_url})
         scored = score_flown(self.flown, self.telemetry, hilnav.truth, hilnav.outages,
                              link=link, settle_s=SETTLE_S, events=events)
         if self.process is not None:
@@ -442,19 +476,3 @@ class AutopilotRun:
                 str(t["text"]) for t in self.telemetry.health()["statustext"]]
             scored.section["process"] = self.process.record(texts)
         return scored
-
-
-def _with_home(launch: LaunchPlan, backend: AutopilotBackend, scenario: Scenario) -> LaunchPlan:
-    """ArduPilot's ``--home``: the backend's JSON origin (the position hilnav sends is measured
-    from it) and the scenario's start heading; PX4 takes its home from the simulated GPS."""
-    import dataclasses
-    import math
-
-    from hil.autopilot.launch import Home
-
-    origin = getattr(backend, "origin", None)
-    if launch.kind != "ardupilot" or origin is None:
-        return launch
-    home = Home(math.degrees(origin.lat_rad), math.degrees(origin.lon_rad), origin.alt_msl_m,
-                scenario.start_state().heading_deg)
-    return dataclasses.replace(launch, home=home)

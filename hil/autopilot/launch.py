@@ -9,11 +9,14 @@ after a grace period: the arduplane binary ignores SIGTERM); :func:`launched` is
 manager that guarantees the stop whatever happens (exception, Ctrl-C, early end).
 
 ArduPlane SITL (``libraries/AP_HAL_SITL/SITL_cmdline.cpp``, ``SITL_State.h``)
-    ``arduplane --model JSON:127.0.0.1 --speedup 1 --home LAT,LON,ALT,HDG -I N
+    ``arduplane --model JSON:127.0.0.1 --speedup 1 --home LAT,LON,ALT,HDG -I N --serial0 tcp:0
     [--defaults FILE[,FILE]]``. Instance N moves every port by 10 N: SERIAL0 listens on TCP
-    5760 + 10 N (``tcp:0:wait``: the binary blocks at boot until a client connects; the
-    telemetry link is that client), SERIAL1 / SERIAL2 on 5762 / 5763 + 10 N, SERIAL5-8 on
-    5765-5768 + 10 N, RC input on UDP 5501 + 10 N; its JSON physics backend
+    5760 + 10 N (by default ``tcp:0:wait``, which blocks the boot until a client connects;
+    ``tcp:0`` here, so that it boots at once and every port listens: the telemetry link
+    connects there), SERIAL1 / SERIAL2 on 5762 / 5763 + 10 N (SERIAL1: the MAVLink port of the
+    denial's parameters), SERIAL5-8 on 5765-5768 + 10 N, RC input on UDP 5501 + 10 N. It is
+    ready when SERIAL0 and SERIAL1 listen (:meth:`AutopilotProcess.wait_ready`); its JSON
+    physics backend
     (``libraries/SITL/SIM_JSON.cpp``) binds nothing and sends its servo packets to UDP
     9002 + 10 N, where hilnav listens and answers. It writes ``eeprom.bin`` and its logs in its
     working folder. Without ``--defaults`` it boots with the firmware's own defaults (ArduPlane's
@@ -103,8 +106,7 @@ class LaunchPlan:
     """One SITL binary to start: its kind (``ardupilot`` / ``px4``), path, instance and what
     follows from them (ports, links, command line). Build it with :func:`plan_launch`.
 
-    ``telemetry``: hilnav records the autopilot's estimate (ArduPilot's SERIAL0 then waits for
-    that client; without it SERIAL0 is told not to wait). ``defaults``: ArduPilot parameter
+    ``telemetry``: hilnav records the autopilot's estimate. ``defaults``: ArduPilot parameter
     files given as ``--defaults``.
     """
 
@@ -153,13 +155,11 @@ class LaunchPlan:
         """The command line, run in ``workdir``."""
         if self.kind == "ardupilot":
             argv = [str(self.binary), "--model", "JSON:127.0.0.1", "--speedup", "1",
-                    "-I", str(self.instance)]
+                    "-I", str(self.instance), "--serial0", "tcp:0"]
             if self.home is not None:
                 argv += ["--home", self.home.arg()]
             if self.defaults:
                 argv += ["--defaults", ",".join(str(p) for p in self.defaults)]
-            if not self.telemetry:  # nobody connects to SERIAL0: it must not wait at boot
-                argv += ["--serial0", "tcp:0"]
             return argv
         return [str(self.binary), "-i", str(self.instance), "-d",
                 "-s", "etc/init.d-posix/rcS", "-w", str(workdir), str(px4_data_dir(self.binary))]
@@ -290,7 +290,8 @@ class AutopilotProcess:
     stopped_by: str | None = None
     """How it ended: ``exited`` (by itself), ``SIGTERM`` or ``SIGKILL`` (stopped by hilnav)."""
     _log: IO[bytes] | None = field(default=None, repr=False)
-    _started_at: float = 0.0
+    _stopping: threading.Event = field(default_factory=threading.Event, repr=False)
+    _watcher: threading.Thread | None = field(default=None, repr=False)
 
     def start(self) -> AutopilotProcess:
         """Start the binary in a new session and a new temporary working folder."""
@@ -308,7 +309,6 @@ class AutopilotProcess:
             self._cleanup()
             raise LaunchError(f"autopilot binary {self.plan.binary}: cannot start it: "
                               f"{exc.strerror or exc}") from None
-        self._started_at = time.monotonic()
         return self
 
     @property
@@ -325,9 +325,19 @@ class AutopilotProcess:
             self.stopped_by = self.stopped_by or "exited"
         return code
 
+    def watch(self, on_exit: threading.Event) -> None:
+        """Set ``on_exit`` when the process exits by itself (until :meth:`stop`)."""
+        self._watcher = threading.Thread(target=_watch, args=(self, on_exit, self._stopping),
+                                         name="autopilot-process", daemon=True)
+        self._watcher.start()
+
     def stop(self) -> int | None:
         """Stop it by PID: SIGTERM to its process group, SIGKILL after ``grace_s``; returns its
         exit code (idempotent). Its working folder is removed."""
+        self._stopping.set()
+        if self._watcher is not None:
+            self._watcher.join(1.0)
+        self.poll()
         proc = self.proc
         if proc is not None and proc.poll() is None:
             self._signal_group(signal.SIGTERM)
@@ -345,6 +355,23 @@ class AutopilotProcess:
                 self.stopped_by = self.stopped_by or "exited"
         self._cleanup()
         return self.exit_code
+
+    def wait_ready(self, timeout_s: float) -> bool:
+        """Until the binary's MAVLink ports listen (ArduPilot: SERIAL0 and SERIAL1; PX4 dials
+        hilnav, nothing to wait for): True when ready, False after ``timeout_s``; LaunchError
+        when it exits first (naming it and its last output)."""
+        ports = ([self.plan.ports["serial0_tcp"], self.plan.ports["serial1_tcp"]]
+                 if self.plan.kind == "ardupilot" else [])
+        deadline = time.monotonic() + timeout_s
+        while True:
+            if self.poll() is not None:
+                raise LaunchError(f"autopilot binary {self.describe_exit()} (before it was "
+                                  f"ready; is it {self.plan.kind}'s SITL? log {self.log_path})")
+            if all(_tcp_listening(p) for p in ports):
+                return True
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.05)
 
     def _signal_group(self, sig: signal.Signals) -> None:
         assert self.proc is not None
@@ -414,20 +441,32 @@ def launched(plan: LaunchPlan, log_path: Path, *, grace_s: float = STOP_GRACE_S,
     """Run the plan's binary for the block; stopped by PID when the block ends, however it
     ends. ``on_exit``: set when the process exits by itself (e.g. to end a wait for it)."""
     process = AutopilotProcess(plan, log_path, grace_s=grace_s).start()
-    done = threading.Event()
-    watcher = None
     if on_exit is not None:
-        watcher = threading.Thread(target=_watch, args=(process, on_exit, done),
-                                   name="autopilot-process", daemon=True)
-        watcher.start()
+        process.watch(on_exit)
     try:
         yield process
     finally:
-        done.set()
-        if watcher is not None:
-            watcher.join(1.0)
-        process.poll()
         process.stop()
+
+
+def _tcp_listening(port: int) -> bool:
+    """Whether a socket of this machine listens on TCP ``port`` (read from the kernel's
+    table, so that the check is no connection the autopilot would see)."""
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        try:
+            lines = Path(table).read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            fields = line.split()
+            if len(fields) > 3 and fields[3] == "0A" and \
+                    int(fields[1].rsplit(":", 1)[1], 16) == port:
+                return True
+    if not Path("/proc/net/tcp").exists():  # no kernel table: try a connection
+        with socket.socket() as s:
+            s.settimeout(0.2)
+            return s.connect_ex(("127.0.0.1", port)) == 0
+    return False
 
 
 def _watch(process: AutopilotProcess, on_exit: threading.Event, done: threading.Event) -> None:

@@ -5,8 +5,11 @@ hilnav gives the real ``arduplane`` / ``px4`` and run the protocol peers
 command line implies, so the launch contract itself is exercised; plus fakes that misbehave
 (exit at once, ignore SIGTERM, never connect).
 
-Each fake writes ``fake.json`` into the folder named by ``FAKE_SITL_REPORT`` (when set): its
-argv, its working folder, the environment keys that matter and its PID, for the test to check.
+The ArduPlane fake exits (code 4, "PANIC: fake crash") after ``FAKE_SITL_EXIT_AFTER_S`` wall
+seconds when that is set, and takes its servo trims from ``FAKE_SITL_TRIM`` (roll, pitch, yaw,
+throttle). Each fake writes ``fake.json`` into the folder named by ``FAKE_SITL_REPORT`` (when
+set): its argv, its working folder, the environment keys that matter and its PID, for the test
+to check.
 """
 
 from __future__ import annotations
@@ -49,14 +52,19 @@ print("JSON control interface set to 127.0.0.1:%d" % (9002 + 10 * n), flush=True
 serial0 = option("--serial0", "tcp:0:wait")
 telemetry = "tcpin:127.0.0.1:%d" % (5760 + 10 * n)
 report(instance=n, home=[lat, lon, alt, hdg], serial0=serial0)
-peer = ArduPilotPeer(telemetry_url=telemetry if serial0 == "tcp:0:wait" else None,
+peer = ArduPilotPeer(telemetry_url=telemetry,
                      plan=PeerPlan(headings=((10.0, hdg + 20.0),)), home=(lat, lon, alt),
                      trim=trim, mavlink=True, disarmed_s=2.0, fix_after_s=1.0,
                      mavlink_listen="tcpin:127.0.0.1:%d" % (5762 + 10 * n))
 print("SERIAL0 on TCP port %d" % (5760 + 10 * n), flush=True)
 peer.start("udp:127.0.0.1:%d" % (9002 + 10 * n))
+exit_after_s = float(os.environ.get("FAKE_SITL_EXIT_AFTER_S", "inf"))
+started = time.monotonic()
 while True:
     time.sleep(0.2)
+    if time.monotonic() - started > exit_after_s:
+        print("PANIC: fake crash", flush=True)
+        os._exit(4)
     if peer.error is not None:
         print("peer error: %r" % (peer.error,), flush=True)
         sys.exit(3)
