@@ -356,18 +356,20 @@ class AutopilotProcess:
         self._cleanup()
         return self.exit_code
 
-    def wait_ready(self, timeout_s: float) -> bool:
+    def wait_ready(self, timeout_s: float, *, min_alive_s: float = 0.0) -> bool:
         """Until the binary's MAVLink ports listen (ArduPilot: SERIAL0 and SERIAL1; PX4 dials
-        hilnav, nothing to wait for): True when ready, False after ``timeout_s``; LaunchError
-        when it exits first (naming it and its last output)."""
+        hilnav, nothing to wait for) and it has run ``min_alive_s``: True when ready, False
+        after ``timeout_s``; LaunchError when it exits first (naming it and its last output)."""
         ports = ([self.plan.ports["serial0_tcp"], self.plan.ports["serial1_tcp"]]
                  if self.plan.kind == "ardupilot" else [])
-        deadline = time.monotonic() + timeout_s
+        start = time.monotonic()
+        deadline = start + timeout_s
         while True:
             if self.poll() is not None:
                 raise LaunchError(f"autopilot binary {self.describe_exit()} (before it was "
                                   f"ready; is it {self.plan.kind}'s SITL? log {self.log_path})")
-            if all(_tcp_listening(p) for p in ports):
+            if all(_tcp_listening(p) for p in ports) and \
+                    time.monotonic() - start >= min_alive_s:
                 return True
             if time.monotonic() >= deadline:
                 return False
