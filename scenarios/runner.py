@@ -330,7 +330,12 @@ class AutopilotRun:
             origin = json_origin(sim_setup(scenario))
             home = Home(math.degrees(origin.lat_rad), math.degrees(origin.lon_rad),
                         origin.alt_msl_m, scenario.start_state().heading_deg)
-        launch = plan_launch(ap.kind, binary, home=home, telemetry=ap.telemetry is not None)
+        # the scenario's ArduPilot parameter file (when the section names one) is also its
+        # --defaults: in force from boot (e.g. ARSPD_SKIP_CAL, read once at boot)
+        params = getattr(ap, "params", None)
+        defaults = [scenario.autopilot_path(params)] if ap.kind == "ardupilot" and params else []
+        launch = plan_launch(ap.kind, binary, home=home, telemetry=ap.telemetry is not None,
+                             defaults=[p for p in defaults if p is not None])
         process = AutopilotProcess(launch, (out_dir or Path.cwd()) / "autopilot.log").start()
         try:
             exited = threading.Event()

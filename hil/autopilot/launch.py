@@ -71,7 +71,7 @@ _AP_SERIAL_TCP: Final = {"serial0": 5760, "serial1": 5762, "serial2": 5763, "ser
                          "serial6": 5766, "serial7": 5767, "serial8": 5768}
 _AP_JSON_UDP: Final = 9002
 _AP_RCIN_UDP: Final = 5501
-_AP_MAX_INSTANCE: Final = 5000  # 5768 + 10 N stays below 65536
+_AP_MAX_INSTANCE: Final = 2300  # 9002 + 10 N stays below Linux's ephemeral ports (32768)
 # PX4 SITL: every port moves by 1 per instance
 _PX4_SIM_TCP: Final = 4560
 _PX4_UDP: Final = {"gcs": 18570, "offboard": 14580, "payload": 14280, "gimbal": 13030}

@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 from hil.autopilot.launch import (
+    _AP_MAX_INSTANCE,
     AutopilotProcess,
     Home,
     LaunchError,
@@ -92,7 +93,7 @@ def test_an_instance_with_a_taken_port_is_skipped(tmp_path: Path) -> None:
             plan_launch("ardupilot", binary, instance=first.instance)
         # the search starts at the taken instance and moves on to the next free one
         again = plan_launch("ardupilot", binary, rng=_StartAt(first.instance))
-        assert again.instance == first.instance % 4999 + 1  # instances 1..4999, wrapping
+        assert again.instance == first.instance % (_AP_MAX_INSTANCE - 1) + 1  # wrapping
 
 
 @pytest.mark.parametrize("case", ["missing", "folder", "not executable", "px4 without etc"])
