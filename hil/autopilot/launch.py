@@ -56,7 +56,7 @@ from pathlib import Path
 from typing import IO, Any, Final
 
 __all__ = ["STOP_GRACE_S", "AutopilotProcess", "Home", "LaunchError", "LaunchPlan", "launched",
-           "plan_launch"]
+           "plan_launch", "px4_build_version"]
 
 STOP_GRACE_S: Final = 5.0
 """Seconds between SIGTERM and SIGKILL when stopping the autopilot's process group."""
@@ -185,6 +185,23 @@ class LaunchPlan:
 def px4_data_dir(binary: Path) -> Path:
     """``BUILD/etc`` of a PX4 SITL binary ``BUILD/bin/px4``."""
     return binary.parent.parent / "etc"
+
+
+def px4_build_version(binary: Path) -> str | None:
+    """``PX4 <git tag> (<git hash>)`` of the build folder of ``binary`` (from the header PX4's
+    build writes, ``src/lib/version/build_git_version.h``), None without one."""
+    header = binary.parent.parent / "src" / "lib" / "version" / "build_git_version.h"
+    try:
+        text = header.read_text(errors="replace")
+    except OSError:
+        return None
+    fields = dict(re.findall(r'#define\s+(PX4_GIT_TAG_STR|PX4_GIT_VERSION_STR)\s+"([^"]*)"',
+                             text))
+    tag = fields.get("PX4_GIT_TAG_STR")
+    if not tag:
+        return None
+    sha = fields.get("PX4_GIT_VERSION_STR", "")[:10]
+    return f"PX4 {tag}" + (f" ({sha})" if sha else "")
 
 
 def check_binary(kind: str, binary: Path) -> Path:
@@ -409,11 +426,14 @@ class AutopilotProcess:
 
     def version(self, texts: Sequence[str] = ()) -> str | None:
         """The version it printed (``ArduPlane V4.7.0-dev (abcdef12)``), else the first one
-        in ``texts`` (its STATUSTEXTs), else None."""
+        in ``texts`` (its STATUSTEXTs), else (PX4, which prints none) the one its build folder
+        was generated with (``BUILD/src/lib/version/build_git_version.h``), else None."""
         for text in (self._head(), *texts):
             match = _VERSION.search(text)
             if match is not None:
                 return match.group(1)
+        if self.plan.kind == "px4":
+            return px4_build_version(self.plan.binary)
         return None
 
     def _head(self) -> str:

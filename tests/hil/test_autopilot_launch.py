@@ -198,3 +198,15 @@ def test_the_version_is_read_from_its_output_or_its_texts(tmp_path: Path) -> Non
     log.write_text("$ px4 -i 1\nINFO  [px4] instance: 1\n")
     assert process.version(["PX4 v1.15.0-alpha1"]) == "PX4 v1.15.0-alpha1"
     assert os.path.basename(process.record()["log"]) == "autopilot.log"
+
+
+def test_px4s_version_comes_from_its_build_folder(tmp_path: Path) -> None:
+    # PX4 prints no version: the header its build generated names the git tag and hash
+    binary = px4_build(tmp_path, NEVER_CONNECTS)
+    process = AutopilotProcess(plan_launch("px4", binary), tmp_path / "autopilot.log")
+    assert process.version() is None  # no header, no output, no texts
+    header = tmp_path / "build" / "src" / "lib" / "version" / "build_git_version.h"
+    header.parent.mkdir(parents=True)
+    header.write_text('#define PX4_GIT_VERSION_STR "3fb0c7ee2f508b8c6b90aaa6a841b71e46331e29"\n'
+                      '#define PX4_GIT_TAG_STR "v1.13.0-beta1-2834-g3fb0c7ee2f"\n')
+    assert process.version() == "PX4 v1.13.0-beta1-2834-g3fb0c7ee2f (3fb0c7ee2f)"
