@@ -223,6 +223,8 @@ def say_waiting_for_autopilot(scn: Any, out: Path | None = None) -> None:
     side = px4_command() if ap.kind == "px4" else ardupilot_command(
         scn.start_state(), given_as="autopilot.mavlink")
     err_console.print(f"start {side}", highlight=False, markup=False)
+    err_console.print("(or give --autopilot-binary PATH: hilnav starts the SITL binary itself)",
+                      highlight=False, markup=False)
 
 
 def print_autopilot(s: dict[str, Any]) -> None:

@@ -140,6 +140,7 @@ def fly_autopilot(options: UpOptions, endpoint: str, port: int, children: list[C
         side = autopilot_side_command(options)
         if side is not None:
             log(f"now start     {side}")
+            log("              (or give --autopilot-binary PATH: up starts the SITL binary)")
         denial = denial_warning(options)
         if denial is not None:
             warn(denial)
