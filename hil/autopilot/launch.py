@@ -38,6 +38,7 @@ before it connected is reported by the caller with :meth:`AutopilotProcess.last_
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import fcntl
 import os
@@ -326,6 +327,7 @@ class AutopilotProcess:
             self._cleanup()
             raise LaunchError(f"autopilot binary {self.plan.binary}: cannot start it: "
                               f"{exc.strerror or exc}") from None
+        atexit.register(self.stop)  # an interpreter that ends without the stop still stops it
         return self
 
     @property
@@ -352,6 +354,7 @@ class AutopilotProcess:
         """Stop it by PID: SIGTERM to its process group, SIGKILL after ``grace_s``; returns its
         exit code (idempotent). Its working folder is removed."""
         self._stopping.set()
+        atexit.unregister(self.stop)
         if self._watcher is not None:
             self._watcher.join(1.0)
         self.poll()

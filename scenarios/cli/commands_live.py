@@ -118,6 +118,7 @@ def up(
     or --ardupilot the autopilot flies and both estimates are scored side by side."""
     out_dir(out)
     from hil.pipeline import SimSetup
+    from scenarios.cli.children import sigterm_interrupts
     from scenarios.cli.up import UpOptions, run_up
     from scenarios.cli.up_options import DEFAULT_DURATION_S
 
@@ -153,7 +154,7 @@ def up(
         from scenarios.cli.up_autopilot import record_process, started_autopilot
 
         launch = started_autopilot(options, log)
-    with launch as (options, process), progress_bar(
+    with sigterm_interrupts(), launch as (options, process), progress_bar(
             setup.duration_s, "flying", quiet=quiet, events=scripted_events(setup)) as progress:
         summary = run_up(options, log=log, progress=progress, warn=say_warning)
     if process is not None and summary is not None:

@@ -25,6 +25,7 @@ from fusion.choices import (
     DEFAULT_ALIGN_MODE,
 )
 from scenarios.cli.autopilot_hints import AutopilotBinaryOption, with_autopilot_binary
+from scenarios.cli.children import sigterm_interrupts
 from scenarios.cli.errors import RunFailed, check_choice, cli_errors, out_dir, out_file
 from scenarios.cli.options import (
     AirspeedOption,
@@ -231,8 +232,9 @@ def run(
     if scn.autopilot.flies:
         say_waiting_for_autopilot(scn, out)
     try:
-        with progress_bar(scn.duration_s, scn.name, quiet=quiet,
-                          events=scripted_events(sim_setup(scn))) as progress:
+        with sigterm_interrupts(), progress_bar(
+                scn.duration_s, scn.name, quiet=quiet,
+                events=scripted_events(sim_setup(scn))) as progress:
             result = run_scenario(scn, out, progress=progress)
     except AutopilotAbsent as exc:
         raise RunFailed(str(exc)) from None

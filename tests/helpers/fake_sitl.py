@@ -117,6 +117,17 @@ while True:
     time.sleep(0.2)
 """
 
+IGNORES_SIGTERM_LISTENING = _PRELUDE + """
+import socket
+signal.signal(signal.SIGTERM, signal.SIG_IGN)  # as the real arduplane
+n = int(option("-I", "0"))
+ports = [socket.create_server(("127.0.0.1", 5760 + 10 * n + k)) for k in (0, 2)]
+report(instance=n)
+print("SERIAL0 on TCP port %d" % (5760 + 10 * n), flush=True)
+while True:  # ready (its MAVLink ports listen) but never sends a servo packet
+    time.sleep(0.2)
+"""
+
 
 def write_fake(folder: Path, name: str, script: str) -> Path:
     """``script`` as an executable file ``folder/name``."""

@@ -12,19 +12,26 @@ exception never leaves the process behind.
 from __future__ import annotations
 
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
 
+from hil.autopilot.launch import LaunchError
 from scenarios.cli.app import app
-from scenarios.cli.children import wait_gone
+from scenarios.cli.children import stop_process, wait_gone
 from scenarios.runner import run_scenario, sim_setup
 from scenarios.schema import load_scenario
 from tests.helpers.ardupilot_peer import trimmed_controls
 from tests.helpers.fake_sitl import (
     ARDUPLANE,
     EXITS_AT_ONCE,
+    IGNORES_SIGTERM_LISTENING,
     NEVER_CONNECTS,
     PX4,
     px4_build,
@@ -196,3 +203,34 @@ def _wait_report(folder: Path) -> bool:
             return True
         time.sleep(0.05)
     return False
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_stopping_hilnav_stops_the_autopilot_it_started(fake_env: Path,
+                                                         sig: signal.Signals) -> None:
+    # Ctrl-C (SIGINT) or a SIGTERM to `hilnav run` in the middle of the flight
+    binary = write_fake(fake_env, "arduplane", IGNORES_SIGTERM_LISTENING)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "scenarios.cli", "run",
+         str(_scenario(fake_env, "ardupilot", duration_s=300.0)), "--out",
+         str(fake_env / "out"), "--autopilot-binary", str(binary), "--quiet"],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+        env={**os.environ, "COLUMNS": "200"})
+    try:
+        assert _wait_report(fake_env), "the fake never started"
+        time.sleep(1.0)  # hilnav is waiting for it to connect
+        proc.send_signal(sig)
+        text, _ = proc.communicate(timeout=60)
+    finally:
+        stop_process(proc)
+    assert proc.returncode != 0
+    assert wait_gone([_fake_pid(fake_env)]), text
+
+
+def test_a_px4_binary_that_exits_while_awaited_is_bad_input(fake_env: Path) -> None:
+    # PX4 dials hilnav: its exit is seen while the flight waits for it (which it stops)
+    binary = px4_build(fake_env, EXITS_AT_ONCE)
+    scn = load_scenario(_scenario(fake_env, "px4", binary=str(binary), connect_timeout_s=30))
+    with pytest.raises(LaunchError, match=r"exited with code 3: .*unrecognized option.*before "
+                                          r"it connected"):
+        run_scenario(scn, fake_env / "out", reports=False)
