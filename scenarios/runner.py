@@ -344,9 +344,9 @@ class AutopilotRun:
                 ports = launch.ports
                 raise AutopilotAbsent(
                     f"{ap.kind} SITL {launch.binary} (instance {launch.instance}) did not get "
-                    f"ready within {ap.connect_timeout_s:g} s (its MAVLink ports "
-                    f"{ports['serial0_tcp']} and {ports['serial1_tcp']} never listened); its "
-                    f"last output: {process.last_lines()} (log {process.log_path})")
+                    f"ready within {ap.connect_timeout_s:g} s (its MAVLink port "
+                    f"{ports['serial0_tcp']} never listened); its last output: "
+                    f"{process.last_lines()} (log {process.log_path})")
             run = cls(scenario, *cls._links(scenario, None, launch.link, launch.telemetry_url,
                                             launch.mavlink_url), out_dir=out_dir)
         except BaseException:

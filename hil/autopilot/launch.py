@@ -12,10 +12,10 @@ ArduPlane SITL (``libraries/AP_HAL_SITL/SITL_cmdline.cpp``, ``SITL_State.h``)
     ``arduplane --model JSON:127.0.0.1 --speedup 1 --home LAT,LON,ALT,HDG -I N --serial0 tcp:0
     [--defaults FILE[,FILE]]``. Instance N moves every port by 10 N: SERIAL0 listens on TCP
     5760 + 10 N (by default ``tcp:0:wait``, which blocks the boot until a client connects;
-    ``tcp:0`` here, so that it boots at once and every port listens: the telemetry link
-    connects there), SERIAL1 / SERIAL2 on 5762 / 5763 + 10 N (SERIAL1: the MAVLink port of the
-    denial's parameters), SERIAL5-8 on 5765-5768 + 10 N, RC input on UDP 5501 + 10 N. It is
-    ready when SERIAL0 and SERIAL1 listen (:meth:`AutopilotProcess.wait_ready`); its JSON
+    ``tcp:0`` here, so that it boots at once: the telemetry link connects there), SERIAL1 /
+    SERIAL2 on 5762 / 5763 + 10 N (SERIAL1: the MAVLink port of the denial's parameters),
+    SERIAL5-8 on 5765-5768 + 10 N, RC input on UDP 5501 + 10 N. It is ready when SERIAL0 and
+    SERIAL1 listen (:meth:`AutopilotProcess.wait_ready`); its JSON
     physics backend
     (``libraries/SITL/SIM_JSON.cpp``) binds nothing and sends its servo packets to UDP
     9002 + 10 N, where hilnav listens and answers. It writes ``eeprom.bin`` and its logs in its
@@ -61,6 +61,9 @@ __all__ = ["STOP_GRACE_S", "AutopilotProcess", "Home", "LaunchError", "LaunchPla
 
 STOP_GRACE_S: Final = 5.0
 """Seconds between SIGTERM and SIGKILL when stopping the autopilot's process group."""
+
+SERIAL1_WAIT_S: Final = 5.0
+"""Seconds :meth:`AutopilotProcess.wait_ready` waits for ArduPilot's SERIAL1 after SERIAL0."""
 
 PX4_AIRFRAME: Final = "1030"
 """PX4's standard SITL plane (``1030_gazebo-classic_plane``), its simulator external."""
@@ -377,19 +380,27 @@ class AutopilotProcess:
         return self.exit_code
 
     def wait_ready(self, timeout_s: float, *, min_alive_s: float = 0.0) -> bool:
-        """Until the binary's MAVLink ports listen (ArduPilot: SERIAL0 and SERIAL1; PX4 dials
-        hilnav, nothing to wait for) and it has run ``min_alive_s``: True when ready, False
-        after ``timeout_s``; LaunchError when it exits first (naming it and its last output)."""
-        ports = ([self.plan.ports["serial0_tcp"], self.plan.ports["serial1_tcp"]]
-                 if self.plan.kind == "ardupilot" else [])
+        """Until the binary's MAVLink ports listen and it has run ``min_alive_s``: True when
+        ready, False after ``timeout_s``; LaunchError when it exits first (naming it and its
+        last output). ArduPilot: SERIAL0 (opened before anything else, before its first
+        physics frame), then SERIAL1 for at most ``SERIAL1_WAIT_S`` more (opened by its
+        serial manager in its setup; should that need physics frames, which hilnav answers
+        only once the flight runs, the flight goes on without waiting and the link connects
+        when it can). PX4 dials hilnav: nothing to wait for."""
+        first = [self.plan.ports["serial0_tcp"]] if self.plan.kind == "ardupilot" else []
+        then = [self.plan.ports["serial1_tcp"]] if self.plan.kind == "ardupilot" else []
         start = time.monotonic()
         deadline = start + timeout_s
+        first_at: float | None = None
         while True:
             if self.poll() is not None:
                 raise LaunchError(f"autopilot binary {self.describe_exit()} (before it was "
                                   f"ready; is it {self.plan.kind}'s SITL? log {self.log_path})")
-            if all(_tcp_listening(p) for p in ports) and \
-                    time.monotonic() - start >= min_alive_s:
+            now = time.monotonic()
+            if first_at is None and all(_tcp_listening(p) for p in first):
+                first_at = now
+            if first_at is not None and now - start >= min_alive_s and (
+                    all(_tcp_listening(p) for p in then) or now - first_at >= SERIAL1_WAIT_S):
                 return True
             if time.monotonic() >= deadline:
                 return False

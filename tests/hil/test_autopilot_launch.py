@@ -31,6 +31,7 @@ from scenarios.cli.children import wait_gone
 from tests.helpers.fake_sitl import (
     EXITS_AT_ONCE,
     IGNORES_SIGTERM,
+    IGNORES_SIGTERM_LISTENING,
     NEVER_CONNECTS,
     px4_build,
     write_fake,
@@ -210,3 +211,24 @@ def test_px4s_version_comes_from_its_build_folder(tmp_path: Path) -> None:
     header.write_text('#define PX4_GIT_VERSION_STR "3fb0c7ee2f508b8c6b90aaa6a841b71e46331e29"\n'
                       '#define PX4_GIT_TAG_STR "v1.13.0-beta1-2834-g3fb0c7ee2f"\n')
     assert process.version() == "PX4 v1.13.0-beta1-2834-g3fb0c7ee2f (3fb0c7ee2f)"
+
+
+def test_arduplane_is_ready_when_its_serial_ports_listen(tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    import hil.autopilot.launch as launch
+
+    binary = write_fake(tmp_path, "arduplane", IGNORES_SIGTERM_LISTENING)  # SERIAL0 and 1
+    with launched(plan_launch("ardupilot", binary), tmp_path / "a.log", grace_s=0.3) as p:
+        assert p.wait_ready(30.0)
+        assert launch._tcp_listening(p.plan.ports["serial1_tcp"])
+    # a binary whose SERIAL0 never listens is not ready; one with SERIAL0 only is, after the
+    # grace for SERIAL1
+    never = write_fake(tmp_path, "never", NEVER_CONNECTS)
+    with launched(plan_launch("ardupilot", never), tmp_path / "b.log") as p:
+        assert not p.wait_ready(0.5)
+    monkeypatch.setattr(launch, "SERIAL1_WAIT_S", 0.2)
+    serial0 = write_fake(tmp_path, "serial0", IGNORES_SIGTERM_LISTENING.replace(
+        "for k in (0, 2)", "for k in (0,)"))
+    with launched(plan_launch("ardupilot", serial0), tmp_path / "c.log", grace_s=0.3) as p:
+        assert p.wait_ready(30.0)
+        assert not launch._tcp_listening(p.plan.ports["serial1_tcp"])
