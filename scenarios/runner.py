@@ -20,10 +20,11 @@ sending controls) is scored as far as it flew: events that had not begun are lis
 sentence in ``failures`` (present only when there is one) and ``passed`` is false.
 
 With ``autopilot.binary`` hilnav starts the autopilot's SITL binary itself
-(:mod:`hil.autopilot.launch`): on free loopback ports, its output in ``autopilot.log`` of the
-run folder, the simulator link, the telemetry and ArduPilot's MAVLink port pointed at it, and
-stopped by PID when the flight ends, however it ends. The summary's ``autopilot.process``
-records the binary, its version, instance, ports and how it ended.
+(:meth:`AutopilotRun.start`, :mod:`hil.autopilot.launch`): on free loopback ports, its output
+in ``autopilot.log`` of the run folder, the scenario's simulator link, telemetry and ArduPilot
+MAVLink port pointed at it, stopped by PID when the flight ends, however it ends. The
+summary's ``autopilot.process`` records the binary, its version, instance, ports and how it
+ended.
 
 The flight and the fusion are the pipeline's (:mod:`hil.pipeline`); this module turns a
 :class:`~scenarios.schema.Scenario` into its :class:`~hil.pipeline.SimSetup` and filter, scores
@@ -250,7 +251,7 @@ def run_scenario(
     log_path = out_dir / "run.tlog"
     fusion = FusionRun(config, bridge, nav=nav)
     flies = backend is not None or scenario.autopilot.flies
-    ap_run = AutopilotRun.open(scenario, backend, out_dir=out_dir) if flies else None
+    ap_run = AutopilotRun.start(scenario, backend, out_dir=out_dir) if flies else None
     t0 = time.perf_counter()
 
     def fly_into(sink: FrameSink) -> Flown:
@@ -295,38 +296,35 @@ class AutopilotRun:
     the flight with it produced (:meth:`open`, :meth:`fly`, :meth:`score`)."""
 
     def __init__(self, scenario: Scenario, backend: AutopilotBackend,
-                 telemetry: AutopilotTelemetry | None, *, out_dir: Path | None = None) -> None:
+                 telemetry: AutopilotTelemetry | None) -> None:
         self.scenario = scenario
         self.backend = backend
         self.telemetry = telemetry
-        self.out_dir = out_dir
+        self.flown: AutopilotFlown | None = None
         self.process: AutopilotProcess | None = None
-        """The SITL binary hilnav started (``autopilot.binary``), else None."""
+        """The SITL binary hilnav started (``autopilot.binary``, :meth:`start`), else None."""
         self.exited = threading.Event()
         """Set when the started binary exits by itself (the flight then stops)."""
-        self.flown: AutopilotFlown | None = None
 
     @classmethod
-    def open(cls, scenario: Scenario, backend: AutopilotBackend | None = None, *,
-             out_dir: Path | None = None) -> AutopilotRun:
-        """Build the scenario's backend (:func:`hil.autopilot.make_backend`, unless one is
-        given) and its telemetry recorder. With ``autopilot.binary``, first start the binary
-        on a free instance (:mod:`hil.autopilot.launch`; its output to ``out_dir /
-        autopilot.log``) and wait until it is ready; :meth:`close` stops it.
-        ValueError: a bad setting, URL or binary (LaunchError: it exited before it was
-        ready); AutopilotAbsent: it was not ready within ``connect_timeout_s``."""
+    def start(cls, scenario: Scenario, backend: AutopilotBackend | None = None, *,
+              out_dir: Path | None = None) -> AutopilotRun:
+        """:meth:`open`, after starting the scenario's ``autopilot.binary`` (if it names one
+        and no ``backend`` is given) on a free instance and waiting until it is ready
+        (:mod:`hil.autopilot.launch`; its output to ``out_dir / autopilot.log``); the run's
+        scenario then has its link, telemetry and MAVLink port pointed at the binary's.
+        :meth:`close` stops it. ValueError: a bad setting, URL or binary (LaunchError: it
+        exited before it was ready); AutopilotAbsent: not ready within ``connect_timeout_s``."""
         ap = scenario.autopilot
         if ap.binary is None or backend is not None:
-            return cls(scenario, *cls._links(scenario, backend, ap.link, ap.telemetry,
-                                             ap.mavlink), out_dir=out_dir)
+            return cls.open(scenario, backend)
+        from hil.autopilot.ardupilot import json_origin
         from hil.autopilot.launch import AutopilotProcess, Home, plan_launch
 
         binary = scenario.autopilot_path(ap.binary)
         assert binary is not None
         home = None
         if ap.kind == "ardupilot":  # PX4 takes its home from the simulated GPS
-            from hil.autopilot.ardupilot import json_origin
-
             origin = json_origin(sim_setup(scenario))
             home = Home(math.degrees(origin.lat_rad), math.degrees(origin.lon_rad),
                         origin.alt_msl_m, scenario.start_state().heading_deg)
@@ -341,61 +339,61 @@ class AutopilotRun:
             exited = threading.Event()
             process.watch(exited)
             if not process.wait_ready(ap.connect_timeout_s):
-                ports = launch.ports
                 raise AutopilotAbsent(
                     f"{ap.kind} SITL {launch.binary} (instance {launch.instance}) did not get "
                     f"ready within {ap.connect_timeout_s:g} s (its MAVLink port "
-                    f"{ports['serial0_tcp']} never listened); its last output: "
+                    f"{launch.ports.get('serial0_tcp')} never listened); its last output: "
                     f"{process.last_lines()} (log {process.log_path})")
-            run = cls(scenario, *cls._links(scenario, None, launch.link, launch.telemetry_url,
-                                            launch.mavlink_url), out_dir=out_dir)
+            pointed = ap.model_copy(update={"link": launch.link,
+                                            "telemetry": launch.telemetry_url,
+                                            "mavlink": launch.mavlink_url})
+            run = cls.open(scenario.model_copy(update={"autopilot": pointed}))
         except BaseException:
             process.stop()
             raise
         run.process, run.exited = process, exited
         return run
 
-    @staticmethod
-    def _links(scenario: Scenario, backend: AutopilotBackend | None, link: str | None,
-               telemetry_url: str | None, mavlink: str | None
-               ) -> tuple[AutopilotBackend, AutopilotTelemetry | None]:
+    def close(self) -> None:
+        """Stop the started binary, if any, by PID (idempotent)."""
+        if self.process is not None:
+            self.process.stop()
+
+    @classmethod
+    def open(cls, scenario: Scenario, backend: AutopilotBackend | None = None) -> AutopilotRun:
+        """Build the scenario's backend (:func:`hil.autopilot.make_backend`, unless one is
+        given) and start recording its telemetry. ValueError: a bad setting or URL."""
         from hil.autopilot import BackendSettings, close_backend, make_backend
         from hil.autopilot.telemetry import AutopilotTelemetry
 
         ap = scenario.autopilot
         if backend is None:
             backend = make_backend(ap.kind, BackendSettings(
-                link=link, actuator_map=scenario.autopilot_path(ap.actuator_map),
-                servo_map=scenario.autopilot_path(ap.servo_map), mavlink=mavlink,
+                link=ap.link, actuator_map=scenario.autopilot_path(ap.actuator_map),
+                servo_map=scenario.autopilot_path(ap.servo_map), mavlink=ap.mavlink,
                 setup=sim_setup(scenario)))
         telemetry = None
-        if telemetry_url is not None:
+        if ap.telemetry is not None:
             try:
-                telemetry = AutopilotTelemetry(telemetry_url, rate_hz=ap.telemetry_rate_hz)
+                telemetry = AutopilotTelemetry(ap.telemetry, rate_hz=ap.telemetry_rate_hz)
             except ValueError as exc:
                 close_backend(backend)
-                raise ValueError(f"autopilot telemetry {telemetry_url}: {exc}") from None
+                raise ValueError(f"autopilot telemetry {ap.telemetry}: {exc}") from None
             watch_armed = getattr(backend, "watch_armed", None)
             if callable(watch_armed):  # a backend that cannot see the armed flag itself
                 recorder = telemetry
                 watch_armed(lambda: recorder.armed)
-        return backend, telemetry
-
-    def close(self) -> None:
-        """Stop the started binary, if any, by PID (idempotent)."""
-        if self.process is not None:
-            self.process.stop()
+        return cls(scenario, backend, telemetry)
 
     def fly(self, sink: FrameSink, progress: ProgressFn | None = None) -> Flown:
-        """Fly the scenario with the autopilot at the controls, every frame into ``sink``;
-        the started binary (if any) is stopped at the end."""
+        """Fly the scenario with the autopilot at the controls, every frame into ``sink``."""
         from hil.autopilot import close_backend, fly_with_autopilot
 
         ap = self.scenario.autopilot
+        if self.telemetry is not None:
+            self.telemetry.start()
         setup = sim_setup(self.scenario)
         try:
-            if self.telemetry is not None:
-                self.telemetry.start()
             flown = fly_with_autopilot(
                 setup, self.backend, on_frame=sink, speed=ap.speed,
                 connect_timeout_s=ap.connect_timeout_s, stall_timeout_s=ap.stall_timeout_s,
@@ -406,32 +404,30 @@ class AutopilotRun:
             close_backend(self.backend)
             self.close()
         self.flown = flown
-        if not flown.connected:
+        if not flown.connected and self.process is not None:
             self._never_connected()
+        if not flown.connected:
+            raise AutopilotAbsent(
+                f"{flown.autopilot} did not connect within {ap.connect_timeout_s:g} s "
+                f"(link {ap.link or 'the backend default'})")
         return Flown(flown.sim_duration_s, flown.wall_s, flown.frames, flown.ended,
                      flown.fault_log, flown.fault_counters)
 
     def _never_connected(self) -> None:
-        """LaunchError (bad input) when the started binary exited before it connected, else
-        AutopilotAbsent."""
-        ap = self.scenario.autopilot
-        flown = self.flown
-        assert flown is not None
-        process = self.process
-        if process is None:
-            raise AutopilotAbsent(
-                f"{flown.autopilot} did not connect within {ap.connect_timeout_s:g} s "
-                f"(link {ap.link or 'the backend default'})")
+        """The started binary did not connect: LaunchError (bad input) when it exited first,
+        else AutopilotAbsent naming it and its last output."""
         from hil.autopilot.launch import LaunchError
 
+        ap = self.scenario.autopilot
+        process = self.process
+        assert process is not None and self.flown is not None
         if process.stopped_by == "exited":
             raise LaunchError(f"autopilot binary {process.describe_exit()} (before it "
-                              f"connected; is it {ap.kind}'s SITL? log "
-                              f"{process.log_path})")
+                              f"connected; is it {ap.kind}'s SITL? log {process.log_path})")
         raise AutopilotAbsent(
-            f"{flown.autopilot} ({process.plan.binary}, instance {process.plan.instance}) did "
-            f"not connect within {ap.connect_timeout_s:g} s on {process.plan.link}; its last "
-            f"output: {process.last_lines()} (log {process.log_path})")
+            f"{self.flown.autopilot} ({process.plan.binary}, instance {process.plan.instance}) "
+            f"did not connect within {ap.connect_timeout_s:g} s on {process.plan.link}; its "
+            f"last output: {process.last_lines()} (log {process.log_path})")
 
     def early_end(self) -> list[str]:
         """Why the flight with the autopilot ended before the scenario did (its stall, a stop
@@ -471,12 +467,10 @@ class AutopilotRun:
 
         assert self.flown is not None
         ap = self.scenario.autopilot
-        link = ({"simulator": ap.link, "telemetry": ap.telemetry} if self.process is None else
-                {"simulator": self.process.plan.link,
-                 "telemetry": self.process.plan.telemetry_url})
         scored = score_flown(self.flown, self.telemetry, hilnav.truth, hilnav.outages,
-                             link=link, settle_s=SETTLE_S, events=events)
-        if self.process is not None:
+                             link={"simulator": ap.link, "telemetry": ap.telemetry},
+                             settle_s=SETTLE_S, events=events)
+        if self.process is not None:  # the binary hilnav started: which, how it ended
             texts = [] if self.telemetry is None else [
                 str(t["text"]) for t in self.telemetry.health()["statustext"]]
             scored.section["process"] = self.process.record(texts)
