@@ -509,7 +509,6 @@ class ArduPilotPeer:
 
     def _telemetry(self, t: float) -> None:
         assert self._tel is not None
-        self._tel.recv(0.0)  # a tcpin link (SITL's SERIAL0) accepts its client here
         e = self.estimate
         boot_ms = round(t * 1000.0) & 0xFFFF_FFFF
         lat, lon, _ = self._location((e["n"], e["e"], 0.0))

@@ -34,6 +34,51 @@ def report(**extra):
 
 def option(name, default=None):
     return sys.argv[sys.argv.index(name) + 1] if name in sys.argv else default
+
+def serial_relay(tcp_port):
+    # a TCP server on tcp_port (as SITL's serial port) relaying MAVLink frames both ways to a
+    # peer's udpout link; returns that link's URL
+    import socket, threading
+    from hil.codec import mavlink2
+    server = socket.create_server(("127.0.0.1", tcp_port))
+    udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    udp.bind(("127.0.0.1", 0))
+    state = {{"client": None, "peer": None}}
+
+    def from_peer():
+        while True:
+            data, address = udp.recvfrom(65536)
+            state["peer"] = address
+            client = state["client"]
+            if client is not None:
+                try:
+                    client.sendall(data)
+                except OSError:
+                    state["client"] = None
+
+    def from_client(conn):
+        parser = mavlink2.MAVLink(None)
+        parser.robust_parsing = True
+        while True:
+            try:
+                data = conn.recv(65536)
+            except OSError:
+                return
+            if not data:
+                return
+            for msg in parser.parse_buffer(data) or []:
+                if state["peer"] is not None and msg.get_type() != "BAD_DATA":
+                    udp.sendto(bytes(msg.get_msgbuf()), state["peer"])
+
+    def accept():
+        while True:
+            conn, _ = server.accept()
+            state["client"] = conn
+            threading.Thread(target=from_client, args=(conn,), daemon=True).start()
+
+    threading.Thread(target=from_peer, daemon=True).start()
+    threading.Thread(target=accept, daemon=True).start()
+    return "udpout:127.0.0.1:%d" % udp.getsockname()[1]
 """
 
 ARDUPLANE = _PRELUDE + """
@@ -50,8 +95,9 @@ trim = [float(x) for x in os.environ.get("FAKE_SITL_TRIM", "0,0,0,0.6").split(",
 print("ArduPlane V4.7.0-dev (f4k3f4k3)", flush=True)
 print("JSON control interface set to 127.0.0.1:%d" % (9002 + 10 * n), flush=True)
 serial0 = option("--serial0", "tcp:0:wait")
-telemetry = "tcpin:127.0.0.1:%d" % (5760 + 10 * n)
 report(instance=n, home=[lat, lon, alt, hdg], serial0=serial0)
+# SERIAL0 (TCP 5760 + 10 N) carries the peer's telemetry link (a udpout link) both ways
+telemetry = serial_relay(5760 + 10 * n)
 peer = ArduPilotPeer(telemetry_url=telemetry,
                      plan=PeerPlan(headings=((10.0, hdg + 20.0),)), home=(lat, lon, alt),
                      trim=trim, mavlink=True, disarmed_s=2.0, fix_after_s=1.0,
