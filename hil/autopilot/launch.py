@@ -14,9 +14,13 @@ ArduPlane SITL (``libraries/AP_HAL_SITL/SITL_cmdline.cpp``, ``SITL_State.h``)
     5760 + 10 N (by default ``tcp:0:wait``, which blocks the boot until a client connects;
     ``tcp:0`` here, so that it boots at once: the telemetry link connects there), SERIAL1 /
     SERIAL2 on 5762 / 5763 + 10 N (SERIAL1: the MAVLink port of the denial's parameters),
-    SERIAL5-8 on 5765-5768 + 10 N, RC input on UDP 5501 + 10 N. It is ready when SERIAL0 and
-    SERIAL1 listen (:meth:`AutopilotProcess.wait_ready`); its JSON
-    physics backend
+    SERIAL5-8 on 5765-5768 + 10 N, RC input on UDP 5501 + 10 N, IRLock on UDP 9005 + 10 N; N
+    is kept in a byte (0-255). SERIAL0 listens before anything else, the other serial ports
+    only once its setup runs, which takes physics frames (ArduPlane V4.7.0-dev prints "bind
+    port ... for SERIAL0" and then "No JSON sensor message received, resending servos" until
+    the simulator answers): it is ready when SERIAL0 listens
+    (:meth:`AutopilotProcess.wait_ready`), and the MAVLink link to SERIAL1 connects once the
+    flight runs. Its JSON physics backend
     (``libraries/SITL/SIM_JSON.cpp``) binds nothing and sends its servo packets to UDP
     9002 + 10 N, where hilnav listens and answers. It writes ``eeprom.bin`` and its logs in its
     working folder. Without ``--defaults`` it boots with the firmware's own defaults (ArduPlane's
@@ -62,9 +66,6 @@ __all__ = ["STOP_GRACE_S", "AutopilotProcess", "Home", "LaunchError", "LaunchPla
 STOP_GRACE_S: Final = 5.0
 """Seconds between SIGTERM and SIGKILL when stopping the autopilot's process group."""
 
-SERIAL1_WAIT_S: Final = 5.0
-"""Seconds :meth:`AutopilotProcess.wait_ready` waits for ArduPilot's SERIAL1 after SERIAL0."""
-
 PX4_AIRFRAME: Final = "1030"
 """PX4's standard SITL plane (``1030_gazebo-classic_plane``), its simulator external."""
 PX4_SIM_MODEL: Final = "gazebo-classic_plane"
@@ -75,7 +76,8 @@ _AP_SERIAL_TCP: Final = {"serial0": 5760, "serial1": 5762, "serial2": 5763, "ser
                          "serial6": 5766, "serial7": 5767, "serial8": 5768}
 _AP_JSON_UDP: Final = 9002
 _AP_RCIN_UDP: Final = 5501
-_AP_MAX_INSTANCE: Final = 2300  # 9002 + 10 N stays below Linux's ephemeral ports (32768)
+_AP_IRLOCK_UDP: Final = 9005
+_AP_MAX_INSTANCE: Final = 256  # SITL keeps -I in a uint8_t: instance 880 runs as 112
 # PX4 SITL: every port moves by 1 per instance
 _PX4_SIM_TCP: Final = 4560
 _PX4_UDP: Final = {"gcs": 18570, "offboard": 14580, "payload": 14280, "gimbal": 13030}
@@ -128,7 +130,8 @@ class LaunchPlan:
         if self.kind == "ardupilot":
             tcp = {f"{k}_tcp": v + _AP_STEP * n for k, v in _AP_SERIAL_TCP.items()}
             return {"json_udp": _AP_JSON_UDP + _AP_STEP * n,
-                    "rcin_udp": _AP_RCIN_UDP + _AP_STEP * n, **tcp}
+                    "rcin_udp": _AP_RCIN_UDP + _AP_STEP * n,
+                    "irlock_udp": _AP_IRLOCK_UDP + _AP_STEP * n, **tcp}
         return {"simulator_tcp": _PX4_SIM_TCP + n,
                 **{f"{k}_udp": v + n for k, v in _PX4_UDP.items()}}
 
@@ -380,27 +383,19 @@ class AutopilotProcess:
         return self.exit_code
 
     def wait_ready(self, timeout_s: float, *, min_alive_s: float = 0.0) -> bool:
-        """Until the binary's MAVLink ports listen and it has run ``min_alive_s``: True when
-        ready, False after ``timeout_s``; LaunchError when it exits first (naming it and its
-        last output). ArduPilot: SERIAL0 (opened before anything else, before its first
-        physics frame), then SERIAL1 for at most ``SERIAL1_WAIT_S`` more (opened by its
-        serial manager in its setup; should that need physics frames, which hilnav answers
-        only once the flight runs, the flight goes on without waiting and the link connects
-        when it can). PX4 dials hilnav: nothing to wait for."""
-        first = [self.plan.ports["serial0_tcp"]] if self.plan.kind == "ardupilot" else []
-        then = [self.plan.ports["serial1_tcp"]] if self.plan.kind == "ardupilot" else []
+        """Until the binary is ready and has run ``min_alive_s``: True when ready, False after
+        ``timeout_s``; LaunchError when it exits first (naming it and its last output).
+        ArduPilot is ready when its SERIAL0 listens (its other ports open only once hilnav
+        answers its physics frames); PX4 dials hilnav: nothing to wait for."""
+        ports = [self.plan.ports["serial0_tcp"]] if self.plan.kind == "ardupilot" else []
         start = time.monotonic()
         deadline = start + timeout_s
-        first_at: float | None = None
         while True:
             if self.poll() is not None:
                 raise LaunchError(f"autopilot binary {self.describe_exit()} (before it was "
                                   f"ready; is it {self.plan.kind}'s SITL? log {self.log_path})")
             now = time.monotonic()
-            if first_at is None and all(_tcp_listening(p) for p in first):
-                first_at = now
-            if first_at is not None and now - start >= min_alive_s and (
-                    all(_tcp_listening(p) for p in then) or now - first_at >= SERIAL1_WAIT_S):
+            if all(_tcp_listening(p) for p in ports) and now - start >= min_alive_s:
                 return True
             if time.monotonic() >= deadline:
                 return False
