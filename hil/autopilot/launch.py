@@ -60,8 +60,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any, Final
 
-__all__ = ["STOP_GRACE_S", "AutopilotProcess", "Home", "LaunchError", "LaunchPlan", "launched",
-           "plan_launch", "px4_build_version"]
+__all__ = [
+    "STOP_GRACE_S",
+    "AutopilotProcess",
+    "Home",
+    "LaunchError",
+    "LaunchPlan",
+    "ardupilot_binary_version",
+    "launched",
+    "plan_launch",
+    "px4_build_version",
+]
 
 STOP_GRACE_S: Final = 5.0
 """Seconds between SIGTERM and SIGKILL when stopping the autopilot's process group."""
@@ -86,6 +95,8 @@ _PX4_LOCK: Final = "/tmp/px4_lock-{}"
 
 _VERSION = re.compile(
     r"\b((?:Ardu[A-Za-z]+|PX4)\s+[vV]?\d+\.\d+\.\d+[\w.+\-]*(?:\s+\([0-9a-f]{6,}\))?)")
+_VERSION_BYTES = re.compile(
+    rb"(Ardu[A-Za-z]+ V\d+\.\d+\.\d+[\w.+\-]*(?: \([0-9a-f]{6,}\))?)\x00")
 _TAIL_BYTES: Final = 16384
 
 
@@ -209,6 +220,19 @@ def px4_build_version(binary: Path) -> str | None:
         return None
     sha = fields.get("PX4_GIT_VERSION_STR", "")[:10]
     return f"PX4 {tag}" + (f" ({sha})" if sha else "")
+
+
+def ardupilot_binary_version(binary: Path) -> str | None:
+    """The firmware string built into an ArduPilot binary (``ArduPlane V4.7.0-dev
+    (2598e9d4)``: the form with the git hash when present), None without one."""
+    try:
+        data = binary.read_bytes()
+    except OSError:
+        return None
+    found = [m.group(1).decode("ascii") for m in _VERSION_BYTES.finditer(data)]
+    if not found:
+        return None
+    return max(found, key=len)  # "ArduPlane V4.7.0-dev (2598e9d4)" over "ArduPlane V4.7.0-dev"
 
 
 def check_binary(kind: str, binary: Path) -> Path:
@@ -434,16 +458,17 @@ class AutopilotProcess:
         return " | ".join(lines[-n:]) if lines else "no output"
 
     def version(self, texts: Sequence[str] = ()) -> str | None:
-        """The version it printed (``ArduPlane V4.7.0-dev (abcdef12)``), else the first one
-        in ``texts`` (its STATUSTEXTs), else (PX4, which prints none) the one its build folder
-        was generated with (``BUILD/src/lib/version/build_git_version.h``), else None."""
+        """The version it printed (``ArduPlane V4.7.0-dev (2598e9d4)``), else the first one
+        in ``texts`` (its STATUSTEXTs), else the one built into it: ArduPilot's firmware
+        string in the binary (it prints none on its console), PX4's from its build folder
+        (``BUILD/src/lib/version/build_git_version.h``); None when none is found."""
         for text in (self._head(), *texts):
             match = _VERSION.search(text)
             if match is not None:
                 return match.group(1)
         if self.plan.kind == "px4":
             return px4_build_version(self.plan.binary)
-        return None
+        return ardupilot_binary_version(self.plan.binary)
 
     def _head(self) -> str:
         try:

@@ -229,3 +229,12 @@ def test_arduplane_is_ready_when_its_serial0_listens(tmp_path: Path) -> None:
     never = write_fake(tmp_path, "never", NEVER_CONNECTS)
     with launched(plan_launch("ardupilot", never), tmp_path / "b.log") as p:
         assert not p.wait_ready(0.5)
+
+
+def test_arduplanes_version_is_read_from_the_binary_when_not_printed(tmp_path: Path) -> None:
+    # ArduPlane SITL prints no version on its console; its firmware string is in the binary
+    binary = write_fake(tmp_path, "arduplane", NEVER_CONNECTS)
+    with binary.open("ab") as f:
+        f.write(b"\n# \x00ArduPlane V4.7.0-dev\x00junk\x00ArduPlane V4.7.0-dev (2598e9d4)\x00")
+    process = AutopilotProcess(plan_launch("ardupilot", binary), tmp_path / "autopilot.log")
+    assert process.version() == "ArduPlane V4.7.0-dev (2598e9d4)"
