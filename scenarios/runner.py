@@ -24,6 +24,13 @@ sending controls) is scored as far as it flew: events that had not begun are lis
 (the early end, a stalled autopilot, a denial step the autopilot did not acknowledge) is one
 sentence in ``failures`` (present only when there is one) and ``passed`` is false.
 
+With ``autopilot.binary`` hilnav starts the autopilot's SITL binary itself
+(:meth:`AutopilotRun.start`, :mod:`hil.autopilot.launch`): on free loopback ports, its output
+in ``autopilot.log`` of the run folder, the scenario's simulator link, telemetry and ArduPilot
+MAVLink port pointed at it, stopped by PID when the flight ends, however it ends. The
+summary's ``autopilot.process`` records the binary, its version, instance, ports and how it
+ended.
+
 The flight and the fusion are the pipeline's (:mod:`hil.pipeline`); this module turns a
 :class:`~scenarios.schema.Scenario` into its :class:`~hil.pipeline.SimSetup` and filter, scores
 the run with the one scorer (:func:`scenarios.summary.score_run`) and writes the run folder.
@@ -33,6 +40,7 @@ methods.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -54,6 +62,7 @@ if TYPE_CHECKING:  # the autopilot's modules (its link, its telemetry) load when
     from hil.autopilot import AutopilotBackend, AutopilotFlown
     from hil.autopilot.aiding import CompanionAiding
     from hil.autopilot.commander import Commander
+    from hil.autopilot.launch import AutopilotProcess
     from hil.autopilot.telemetry import AutopilotTelemetry
     from scenarios.autopilot_summary import ScoredAutopilot
     from scenarios.unaided_baseline import UnaidedBaseline, UnaidedFlight
@@ -285,7 +294,7 @@ def run_scenario(
     log_path = out_dir / "run.tlog"
     fusion = FusionRun(config, bridge, nav=nav)
     flies = backend is not None or scenario.autopilot.flies
-    ap_run = AutopilotRun.open(scenario, backend) if flies else None
+    ap_run = AutopilotRun.start(scenario, backend, out_dir=out_dir) if flies else None
     if ap_run is not None and ap_run.aiding is not None:
         fusion.on_estimate = ap_run.aiding.offer  # hilnav navigates the autopilot
     t0 = time.perf_counter()
@@ -295,11 +304,15 @@ def run_scenario(
             return ap_run.fly(sink, progress)
         return simulate(scenario, sink, progress=progress)
 
-    if tlog:
-        with TlogWriter(log_path) as log:
-            flown = fly_into(tee(lambda t, f: log.write(f, t), fusion))
-    else:
-        flown = fly_into(fusion)
+    try:
+        if tlog:
+            with TlogWriter(log_path) as log:
+                flown = fly_into(tee(lambda t, f: log.write(f, t), fusion))
+        else:
+            flown = fly_into(fusion)
+    finally:
+        if ap_run is not None:
+            ap_run.close()  # a started autopilot binary never outlives the flight
     wall = time.perf_counter() - t0
     extra: dict[str, Any] = {
         "faults": flown.fault_counters,
@@ -339,6 +352,63 @@ class AutopilotRun:
         """hilnav's estimate sent to the autopilot (``aiding: hilnav``): give it the fusion's
         estimates (:attr:`hil.pipeline.FusionRun.on_estimate`)."""
         self.flown: AutopilotFlown | None = None
+        self.process: AutopilotProcess | None = None
+        """The SITL binary hilnav started (``autopilot.binary``, :meth:`start`), else None."""
+        self.exited = threading.Event()
+        """Set when the started binary exits by itself (the flight then stops)."""
+
+    @classmethod
+    def start(cls, scenario: Scenario, backend: AutopilotBackend | None = None, *,
+              out_dir: Path | None = None) -> AutopilotRun:
+        """:meth:`open`, after starting the scenario's ``autopilot.binary`` (if it names one
+        and no ``backend`` is given) on a free instance and waiting until it is ready
+        (:mod:`hil.autopilot.launch`; its output to ``out_dir / autopilot.log``); the run's
+        scenario then has its link, telemetry and MAVLink port pointed at the binary's.
+        :meth:`close` stops it. ValueError: a bad setting, URL or binary (LaunchError: it
+        exited before it was ready); AutopilotAbsent: not ready within ``connect_timeout_s``."""
+        ap = scenario.autopilot
+        if ap.binary is None or backend is not None:
+            return cls.open(scenario, backend)
+        from hil.autopilot.ardupilot import json_origin
+        from hil.autopilot.launch import AutopilotProcess, Home, plan_launch
+
+        binary = scenario.autopilot_path(ap.binary)
+        assert binary is not None
+        home = None
+        if ap.kind == "ardupilot":  # PX4 takes its home from the simulated GPS
+            origin = json_origin(sim_setup(scenario))
+            home = Home(math.degrees(origin.lat_rad), math.degrees(origin.lon_rad),
+                        origin.alt_msl_m, scenario.start_state().heading_deg)
+        # the scenario's ArduPilot parameter file (when the section names one) is also its
+        # --defaults: in force from boot (e.g. ARSPD_SKIP_CAL, read once at boot)
+        params = getattr(ap, "params", None)
+        defaults = [scenario.autopilot_path(params)] if ap.kind == "ardupilot" and params else []
+        launch = plan_launch(ap.kind, binary, home=home, telemetry=ap.telemetry is not None,
+                             defaults=[p for p in defaults if p is not None])
+        process = AutopilotProcess(launch, (out_dir or Path.cwd()) / "autopilot.log").start()
+        try:
+            exited = threading.Event()
+            process.watch(exited)
+            if not process.wait_ready(ap.connect_timeout_s):
+                raise AutopilotAbsent(
+                    f"{ap.kind} SITL {launch.binary} (instance {launch.instance}) did not get "
+                    f"ready within {ap.connect_timeout_s:g} s (its MAVLink port "
+                    f"{launch.ports.get('serial0_tcp')} never listened); its last output: "
+                    f"{process.last_lines()} (log {process.log_path})")
+            pointed = ap.model_copy(update={"link": launch.link,
+                                            "telemetry": launch.telemetry_url,
+                                            "mavlink": launch.mavlink_url})
+            run = cls.open(scenario.model_copy(update={"autopilot": pointed}))
+        except BaseException:
+            process.stop()
+            raise
+        run.process, run.exited = process, exited
+        return run
+
+    def close(self) -> None:
+        """Stop the started binary, if any, by PID (idempotent)."""
+        if self.process is not None:
+            self.process.stop()
 
     @classmethod
     def open(cls, scenario: Scenario, backend: AutopilotBackend | None = None) -> AutopilotRun:
@@ -388,7 +458,7 @@ class AutopilotRun:
         if self.telemetry is not None:
             self.telemetry.start()
         setup = sim_setup(self.scenario)
-        stop = threading.Event()
+        stop = self.exited  # set when the started binary exits, or when the script fails
         commander = self.commander
         on_step = None
         if commander is not None:
@@ -407,7 +477,10 @@ class AutopilotRun:
             if self.telemetry is not None:
                 self.telemetry.stop()
             close_backend(self.backend)
+            self.close()
         self.flown = flown
+        if not flown.connected and self.process is not None:
+            self._never_connected()
         if not flown.connected:
             raise AutopilotAbsent(
                 f"{flown.autopilot} did not connect within {ap.connect_timeout_s:g} s "
@@ -415,12 +488,31 @@ class AutopilotRun:
         return Flown(flown.sim_duration_s, flown.wall_s, flown.frames, flown.ended,
                      flown.fault_log, flown.fault_counters)
 
+    def _never_connected(self) -> None:
+        """The started binary did not connect: LaunchError (bad input) when it exited first,
+        else AutopilotAbsent naming it and its last output."""
+        from hil.autopilot.launch import LaunchError
+
+        ap = self.scenario.autopilot
+        process = self.process
+        assert process is not None and self.flown is not None
+        if process.stopped_by == "exited":
+            raise LaunchError(f"autopilot binary {process.describe_exit()} (before it "
+                              f"connected; is it {ap.kind}'s SITL? log {process.log_path})")
+        raise AutopilotAbsent(
+            f"{self.flown.autopilot} ({process.plan.binary}, instance {process.plan.instance}) "
+            f"did not connect within {ap.connect_timeout_s:g} s on {process.plan.link}; its "
+            f"last output: {process.last_lines()} (log {process.log_path})")
+
     def early_end(self) -> list[str]:
         """Why the flight with the autopilot ended before the scenario did (its stall, a stop
-        asked for), as sentences; empty when it flew to the end."""
+        asked for, the started binary's exit), as sentences; empty when it flew to the end."""
         flown = self.flown
         if flown is None or not flown.connected:
             return ["the autopilot never flew"]
+        if self.process is not None and self.process.stopped_by == "exited":
+            return [f"the autopilot process ended at {flown.sim_duration_s:.2f} s: "
+                    f"{self.process.describe_exit()}"]
         if flown.stalled is not None:
             return [flown.stalled]
         if self.commander is not None and self.commander.failure is not None:
@@ -469,6 +561,10 @@ class AutopilotRun:
                                             else commander.mode_reached_s)
         scored.section["script"] = None if commander is None else commander.report()
         scored.section["aiding"] = _aiding_record(self.scenario, self.aiding)
+        if self.process is not None:  # the binary hilnav started: which, how it ended
+            texts = [] if self.telemetry is None else [
+                str(t["text"]) for t in self.telemetry.health()["statustext"]]
+            scored.section["process"] = self.process.record(texts)
         return scored
 
 

@@ -66,7 +66,8 @@ from physconst.airdata import calibrated_airspeed_mps
 from sim.faults.ardupilot import ardupilot_param_schedule, ardupilot_unmapped
 from sim.samples import AirspeedSample, ImuSample
 
-__all__ = ["DEFAULT_URL", "RATE_SETTLED_PACKETS", "ArduPilotBackend", "parse_json_url"]
+__all__ = ["DEFAULT_URL", "RATE_SETTLED_PACKETS", "ArduPilotBackend", "json_origin",
+           "parse_json_url"]
 
 DEFAULT_URL = "udpin:127.0.0.1:9002"
 RATE_SETTLED_PACKETS: Final = 200
@@ -76,6 +77,13 @@ _EXPECTED = (
     f"{PACKET_SIZES[SERVO_MAGIC_16]} / {PACKET_SIZES[SERVO_MAGIC_32]} bytes; start SITL with "
     "--model JSON:<host>)"
 )
+
+
+def json_origin(setup: SimSetup) -> JsonOrigin:
+    """The origin of the JSON position for ``setup`` (ArduPilot's home): the start of the
+    flight at 0 m MSL, JSBSim's ground."""
+    start = setup.flight.start
+    return JsonOrigin(math.radians(start.lat_deg), math.radians(start.lon_deg), 0.0)
 
 
 def parse_json_url(text: str) -> tuple[str, int]:
@@ -133,8 +141,7 @@ class ArduPilotBackend:
         self.warnings: list[str] = []
         self._warn_cb = warn
         if origin is None and setup is not None:
-            start = setup.flight.start
-            origin = JsonOrigin(math.radians(start.lat_deg), math.radians(start.lon_deg), 0.0)
+            origin = json_origin(setup)
         self.origin = origin or JsonOrigin(0.0, 0.0, 0.0)
         self._params: SimParamSender | None = None
         if setup is not None:

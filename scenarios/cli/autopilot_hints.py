@@ -10,9 +10,19 @@ the flight at ground level (JSBSim's ground is 0 m MSL, the JSON origin hilnav s
 
 from __future__ import annotations
 
-from typing import Any
+import os
+from pathlib import Path
+from typing import Annotated, Any
 
-__all__ = ["ARDUPILOT_MAVLINK", "ardupilot_command", "px4_command"]
+import typer
+
+__all__ = ["ARDUPILOT_MAVLINK", "AutopilotBinaryOption", "ardupilot_command", "px4_command",
+           "with_autopilot_binary"]
+
+AutopilotBinaryOption = Annotated[Path | None, typer.Option(
+    help="The autopilot's SITL binary (ArduPilot: arduplane; PX4: build/px4_sitl_default/bin/"
+         "px4): hilnav starts it on free loopback ports and stops it at the end.",
+    rich_help_panel="Autopilot in the loop")]
 
 ARDUPILOT_MAVLINK = "tcp:127.0.0.1:5762"
 """ArduPilot SITL's second MAVLink port (the first, 5760, is taken by sim_vehicle's MAVProxy):
@@ -37,3 +47,14 @@ def ardupilot_command(start: Any, host: str = "127.0.0.1",
             "--out udp:127.0.0.1:14550` (servo packets to UDP 9002, its estimate to UDP 14550; "
             f"hilnav sets its SIM_GPS1_* parameters over its MAVLink port {ARDUPILOT_MAVLINK}, "
             f"given as {given_as})")
+
+
+def with_autopilot_binary(scn: Any, binary: Path) -> Any:
+    """The scenario ``scn`` with ``autopilot.binary`` set to ``binary`` (``~`` expanded, made
+    absolute from the working folder); ValueError for a scenario no autopilot flies."""
+    if scn.autopilot.kind == "none":
+        raise ValueError("--autopilot-binary needs a scenario flown by an autopilot "
+                         "(autopilot: px4 or ardupilot)")
+    path = os.path.abspath(binary.expanduser())
+    return scn.model_copy(update={"autopilot": scn.autopilot.model_copy(
+        update={"binary": path})})

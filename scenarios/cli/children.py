@@ -15,8 +15,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-__all__ = ["Child", "free_udp_port", "hilnav_argv", "running_children", "stop_process",
-           "wait_gone"]
+__all__ = ["Child", "free_udp_port", "hilnav_argv", "running_children", "sigterm_interrupts",
+           "stop_process", "wait_gone"]
 
 _STOP_TIMEOUT_S = 5.0
 
@@ -80,21 +80,31 @@ def running_children() -> Iterator[list[Child]]:
             child.stop()
 
     atexit.register(stop_all)
+    try:
+        with sigterm_interrupts():
+            yield children
+    finally:
+        stop_all()
+        atexit.unregister(stop_all)
+
+
+@contextlib.contextmanager
+def sigterm_interrupts() -> Iterator[None]:
+    """In this block SIGTERM raises KeyboardInterrupt (as Ctrl-C does), so that the ``finally``
+    blocks that stop child processes run (main thread only; elsewhere nothing changes)."""
+    if not _is_main_thread():
+        yield
+        return
     previous = signal.getsignal(signal.SIGTERM)
 
     def on_term(_sig: int, _frame: Any) -> None:
         raise KeyboardInterrupt
 
-    in_main = _is_main_thread()
-    if in_main:
-        signal.signal(signal.SIGTERM, on_term)
+    signal.signal(signal.SIGTERM, on_term)
     try:
-        yield children
+        yield
     finally:
-        stop_all()
-        atexit.unregister(stop_all)
-        if in_main:
-            signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _is_main_thread() -> bool:

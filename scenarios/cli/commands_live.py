@@ -3,12 +3,14 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import typer
 
 from fusion.choices import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
+from scenarios.cli.autopilot_hints import AutopilotBinaryOption
 from scenarios.cli.errors import RunFailed, cli_errors, out_dir, out_file
 from scenarios.cli.options import (
     AirspeedOption,
@@ -109,12 +111,14 @@ def up(
     stall_timeout: Annotated[float, typer.Option(
         help="End the run as stalled after this long without controls, s.",
         rich_help_panel="Autopilot in the loop")] = 10.0,
+    autopilot_binary: AutopilotBinaryOption = None,
     quiet: QuietOption = False,
 ) -> None:
     """Run router + fusion + sim (+ monitor) on loopback; Ctrl-C stops everything. With --px4
     or --ardupilot the autopilot flies and both estimates are scored side by side."""
     out_dir(out)
     from hil.pipeline import SimSetup
+    from scenarios.cli.children import sigterm_interrupts
     from scenarios.cli.up import UpOptions, run_up
     from scenarios.cli.up_options import DEFAULT_DURATION_S
 
@@ -137,13 +141,24 @@ def up(
                         else autopilot_telemetry,
                         actuator_map=actuator_map, servo_map=servo_map,
                         ardupilot_mavlink=ardupilot_mavlink,
-                        connect_timeout_s=connect_timeout, stall_timeout_s=stall_timeout)
+                        connect_timeout_s=connect_timeout, stall_timeout_s=stall_timeout,
+                        autopilot_binary=autopilot_binary)
     setup = SimSetup.build(plan=plan, seed=seed, gnss_off=list(gnss_off or ()), imu=imu,
                            gnss=gnss, duration_s=duration or DEFAULT_DURATION_S)
-    with progress_bar(setup.duration_s, "flying", quiet=quiet,
-                      events=scripted_events(setup)) as progress:
-        summary = run_up(options, log=lambda text: console.print(text, highlight=False),
-                         progress=progress, warn=say_warning)
+    def log(text: str) -> None:
+        console.print(text, highlight=False)
+
+    launch: contextlib.AbstractContextManager[tuple[UpOptions, Any]] = \
+        contextlib.nullcontext((options, None))
+    if autopilot_binary is not None:  # the autopilot's libraries: only then
+        from scenarios.cli.up_autopilot import record_process, started_autopilot
+
+        launch = started_autopilot(options, log)
+    with sigterm_interrupts(), launch as (options, process), progress_bar(
+            setup.duration_s, "flying", quiet=quiet, events=scripted_events(setup)) as progress:
+        summary = run_up(options, log=log, progress=progress, warn=say_warning)
+    if process is not None and summary is not None:
+        record_process(summary, process, out / "summary.json")
     if summary is not None:
         console.print("[bold]scorecard of the live run[/]")
         print_summary(summary)

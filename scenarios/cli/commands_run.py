@@ -25,6 +25,8 @@ from fusion.choices import (
     DEFAULT_ALIGN_MODE,
     DEFAULT_THERMAL_MODE,
 )
+from scenarios.cli.autopilot_hints import AutopilotBinaryOption, with_autopilot_binary
+from scenarios.cli.children import sigterm_interrupts
 from scenarios.cli.errors import RunFailed, check_choice, cli_errors, out_dir, out_file
 from scenarios.cli.options import (
     AirspeedOption,
@@ -230,6 +232,7 @@ def run(
     thermal: Annotated[str | None, typer.Option(
         help="Override the scenario's IMU thermal strategy (off, blind, states, cal: the "
              "scenario's fusion.thermal_cal file).")] = None,
+    autopilot_binary: AutopilotBinaryOption = None,
     quiet: QuietOption = False,
 ) -> None:
     """Fly a scenario in lockstep, fuse it, score it: exit 0 pass, 1 fail, 2 bad input."""
@@ -239,6 +242,8 @@ def run(
 
         scn = _load_scenario(scenario, seed=seed, bridge=bridge, altitude=altitude,
                              airspeed=airspeed, align=align, thermal=thermal)
+        if autopilot_binary is not None:
+            scn = with_autopilot_binary(scn, autopilot_binary)
         # the plots' module (matplotlib) too, once the scenario is valid: loaded here, its
         # import runs no collection and the collections while the plots are drawn skip it
         import scenarios.report  # noqa: F401
@@ -247,15 +252,17 @@ def run(
         raise ValueError(f"--unaided-baseline compares the autopilot aided by hilnav with it "
                          f"unaided: {scenario} needs autopilot.aiding: hilnav")
     if scn.autopilot.flies and not twice:
-        say_waiting_for_autopilot(scn)
+        say_waiting_for_autopilot(scn, out)
     try:
         if twice:
             from scenarios.unaided_baseline import run_with_unaided_baseline
 
-            result = run_with_unaided_baseline(scn, out, each_run=_each_flight(out, quiet))
+            with sigterm_interrupts():
+                result = run_with_unaided_baseline(scn, out, each_run=_each_flight(out, quiet))
         else:
-            with progress_bar(scn.duration_s, scn.name, quiet=quiet,
-                              events=scripted_events(sim_setup(scn))) as progress:
+            with sigterm_interrupts(), progress_bar(
+                    scn.duration_s, scn.name, quiet=quiet,
+                    events=scripted_events(sim_setup(scn))) as progress:
                 result = run_scenario(scn, out, progress=progress)
     except AutopilotAbsent as exc:
         raise RunFailed(str(exc)) from None
@@ -302,7 +309,7 @@ def _each_flight(out: Path, quiet: bool) -> Any:
                 f"; start {ap.kind} afresh for it (the first flight's instance has flown)")
             err_console.print(f"flight 2 of 2: {ap.kind} aided by hilnav -> {out}{again}",
                               highlight=False)
-        say_waiting_for_autopilot(scn)
+        say_waiting_for_autopilot(scn, out)
         with progress_bar(scn.duration_s, f"{scn.name} ({role})", quiet=quiet,
                           events=scripted_events(sim_setup(scn))) as progress:
             yield progress

@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import time
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 from rich.console import Console
@@ -202,9 +203,17 @@ def warn_input(s: dict[str, Any]) -> None:
             + f"; scored over {s.get('sim_duration_s', 0):.0f} s", highlight=False)
 
 
-def say_waiting_for_autopilot(scn: Any) -> None:
-    """Where a scenario with an autopilot at the controls waits for it."""
+def say_waiting_for_autopilot(scn: Any, out: Path | None = None) -> None:
+    """Where a scenario with an autopilot at the controls waits for it (or, with
+    ``autopilot.binary``, which binary hilnav starts and where its output goes)."""
     ap = scn.autopilot
+    if ap.binary is not None:
+        log = "autopilot.log" if out is None else out / "autopilot.log"
+        err_console.print(
+            f"starting {scn.autopilot_path(ap.binary)} ({ap.kind} SITL) on free loopback ports; "
+            f"waiting up to {ap.connect_timeout_s:g} s for it; its output -> {log}",
+            highlight=False, markup=False)
+        return
     err_console.print(
         f"waiting up to {ap.connect_timeout_s:g} s for {ap.kind} on "
         f"{ap.link or 'its default link'}; its estimate is recorded from "
@@ -214,6 +223,8 @@ def say_waiting_for_autopilot(scn: Any) -> None:
     side = px4_command() if ap.kind == "px4" else ardupilot_command(
         scn.start_state(), given_as="autopilot.mavlink")
     err_console.print(f"start {side}", highlight=False, markup=False)
+    err_console.print("(or give --autopilot-binary PATH: hilnav starts the SITL binary itself)",
+                      highlight=False, markup=False)
 
 
 def print_autopilot(s: dict[str, Any]) -> None:

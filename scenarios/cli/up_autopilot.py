@@ -14,10 +14,12 @@ duration, a stall, Ctrl-C) the fusion service writes its live scorecard and ``up
 
 from __future__ import annotations
 
+import contextlib
 import json
+import math
 import subprocess
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +31,8 @@ from hil.autopilot import (
     fly_with_autopilot,
     make_backend,
 )
+from hil.autopilot.ardupilot import json_origin
+from hil.autopilot.launch import AutopilotProcess, Home, plan_launch
 from hil.autopilot.telemetry import AutopilotTelemetry
 from hil.link import LinkRole, MavlinkLink
 from hil.pipeline import SimSetup, SimStep
@@ -47,7 +51,8 @@ from scenarios.jsonable import write_json
 from scenarios.metrics import Window
 from sim.samples import Truth
 
-__all__ = ["autopilot_side_command", "fly_autopilot", "up_backend"]
+__all__ = ["autopilot_side_command", "fly_autopilot", "record_process", "started_autopilot",
+           "up_backend"]
 
 _TRUTH_PERIOD_US = 20_000  # the truth kept for scoring the autopilot: 50 Hz
 _COVERAGE_SLACK_S = 5.0  # the scorecard may start after the flight (the filter's alignment)
@@ -68,7 +73,10 @@ def up_backend(options: UpOptions) -> AutopilotBackend:
 
 
 def autopilot_side_command(options: UpOptions) -> str | None:
-    """What the user starts on the autopilot's side (details in docs/autopilots.md)."""
+    """What the user starts on the autopilot's side (details in docs/autopilots.md); None
+    when ``up`` started it."""
+    if options.autopilot_binary is not None:
+        return None
     if options.autopilot == "px4":
         return f"PX4 SITL (lockstep): {px4_command()}"
     if options.autopilot == "ardupilot":
@@ -132,6 +140,7 @@ def fly_autopilot(options: UpOptions, endpoint: str, port: int, children: list[C
         side = autopilot_side_command(options)
         if side is not None:
             log(f"now start     {side}")
+            log("              (or give --autopilot-binary PATH: up starts the SITL binary)")
         denial = denial_warning(options)
         if denial is not None:
             warn(denial)
@@ -206,3 +215,58 @@ def _section(options: UpOptions, summary: dict[str, Any], flown: AutopilotFlown,
     link = {"simulator": options.autopilot_link, "telemetry": options.autopilot_telemetry}
     return score_flown(flown, telemetry, truth_track(truths) if len(truths) >= 2 else None,
                        outages, link=link, settle_s=settle_s(options)).section
+
+
+@contextlib.contextmanager
+def started_autopilot(options: UpOptions, log: Callable[[str], None]
+                      ) -> Iterator[tuple[UpOptions, AutopilotProcess | None]]:
+    """With ``options.autopilot_binary``: start it on a free instance (its output in
+    ``<out>/autopilot.log``), wait until it is ready and yield the options pointed at its
+    ports with the process; it is stopped by PID when the block ends, however it ends.
+    Without a binary: the options as they are, and None. ValueError (exit 2): a bad binary,
+    ports given by hand as well, or a binary that exits before it is ready."""
+    if options.autopilot_binary is None:
+        yield options, None
+        return
+    for given, name in ((options.autopilot_link, "--autopilot-link"),
+                        (options.ardupilot_mavlink, "--ardupilot-mavlink")):
+        if given is not None:
+            raise ValueError(f"{name}: hilnav chooses the ports of the binary it starts; drop "
+                             f"{name} or --autopilot-binary")
+    setup = _setup(options)
+    home = None
+    if options.autopilot == "ardupilot":
+        origin = json_origin(setup)
+        home = Home(math.degrees(origin.lat_rad), math.degrees(origin.lon_rad),
+                    origin.alt_msl_m, setup.flight.start.heading_deg)
+    plan = plan_launch(options.autopilot, options.autopilot_binary, home=home,
+                       telemetry=options.autopilot_telemetry is not None)
+    options.out.mkdir(parents=True, exist_ok=True)
+    process = AutopilotProcess(plan, options.out / "autopilot.log").start()
+    try:
+        log(f"autopilot     pid {process.pid}: {plan.binary} (instance {plan.instance}, "
+            f"simulator {plan.link}" + (f", MAVLink {plan.mavlink_url}" if plan.mavlink_url
+                                        else "") + f"); log {process.log_path}")
+        # a binary that exits at once (not an autopilot, a bad option) is seen here
+        if not process.wait_ready(options.connect_timeout_s, min_alive_s=1.0):
+            raise ValueError(f"{plan.binary} (instance {plan.instance}) did not get ready "
+                             f"within {options.connect_timeout_s:g} s; its last output: "
+                             f"{process.last_lines()}")
+        yield options.model_copy(update={
+            "autopilot_link": plan.link, "autopilot_telemetry": plan.telemetry_url,
+            "ardupilot_mavlink": plan.mavlink_url}), process
+    finally:
+        code = process.stop()
+        log(f"autopilot     pid {process.pid} stopped ({process.stopped_by}, exit {code})")
+
+
+def record_process(summary: dict[str, Any], process: AutopilotProcess,
+                   summary_path: Path) -> None:
+    """Add the started binary (:meth:`AutopilotProcess.record`) to the scorecard's
+    ``autopilot`` section and rewrite ``summary_path``."""
+    section = summary.get("autopilot")
+    if not isinstance(section, dict):
+        return
+    texts = [str(t.get("text")) for t in (section.get("health") or {}).get("statustext") or []]
+    section["process"] = process.record(texts)
+    write_json(summary, summary_path)

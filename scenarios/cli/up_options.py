@@ -77,9 +77,13 @@ class UpOptions(BaseModel):
     own GNSS is not denied)."""
     connect_timeout_s: float = Field(default=300.0, gt=0.0)
     stall_timeout_s: float = Field(default=10.0, gt=0.0)
+    autopilot_binary: Path | None = None
+    """The autopilot's SITL binary that ``up`` starts itself (:mod:`hil.autopilot.launch`)."""
 
     @model_validator(mode="after")
     def _autopilot_options(self) -> UpOptions:
+        if self.autopilot_binary is not None and self.autopilot == "none":
+            raise ValueError("--autopilot-binary needs --px4 or --ardupilot")
         if self.actuator_map is not None and self.autopilot != "px4":
             raise ValueError("--actuator-map is PX4's: it needs --px4")
         for name, value in (("--servo-map", self.servo_map),

@@ -400,7 +400,7 @@ class Scenario(Strict):
         """A file named in the ``autopilot`` section, relative to this scenario's folder."""
         if path is None:
             return None
-        p = Path(path)
+        p = Path(path).expanduser()
         return p if p.is_absolute() or self._base_dir is None else self._base_dir / p
 
     def autopilot_script(self) -> Script:

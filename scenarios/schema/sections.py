@@ -547,6 +547,11 @@ class AutopilotSection(Strict):
         default=None, min_length=1,
         description="ArduPilot: its MAVLink port (e.g. tcp:127.0.0.1:5760) over which the "
         "scenario's GNSS events are set as its simulated-GPS parameters.")
+    binary: str | None = Field(
+        default=None, min_length=1,
+        description="The autopilot's SITL binary (ArduPilot: arduplane; PX4: the px4 of a SITL "
+        "build folder): hilnav starts it on free loopback ports, points link, telemetry and "
+        "mavlink at it and stops it at the end. Relative to this file; ~ expanded.")
     speed: float | None = Field(
         default=None, gt=0.0, le=100.0,
         description="null: lockstep (SITL); else simulated s per wall s (HITL: 1).")
@@ -609,6 +614,8 @@ class AutopilotSection(Strict):
             valid = mode_names(self.kind)
             if self.mode.upper() not in valid:
                 raise key_error(unknown_name(f"{self.kind} mode", self.mode, valid), ("mode",))
+        if self.binary is not None and self.kind == "none":
+            raise key_error("binary needs autopilot kind px4 or ardupilot", ("binary",))
         return self
 
     @property

@@ -109,7 +109,8 @@ class Px4Peer:
     sim_url : str
         ``tcp:HOST:PORT`` of the simulator (PX4 is the TCP client).
     telemetry_url : str, optional
-        ``udpout:HOST:PORT`` for the estimate telemetry.
+        ``udpout:HOST:PORT`` for the estimate telemetry, or ``udpin:HOST:PORT``: to the first
+        client that speaks there (PX4's ground-station link).
     plan : PeerPlan
     outputs : {"standard_plane", "legacy"}
         Output layout of HIL_ACTUATOR_CONTROLS.
@@ -133,11 +134,15 @@ class Px4Peer:
             raise ValueError("the PX4 peer connects as a TCP client: tcp:HOST:PORT")
         self.address = (host, int(port))
         self.telemetry: tuple[str, int] | None = None
+        self._telemetry_listens = False
+        self._tel_client: tuple[str, int] | None = None
         if telemetry_url is not None:
             t_scheme, t_host, t_port = telemetry_url.split(":")
-            if t_scheme != "udpout":
-                raise ValueError("telemetry goes out on udpout:HOST:PORT")
+            if t_scheme not in ("udpout", "udpin"):
+                raise ValueError("telemetry goes out on udpout:HOST:PORT (or udpin:HOST:PORT: "
+                                 "to whoever spoke first there, as PX4's ground-station link)")
             self.telemetry = (t_host, int(t_port))
+            self._telemetry_listens = t_scheme == "udpin"
         self.plan = plan or PeerPlan()
         self.outputs = outputs
         self.boot_sensors = boot_sensors
@@ -217,7 +222,11 @@ class Px4Peer:
         try:
             if self.telemetry is not None:
                 self._tel_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                if self.commands is not None:  # answers are read between sensor messages
+                if self._telemetry_listens:
+                    self._tel_sock.bind(self.telemetry)
+                if self._telemetry_listens or self.commands is not None:
+                    # answers (to a ground station, or to hilnav's commands) are read
+                    # between sensor messages
                     self._tel_sock.setblocking(False)
             while not self._stop.is_set():
                 sock = self._connect()
@@ -577,6 +586,14 @@ class Px4Peer:
         frames.append(mavlink2.MAVLink_estimator_status_message(
             self.clock_us, flags, 0.1, 0.1 if not lost else 1.0, 0.1, 0.1, 0.0, 0.1,
             1.0 + 2.0 * age_s, 2.0))
+        to = self.telemetry
+        if self._telemetry_listens:
+            while self._tel_client is None:
+                try:
+                    self._tel_client = self._tel_sock.recvfrom(4096)[1]
+                except BlockingIOError:
+                    return
+            to = self._tel_client
         for frame in frames:
-            self._tel_sock.sendto(bytes(frame.pack(self._tel_mav)), self.telemetry)
+            self._tel_sock.sendto(bytes(frame.pack(self._tel_mav)), to)
             self.counters["telemetry"] += 1
