@@ -266,7 +266,7 @@ def plan_launch(kind: str, binary: Path, *, home: Home | None = None,
     for p in defaults:
         if not Path(p).is_file():
             raise LaunchError(f"ArduPilot defaults file {p}: no such file")
-    plan = LaunchPlan(kind, path, 0, home=home, defaults=tuple(Path(p) for p in defaults),
+    plan = LaunchPlan(kind, path, 0, home=home, defaults=tuple(Path(p).resolve() for p in defaults),
                       telemetry=telemetry)
     if instance is not None:
         chosen = LaunchPlan(kind, path, instance, home, plan.defaults, telemetry)
@@ -418,12 +418,25 @@ class AutopilotProcess:
             if self.poll() is not None:
                 raise LaunchError(f"autopilot binary {self.describe_exit()} (before it was "
                                   f"ready; is it {self.plan.kind}'s SITL? log {self.log_path})")
+            panic = self._panic()
+            if panic is not None:  # ArduPilot's SITL hangs in its core-dump helper after it
+                raise LaunchError(f"autopilot binary {self.plan.binary} stopped before it was "
+                                  f"ready: {panic} (log {self.log_path})")
             now = time.monotonic()
             if all(_tcp_listening(p) for p in ports) and now - start >= min_alive_s:
                 return True
             if time.monotonic() >= deadline:
                 return False
             time.sleep(0.05)
+
+    def _panic(self) -> str | None:
+        """ArduPilot's fatal-error line (``PANIC: ...``) in its output so far, else None."""
+        if self.plan.kind != "ardupilot":
+            return None
+        for line in self.output().splitlines():
+            if line.startswith("PANIC:"):
+                return line.strip()
+        return None
 
     def _signal_group(self, sig: signal.Signals) -> None:
         assert self.proc is not None

@@ -155,6 +155,14 @@ while True:
     time.sleep(0.2)
 """
 
+PANICS = _PRELUDE + """
+# ArduPilot's SITL on a fatal error: it prints PANIC, then hangs in its core-dump helper
+print("PANIC: Failed to load defaults from nowhere.parm", flush=True)
+print("Running: sh dumpstack.sh 1 >dumpstack.out 2>&1", flush=True)
+while True:
+    time.sleep(0.2)
+"""
+
 IGNORES_SIGTERM = _PRELUDE + """
 signal.signal(signal.SIGTERM, signal.SIG_IGN)
 report()

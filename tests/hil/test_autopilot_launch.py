@@ -34,6 +34,7 @@ from tests.helpers.fake_sitl import (
     IGNORES_SIGTERM,
     IGNORES_SIGTERM_LISTENING,
     NEVER_CONNECTS,
+    PANICS,
     px4_build,
     write_fake,
 )
@@ -194,6 +195,29 @@ def test_a_binary_that_exits_at_once_is_seen_and_quoted(tmp_path: Path) -> None:
     assert sentence.startswith(f"{binary} exited with code 3: ")
     assert "unrecognized option '--model'" in sentence and "starting" in sentence
     assert process.version() is None
+
+
+def test_a_relative_defaults_file_reaches_arduplane_as_an_absolute_path(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # the binary runs in a fresh folder of its own: a path relative to the user's folder
+    # would not be found there (ArduPilot PANICs: "Failed to load defaults")
+    binary = write_fake(tmp_path, "arduplane", NEVER_CONNECTS)
+    (tmp_path / "c172.parm").write_text("ARSPD_SKIP_CAL 1\n")
+    monkeypatch.chdir(tmp_path)
+    plan = plan_launch("ardupilot", binary, defaults=[Path("c172.parm")])
+    assert plan.defaults == ((tmp_path / "c172.parm").resolve(),)
+
+
+def test_an_arduplane_that_panics_is_a_launch_error_at_once(tmp_path: Path) -> None:
+    # ArduPilot's SITL does not exit on PANIC (it hangs in its core-dump helper): the
+    # launcher must not wait out the connect timeout for it
+    binary = write_fake(tmp_path, "arduplane", PANICS)
+    t0 = time.monotonic()
+    with launched(plan_launch("ardupilot", binary), tmp_path / "autopilot.log",
+                  grace_s=0.3) as process, pytest.raises(LaunchError) as caught:
+        process.wait_ready(60.0)
+    assert time.monotonic() - t0 < 30.0
+    assert "PANIC: Failed to load defaults from nowhere.parm" in str(caught.value)
 
 
 def test_the_version_is_read_from_its_output_or_its_texts(tmp_path: Path) -> None:
