@@ -46,6 +46,7 @@ _REQUEST_INT: Final = int(mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST_INT)
 _REQUEST: Final = int(mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST)
 _ACK: Final = int(mavlink2.MAVLINK_MSG_ID_MISSION_ACK)
 _ACCEPTED: Final = int(mavlink2.MAV_MISSION_ACCEPTED)
+_NO_SPACE: Final = int(mavlink2.MAV_MISSION_NO_SPACE)
 MISSION_MSG_IDS: Final = frozenset({_REQUEST_INT, _REQUEST, _ACK})
 """What the autopilot answers an upload with."""
 
@@ -138,6 +139,10 @@ class MissionUpload:
         """MISSION_REQUEST (not _INT) messages the autopilot sent."""
         self.repeats = 0
         """Messages sent again after ``retry_s`` of silence."""
+        self.not_ready = 0
+        """MISSION_COUNTs refused with NO_SPACE before any item was asked for: ArduPilot's
+        answer while its mission storage is not set up yet (early in its boot); the count
+        is sent again after ``retry_s`` until the step's timeout."""
         self._out: list[Any] = []
         self._last: Any = None
         self._last_at_s = -math.inf
@@ -180,6 +185,8 @@ class MissionUpload:
                 missing = sorted(set(range(len(self.items))) - self.requested)
                 self.error = (f"the autopilot accepted the mission without asking for "
                               f"item(s) {missing}")
+            elif result == _NO_SPACE and self._asked < 0:
+                self.not_ready += 1  # :meth:`tick` sends the count again
             else:
                 name = _mission_result_name(result)
                 after = ("before asking for any item" if self._asked < 0 else
@@ -196,6 +203,9 @@ class MissionUpload:
 
     def waiting_for(self) -> str:
         """What the upload waits for, for a timeout sentence."""
+        if self._asked < 0 and self.not_ready:
+            return (f"the autopilot refused MISSION_COUNT ({len(self.items)} items) with "
+                    f"MAV_MISSION_NO_SPACE {self.not_ready} times and never asked for an item")
         if self._asked < 0:
             return "the autopilot never asked for an item after MISSION_COUNT"
         if len(self.requested) < len(self.items):

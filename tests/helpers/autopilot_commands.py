@@ -77,8 +77,11 @@ class CommandSide:
                  reject_params: Collection[str] = (), never_ack_arm: bool = False,
                  never_reach_mode: bool = False, drop_request: int | None = None,
                  stall_request: int | None = None, legacy_requests: bool = False,
-                 request_retry_s: float = 1.0) -> None:
+                 request_retry_s: float = 1.0, mission_ready_s: float = 0.0) -> None:
         self.flavour = flavour
+        self.mission_ready_s = mission_ready_s
+        """Until then a MISSION_COUNT is refused with NO_SPACE, as ArduPilot answers before its
+        mission storage is set up (early in its boot)."""
         self.params = dict(params)
         self.int_params = frozenset(int_params)
         self.armed = False
@@ -114,6 +117,9 @@ class CommandSide:
         if kind == "MISSION_COUNT":
             if int(msg.mission_type) != int(mavlink2.MAV_MISSION_TYPE_MISSION):
                 return []
+            if clock_s < self.mission_ready_s:
+                return [mavlink2.MAVLink_mission_ack_message(
+                    255, 190, mavlink2.MAV_MISSION_NO_SPACE, mavlink2.MAV_MISSION_TYPE_MISSION)]
             self._upload = _Upload(int(msg.count))
             self._items = {}
             self.mission_accepted = False

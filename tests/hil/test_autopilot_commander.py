@@ -165,6 +165,21 @@ def test_a_lost_item_request_is_asked_again_and_the_upload_completes() -> None:
     assert side.requests_sent == [0, 1, 2, 3, 4]
 
 
+def test_a_mission_refused_for_space_early_in_the_boot_is_sent_again() -> None:
+    # ArduPilot answers NO_SPACE while its mission storage is not set up yet
+    side = CommandSide("ardupilot", {}, mission_ready_s=3.0)
+    c = commander("ardupilot", Script(mission=MISSION))
+    run(c, side)
+    assert c.failure is None and side.mission_accepted and len(side.mission) == 5
+
+
+def test_a_mission_always_refused_for_space_fails_saying_so() -> None:
+    side = CommandSide("ardupilot", {}, mission_ready_s=1e9)
+    c = commander("ardupilot", Script(mission=MISSION, timeouts=StepTimeouts(mission_s=5.0)))
+    run(c, side)
+    assert c.failure is not None and "MAV_MISSION_NO_SPACE" in c.failure
+
+
 def test_an_item_never_asked_for_fails_naming_it() -> None:
     side = CommandSide("px4", {}, stall_request=2)
     c = commander("px4", Script(mission=MISSION, timeouts=StepTimeouts(mission_s=8.0)))
