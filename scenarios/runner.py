@@ -178,12 +178,15 @@ def score(
     autopilot: AutopilotRun | None = None,
     failures: list[str] | None = None,
     baseline: UnaidedBaseline | None = None,
+    ended_early: bool | None = None,
 ) -> tuple[dict[str, Any], list[Path]]:
     """Build ``summary.json`` (+ JUnit XML, plots and HTML when ``reports``) in ``out_dir``;
     with ``autopilot``, its estimate scored beside hilnav's (the ``autopilot`` section).
     ``failures``: sentences on why the run failed besides its criteria; given, the flight
     ended early (its events are cut as :func:`event_windows` says) and the run failed.
-    ``baseline``: the unaided baseline of a run aided by hilnav (:func:`_with_baseline`)."""
+    ``baseline``: the unaided baseline of a run aided by hilnav (:func:`_with_baseline`).
+    ``ended_early``: the flight stopped before the scenario's end (default: ``failures``
+    given), so events it never reached are listed, not scored."""
     col = run.collector
     assert col is not None
     end_s = col.end_s()
@@ -191,7 +194,8 @@ def score(
                    wall_s=wall_s, bridge=bridge, altitude=altitude,
                    setup=scenario.setup_record())
     failures = list(failures or [])
-    timeline = event_windows(scenario, end_s, ended_early=bool(failures))
+    cut = bool(failures) if ended_early is None else ended_early
+    timeline = event_windows(scenario, end_s, ended_early=cut)
     events = [e for e in timeline if not e.get("not_reached")]
     scored: Scored = score_run(run, info, criteria=scenario.criteria(), events=events,
                                health_extra=health_extra, with_series=True, settle_s=SETTLE_S)
@@ -324,13 +328,17 @@ def run_scenario(
         extra["flight_ended"] = str(flown.ended)
         # a crash is a failed run whatever the criteria say
         early.append(f"the flight ended early: {flown.ended}")
+    ended_early = bool(early)
     if ap_run is not None:
         ap_run.check_scorable(fusion)
         early += ap_run.early_end()
+        # a failed scripted step stops the flight too; its sentence comes with the failures
+        ended_early = bool(early) or ap_run.script_failed()
     summary, files = score(
         scenario, fusion, out_dir, bridge=bridge, altitude=altitude,
         sim_duration_s=flown.sim_duration_s, wall_s=wall, health_extra=extra,
-        reports=reports, autopilot=ap_run, failures=early, baseline=baseline)
+        reports=reports, autopilot=ap_run, failures=early, baseline=baseline,
+        ended_early=ended_early)
     if tlog:
         files.insert(1, log_path)
     return RunResult(summary, out_dir, files)
@@ -520,6 +528,10 @@ class AutopilotRun:
         if flown.stopped:
             return [f"the run was stopped at {flown.sim_duration_s:.2f} s"]
         return []
+
+    def script_failed(self) -> bool:
+        """Whether a scripted step failed (which stops the flight where it was)."""
+        return self.commander is not None and self.commander.failure is not None
 
     def failures(self) -> list[str]:
         """What the backend could not do for the scenario (:attr:`AutopilotFlown.problems`:

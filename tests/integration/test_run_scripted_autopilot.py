@@ -111,11 +111,15 @@ def test_arduplane_is_scripted_and_the_trim_held_until_it_flies(tmp_path: Path) 
 def test_arduplane_that_never_arms_fails_the_run_quoting_its_prearm_reason(
         tmp_path: Path) -> None:
     side = _arduplane_side(prearm_ok_s=1e9, prearm_reason="Airspeed 1 not healthy")
+    # an outage the flight never reaches: scored as not reached, not a crash of the scoring
     summary, _ = _arduplane_run(tmp_path, side, """  arm: true
   mode: CRUISE
   timeouts: {arm_s: 6}
+events:
+  - {type: gnss_outage, at: 200, duration: 60}
 """, duration_s=300.0)
     assert summary["passed"] is False
+    assert [e["type"] for e in summary["events_not_reached"]] == ["gnss_outage"]
     (failure,) = summary["failures"]
     assert failure.startswith("ArduPilot did not arm within 6 s")
     assert "'PreArm: Airspeed 1 not healthy'" in failure
