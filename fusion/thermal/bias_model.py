@@ -1,8 +1,10 @@
 """``gmdh-thermal``: the IMU bias against (die temperature, its rate), learned online.
 
-While GNSS is good the filter's own bias estimate is the target: at every new good
-temperature reading :meth:`ThermalBiasModel.add` stores ``(T, dT/dt) -> (accel bias xyz, gyro
-bias xyz)``; every ``refit_period_s`` a GMDH network per axis (:class:`fusion.gmdh.
+While GNSS is good the filter's own bias estimate is the target: :meth:`ThermalBiasModel.add`
+stores ``(T, dT/dt) -> (accel bias xyz, gyro bias xyz)`` once per ``pair_period_s`` (1 s; a
+part that updates its temperature more slowly gives one pair per update), whether the reading
+changes every sample or holds for tens of seconds, so the window spans the same stretch of
+temperature history on every part (600 pairs: 10 min or more); every ``refit_period_s`` a GMDH network per axis (:class:`fusion.gmdh.
 GmdhRegressor`, its defaults) is refitted on the window. During an outage the filter moves its
 bias estimate by the model's predicted *change* since the outage began
 (:mod:`fusion.thermal.link`), so the constant part stays the filter's.
@@ -71,7 +73,9 @@ class ThermalBiasModel:
     config : BridgeConfig, optional
         The gate's settings (``gate_*``).
     window : int
-        Training pairs kept (one per temperature update: 600 are ~13 min at 1.28 s).
+        Training pairs kept (600 at one per ``pair_period_s``: 10 min).
+    pair_period_s : float
+        Least time between two stored pairs, s.
     refit_period_s : float
         Time between refits, s.
     min_samples : int
@@ -83,12 +87,14 @@ class ThermalBiasModel:
     """
 
     def __init__(self, config: BridgeConfig | None = None, *, window: int = 600,
-                 refit_period_s: float = 30.0, min_samples: int = 40, horizon_s: float = 120.0,
+                 pair_period_s: float = 1.0, refit_period_s: float = 30.0, min_samples: int = 40, horizon_s: float = 120.0,
                  margin_k: float = 1.0) -> None:  # fmt: skip
         cfg = config if config is not None else BridgeConfig()
         self.gate = FallbackGate(cfg, tuple(range(6)))
         self._X: deque[tuple[float, float]] = deque(maxlen=window)
         self._Y: deque[tuple[float, ...]] = deque(maxlen=window)
+        self._T: deque[int] = deque(maxlen=window)
+        self._pair_us = round(pair_period_s * 1e6)
         self.refit_period_s = refit_period_s
         self.min_samples = min_samples
         self.horizon_s = horizon_s
@@ -107,8 +113,11 @@ class ThermalBiasModel:
         """A training pair (GNSS good): the filter's bias estimate at ``temp_k``, ``rate``."""
         if not (math.isfinite(temp_k) and math.isfinite(rate)):
             return
+        if self._T and time_us - self._T[-1] < self._pair_us:
+            return
         self._X.append((temp_k, rate))
         self._Y.append(tuple(bias))
+        self._T.append(time_us)
         self._score(time_us, temp_k, rate, bias)
         nxt = self._next_fit_us
         if nxt is None:
@@ -119,6 +128,11 @@ class ThermalBiasModel:
             fitted = self.fitted
             if fitted is not None:
                 self._trials.append((time_us, fitted, temp_k, rate, tuple(bias)))
+
+    @property
+    def window_span_s(self) -> float:
+        """Time from the oldest to the newest training pair in the window, s."""
+        return (self._T[-1] - self._T[0]) * 1e-6 if self._T else 0.0
 
     def refit(self) -> None:
         """Fit one GMDH network per axis on the window."""
