@@ -4,10 +4,11 @@ While GNSS is good the filter's own bias estimate is the target: :meth:`ThermalB
 stores ``(T, dT/dt) -> (accel bias xyz, gyro bias xyz)`` once per ``pair_period_s`` (1 s; a
 part that updates its temperature more slowly gives one pair per update), whether the reading
 changes every sample or holds for tens of seconds, so the window spans the same stretch of
-temperature history on every part (600 pairs: 10 min or more); every ``refit_period_s`` a GMDH network per axis (:class:`fusion.gmdh.
-GmdhRegressor`, its defaults) is refitted on the window. During an outage the filter moves its
-bias estimate by the model's predicted *change* since the outage began
-(:mod:`fusion.thermal.link`), so the constant part stays the filter's.
+temperature history on every part (600 pairs: 10 min or more); every ``refit_period_s`` a
+GMDH network per axis (:class:`fusion.gmdh.GmdhRegressor`, :data:`SURVIVORS` per layer) is
+refitted on the window. During an outage the filter moves its bias estimate by the model's
+predicted *change* since the outage began (:mod:`fusion.thermal.link`), so the constant
+part stays the filter's.
 
 Behind the bridging gate (:class:`fusion.bridging.gate.FallbackGate`, its rule and
 ``BridgeConfig.gate_*`` settings): each refit opens a held-out trial; ``horizon_s`` later,
@@ -34,6 +35,12 @@ from fusion.gmdh import GmdhRegressor
 
 AXES: tuple[str, ...] = ("ax", "ay", "az", "gx", "gy", "gz")
 """The six learned biases: accelerometer x/y/z (m/s^2), gyro x/y/z (rad/s), body frame."""
+
+SURVIVORS = 6
+"""Survivors per GMDH layer: two inputs give five input terms (``T``, ``dT/dt``, their squares
+and product), and six survivors plus those five make 55 candidate neurons per layer instead
+of the 136 of the regressor's many-input default of 12; a refit of the six axes costs a third
+as much, and on the tuning flights the gate let the same axes through."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,8 +94,8 @@ class ThermalBiasModel:
     """
 
     def __init__(self, config: BridgeConfig | None = None, *, window: int = 600,
-                 pair_period_s: float = 1.0, refit_period_s: float = 30.0, min_samples: int = 40, horizon_s: float = 120.0,
-                 margin_k: float = 1.0) -> None:  # fmt: skip
+                 pair_period_s: float = 1.0, refit_period_s: float = 30.0, min_samples: int = 40,
+                 horizon_s: float = 120.0, margin_k: float = 1.0) -> None:  # fmt: skip
         cfg = config if config is not None else BridgeConfig()
         self.gate = FallbackGate(cfg, tuple(range(6)))
         self._X: deque[tuple[float, float]] = deque(maxlen=window)
@@ -145,7 +152,8 @@ class ThermalBiasModel:
                 nets.append(None)
                 continue
             try:
-                nets.append(GmdhRegressor(max_layers=3).fit(X, y))
+                nets.append(GmdhRegressor(max_layers=3, max_neurons=SURVIVORS,
+                                           min_survivors=SURVIVORS).fit(X, y))
             except (ValueError, np.linalg.LinAlgError):
                 nets.append(None)
         if all(n is None for n in nets):
