@@ -39,8 +39,10 @@ cost of a GMDH refit and of a prediction against a filter step (measured in the 
 Seeds, units and profiles: no setting of the thermal strategies was tuned on these flights
 (the blind noise, the residual shares, the coefficient walk and the gmdh-thermal window,
 refit period, gate horizon and margin were fixed from the datasheet derivation before the
-first run); the tuning seeds 1-3 (``--seed-base 1``) were used only to check that the bench
-runs. The reported flights are the held-out seeds 100.. .
+first run). Tuning seed 1 (``--seed-base 1 --outage 300``) checked the learner's plumbing:
+its one-pair-per-second window, the stuck-reading test's 128 s floor and its six GMDH
+survivors per layer (refit cost) were settled there. The reported flights are the held-out
+seeds 100.. .
 
     python bench/thermal.py --out bench/results/thermal.json [--seeds 2] [--seed-base 100]
         [--plans racetrack,survey] [--parts bmi088,icm20948,adis1646x]

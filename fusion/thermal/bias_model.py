@@ -1,11 +1,14 @@
 """``gmdh-thermal``: the IMU bias against (die temperature, its rate), learned online.
 
-While GNSS is good the filter's own bias estimate is the target: at every new good
-temperature reading :meth:`ThermalBiasModel.add` stores ``(T, dT/dt) -> (accel bias xyz, gyro
-bias xyz)``; every ``refit_period_s`` a GMDH network per axis (:class:`fusion.gmdh.
-GmdhRegressor`, its defaults) is refitted on the window. During an outage the filter moves its
-bias estimate by the model's predicted *change* since the outage began
-(:mod:`fusion.thermal.link`), so the constant part stays the filter's.
+While GNSS is good the filter's own bias estimate is the target: :meth:`ThermalBiasModel.add`
+stores ``(T, dT/dt) -> (accel bias xyz, gyro bias xyz)`` once per ``pair_period_s`` (1 s; a
+part that updates its temperature more slowly gives one pair per update), whether the reading
+changes every sample or holds for tens of seconds, so the window spans the same stretch of
+temperature history on every part (600 pairs: 10 min or more); every ``refit_period_s`` a
+GMDH network per axis (:class:`fusion.gmdh.GmdhRegressor`, :data:`SURVIVORS` per layer) is
+refitted on the window. During an outage the filter moves its bias estimate by the model's
+predicted *change* since the outage began (:mod:`fusion.thermal.link`), so the constant
+part stays the filter's.
 
 Behind the bridging gate (:class:`fusion.bridging.gate.FallbackGate`, its rule and
 ``BridgeConfig.gate_*`` settings): each refit opens a held-out trial; ``horizon_s`` later,
@@ -32,6 +35,12 @@ from fusion.gmdh import GmdhRegressor
 
 AXES: tuple[str, ...] = ("ax", "ay", "az", "gx", "gy", "gz")
 """The six learned biases: accelerometer x/y/z (m/s^2), gyro x/y/z (rad/s), body frame."""
+
+SURVIVORS = 6
+"""Survivors per GMDH layer: two inputs give five input terms (``T``, ``dT/dt``, their squares
+and product), and six survivors plus those five make 55 candidate neurons per layer instead
+of the 136 of the regressor's many-input default of 12; a refit of the six axes costs a third
+as much, and on the tuning flights the gate let the same axes through."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -71,7 +80,9 @@ class ThermalBiasModel:
     config : BridgeConfig, optional
         The gate's settings (``gate_*``).
     window : int
-        Training pairs kept (one per temperature update: 600 are ~13 min at 1.28 s).
+        Training pairs kept (600 at one per ``pair_period_s``: 10 min).
+    pair_period_s : float
+        Least time between two stored pairs, s.
     refit_period_s : float
         Time between refits, s.
     min_samples : int
@@ -83,12 +94,14 @@ class ThermalBiasModel:
     """
 
     def __init__(self, config: BridgeConfig | None = None, *, window: int = 600,
-                 refit_period_s: float = 30.0, min_samples: int = 40, horizon_s: float = 120.0,
-                 margin_k: float = 1.0) -> None:  # fmt: skip
+                 pair_period_s: float = 1.0, refit_period_s: float = 30.0, min_samples: int = 40,
+                 horizon_s: float = 120.0, margin_k: float = 1.0) -> None:  # fmt: skip
         cfg = config if config is not None else BridgeConfig()
         self.gate = FallbackGate(cfg, tuple(range(6)))
         self._X: deque[tuple[float, float]] = deque(maxlen=window)
         self._Y: deque[tuple[float, ...]] = deque(maxlen=window)
+        self._T: deque[int] = deque(maxlen=window)
+        self._pair_us = round(pair_period_s * 1e6)
         self.refit_period_s = refit_period_s
         self.min_samples = min_samples
         self.horizon_s = horizon_s
@@ -107,8 +120,11 @@ class ThermalBiasModel:
         """A training pair (GNSS good): the filter's bias estimate at ``temp_k``, ``rate``."""
         if not (math.isfinite(temp_k) and math.isfinite(rate)):
             return
+        if self._T and time_us - self._T[-1] < self._pair_us:
+            return
         self._X.append((temp_k, rate))
         self._Y.append(tuple(bias))
+        self._T.append(time_us)
         self._score(time_us, temp_k, rate, bias)
         nxt = self._next_fit_us
         if nxt is None:
@@ -119,6 +135,11 @@ class ThermalBiasModel:
             fitted = self.fitted
             if fitted is not None:
                 self._trials.append((time_us, fitted, temp_k, rate, tuple(bias)))
+
+    @property
+    def window_span_s(self) -> float:
+        """Time from the oldest to the newest training pair in the window, s."""
+        return (self._T[-1] - self._T[0]) * 1e-6 if self._T else 0.0
 
     def refit(self) -> None:
         """Fit one GMDH network per axis on the window."""
@@ -131,7 +152,8 @@ class ThermalBiasModel:
                 nets.append(None)
                 continue
             try:
-                nets.append(GmdhRegressor(max_layers=3).fit(X, y))
+                nets.append(GmdhRegressor(max_layers=3, max_neurons=SURVIVORS,
+                                           min_survivors=SURVIVORS).fit(X, y))
             except (ValueError, np.linalg.LinAlgError):
                 nets.append(None)
         if all(n is None for n in nets):

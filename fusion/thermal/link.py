@@ -175,6 +175,12 @@ class ThermalLink:
         training target while GNSS is good).
         """
         if not self._new:
+            model = self.model
+            # a reading that holds is still the die's temperature: the learner keeps pairing
+            # (it stores one pair per its own period), or a coarse part would starve it
+            if model is not None and gnss_active and self.screen.good:
+                model.add(time_us, self.screen.temperature_k, self.rate_k_per_s,
+                          (*bias[0], *bias[1]))  # fmt: skip
             return None
         self._new = False
         temp = self.screen.temperature_k

@@ -6,8 +6,8 @@ A reading is rejected, and counted in :class:`fusion.estimate.Health`, when it i
 - outside the part's operating range (``temperature_out_of_range``);
 - further from the last good reading than the die can move (``max_slew_k_per_s`` over the
   time between them, plus two sensor quanta: ``temperature_jump``);
-- identical, to the bit, for more than ``stuck_updates`` of the sensor's update periods
-  (``temperature_stuck``): a live sensor's last bit moves far more often.
+- identical, to the bit, for more than ``stuck_updates`` of the sensor's update periods and
+  ``stuck_min_s`` (``temperature_stuck``): a live sensor's last bit moves far more often.
 
 A rejected reading leaves the last good temperature in force and makes
 :attr:`TemperatureScreen.good` false: the thermal corrections hold (the blind filter's
@@ -49,7 +49,8 @@ class TemperatureScreen:
         self.good = False
         self._raw_last = math.nan
         self._raw_since_us: int | None = None
-        self._stuck_us = round(tuning.stuck_updates * tuning.update_period_s * 1e6)
+        self._stuck_us = round(max(tuning.stuck_updates * tuning.update_period_s,
+                                   tuning.stuck_min_s) * 1e6)
         # a reading that has not changed since the last call is not a new reading
         self._seen = math.nan
 

@@ -122,6 +122,9 @@ class ThermalTuning(_Frozen):
     stuck_updates: PositiveInt = 100
     """A reading identical for this many update periods is stuck (a live die with a 0.125 K
     sensor and noise changes its last bit far more often), counted and rejected."""
+    stuck_min_s: PositiveFloat = 128.0
+    """...and for at least this long: a part that updates with every sample repeats a coarse
+    reading for many updates while its die warms by less than a quantum, s."""
     calibration: ThermalCalibration | None = None
     """``cal``: the calibration polynomial (required in that mode)."""
 

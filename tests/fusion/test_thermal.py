@@ -24,7 +24,7 @@ _Z = (0.0, 0.0, 0.0)
 def test_screen_rejects_and_counts_bad_temperatures() -> None:
     # GIVEN a screen with a 1 K/s slew limit and a 1.28 s update period
     c = HealthCounters()
-    scr = TemperatureScreen(ThermalTuning(stuck_updates=3), c)
+    scr = TemperatureScreen(ThermalTuning(stuck_updates=3, stuck_min_s=1.0), c)
     # WHEN it reads a good value, a NaN, an out-of-range value, a jump and a stuck stream
     assert scr.add(0, 300.0)
     assert not scr.add(10_000, math.nan)
@@ -191,3 +191,46 @@ def test_cal_mode_removes_the_polynomial_before_the_filter() -> None:
     out2 = link.pre(ImuSample(20_000, 0.01, s.specific_force_b_mps2, s.angular_rate_b_rps,
                               math.nan))
     np.testing.assert_allclose(out2.angular_rate_b_rps, out.angular_rate_b_rps)
+
+
+def test_learned_bias_model_window_spans_minutes_when_the_temperature_updates_every_sample(
+) -> None:
+    # GIVEN a part whose temperature changes with every 100 Hz sample (noise in the last bit)
+    model = ThermalBiasModel(refit_period_s=1e9)  # no refit: only the window is under test
+    rng = np.random.default_rng(3)
+    for i in range(600 * 100):  # WHEN 10 min of samples with GNSS good
+        t_us = i * 10_000
+        temp = 293.15 + 8.0 * (1.0 - math.exp(-i / 24_000.0)) + 0.003 * rng.standard_normal()
+        model.add(t_us, temp, 0.0, (0.0, 0.0, 0.0, 0.0, 0.0, 1e-4 * (temp - 293.15)))
+    # THEN the training window covers at least 9 of those minutes, not the last seconds
+    assert model.window_span_s >= 540.0
+
+
+def test_the_learner_keeps_pairing_while_a_coarse_reading_holds() -> None:
+    from fusion.thermal.link import ThermalLink
+
+    # GIVEN a 0.1 K part whose reading changes only every ~20 s, and the learned model
+    model = ThermalBiasModel()
+    link = ThermalLink(ThermalTuning(mode="blind"), layout_for("ins16"), HealthCounters(),
+                       model)  # fmt: skip
+    link.start()
+    f = np.array([0.0, 0.0, -9.8])
+    # WHEN 5 min of 100 Hz samples go through with GNSS good
+    for i in range(300 * 100):
+        t_us = i * 10_000
+        temp = 300.0 + 0.1 * (i // 2000)
+        link.pre(ImuSample(t_us, 0.01, f, np.zeros(3), temp))
+        link.bias_step(True, t_us, (_Z, _Z))
+    # THEN it stored a pair about every second, not one per changed reading (15)
+    assert model.status.samples >= 290
+
+
+def test_a_coarse_reading_that_holds_on_a_per_sample_part_is_not_stuck() -> None:
+    # GIVEN a 0.1 K sensor updated with every 100 Hz sample, its die warming slowly
+    c = HealthCounters()
+    scr = TemperatureScreen(ThermalTuning(quantum_k=0.1, update_period_s=0.01), c)
+    # WHEN each reading holds for 10 s before the last bit moves
+    for i in range(60 * 100):
+        scr.add(i * 10_000, 300.0 + 0.1 * (i // 1000))
+    # THEN nothing is counted as stuck and the latest reading stands
+    assert c.temperature_stuck == 0 and scr.good and scr.temperature_k == pytest.approx(300.5)
