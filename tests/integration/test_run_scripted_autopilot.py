@@ -300,7 +300,7 @@ def test_the_library_arduplane_mission_script_runs_against_the_peer(tmp_path: Pa
     assert [s["status"] for s in script["steps"]] == ["done"] * 5
     # the autopilot stores float32: each value is read back to float32 precision
     assert side.params == pytest.approx({p.name: p.value for p in params}, rel=1e-6)
-    assert len(side.mission) == 7 and side.custom_mode == ARDUPLANE_MODES["AUTO"]
+    assert len(side.mission) == 8 and side.custom_mode == ARDUPLANE_MODES["AUTO"]  # home + 7
 
 
 def test_px4_aided_by_hilnav_takes_its_odometry_as_external_vision(tmp_path: Path) -> None:
