@@ -75,11 +75,12 @@ def run_one(kind: str, binary: Path, out: Path, scenario: Path | None = None,
         text = (proc.stdout.read() if proc.stdout else "") + "\n(bench timeout)"
     wall_s = time.perf_counter() - t0
     row: dict[str, Any] = {
-        "autopilot": kind, "binary": str(binary),
-        "scenario": str(scenario.relative_to(ROOT) if scenario.is_relative_to(ROOT)
-                        else scenario),
-        "command": shlex.join(shown), "exit_code": proc.returncode, "wall_s": round(wall_s, 1),
-        "output_tail": [ln for ln in text.splitlines() if ln.strip()][-_TAIL_LINES:],
+        "autopilot": kind, "binary": binary.name,
+        "scenario": portable(str(scenario), binary, out),
+        "command": portable(shlex.join(shown), binary, out), "exit_code": proc.returncode,
+        "wall_s": round(wall_s, 1),
+        "output_tail": [portable(ln, binary, out)
+                        for ln in text.splitlines() if ln.strip()][-_TAIL_LINES:],
     }
     summary_path = out / "summary.json"
     if not summary_path.is_file():
@@ -90,6 +91,13 @@ def run_one(kind: str, binary: Path, out: Path, scenario: Path | None = None,
     row["altitude_hold"] = altitude_hold(out / "run.tlog",
                                          (s.get("autopilot") or {}).get("trim_released_s"))
     return row
+
+
+def portable(text: str, binary: Path, out: Path) -> str:
+    """``text`` without this machine's paths: the binary by its file name, the run folder as
+    ``OUT``, files of the repository relative to it (the result file is committed)."""
+    return (text.replace(str(out), "OUT").replace(str(binary), binary.name)
+            .replace(f"{ROOT}/", ""))
 
 
 def summary_row(s: dict[str, Any]) -> dict[str, Any]:
