@@ -410,7 +410,8 @@ class Scenario(Strict):
 
         start = self.start_state()
         return build_script(self.autopilot, (start.lat_deg, start.lon_deg, start.alt_msl_m),
-                            self.autopilot_path(self.autopilot.params))
+                            self.autopilot_path(self.autopilot.params),
+                            heading_deg=start.heading_deg)
 
     def criteria(self) -> tuple[Criterion, ...]:
         """Pass criteria for :func:`scenarios.summary.build_summary`."""

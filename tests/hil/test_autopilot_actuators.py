@@ -31,6 +31,14 @@ def test_the_standard_plane_example_mixes_ailerons_flaps_and_moves_the_motor() -
     assert (roll, pitch, yaw, throttle, flaps) == pytest.approx((0.4, 0.2, -0.1, 0.7, 0.5))
 
 
+def test_the_standard_plane_map_steers_the_nose_wheel_with_the_rudder() -> None:
+    # PWM_MAIN_FUNC1 = 440 (Landing Gear Wheel): PX4's wheel steering adds to the rudder
+    amap = ActuatorMap.load(STANDARD_PLANE)
+    raw = [0.0] * 16
+    raw[0], raw[2] = 0.3, -0.1  # wheel steering right, rudder left
+    assert amap.apply(raw)[2] == pytest.approx(0.2)
+
+
 def test_a_nan_channel_makes_its_control_nan_and_a_pinned_control_ignores_it() -> None:
     amap = ActuatorMap.model_validate({"channels": [
         {"channel": 0, "control": "aileron"}, {"channel": 1, "control": "elevator"},

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import math
+
 import jsonschema
 import pytest
 import yaml
 
 from hil.autopilot.param_file import read_param_file
 from scenarios.schema import LIBRARY_DIR, json_schema, load_scenario
+from scenarios.schema.autopilot_script import TAKEOFF_AHEAD_M, mission_items
+from scenarios.schema.sections import MissionItemSection
 from tests.scenarios.test_schema import error_of, write
 
 BASE = """
@@ -98,7 +102,9 @@ def test_the_script_keys_become_the_commanders_script(tmp_path) -> None:  # type
     assert script.arm and script.mode == "AUTO" and script.timeouts.arm_s == 90.0
     assert [p.name for p in script.params] == ["ARSPD_SKIP_CAL", "TRIM_ARSPD_CM"]
     takeoff, wp, loiter, wp2, rtl = script.mission
-    assert (takeoff.lat_deg, takeoff.lon_deg, takeoff.alt_msl_m) == (47.0, 8.0, 1100.0)
+    # a takeoff without a position: TAKEOFF_AHEAD_M ahead on the start's heading (000)
+    assert takeoff.lat_deg == pytest.approx(47.0 + TAKEOFF_AHEAD_M / 111_180, abs=2e-6)
+    assert (takeoff.lon_deg, takeoff.alt_msl_m) == (8.0, 1100.0)
     assert wp.lat_deg == pytest.approx(47.0 + 1000 / 111_180, abs=2e-5)  # ~1 km north
     assert wp.lon_deg == 8.0 and wp.alt_msl_m == 1200.0
     # a loiter without a position circles the previous item's, at its altitude
@@ -106,6 +112,16 @@ def test_the_script_keys_become_the_commanders_script(tmp_path) -> None:  # type
         wp.lat_deg, 1200.0, 2.0, 300.0)
     assert (wp2.lat_deg, wp2.alt_msl_m) == (47.01, 1150.0)
     assert rtl.lat_deg is None
+
+
+def test_a_takeoff_without_a_position_lies_ahead_on_the_start_heading() -> None:
+    # GIVEN a start facing 090 (east) WHEN the takeoff item has no position
+    item = MissionItemSection.model_validate({"type": "takeoff", "alt_m": 300})
+    (takeoff,) = mission_items([item], (47.0, 8.0, 450.0), heading_deg=90.0)
+    # THEN it lies TAKEOFF_AHEAD_M east of the start (PX4 rolls along that bearing)
+    east_m = math.radians(takeoff.lon_deg - 8.0) * 6_389_000 * math.cos(math.radians(47.0))
+    assert east_m == pytest.approx(TAKEOFF_AHEAD_M, rel=2e-3)
+    assert takeoff.lat_deg == pytest.approx(47.0, abs=1e-9) and takeoff.alt_msl_m == 750.0
 
 
 @pytest.mark.parametrize(("text", "needle"), [
