@@ -175,13 +175,10 @@ def test_library_mission_scenarios_load_with_their_script(name: str, kind: str, 
     assert len(script.params) == len(shipped) + added
     assert [p.name for p in script.params[:len(shipped)]] == [p.name for p in shipped]
     labels = ["waypoint 1", "waypoint 2", "waypoint 3", "waypoint 4", "loiter 1", "rtl 1"]
-    if kind == "ardupilot":  # from the runway: ArduPlane takes off on its first item
-        assert scn.start_state().kind == "ground"
-        assert [item.label for item in script.mission] == ["takeoff 1", *labels]
-        assert scn.outage_windows() == ((300.0, 360.0),)
-    else:
-        assert [item.label for item in script.mission] == labels
-        assert scn.outage_windows() == ((200.0, 260.0),)
+    # from the runway: both take off on their first item
+    assert scn.start_state().kind == "ground"
+    assert [item.label for item in script.mission] == ["takeoff 1", *labels]
+    assert scn.outage_windows() == ((300.0, 360.0),)
 
 
 def test_ground_start_for_an_autopilot(tmp_path) -> None:  # type: ignore[no-untyped-def]
