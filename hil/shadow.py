@@ -443,7 +443,12 @@ class CompanionEncoder:
 
     def odometry(self, est: NavEstimate) -> bytes:
         """ODOMETRY (PX4): position NED about the first estimate (m), q body->NED, body-axis
-        velocity (m/s); covariances' first element NaN (= unknown)."""
+        velocity (m/s); covariances' first element NaN (= unknown).
+
+        ``estimator_type`` VISION: PX4 routes ODOMETRY to its external-vision input only for
+        UNKNOWN, NAIVE, VISION and VIO (``MavlinkReceiver::handle_message_odometry``) and drops
+        GPS_INS with "ODOMETRY: estimator_type 5 unsupported"; hilnav's estimate is what PX4
+        then fuses as external vision (``EKF2_EV_CTRL``)."""
         if self._origin is None:
             self._origin = (est.lat_rad, est.lon_rad, est.alt_msl_m)
         lat0, lon0, alt0 = self._origin
@@ -457,7 +462,7 @@ class CompanionEncoder:
             int(est.time_us), int(mavlink2.MAV_FRAME_LOCAL_NED), int(mavlink2.MAV_FRAME_BODY_FRD),
             float(n), float(e), float(d), [w, x, y, z], float(v_b[0]), float(v_b[1]),
             float(v_b[2]), math.nan, math.nan, math.nan, nan21, nan21, 0,
-            int(mavlink2.MAV_ESTIMATOR_TYPE_GPS_INS), 100))
+            int(mavlink2.MAV_ESTIMATOR_TYPE_VISION), 100))
 
 
 def _dcm(w: float, x: float, y: float, z: float) -> np.ndarray:

@@ -62,6 +62,11 @@ from tests.helpers.autopilot_commands import CommandSide
 
 _G = 9.80665
 _R_EARTH = 6_378_137.0
+_EV_ESTIMATOR_TYPES = frozenset({
+    int(mavlink2.MAV_ESTIMATOR_TYPE_UNKNOWN), int(mavlink2.MAV_ESTIMATOR_TYPE_NAIVE),
+    int(mavlink2.MAV_ESTIMATOR_TYPE_VISION), int(mavlink2.MAV_ESTIMATOR_TYPE_VIO)})
+"""The ODOMETRY ``estimator_type`` PX4 takes as external vision
+(``MavlinkReceiver::handle_message_odometry``); GPS, GPS_INS, LIDAR and AUTOPILOT it refuses."""
 _PX4 = 12  # MAV_AUTOPILOT_PX4
 _ARMED = 128
 _CUSTOM = 1
@@ -540,6 +545,11 @@ class Px4Peer:
         estimate's is learnt (:meth:`_ev_learn`); while GNSS is lost the position is the
         ODOMETRY's plus that offset (EKF2 fuses the same, with its own weights)."""
         if not self._ev_enabled():
+            return
+        if int(msg.estimator_type) not in _EV_ESTIMATOR_TYPES:
+            # PX4 drops it ("ODOMETRY: estimator_type N unsupported"; MOCAP goes elsewhere)
+            self.counters["odometry_unsupported"] = (
+                self.counters.get("odometry_unsupported", 0) + 1)
             return
         self._ev_last = msg
         offset = getattr(self, "_ev_offset", None)

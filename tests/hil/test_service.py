@@ -131,6 +131,11 @@ def test_companion_gps_input_and_odometry() -> None:
     assert odo.vx == pytest.approx(50.0, abs=1.0) and abs(odo.vy) < 2.0
     assert odo.frame_id == mavlink2.MAV_FRAME_LOCAL_NED
     assert odo.child_frame_id == mavlink2.MAV_FRAME_BODY_FRD
+    # PX4 takes ODOMETRY as external vision only for these; GPS_INS it drops as unsupported
+    assert odo.estimator_type in (mavlink2.MAV_ESTIMATOR_TYPE_UNKNOWN,
+                                  mavlink2.MAV_ESTIMATOR_TYPE_NAIVE,
+                                  mavlink2.MAV_ESTIMATOR_TYPE_VISION,
+                                  mavlink2.MAV_ESTIMATOR_TYPE_VIO)
 
 
 def test_gps_time_week_rollover() -> None:
