@@ -28,7 +28,8 @@ Flight modes (HEARTBEAT ``base_mode = MAV_MODE_FLAG_CUSTOM_MODE_ENABLED``, ``cus
 Companion (towards a flight controller)
     GPS_INPUT (ArduPilot ``GPS_TYPE=14``) and ODOMETRY (PX4 external vision / odometry,
     ``frame_id = MAV_FRAME_LOCAL_NED`` about the first estimate's position,
-    ``child_frame_id = MAV_FRAME_BODY_FRD``: velocity in body axes).
+    ``child_frame_id = MAV_FRAME_LOCAL_NED``: velocity NED; the estimate's variances as
+    covariances).
 """
 
 from __future__ import annotations
@@ -37,8 +38,6 @@ import math
 import time
 from dataclasses import dataclass
 from typing import Any, Final
-
-import numpy as np
 
 from fusion.earth import ned_offset_m
 from fusion.estimate import Mode, NavEstimate
@@ -442,8 +441,16 @@ class CompanionEncoder:
             _f(est.alt_msl_m), 1.0, 1.0, vn, ve, vd, s_acc, h_acc, v_acc, 12, 0))
 
     def odometry(self, est: NavEstimate) -> bytes:
-        """ODOMETRY (PX4): position NED about the first estimate (m), q body->NED, body-axis
-        velocity (m/s); covariances' first element NaN (= unknown).
+        """ODOMETRY (PX4): position NED about the first estimate (m), q body->NED, velocity NED
+        (m/s), the estimate's variances as covariances.
+
+        Velocity in ``MAV_FRAME_LOCAL_NED``, as estimated: in body axes PX4 would turn it back
+        with its own attitude, so its own yaw error (e.g. a magnetometer realignment at
+        lift-off) would turn hilnav's velocity with it. Covariances: the upper-right triangles
+        (row-major) with the estimate's variances on their diagonals, where PX4 reads them
+        (pose: position N/E/D, roll/pitch/yaw; velocity: N/E/D); PX4 takes them as its
+        external-vision noise, its ``EKF2_EVP_NOISE`` / ``EKF2_EVV_NOISE`` as lower bounds.
+        Unknown variances (not positive, not finite) are sent as a NaN first element.
 
         ``estimator_type`` VISION: PX4 routes ODOMETRY to its external-vision input only for
         UNKNOWN, NAIVE, VISION and VIO (``MavlinkReceiver::handle_message_odometry``) and drops
@@ -455,22 +462,29 @@ class CompanionEncoder:
         # ned_offset_m(a, b) = a relative to b
         n, e, d = ned_offset_m(est.lat_rad, est.lon_rad, est.alt_msl_m, lat0, lon0, alt0)
         w, x, y, z = (float(q) for q in est.q_nb)
-        c_nb = _dcm(w, x, y, z)
-        v_b = c_nb.T @ np.asarray(est.v_ned_mps, dtype=float)
-        nan21 = [math.nan] + [0.0] * 20
+        vn, ve, vd = (float(v) for v in est.v_ned_mps)
+        p_diag = [float(v) for v in est.P_diag[:9]]
+        pose = _triangle(p_diag[0:3] + p_diag[6:9])
+        vel = _triangle(p_diag[3:6] + [math.nan] * 3)
         return self._p.pack(mavlink2.MAVLink_odometry_message(
-            int(est.time_us), int(mavlink2.MAV_FRAME_LOCAL_NED), int(mavlink2.MAV_FRAME_BODY_FRD),
-            float(n), float(e), float(d), [w, x, y, z], float(v_b[0]), float(v_b[1]),
-            float(v_b[2]), math.nan, math.nan, math.nan, nan21, nan21, 0,
+            int(est.time_us), int(mavlink2.MAV_FRAME_LOCAL_NED), int(mavlink2.MAV_FRAME_LOCAL_NED),
+            float(n), float(e), float(d), [w, x, y, z], vn, ve, vd,
+            math.nan, math.nan, math.nan, pose, vel, 0,
             int(mavlink2.MAV_ESTIMATOR_TYPE_VISION), 100))
 
 
-def _dcm(w: float, x: float, y: float, z: float) -> np.ndarray:
-    """Body -> NED direction cosine matrix of a scalar-first unit quaternion."""
-    # not fusion.rotations.quat_to_dcm: its diagonal is w²+x²-y²-z², not 1-2(y²+z²), which
-    # rounds differently and changes about one ODOMETRY frame in a million on the wire
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
+_DIAGONAL_OF_TRIANGLE = (0, 6, 11, 15, 18, 20)
+"""Where a 6x6 covariance's diagonal lies in MAVLink's 21-element upper-right triangle."""
+
+
+def _triangle(variances: list[float]) -> list[float]:
+    """A 21-element upper-right triangle (row-major) with ``variances`` (6; NaN = not given,
+    sent as 0) on its diagonal; a NaN first element when one of the given ones is unknown."""
+    out = [0.0] * 21
+    for i, var in zip(_DIAGONAL_OF_TRIANGLE, variances, strict=True):
+        if math.isnan(var):
+            continue
+        if not (math.isfinite(var) and var > 0.0):
+            return [math.nan] + [0.0] * 20
+        out[i] = var
+    return out

@@ -519,8 +519,11 @@ class Px4Peer:
         msg = getattr(self, "_ev_last", None)
         if msg is None:
             return None
-        q = np.array([float(v) for v in msg.q])
-        v_ned = quat_to_dcm(q) @ np.array([float(msg.vx), float(msg.vy), float(msg.vz)])
+        v = np.array([float(msg.vx), float(msg.vy), float(msg.vz)])
+        if int(msg.child_frame_id) == int(mavlink2.MAV_FRAME_LOCAL_NED):
+            v_ned = v  # as PX4: a NED velocity is taken as it is
+        else:  # body axes (MAV_FRAME_BODY_FRD), turned by the message's q here
+            v_ned = quat_to_dcm(np.array([float(c) for c in msg.q])) @ v
         age_s = (self.clock_us - int(msg.time_usec)) * 1e-6
         return np.array([float(msg.x), float(msg.y)]) + v_ned[:2] * age_s
 

@@ -127,10 +127,17 @@ def test_companion_gps_input_and_odometry() -> None:
     assert g.horiz_accuracy == pytest.approx(5.0)
     odo = _decode(enc.odometry(_estimate()))
     assert (odo.x, odo.y, odo.z) == (0.0, 0.0, 0.0)  # origin = first estimate
-    # yaw 90 deg, small roll/pitch: 50 m/s east is ~ forward in body axes
-    assert odo.vx == pytest.approx(50.0, abs=1.0) and abs(odo.vy) < 2.0
+    # velocity in NED as estimated: PX4 then needs none of its own attitude to use it
+    assert (odo.vx, odo.vy, odo.vz) == pytest.approx((1.0, 50.0, -2.0))
     assert odo.frame_id == mavlink2.MAV_FRAME_LOCAL_NED
-    assert odo.child_frame_id == mavlink2.MAV_FRAME_BODY_FRD
+    assert odo.child_frame_id == mavlink2.MAV_FRAME_LOCAL_NED
+    # the estimate's own variances where PX4 reads them (upper-right triangles, row-major):
+    # position N/E/D at 0/6/11, attitude at 15/18/20; velocity N/E/D at 0/6/11
+    pose, vel = odo.pose_covariance, odo.velocity_covariance
+    assert [pose[i] for i in (0, 6, 11, 15, 18, 20)] == pytest.approx(
+        [9.0, 16.0, 4.0, 1e-4, 1e-4, 1e-3])
+    assert [vel[i] for i in (0, 6, 11)] == pytest.approx([0.01, 0.01, 0.04])
+    assert sum(abs(pose[i]) for i in range(21) if i not in (0, 6, 11, 15, 18, 20)) == 0.0
     # PX4 takes ODOMETRY as external vision only for these; GPS_INS it drops as unsupported
     assert odo.estimator_type in (mavlink2.MAV_ESTIMATOR_TYPE_UNKNOWN,
                                   mavlink2.MAV_ESTIMATOR_TYPE_NAIVE,
