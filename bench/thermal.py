@@ -78,9 +78,20 @@ IMU_FOR_PART = {"bmi088": "consumer-mems", "icm20948": "consumer-mems",
                 "icm42688p": "consumer-mems", "adis1646x": "industrial-mems"}  # fmt: skip
 PROFILES: dict[str, dict[str, Any]] = {
     "warmup": {},
-    "cold-soak": {"start_temperature_c": -15.0},
-    "hot-day": {"ambient_offset_k": 20.0},
+    "cold-soak": {"start_temperature_c": -25.0},
+    "hot-day": {"start_temperature_c": 50.0, "ambient_offset_k": 10.0, "power_on_s": -600.0},
+    "heater-failure": {"power_on_s": -1800.0, "heater_setpoint_c": 55.0},
 }
+"""The thermal settings of each profile (``sensors.imu.thermal``, as the library's
+``thermal-*`` scenarios set them)."""
+PROFILE_PLAN = {"cold-soak": "climb-descent"}
+"""A profile that needs its own plan (the cold soak warms through climbs and descents); the
+others take ``--plans`` in turn."""
+HOT_DAY_DT_K = 20.0
+"""The hot day's air: ISA + 20 K (the barometer's non-standard day, which the IMU's air
+follows)."""
+HEATER_FAILS_AFTER_S = 60.0
+"""The heater stops this long into the outage."""
 CAL_TREF_C = 25.0
 CAL_SOAK_C = -20.0
 CAL_CHAMBER_OFFSET_K = 45.0  # ISA sea level 15 degC + 45 K: the chamber's +60 degC
@@ -88,13 +99,16 @@ CAL_DURATION_S = 3.0 * 3600.0
 CAL_BLOCK_S = 10.0
 
 
-def thermal_config(part_name: str, profile: str) -> Any:
+def thermal_config(part_name: str, profile: str, outage_start_s: float) -> Any:
     from sim import presets
     from sim.imu_thermal import ImuThermalConfig
 
     part = presets.imu_thermal_preset(part_name)
     assert part is not None
-    return ImuThermalConfig(part=part, preset=part_name, **PROFILES[profile])
+    extra: dict[str, Any] = {}
+    if profile == "heater-failure":
+        extra["heater_fails_at_s"] = outage_start_s + HEATER_FAILS_AFTER_S
+    return ImuThermalConfig(part=part, preset=part_name, **PROFILES[profile], **extra)
 
 
 def calibration_run(part_name: str, seed: int, imu: str) -> tuple[str, dict[str, Any]]:
@@ -168,17 +182,21 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
     setup = SimSetup.build(plan=plan, imu=imu, gnss="modern", seed=seed,
                            duration_s=start_s + outage_s + 5.0,
                            gnss_off=[f"{start_s}:{outage_s + 10.0}"])  # fmt: skip
-    therm_cfg = thermal_config(part, profile)
-    setup = dataclasses.replace(
-        setup, sensors=setup.sensors.model_copy(update={"imu_thermal": therm_cfg}))
+    therm_cfg = thermal_config(part, profile, start_s)
+    update: dict[str, Any] = {"imu_thermal": therm_cfg}
+    if profile == "hot-day":
+        update["baro"] = setup.sensors.baro.model_copy(
+            update={"sea_level_temperature_offset_k": HOT_DAY_DT_K})
+    setup = dataclasses.replace(setup, sensors=setup.sensors.model_copy(update=update))
     t0 = time.perf_counter()
     frames: list[bytes] = []
     flown = fly(setup, lambda _t, f: frames.append(f))
     dec = Decoder()
     items = [d.sample for f in frames for d in dec.feed(f)]
     sim_wall = time.perf_counter() - t0
-    temps = [float(s.temperature_k) for s in items
+    imu_t = [(s.time_us * 1e-6, float(s.temperature_k)) for s in items
              if hasattr(s, "angular_rate_b_rps") and hasattr(s, "temperature_k")]
+    temps = [k for _, k in imu_t]
     cal_text, cal_info = calibration_run(part, seed, imu)
     with tempfile.TemporaryDirectory() as tmp:
         cal_path = Path(tmp) / f"unit{seed}.params"
@@ -192,7 +210,7 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
         "plan": plan, "seed": seed, "part": part, "imu": imu, "profile": profile,
         "sim_s": flown.sim_duration_s, "sim_wall_s": sim_wall,
         "temperature_c": {"start": temps[0] - 273.15 if temps else None,
-                          "outage_start": None, "outage_end": None},
+                          **_temperatures_at(imu_t, start_s, start_s + outage_s)},
         "calibration_sweep_c": cal_info, "rows": {},
     }  # fmt: skip
     end_s = start_s + outage_s
@@ -246,6 +264,22 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
             del run, nav
     _ = make_bridge  # the registry builds gmdh-thermal through FusionRun
     return row
+
+
+def _temperatures_at(imu_t: list[tuple[float, float]], start_s: float,
+                     end_s: float) -> dict[str, float | None]:
+    """The reported die temperature at the outage's start and end, and its range before the
+    outage (what a learner could train on), degC."""
+    if not imu_t:
+        return {"outage_start": None, "outage_end": None, "before_min": None,
+                "before_max": None}
+    ts = np.array([t for t, _ in imu_t])
+    ks = np.array([k for _, k in imu_t]) - 273.15
+    before = ks[ts < start_s]
+    return {"outage_start": float(np.interp(start_s, ts, ks)),
+            "outage_end": float(np.interp(end_s, ts, ks)),
+            "before_min": float(before.min()) if len(before) else None,
+            "before_max": float(before.max()) if len(before) else None}
 
 
 def _gmdh_cost(nav: Any) -> dict[str, Any]:
@@ -414,7 +448,8 @@ def main(argv: list[str] | None = None) -> int:
         print("\ncost: " + json.dumps(res["summary"].get("gmdh_cost")))
         return 0
     plans = args.plans.split(",")
-    tasks = [{"plan": plans[(i + j) % len(plans)], "seed": args.seed_base + i, "part": part,
+    tasks = [{"plan": PROFILE_PLAN.get(profile, plans[(i + j) % len(plans)]),
+              "seed": args.seed_base + i, "part": part,
               "profile": profile, "outage_start_s": args.outage_start, "outage_s": args.outage,
               "strategies": args.strategies.split(",")}
              for j, part in enumerate(args.parts.split(","))
