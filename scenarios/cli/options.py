@@ -33,7 +33,7 @@ __all__ = [
     "IMU_THERMAL_HELP", "AirspeedOption", "AirspeedOverride", "AlignOption", "AlignOverride",
     "AltitudeOption", "BridgeOption", "FoxgloveOption", "GnssOption", "ImuOption",
     "ImuThermalOption", "QuietOption", "SettleOption",
-    "SigningKeyFileOption", "ThermalCalOption", "ThermalOption",
+    "SigningKeyFileOption", "ThermalCalOption", "ThermalOption", "ThermalOverride",
     "ThermalPartOption", "ZenohKeyFileOption",
     "ZenohLowLatencyOption", "ZenohSecurity",
     "option_group", "zenoh_security_options",
@@ -63,6 +63,9 @@ ThermalOption = Annotated[str, typer.Option(
     help=f"IMU thermal strategy: {', '.join(THERMAL_MODES)} (off: the datasheet's bias noise; "
          "blind: bias noise widened for the part's thermal drift; states: temperature-"
          "coefficient states; cal: a calibration file, --thermal-cal).")]
+ThermalOverride = Annotated[str | None, typer.Option(
+    help=f"Override the scenario's IMU thermal strategy: {', '.join(THERMAL_MODES)} (cal: the "
+         "scenario's fusion.thermal_cal file).")]
 ThermalPartOption = Annotated[str, typer.Option(
     help="The IMU part whose datasheet temperature coefficients and temperature sensor the "
          "thermal strategies assume (a thermal preset: bmi088, icm42688p, icm20948, "
