@@ -47,10 +47,11 @@ Tuning and held-out flights. What each setting was chosen on:
 - the blind filter's thermal process noise (``q = (tempco * 0.02 K/s)^2 * 300 s``), the
   residual shares of ``states`` and ``cal`` and the coefficient walk: the datasheet
   derivation (:mod:`fusion.thermal.tuning`), on no flight;
-- the gmdh-thermal gate's rule and thresholds (``BridgeConfig.gate_*``): the bridging bench's
-  tuning seeds 1-5 of ``racetrack`` and ``survey`` (``bench/bridging.py --tune-gate``), on
-  no thermal flight; its trial horizon (120 s), range margin (1 K), window (600 pairs) and
-  refit period (30 s) were fixed before the first thermal run;
+- the gmdh-thermal gate (``BridgeConfig.gate_*``, the bridging gate's defaults): its margin
+  was chosen on the bridging bench's tuning seeds 1-5 of ``racetrack`` and ``survey``
+  (``bench/bridging.py --tune-gate``), on no thermal flight; its trial horizon (120 s),
+  range margin (1 K), window (600 pairs) and refit period (30 s) were fixed before the first
+  thermal run;
 - the learner's plumbing (one pair a second, also while a coarse reading holds; the stuck
   test's 128 s floor; six GMDH survivors per layer): tuning seed 1, profile ``warmup``,
   parts ``bmi088``, ``icm20948``, ``adis1646x`` on ``racetrack`` / ``survey``, a 300 s
