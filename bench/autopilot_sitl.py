@@ -11,8 +11,10 @@ library scenario of that autopilot as a user does, with one command::
 and collects from the run's ``summary.json``: the exit code and wall time, the failures, the
 version string the binary printed, its instance and ports and how it stopped, lockstep
 counters, when the trim was released, hilnav's and the autopilot's horizontal error in each
-GNSS outage and with GNSS, and the altitude hold (the truth's height over the flight after the
-trim release, from ``run.tlog``, against the start height). Nothing is judged here: the
+GNSS outage and with GNSS, and the altitude hold (:func:`altitude_hold`: the truth's height
+against the mission item's commanded altitude, outside turns). A scenario with
+``aiding: hilnav`` and ``unaided_baseline`` adds its card of hilnav, the aided and the unaided
+autopilot (``aided_vs_unaided``) and the unaided flight's own row. Nothing is judged here: the
 numbers are recorded as they came, with the exact command.
 
 Scenarios: ``scenarios/library/autopilot/{arduplane,px4}-mission-gnss-outage.yaml`` when the
@@ -88,8 +90,15 @@ def run_one(kind: str, binary: Path, out: Path, scenario: Path | None = None,
         return row
     s = json.loads(summary_path.read_text())
     row.update(summary_row(s))
-    row["altitude_hold"] = altitude_hold(out / "run.tlog",
-                                         (s.get("autopilot") or {}).get("trim_released_s"))
+    row["altitude_hold"] = altitude_hold(out / "run.tlog", s)
+    ap = s.get("autopilot") or {}
+    if ap.get("aided_vs_unaided") is not None:
+        row["aided_vs_unaided"] = ap["aided_vs_unaided"]
+        base = out / "unaided"
+        if (base / "summary.json").is_file():
+            b = json.loads((base / "summary.json").read_text())
+            row["unaided_flight"] = {**summary_row(b),
+                                     "altitude_hold": altitude_hold(base / "run.tlog", b)}
     return row
 
 
@@ -140,37 +149,90 @@ def summary_row(s: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def altitude_hold(tlog: Path, from_s: float | None) -> dict[str, Any] | None:
-    """The truth's height (HIL_STATE_QUATERNION of the run's ``.tlog``) from ``from_s`` (the
-    trim release; None: the start) to the end, against the height at the start: the lowest
-    and highest deviation and its RMS, m."""
+TURN_ROLL_DEG = 10.0
+"""A truth roll beyond this is a turn: the altitude hold is judged outside turns."""
+REACHED_M = 10.0
+"""After the commanded altitude changes, the hold is judged from when the truth first comes
+this close to it (the climb or descent to it is not a hold)."""
+HOLD_TARGET_M = 30.0
+"""The bench's target: within this of the commanded altitude outside turns."""
+
+
+def altitude_hold(tlog: Path, summary: dict[str, Any]) -> dict[str, Any]:
+    """The truth's height against the altitude the autopilot was commanded to hold.
+
+    The commanded altitude is that of the mission item the autopilot flew (its MISSION_CURRENT,
+    recorded in ``autopilot.health.mission_current``; the list sent in
+    ``autopilot.script.mission``): a waypoint's or loiter's altitude above mean sea level.
+    Take-off, return to launch (the autopilot's own altitude rules) and the home slot command
+    none. After each change of commanded altitude the hold starts when the truth
+    (HIL_STATE_QUATERNION of the run's ``.tlog``) first comes within ``REACHED_M`` of it.
+    Returns the deviation (truth - commanded, m) outside turns (|roll| <= ``TURN_ROLL_DEG``):
+    lowest, highest, RMS and the seconds judged, the same inside turns, and whether it stays
+    within ``HOLD_TARGET_M``; or ``{"problem": why}`` when there is nothing to judge."""
+    ap = summary.get("autopilot") or {}
+    mission = (ap.get("script") or {}).get("mission") or []
+    changes = (ap.get("health") or {}).get("mission_current") or []
+    if not mission:
+        return {"problem": "no mission was sent"}
+    if not changes:
+        return {"problem": "the autopilot reported no MISSION_CURRENT"}
     if not tlog.is_file():
-        return None
+        return {"problem": f"no {tlog.name}"}
     import numpy as np
 
+    from fusion.rotations import quat_to_euler
     from hil.codec import mavlink2
     from hil.tlog import read_tlog
 
     parser = mavlink2.MAVLink(None)
     parser.robust_parsing = True
-    heights: list[tuple[float, float]] = []
+    rows: list[tuple[float, float, float]] = []
     for _time_us, frame in read_tlog(tlog):
         for msg in parser.parse_buffer(frame) or []:
             if msg.get_msgId() == mavlink2.MAVLINK_MSG_ID_HIL_STATE_QUATERNION:
-                heights.append((msg.time_usec * 1e-6, msg.alt * 1e-3))
-    if len(heights) < 2:
-        return None
-    t = np.array([h[0] for h in heights]) - heights[0][0]
-    alt = np.array([h[1] for h in heights])
-    start = float(alt[0])
-    keep = t >= (from_s or 0.0)
-    if not keep.any():
-        return None
-    dev = alt[keep] - start
-    return {"start_alt_msl_m": round(start, 1), "from_s": from_s,
-            "min_deviation_m": round(float(dev.min()), 1),
-            "max_deviation_m": round(float(dev.max()), 1),
-            "rms_deviation_m": round(float(np.sqrt(np.mean(dev ** 2))), 1)}
+                roll = float(quat_to_euler(np.asarray(msg.attitude_quaternion, float))[0])
+                rows.append((msg.time_usec * 1e-6, msg.alt * 1e-3, roll))
+    if len(rows) < 2:
+        return {"problem": f"no truth in {tlog.name}"}
+    data = np.array(rows)
+    t, alt, roll = data[:, 0] - data[0, 0], data[:, 1], data[:, 2]
+    holds = {int(m["seq"]): m.get("alt_msl_m") for m in mission
+             if str(m.get("label", "")).startswith(("waypoint", "loiter"))}
+    change_t = np.array([float(c["time_s"]) for c in changes])
+    change_seq = [int(c["seq"]) for c in changes]
+    idx = np.searchsorted(change_t, t, side="right") - 1
+    commanded = np.array([np.nan if i < 0 or holds.get(change_seq[i]) is None
+                          else float(holds[change_seq[i]]) for i in idx])
+    judged = np.zeros(t.size, bool)
+    reached = False
+    for k in range(t.size):
+        if not np.isfinite(commanded[k]):
+            reached = False
+            continue
+        if k > 0 and commanded[k] != commanded[k - 1]:
+            reached = False
+        reached = reached or abs(alt[k] - commanded[k]) <= REACHED_M
+        judged[k] = reached
+    dt = float(np.median(np.diff(t)))
+    turning = np.abs(np.degrees(roll)) > TURN_ROLL_DEG
+
+    def stats(keep: np.ndarray) -> dict[str, Any] | None:
+        if not keep.any():
+            return None
+        dev = alt[keep] - commanded[keep]
+        return {"seconds": round(float(keep.sum()) * dt, 1),
+                "min_deviation_m": round(float(dev.min()), 1),
+                "max_deviation_m": round(float(dev.max()), 1),
+                "rms_deviation_m": round(float(np.sqrt(np.mean(dev ** 2))), 1)}
+
+    straight = stats(judged & ~turning)
+    return {"commanded_alt_msl_m": sorted({round(float(a), 1) for a in commanded[judged]}),
+            "turn_roll_deg": TURN_ROLL_DEG, "target_m": HOLD_TARGET_M,
+            "outside_turns": straight, "in_turns": stats(judged & turning),
+            "within_target": None if straight is None else bool(
+                max(-straight["min_deviation_m"], straight["max_deviation_m"])
+                <= HOLD_TARGET_M)}
 
 
 def main(argv: list[str] | None = None) -> int:

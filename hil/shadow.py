@@ -421,11 +421,13 @@ class CompanionEncoder:
         self._p = _Packer(system_id, component_id)
         self._origin: tuple[float, float, float] | None = None
 
-    def gps_input(self, est: NavEstimate, unix_s: float | None = None) -> bytes:
+    def gps_input(self, est: NavEstimate, unix_s: float | None = None,
+                  gps_id: int = 0) -> bytes:
         """GPS_INPUT (ArduPilot): 3-D fix at the estimate; GPS week/ms from the wall clock.
 
         Accuracies are the estimate's 1-sigma position (m) and velocity (m/s); the yaw field
-        is 0 (= not provided).
+        is 0 (= not provided). ``gps_id`` is the GPS instance of type MAVLink that reads it
+        (ArduPilot's GPS_TYPE: 0, GPS2_TYPE: 1); the others ignore the frame.
         """
         now = time.time() if unix_s is None else unix_s
         week, week_ms = gps_time(now)
@@ -435,7 +437,7 @@ class CompanionEncoder:
         s_acc = math.sqrt(sum(_sigma(est, i) ** 2 for i in (3, 4, 5)))
         fix = 3 if est.mode != "initializing" else 0
         return self._p.pack(mavlink2.MAVLink_gps_input_message(
-            int(est.time_us), 0, 0, week_ms, week, fix,
+            int(est.time_us), gps_id, 0, week_ms, week, fix,
             _clip(est.lat_rad * DEGE7_PER_RAD, INT32_MIN, INT32_MAX),
             _clip(est.lon_rad * DEGE7_PER_RAD, INT32_MIN, INT32_MAX),
             _f(est.alt_msl_m), 1.0, 1.0, vn, ve, vd, s_acc, h_acc, v_acc, 12, 0))

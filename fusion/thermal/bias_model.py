@@ -16,7 +16,9 @@ with GNSS still good, the change the filter's estimate really made is compared w
 change the model of the trial's start predicted (the error left) and with no change at all
 (what the blind filter assumes); an axis feeds forward only while the gate has seen it win.
 Outside the temperature range it was trained on, widened by ``margin_k``, the model predicts
-nothing and the bias holds (1.00x of the filter underneath).
+nothing and the bias holds (1.00x of the filter underneath); the same rule holds in the
+trials: one whose start or end lies outside its model's range is not scored, so the gate
+judges the model only where it would act.
 
 Pure: no I/O, no clocks; time comes from the samples.
 """
@@ -66,6 +68,12 @@ class _Fitted:
         self.nets = nets
         self.t_min = t_min
         self.t_max = t_max
+
+    def covers(self, temp_k: float, margin_k: float) -> bool:
+        """``temp_k`` lies inside the trained temperature range widened by ``margin_k``: the
+        one rule of where the model predicts (an outage's feed-forward and the gate's trials
+        alike)."""
+        return self.t_min - margin_k <= temp_k <= self.t_max + margin_k
 
     def predict(self, temp_k: float, rate: float) -> list[float]:
         x = [temp_k, rate]
@@ -168,6 +176,8 @@ class ThermalBiasModel:
         scored = False
         while trials and time_us - trials[0][0] >= horizon_us:
             _, model, t0, r0, b0 = trials.popleft()
+            if not (model.covers(t0, self.margin_k) and model.covers(temp_k, self.margin_k)):
+                continue  # outside its range the model predicts nothing: nothing to score
             p0 = model.predict(t0, r0)
             p1 = model.predict(temp_k, rate)
             for k in range(6):
@@ -190,7 +200,7 @@ class ThermalBiasModel:
         """The predicted bias per axis (0 for the axes the gate holds off, so their change is
         nil); ``None`` outside the trained range (plus ``margin_k``) or before a fit."""
         f = self.fitted
-        if f is None or not (f.t_min - self.margin_k <= temp_k <= f.t_max + self.margin_k):
+        if f is None or not f.covers(temp_k, self.margin_k):
             return None
         p = f.predict(temp_k, rate)
         off = self.gate.fallback

@@ -5,8 +5,9 @@ run scores, fused from the same sensor stream the autopilot gets) goes to the au
 its telemetry link as a companion computer would send it (:class:`hil.shadow.CompanionEncoder`):
 
 * ArduPilot: GPS_INPUT at 5 Hz of simulated time, read by a second GPS instance of type
-  MAVLink (``GPS2_TYPE 14``) that EKF3 switches to when its own GPS loses its fix
-  (``GPS_AUTO_SWITCH 1``: use the best);
+  MAVLink (``GPS2_TYPE 14``; the frames carry its ``gps_id`` 1, as ArduPilot's MAVLink GPS
+  reads only the frames of its own instance) that EKF3 switches to when its own GPS loses
+  its fix (``GPS_AUTO_SWITCH 1``: use the best);
 * PX4: ODOMETRY at 30 Hz (position NED about the first estimate, body-axis velocity), fused by
   EKF2 as external vision (``EKF2_EV_CTRL 5``: horizontal position and velocity).
 
@@ -35,6 +36,8 @@ from hil.shadow import CompanionEncoder
 
 __all__ = ["AIDING_RATE_HZ", "CompanionAiding", "aiding_off_params", "aiding_params"]
 
+ARDUPILOT_GPS_ID: Final = 1
+"""GPS_INPUT's ``gps_id`` for ArduPilot's second GPS instance (``GPS2_TYPE``)."""
 AIDING_RATE_HZ: Final = {"ardupilot": 5.0, "px4": 30.0}
 """Frames per second of simulated time: GPS_INPUT (ArduPilot), ODOMETRY (PX4)."""
 _PARAMS: Final = {
@@ -92,7 +95,8 @@ class CompanionAiding:
         # on a fixed grid (the filter's epochs need not divide the period), never a burst
         self._next_us = t + self.period_us if self._next_us is None \
             or self._next_us + self.period_us <= t else self._next_us + self.period_us
-        frame = (self._encoder.gps_input(est) if self.autopilot == "ardupilot"
+        frame = (self._encoder.gps_input(est, gps_id=ARDUPILOT_GPS_ID)
+                 if self.autopilot == "ardupilot"
                  else self._encoder.odometry(est))
         self._out.append(frame)
 

@@ -200,6 +200,9 @@ class Commander:
         self._in_flight: dict[str, _Sent] = {}
         self.params_confirmed = 0
         self._upload: MissionUpload | None = None
+        self._mission_sent: list[dict[str, Any]] | None = None
+        """The list uploaded (seq, label, altitude MSL m): what MISSION_CURRENT's ``seq``
+        names."""
         self._last_cmd_at = -math.inf
         self._cmd_tries = 0
         self._last_ack: int | None = None
@@ -241,11 +244,12 @@ class Commander:
         return self._custom_mode
 
     def report(self) -> dict[str, Any]:
-        """Steps, times and counters for the scorecard."""
+        """Steps, times, the mission list sent (None: no mission step began) and counters for
+        the scorecard."""
         return {"steps": [s.as_dict() for s in self.steps], "failure": self.failure,
                 "armed_s": self.armed_s, "mode_reached_s": self.mode_reached_s,
                 "mode": self.script.mode, "params_confirmed": self.params_confirmed,
-                "counters": dict(self.counters)}
+                "mission": self._mission_sent, "counters": dict(self.counters)}
 
     def end(self, time_s: float) -> None:
         """The flight ended at ``time_s``: a step still waiting fails the script."""
@@ -287,6 +291,9 @@ class Commander:
         elif record.name == "mission":
             assert self._target is not None
             items = mission_list(self.autopilot, self.script.mission, self.home)
+            self._mission_sent = [{"seq": seq, "label": item.label,
+                                   "alt_msl_m": item.alt_msl_m}
+                                  for seq, item in enumerate(items)]
             self._upload = MissionUpload(items, self._target, retry_s=self.retry_s)
             self._upload.start(self._time_s)
             self._flush_upload()

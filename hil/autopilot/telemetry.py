@@ -91,8 +91,9 @@ _EKF: Final = int(mavlink2.MAVLINK_MSG_ID_EKF_STATUS_REPORT)
 _TXT: Final = int(mavlink2.MAVLINK_MSG_ID_STATUSTEXT)
 _ACK: Final = int(mavlink2.MAVLINK_MSG_ID_COMMAND_ACK)
 _HB: Final = int(mavlink2.MAVLINK_MSG_ID_HEARTBEAT)
+_MSC: Final = int(mavlink2.MAVLINK_MSG_ID_MISSION_CURRENT)
 
-TELEMETRY_MSG_IDS: Final = frozenset({_GPI, _ATT, _LPN, _EST, _EKF, _TXT, _ACK})
+TELEMETRY_MSG_IDS: Final = frozenset({_GPI, _ATT, _LPN, _EST, _EKF, _TXT, _ACK, _MSC})
 """What the recorder accepts besides HEARTBEAT."""
 COMMAND_REPLY_IDS: Final = frozenset({
     int(mavlink2.MAVLINK_MSG_ID_PARAM_VALUE), int(mavlink2.MAVLINK_MSG_ID_MISSION_REQUEST_INT),
@@ -100,6 +101,8 @@ COMMAND_REPLY_IDS: Final = frozenset({
 """What the autopilot answers a commander with (:meth:`AutopilotTelemetry.attach`)."""
 #: Messages asked for at ``rate_hz``: the estimate, and the estimator status each autopilot has.
 _REQUESTED: Final = (_GPI, _ATT, _LPN)
+#: ... and the mission item it flies, at this rate (Hz).
+_MISSION_CURRENT_HZ: Final = 2.0
 _STATUS_OF: Final = {int(mavlink2.MAV_AUTOPILOT_PX4): _EST,
                      int(mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA): _EKF}
 _ARMED: Final = int(mavlink2.MAV_MODE_FLAG_SAFETY_ARMED)
@@ -195,6 +198,7 @@ class AutopilotTelemetry:
         self._armed: bool | None = None
         self._position_from_us: int | None = None
         self._modes: list[dict[str, Any]] = []
+        self._mission_current: list[dict[str, Any]] = []
         self._autopilot: tuple[int, int] | None = None
         self._autopilot_kind: int | None = None
         self._last_time_us = 0
@@ -294,6 +298,8 @@ class AutopilotTelemetry:
                 self._on_text(msg)
             elif msg_id == _ACK:
                 self._on_ack(msg)
+            elif msg_id == _MSC:
+                self._on_mission_current(msg)
 
     def _stamp(self, time_us: int) -> int:
         return time_us + self.time_offset_us
@@ -401,6 +407,15 @@ class AutopilotTelemetry:
         self._texts.append({"time_s": self._seconds(time_us), "severity": severity,
                             "text": text})
 
+    def _on_mission_current(self, msg: Any) -> None:
+        """Keep each change of the mission item flown, at the autopilot's latest time
+        (MISSION_CURRENT carries no time of its own)."""
+        seq = int(msg.seq)
+        if self._mission_current and self._mission_current[-1]["seq"] == seq:
+            return
+        self._mission_current.append({"time_s": self._seconds(self._last_time_us),
+                                      "seq": seq})
+
     def _on_ack(self, msg: Any) -> None:
         if int(msg.command) != int(mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL):
             return
@@ -412,10 +427,14 @@ class AutopilotTelemetry:
         target_sys, target_comp = self._autopilot
         interval_us = 1e6 / self.rate_hz
         status = _STATUS_OF.get(self._autopilot_kind or 0)
-        for msg_id in _REQUESTED if status is None else (*_REQUESTED, status):
+        wanted = [(msg_id, interval_us) for msg_id in _REQUESTED]
+        if status is not None:
+            wanted.append((status, interval_us))
+        wanted.append((_MSC, 1e6 / _MISSION_CURRENT_HZ))
+        for msg_id, every_us in wanted:
             cmd = mavlink2.MAVLink_command_long_message(
                 target_sys, target_comp, int(mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL), 0,
-                float(msg_id), interval_us, 0, 0, 0, 0, 0)
+                float(msg_id), every_us, 0, 0, 0, 0, 0)
             if self._link.send_message(cmd):
                 self._count["interval_requests"] += 1
         self._requested = True
@@ -500,7 +519,9 @@ class AutopilotTelemetry:
         )
 
     def health(self) -> dict[str, Any]:
-        """The autopilot's health for the scorecard: its mode / armed / status changes, its
+        """The autopilot's health for the scorecard: its mode / armed / status changes, the
+        mission item it flies at each change (``mission_current``: MISSION_CURRENT's ``seq``
+        in the list it was sent, ArduPilot's home slot 0 included), its
         STATUSTEXT messages (``warnings``: severity WARNING or worse; ``failsafes``: those
         that say "failsafe"), and its estimator status (flags at every change, the times the
         absolute horizontal position was declared lost / regained, the largest test ratios
@@ -508,6 +529,7 @@ class AutopilotTelemetry:
         with self._lock:
             self._flush_chunks(self._last_time_us)
             modes = [dict(m) for m in self._modes]
+            mission_current = [dict(m) for m in self._mission_current]
             texts = [dict(t) for t in self._texts]
             status = list(self._status)
             kind = self._autopilot_kind
@@ -537,6 +559,7 @@ class AutopilotTelemetry:
             "component_id": None if source is None else source[1],
             "modes": modes,
             "armed_ever": any(m["armed"] for m in modes),
+            "mission_current": mission_current,
             "statustext": texts,
             "warnings": [t for t in texts if t["severity"] <= _SEVERITY_WARNING],
             "failsafes": [t for t in texts if "failsafe" in t["text"].lower()],

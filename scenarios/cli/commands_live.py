@@ -9,7 +9,7 @@ from typing import Annotated, Any, Literal
 
 import typer
 
-from fusion.choices import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
+from fusion.choices import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE, DEFAULT_THERMAL_MODE
 from scenarios.cli.autopilot_hints import AutopilotBinaryOption
 from scenarios.cli.errors import RunFailed, cli_errors, out_dir, out_file
 from scenarios.cli.options import (
@@ -18,7 +18,11 @@ from scenarios.cli.options import (
     AltitudeOption,
     BridgeOption,
     FoxgloveOption,
+    ImuThermalOption,
     QuietOption,
+    ThermalCalOption,
+    ThermalOption,
+    ThermalPartOption,
     ZenohKeyFileOption,
     ZenohLowLatencyOption,
     ZenohSecurity,
@@ -61,6 +65,10 @@ def up(
     altitude: AltitudeOption = "ekf",
     airspeed: AirspeedOption = DEFAULT_AIRSPEED_MODE,
     align: AlignOption = DEFAULT_ALIGN_MODE,
+    imu_thermal: ImuThermalOption = "off",
+    thermal: ThermalOption = DEFAULT_THERMAL_MODE,
+    thermal_cal: ThermalCalOption = None,
+    thermal_part: ThermalPartOption = "bmi088",
     gcs: Annotated[
         str | None, typer.Option(help="Also show the shadow vehicle to this ground station URL.")
     ] = None,
@@ -131,7 +139,8 @@ def up(
     options = UpOptions(duration_s=duration, speed=speed, out=out, vehicle=vehicle, plan=plan,
                         seed=seed, gnss_off=tuple(gnss_off or ()), imu=imu, gnss=gnss,
                         bridge=bridge, altitude=altitude, airspeed=airspeed, align=align,
-                        gcs=gcs,
+                        imu_thermal=imu_thermal, thermal=thermal, thermal_cal=thermal_cal,
+                        thermal_part=thermal_part, gcs=gcs,
                         monitor=monitor,
                         lockstep=lockstep, foxglove_port=foxglove, zenoh_host=zenoh_host,
                         users_file=users_file, insecure=insecure, zenoh_key_file=zenoh_key_file,
@@ -144,7 +153,8 @@ def up(
                         connect_timeout_s=connect_timeout, stall_timeout_s=stall_timeout,
                         autopilot_binary=autopilot_binary)
     setup = SimSetup.build(plan=plan, seed=seed, gnss_off=list(gnss_off or ()), imu=imu,
-                           gnss=gnss, duration_s=duration or DEFAULT_DURATION_S)
+                           gnss=gnss, imu_thermal=imu_thermal,
+                           duration_s=duration or DEFAULT_DURATION_S)
     def log(text: str) -> None:
         console.print(text, highlight=False)
 

@@ -41,6 +41,7 @@ from scenarios.cli.options import (
     SettleOption,
     ThermalCalOption,
     ThermalOption,
+    ThermalOverride,
     ThermalPartOption,
 )
 from scenarios.cli.output import (
@@ -229,9 +230,7 @@ def run(
         "--unaided-baseline", help="With autopilot.aiding: hilnav: first fly the same seed "
         "with the autopilot unaided (into OUT/unaided), then aided, and score both on one card "
         "(as the scenario's autopilot.unaided_baseline).")] = False,
-    thermal: Annotated[str | None, typer.Option(
-        help="Override the scenario's IMU thermal strategy (off, blind, states, cal: the "
-             "scenario's fusion.thermal_cal file).")] = None,
+    thermal: ThermalOverride = None,
     autopilot_binary: AutopilotBinaryOption = None,
     quiet: QuietOption = False,
 ) -> None:

@@ -19,6 +19,7 @@ import typer
 
 from scenarios.cli.errors import RunFailed, bad_input, cli_errors, out_file
 from scenarios.cli.options import (
+    IMU_THERMAL_HELP,
     SigningKeyFileOption,
     ZenohSecurity,
     option_group,
@@ -65,9 +66,7 @@ def _flight_template(
         help="Pitot (airspeed) preset; none = an aircraft without one.",
         rich_help_panel=_FLIGHT)] = "ms4525do",
     imu_thermal: Annotated[str, typer.Option(
-        help="Thermal preset of the IMU part (its temperature, warming up from the start, "
-             "moves its biases; the stream carries it); off = none.",
-        rich_help_panel=_FLIGHT)] = "off",
+        help=IMU_THERMAL_HELP, rich_help_panel=_FLIGHT)] = "off",
     lat: Annotated[float, typer.Option(
         help="Start latitude, deg.", rich_help_panel=_FLIGHT)] = 47.0,
     lon: Annotated[float, typer.Option(

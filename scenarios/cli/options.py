@@ -30,9 +30,10 @@ from fusion.choices import (
 )
 
 __all__ = [
-    "AirspeedOption", "AirspeedOverride", "AlignOption", "AlignOverride", "AltitudeOption",
-    "BridgeOption", "FoxgloveOption", "GnssOption", "ImuOption", "QuietOption", "SettleOption",
-    "SigningKeyFileOption", "ThermalCalOption", "ThermalOption",
+    "IMU_THERMAL_HELP", "AirspeedOption", "AirspeedOverride", "AlignOption", "AlignOverride",
+    "AltitudeOption", "BridgeOption", "FoxgloveOption", "GnssOption", "ImuOption",
+    "ImuThermalOption", "QuietOption", "SettleOption",
+    "SigningKeyFileOption", "ThermalCalOption", "ThermalOption", "ThermalOverride",
     "ThermalPartOption", "ZenohKeyFileOption",
     "ZenohLowLatencyOption", "ZenohSecurity",
     "option_group", "zenoh_security_options",
@@ -62,10 +63,17 @@ ThermalOption = Annotated[str, typer.Option(
     help=f"IMU thermal strategy: {', '.join(THERMAL_MODES)} (off: the datasheet's bias noise; "
          "blind: bias noise widened for the part's thermal drift; states: temperature-"
          "coefficient states; cal: a calibration file, --thermal-cal).")]
+ThermalOverride = Annotated[str | None, typer.Option(
+    help=f"Override the scenario's IMU thermal strategy: {', '.join(THERMAL_MODES)} (cal: the "
+         "scenario's fusion.thermal_cal file).")]
 ThermalPartOption = Annotated[str, typer.Option(
     help="The IMU part whose datasheet temperature coefficients and temperature sensor the "
          "thermal strategies assume (a thermal preset: bmi088, icm42688p, icm20948, "
          "adis1646x).")]
+IMU_THERMAL_HELP = ("Thermal preset of the simulated IMU part (its temperature, warming up "
+                    "from the start, moves its biases; the stream carries it); off = none.")
+"""Help of the simulator's ``--imu-thermal`` (``hilnav sim`` puts it in its flight panel)."""
+ImuThermalOption = Annotated[str, typer.Option(help=IMU_THERMAL_HELP)]
 ThermalCalOption = Annotated[Path | None, typer.Option(
     help="IMU thermal calibration file (PX4 TC_G0_*/TC_A0_* or ArduPilot INS_TCAL1_* "
          "parameters); implies --thermal cal.")]

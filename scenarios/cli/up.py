@@ -37,6 +37,7 @@ from hil.bus.security import RouterSecurity, endpoint_host
 from hil.codec import SIM_SYSTEM_ID
 from hil.pipeline import SimSetup, build_filter, filter_config
 from hil.router import zenoh_router
+from hil.thermal_cal import command_thermal_tuning
 from scenarios.cli.children import (
     Child,
     free_udp_port,
@@ -55,8 +56,8 @@ from scenarios.cli.up_options import (
 from sim.presets import gnss_preset
 
 # the children's helpers are part of up's interface (tests and benches stop processes by PID)
-__all__ = ["Child", "Progress", "SimLogRelay", "UpOptions", "free_udp_port", "run_up",
-           "stop_process", "wait_gone"]
+__all__ = ["Child", "Progress", "SimLogRelay", "UpOptions", "filter_args", "free_udp_port",
+           "run_up", "stop_process", "wait_gone"]
 
 _CHILD_USERS = ("fusion", "sim", "monitor")
 
@@ -112,10 +113,11 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print,
         raise ValueError("--foxglove needs the monitor (drop --no-monitor)")
     # validate the flight and the filter here: a typo must fail before anything starts
     SimSetup.build(plan=options.plan, seed=options.seed, gnss_off=list(options.gnss_off),
-                   imu=options.imu, gnss=options.gnss,
+                   imu=options.imu, gnss=options.gnss, imu_thermal=options.imu_thermal,
                    duration_s=options.duration_s or DEFAULT_DURATION_S)
+    therm = command_thermal_tuning(options.thermal, options.thermal_cal, options.thermal_part)
     build_filter(filter_config(options.imu, gnss_preset(options.gnss), options.altitude,
-                               options.airspeed, options.align), options.bridge)
+                               options.airspeed, options.align, therm), options.bridge)
     if options.autopilot != "none" and options.lockstep:
         raise ValueError("--lockstep paces the simulator against the fusion; with --px4 / "
                          "--ardupilot the autopilot sets the pace (lockstep with it)")
@@ -145,6 +147,18 @@ def run_up(options: UpOptions, *, log: Callable[[str], None] = print,
                              summary_path, SimLogRelay(progress, log, warn or log))
 
 
+def filter_args(options: UpOptions) -> list[str]:
+    """The fusion child's filter choices (``hilnav fusion`` options) from ``up``'s."""
+    args = ["--imu", options.imu, "--gnss", options.gnss, "--bridge", options.bridge,
+            "--altitude", options.altitude, "--airspeed", options.airspeed,
+            "--align", options.align, "--thermal", options.thermal,
+            "--thermal-part", options.thermal_part]
+    if options.thermal_cal is not None:
+        # the child's working folder is up's: an absolute path reads the same file either way
+        args += ["--thermal-cal", str(options.thermal_cal.resolve())]
+    return args
+
+
 def _start_fusion_and_monitor(options: UpOptions, listen: str, security: RouterSecurity,
                               zenoh_args: dict[str, list[str]], port: int,
                               children: list[Child], log: Callable[[str], None], *,
@@ -163,10 +177,7 @@ def _start_fusion_and_monitor(options: UpOptions, listen: str, security: RouterS
     fusion_args = ["fusion", "--mavlink", f"udpin:127.0.0.1:{port}",
                    "--source", str(SIM_SYSTEM_ID), "--zenoh", endpoint,
                    *zenoh_args["fusion"],
-                   "--vehicle", options.vehicle, "--out", str(out), "--imu", options.imu,
-                   "--gnss", options.gnss, "--bridge", options.bridge,
-                   "--altitude", options.altitude, "--airspeed", options.airspeed,
-                   "--align", options.align]
+                   "--vehicle", options.vehicle, "--out", str(out), *filter_args(options)]
     fusion_args += ["--settle", str(settle_s(options))]
     if idle_exit:
         fusion_args += ["--idle-exit", str(fusion_idle_exit_s(options))]
@@ -204,6 +215,7 @@ def _run_children(options: UpOptions, listen: str, security: RouterSecurity,
                 "--zenoh", endpoint, *zenoh_args["sim"], "--vehicle", options.vehicle,
                 "--plan", options.plan,
                 "--seed", str(options.seed), "--imu", options.imu, "--gnss", options.gnss,
+                "--imu-thermal", options.imu_thermal,
                 "--duration", str(options.duration_s or DEFAULT_DURATION_S),
                 "--record", str(out / "run.tlog"), "--wait-peer", "30"]
     for w in options.gnss_off:

@@ -60,7 +60,7 @@ _COVERAGE_SLACK_S = 5.0  # the scorecard may start after the flight (the filter'
 
 def _setup(options: UpOptions) -> SimSetup:
     return SimSetup.build(plan=options.plan, seed=options.seed, gnss_off=list(options.gnss_off),
-                          imu=options.imu, gnss=options.gnss,
+                          imu=options.imu, gnss=options.gnss, imu_thermal=options.imu_thermal,
                           duration_s=options.duration_s or DEFAULT_DURATION_S)
 
 

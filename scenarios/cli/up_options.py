@@ -8,7 +8,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from fusion.choices import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE
+from fusion.choices import DEFAULT_AIRSPEED_MODE, DEFAULT_ALIGN_MODE, DEFAULT_THERMAL_MODE
 
 __all__ = ["DEFAULT_DURATION_S", "FUSION_IDLE_EXIT_S", "UpOptions", "fusion_idle_exit_s",
            "settle_s"]
@@ -42,6 +42,14 @@ class UpOptions(BaseModel):
     """The fusion's air-data choice (on, off, synthetic)."""
     align: str = DEFAULT_ALIGN_MODE
     """The fusion's alignment (auto, static, in-flight)."""
+    imu_thermal: str = "off"
+    """Thermal preset of the simulated IMU part (``off``: an IMU without a temperature)."""
+    thermal: str = DEFAULT_THERMAL_MODE
+    """The fusion's IMU thermal strategy (off, blind, states, cal)."""
+    thermal_cal: Path | None = None
+    """The fusion's thermal calibration file (implies ``cal``)."""
+    thermal_part: str = "bmi088"
+    """The part whose datasheet figures the fusion's thermal strategy assumes."""
     gnss_off: tuple[str, ...] = ()
     gcs: str | None = None
     monitor: bool = True

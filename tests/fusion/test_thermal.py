@@ -234,3 +234,18 @@ def test_a_coarse_reading_that_holds_on_a_per_sample_part_is_not_stuck() -> None
         scr.add(i * 10_000, 300.0 + 0.1 * (i // 1000))
     # THEN nothing is counted as stuck and the latest reading stands
     assert c.temperature_stuck == 0 and scr.good and scr.temperature_k == pytest.approx(300.5)
+
+
+def test_gate_trials_score_nothing_outside_the_trained_range() -> None:
+    # GIVEN a steady warm-up (0.02 K/s): every held-out trial ends 2.4 K above the range its
+    # model was trained on, where the outage prediction says nothing (margin 1 K)
+    model = ThermalBiasModel(refit_period_s=30.0, min_samples=40, horizon_s=120.0, margin_k=1.0)
+    for i in range(400):
+        temp = 293.15 + 0.02 * i
+        b = 1e-4 * (temp - 293.15)
+        model.add(i * 1_000_000, temp, 0.02, (0.0, 0.0, 0.0, 0.0, 0.0, b))
+    # THEN the model was fitted, but no trial was scored with an extrapolated prediction,
+    # so the gate holds every axis off (1.00x of the filter underneath)
+    assert model.refits > 0
+    assert all(len(s) == 0 for s in model.gate.scores)
+    assert not any(model.status.on_axes)

@@ -227,8 +227,11 @@ class ArduPilotPeer:
     ) -> None:
         self.commands = commands
         self.custom_mode = _MANUAL
+        self._gps2_fixed = False  # a GPS_INPUT for its second GPS with a 3-D fix came in
         if commands is not None:
             disarmed_s = float("inf")  # it arms when told to, never by itself
+            if commands.prearm_check is None:
+                commands.prearm_check = self._gps2_prearm
         self.disarmed_s = disarmed_s
         self.fix_after_s = fix_after_s
         self.armed_at_s: float | None = None
@@ -249,7 +252,8 @@ class ArduPilotPeer:
         """Its clock at each GPS fix it used."""
         self.counters = dict.fromkeys(
             ("frames", "resends", "lines", "bad_lines", "fixes", "params_set",
-             "params_unknown", "telemetry", "gps_input_fixes"), 0)
+             "params_unknown", "telemetry", "gps_input_fixes",
+             "gps_input_other_id"), 0)
         self._gps_input: Any = None
         self.estimate: dict[str, float] = {}
         self.track: list[tuple[float, float, float, float, float]] = []
@@ -395,6 +399,7 @@ class ArduPilotPeer:
         for msg in self._tel.recv(0.0):
             if msg.get_type() == "GPS_INPUT":
                 self._gps_input = msg  # its second GPS, of type MAVLink (GPS2_TYPE 14)
+                self._gps2_fixed |= int(msg.gps_id) == 1 and int(msg.fix_type) >= 3
                 continue
             replies += side.handle(msg, clock_s)
         for msg in replies:
@@ -410,12 +415,24 @@ class ArduPilotPeer:
         p = self.params
         return p["SIM_GPS1_ENABLE"] < 0.5 or p["SIM_GPS1_JAM"] >= 0.5
 
+    def _gps2_prearm(self) -> str | None:
+        """ArduPilot's pre-arm check of a second GPS of type MAVLink: it refuses to arm until
+        that GPS has a 3-D fix (from a GPS_INPUT addressed to it)."""
+        side = self.commands
+        if side is not None and side.params.get("GPS2_TYPE") == 14.0 and not self._gps2_fixed:
+            return "GPS 2: Bad fix"
+        return None
+
     def _take_gps_input(self) -> tuple[float, float, float, tuple[float, float, float]] | None:
         """The newest GPS_INPUT not used yet, when its second GPS is of type MAVLink and EKF3
         may switch to it (GPS2_TYPE 14, GPS_AUTO_SWITCH 1): ArduPilot on GPS2 while GPS1 has
-        no fix."""
+        no fix. As AP_GPS_MAV, the GPS reads only the frames whose ``gps_id`` is its instance
+        (GPS2: 1); the others are counted in ``gps_input_other_id``."""
         msg, self._gps_input = self._gps_input, None
         side = self.commands
+        if msg is not None and int(msg.gps_id) != 1:
+            self.counters["gps_input_other_id"] += 1
+            return None
         if msg is None or side is None or side.params.get("GPS2_TYPE") != 14.0 \
                 or side.params.get("GPS_AUTO_SWITCH") != 1.0 or int(msg.fix_type) < 3:
             return None

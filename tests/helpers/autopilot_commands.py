@@ -31,7 +31,7 @@ that item: the upload hangs).
 from __future__ import annotations
 
 import struct
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from typing import Any
 
@@ -68,6 +68,9 @@ class CommandSide:
         Its clock from which its pre-arm checks pass.
     prearm_reason : str
         What its pre-arm check says until then.
+    prearm_check : callable, optional
+        A further pre-arm check of the autopilot (called at each arm command): the reason it
+        refuses (e.g. ArduPilot's "GPS 2: Bad fix"), or None when it passes.
     """
 
     def __init__(self, flavour: str, params: dict[str, float], *,
@@ -77,8 +80,10 @@ class CommandSide:
                  reject_params: Collection[str] = (), never_ack_arm: bool = False,
                  never_reach_mode: bool = False, drop_request: int | None = None,
                  stall_request: int | None = None, legacy_requests: bool = False,
-                 request_retry_s: float = 1.0, mission_ready_s: float = 0.0) -> None:
+                 request_retry_s: float = 1.0, mission_ready_s: float = 0.0,
+                 prearm_check: Callable[[], str | None] | None = None) -> None:
         self.flavour = flavour
+        self.prearm_check = prearm_check
         self.mission_ready_s = mission_ready_s
         """Until then a MISSION_COUNT is refused with NO_SPACE, as ArduPilot answers before its
         mission storage is set up (early in its boot)."""
@@ -180,12 +185,13 @@ class CommandSide:
             if round(msg.param1) != 1:
                 self.armed = False
                 return [_ack(command, mavlink2.MAV_RESULT_ACCEPTED)]
-            if clock_s < self.prearm_ok_s:
+            reason = self.prearm_reason if clock_s < self.prearm_ok_s else (
+                None if self.prearm_check is None else self.prearm_check())
+            if reason is not None:
                 if self.flavour == "ardupilot":
-                    return [*_text(f"PreArm: {self.prearm_reason}",
-                                   mavlink2.MAV_SEVERITY_CRITICAL),
+                    return [*_text(f"PreArm: {reason}", mavlink2.MAV_SEVERITY_CRITICAL),
                             _ack(command, mavlink2.MAV_RESULT_FAILED)]
-                return [*_text(f"Preflight Fail: {self.prearm_reason}",
+                return [*_text(f"Preflight Fail: {reason}",
                                mavlink2.MAV_SEVERITY_CRITICAL),
                         _ack(command, mavlink2.MAV_RESULT_TEMPORARILY_REJECTED)]
             if not self.armed:

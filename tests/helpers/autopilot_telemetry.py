@@ -41,7 +41,8 @@ class EstimateSender:
         """Sends as PX4 does (``autopilot``): it refuses a message interval for a message it
         does not stream (PX4: EKF_STATUS_REPORT; ArduPilot: ESTIMATOR_STATUS), and on
         entering a window it sends a short STATUSTEXT and a long one in two MAVLink 2 chunks
-        (``id`` 7, ``chunk_seq`` 0 and 1) with "failsafe" split across them. Before
+        (``id`` 7, ``chunk_seq`` 0 and 1) with "failsafe" split across them. Its mission
+        item (MISSION_CURRENT) is 1, and one more at each edge of a window. Before
         ``no_fix_before_s`` it has no position: GLOBAL_POSITION_INT at lat/lon 0/0, -1000 m,
         and no absolute horizontal position in ESTIMATOR_STATUS."""
         self.no_fix_before_s = no_fix_before_s
@@ -102,6 +103,8 @@ class EstimateSender:
                  else _FLAGS_OK)
         self.link.send_message(mavlink2.MAVLink_estimator_status_message(
             truth.time_us, flags, 0.1, 0.2, 0.1, 0.1, 0.0, 0.0, 1.5, 2.5))
+        self.link.send_message(mavlink2.MAVLink_mission_current_message(
+            1 + sum(t_s >= edge for w in self.windows for edge in w)))
         if inside and not self._announced:
             self._announced = True
             self.link.send_message(mavlink2.MAVLink_statustext_message(

@@ -52,7 +52,7 @@ def recorded(truths: list[Truth]) -> AutopilotTelemetry:
             if k % 50 == 0:
                 time.sleep(0.002)  # let the receiver drain: loopback UDP, not a queue
         _wait(lambda: tel.snapshot()["positions"] >= sender.sent)
-        _wait(lambda: tel.counters()["interval_acks_ok"] >= 4, 3.0)
+        _wait(lambda: tel.counters()["interval_acks_ok"] >= 5, 3.0)
     finally:
         tel.stop()
         sender.close()
@@ -66,7 +66,7 @@ def test_the_recorder_keeps_every_report_on_the_simulated_time_axis(
     assert c["position_reports"] == c["attitude_reports"] == c["estimator_status"] == 600
     assert c["rejected_reports"] == 0 and c["heartbeats"] >= 1
     # SET_MESSAGE_INTERVAL asked once per message once the heartbeat was heard, all acked
-    assert c["interval_requests"] == 4 == c["interval_acks_ok"]
+    assert c["interval_requests"] == 5 == c["interval_acks_ok"]
     track = recorded.estimate_track()
     # time_boot_ms * 1000 is the time_us of the truth each report was made from (10 Hz)
     truth_us = {t.time_us for t in truths}
@@ -110,14 +110,19 @@ def test_the_health_records_mode_failsafe_and_the_lost_position(
     assert est["pos_horiz_abs_lost_s"] == [pytest.approx(OUTAGE[0], abs=0.11)]
     assert est["pos_horiz_abs_regained_s"] == [pytest.approx(OUTAGE[1], abs=0.11)]
     assert est["max"]["pos_horiz_accuracy_m"] == pytest.approx(1.5)
+    # AND the mission item flown at each change, on the autopilot's time
+    assert [m["seq"] for m in h["mission_current"]] == [1, 2, 3]
+    assert [m["time_s"] for m in h["mission_current"][1:]] == [
+        pytest.approx(t, abs=0.11) for t in OUTAGE]
 
 
 def test_px4_is_asked_only_for_what_it_streams_and_refuses_nothing(
         recorded: AutopilotTelemetry) -> None:
     # GIVEN a PX4 that refuses a message interval for EKF_STATUS_REPORT (it has none)
     c = recorded.counters()
-    # THEN it was asked for its estimate and ESTIMATOR_STATUS, never for EKF_STATUS_REPORT
-    assert c["interval_requests"] == 4 == c["interval_acks_ok"]
+    # THEN it was asked for its estimate, ESTIMATOR_STATUS and its mission item, never for
+    # EKF_STATUS_REPORT
+    assert c["interval_requests"] == 5 == c["interval_acks_ok"]
     assert c["interval_acks_refused"] == 0
 
 

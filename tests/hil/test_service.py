@@ -125,6 +125,9 @@ def test_companion_gps_input_and_odometry() -> None:
     assert g.alt == pytest.approx(1012.3456, abs=1e-3)
     assert (g.vn, g.ve, g.vd) == pytest.approx((1.0, 50.0, -2.0))
     assert g.horiz_accuracy == pytest.approx(5.0)
+    assert g.gps_id == 0 and g.yaw == 0  # GPS_TYPE's instance; yaw not provided
+    # addressed to ArduPilot's second GPS (GPS2_TYPE 14), which reads only its own gps_id
+    assert _decode(enc.gps_input(_estimate(), unix_s=1_700_000_000.0, gps_id=1)).gps_id == 1
     odo = _decode(enc.odometry(_estimate()))
     assert (odo.x, odo.y, odo.z) == (0.0, 0.0, 0.0)  # origin = first estimate
     # velocity in NED as estimated: PX4 then needs none of its own attitude to use it
