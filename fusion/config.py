@@ -284,7 +284,8 @@ class AirspeedTuning(_Frozen):
     scale_sigma: PositiveFloat = 0.05
     """Prior sigma of the airspeed scale factor (pitot calibration ratio, position error)."""
     wind_noise_mps2_rthz: PositiveFloat = 0.05
-    """Wind random walk, m/s^2/sqrt(Hz) (EKF2_WIND_NSD)."""
+    """Wind random walk, m/s^2/sqrt(Hz) (EKF2_WIND_NSD); in still air
+    ``still_air_wind_noise_mps2_rthz``."""
     wind_climb_scaler_spm: NonNegativeFloat = 0.5
     """Wind noise times ``1 + scaler |climb rate|``, s/m (EKF2's ``wind_vel_nsd_scaler``)."""
     scale_noise_rthz: PositiveFloat = 1e-4
@@ -380,6 +381,19 @@ class AirspeedTuning(_Frozen):
     """Level-flight wind and scale noise in an outage over their GNSS-aided values (see
     ``outage_hold``; 0 and 0.1 alike on the tuning flights, seeds 1-3 of manoeuvre and
     cruise)."""
+    still_air_wind_noise_mps2_rthz: PositiveFloat = 0.05
+    """Wind random walk in still air (the turbulence in use at most
+    ``outage_hold_max_turbulence_mps``, on a measured airspeed), m/s^2/sqrt(Hz); the climb
+    part scales with it. The mean wind's random walk sets its sigma when GNSS is lost (about
+    ``(nsd^2 sigma_TAS^2 / f)^(1/4)`` against 1 Hz airspeed batches): a sigma kept above the
+    wind's real error hands the first airspeed residuals of an outage, the INS's own drift,
+    to the wind. In turbulence the gusts' long wavelengths move the mean wind over minutes
+    and ``wind_noise_mps2_rthz`` applies."""
+    outage_climb_noise_factor: NonNegativeFloat = 1.0
+    """Climb-driven wind noise (``wind_climb_scaler_spm``) in an outage hold over its
+    GNSS-aided value. The climb part models flying through the wind's change with height;
+    without GNSS only turns observe the wind, and a climb then lets the held wind wander on
+    the airspeed residuals as the level part would."""
     outage_hold_max_turbulence_mps: PositiveFloat = 0.5
     """The outage hold applies only while the turbulence in use is at most this, m/s: in
     turbulence the long-wavelength part of the gusts moves the mean wind over minutes, and
