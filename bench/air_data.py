@@ -37,7 +37,15 @@ are held-out seeds 100.. on ``survey``, ``climb-descent`` and ``racetrack``. The
 turbulence estimate and the outage hold (``AirspeedTuning.gust_sigma_min_mps``,
 ``outage_noise_factor``, ``outage_hold_max_turbulence_mps``) were chosen on seeds 1-3 of
 ``manoeuvre`` and ``cruise`` in steady wind and turbulence; ``--air-rows`` reports held-out
-seeds 100-102, one flight per plan.
+seeds 100-102, one flight per plan. The still-air wind random walk and the outage hold's
+factor on its climb-driven part (``AirspeedTuning.still_air_wind_noise_mps2_rthz``,
+``outage_climb_noise_factor``) were chosen on seeds 1-3 of ``manoeuvre`` and ``cruise``
+(``--air-rows --groups steady,turbulent --seed-base 1 --plans manoeuvre,cruise``, one flight
+per seed and kind of air), before any held-out flight was flown with them.
+
+``--variants 'SECTION.FIELD=VALUE[;...],...'`` (``--air-rows``) adds the air-data filter
+with those configuration fields set as methods named ``air-data:...``, on the same samples:
+candidate settings on tuning flights, today's settings beside the default on held-out ones.
 
     python bench/air_data.py --out bench/results/air_data.json [--seeds 10] [--seed-base 100]
         [--plans survey,climb-descent,racetrack] [--imu industrial-mems] [--outage 300]
