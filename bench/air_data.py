@@ -109,8 +109,14 @@ def variant_config(cfg: Any, variant: str) -> Any:
             raise ValueError(f"bad variant {item!r}: expected SECTION.FIELD=VALUE of the "
                              "filter configuration")
         old = getattr(sub, field)
-        val: Any = value in ("1", "true") if isinstance(old, bool) else type(old)(value)
-        cfg = cfg.model_copy(update={sec: sub.model_copy(update={field: val})})
+        try:  # validated (the field's bounds), not model_copy's unchecked update
+            val: Any = value in ("1", "true") if isinstance(old, bool) else type(old)(value)
+            new = type(sub).model_validate({**sub.model_dump(), field: val})
+        except ValueError as exc:
+            errors = getattr(exc, "errors", None)
+            why = errors()[0]["msg"] if callable(errors) else str(exc)
+            raise ValueError(f"bad variant {item!r}: {why}") from None
+        cfg = cfg.model_copy(update={sec: new})
     return cfg
 
 

@@ -158,7 +158,7 @@ def _aiding(cfg: AirspeedTuning) -> AirspeedAiding:
 
 
 def test_still_air_slows_the_wind_walk_and_an_outage_holds_it_but_turbulence_does_not() -> None:
-    # GIVEN the default tuning, a pitot fused 0.5 s ago
+    # GIVEN a still-air walk of 0.01 with the climb part held, a pitot fused 0.5 s ago
     cfg = CFG.model_copy(update={"still_air_wind_noise_mps2_rthz": 0.01,
                                  "outage_climb_noise_factor": 0.0})  # fmt: skip
     air = _aiding(cfg)
