@@ -37,7 +37,15 @@ are held-out seeds 100.. on ``survey``, ``climb-descent`` and ``racetrack``. The
 turbulence estimate and the outage hold (``AirspeedTuning.gust_sigma_min_mps``,
 ``outage_noise_factor``, ``outage_hold_max_turbulence_mps``) were chosen on seeds 1-3 of
 ``manoeuvre`` and ``cruise`` in steady wind and turbulence; ``--air-rows`` reports held-out
-seeds 100-102, one flight per plan.
+seeds 100-102, one flight per plan. The still-air wind random walk and the outage hold's
+factor on its climb-driven part (``AirspeedTuning.still_air_wind_noise_mps2_rthz``,
+``outage_climb_noise_factor``) were chosen on ``manoeuvre`` seeds 1 and 3 and ``cruise`` seed 2
+(``--air-rows --groups steady,turbulent --seeds 3 --seed-base 1 --plans manoeuvre,cruise``),
+before any held-out flight was flown with them.
+
+``--variants 'SECTION.FIELD=VALUE[;...],...'`` (``--air-rows``) adds the air-data filter
+with those configuration fields set as methods named ``air-data:...``, on the same samples:
+candidate settings on tuning flights, today's settings beside the default on held-out ones.
 
     python bench/air_data.py --out bench/results/air_data.json [--seeds 10] [--seed-base 100]
         [--plans survey,climb-descent,racetrack] [--imu industrial-mems] [--outage 300]
@@ -83,6 +91,33 @@ MAX_TURBULENCE = 0.4
 FIXED_AIR = {"adaptive_turbulence": False, "outage_hold": False, "position_error_fit": False}
 """``air-data-fixed``: the air-data filter with a fixed turbulence sigma, no outage hold and no
 position-error fit (:class:`fusion.config.AirspeedTuning` switches)."""
+
+
+VARIANT_PREFIX = "air-data:"
+"""``--variants``: a method named ``air-data:SECTION.FIELD=VALUE[;...]`` is the default
+air-data filter with those configuration fields set (:func:`variant_config`)."""
+
+
+def variant_config(cfg: Any, variant: str) -> Any:
+    """``cfg`` with the fields of ``variant`` (``SECTION.FIELD=VALUE`` joined by ``;``) set;
+    ValueError names a malformed item or an unknown field."""
+    for item in variant.split(";"):
+        key, sep, value = item.partition("=")
+        sec, dot, field = key.partition(".")
+        sub = getattr(cfg, sec, None) if sep and dot else None
+        if sub is None or field not in type(sub).model_fields:
+            raise ValueError(f"bad variant {item!r}: expected SECTION.FIELD=VALUE of the "
+                             "filter configuration")
+        old = getattr(sub, field)
+        try:  # validated (the field's bounds), not model_copy's unchecked update
+            val: Any = value in ("1", "true") if isinstance(old, bool) else type(old)(value)
+            new = type(sub).model_validate({**sub.model_dump(), field: val})
+        except ValueError as exc:
+            errors = getattr(exc, "errors", None)
+            why = errors()[0]["msg"] if callable(errors) else str(exc)
+            raise ValueError(f"bad variant {item!r}: {why}") from None
+        cfg = cfg.model_copy(update={sec: new})
+    return cfg
 
 
 def _methods() -> list[tuple[str, str, str, bool]]:
@@ -152,12 +187,15 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
         "sensor_factor": factor,
     }  # fmt: skip
     end_s = start_s + outage_s
-    for name, airspeed, bridge, keep_pitot in _methods():
-        if name not in task.get("methods", (name,)):
+    variants = [(v, "on", "none", True) for v in task.get("variants", ())]
+    for name, airspeed, bridge, keep_pitot in [*_methods(), *variants]:
+        if name not in task.get("methods", (name,)) and name not in task.get("variants", ()):
             continue
         cfg = filter_config(imu, receiver, airspeed=airspeed)
         if name == "air-data-fixed":
             cfg = cfg.model_copy(update={"airspeed": cfg.airspeed.model_copy(update=FIXED_AIR)})
+        elif name.startswith(VARIANT_PREFIX):
+            cfg = variant_config(cfg, name.removeprefix(VARIANT_PREFIX))
         run = FusionRun(cfg, bridge)
         t1 = time.perf_counter()
         # the mean-wind estimate and its sigma at 1 Hz (the wind group's consistency)
@@ -376,6 +414,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="rows per kind of air, IMU and pitot (calm, steady wind, turbulent; "
                          "position error on/off): free inertial, air-data-fixed and air-data "
                          "side by side (run_air_rows; --seeds per row, plans cycled)")
+    ap.add_argument("--variants", default=None,
+                    help="--air-rows: also these air-data filter variants, comma-separated, "
+                         "each SECTION.FIELD=VALUE[;...] (e.g. airspeed.outage_hold=false)")
     ap.add_argument("--groups", default=None,
                     help="--air-rows: only these kinds of air (comma-separated: "
                          "calm, steady, steady-pe, turbulent)")
@@ -456,6 +497,18 @@ def run_air_rows(args: argparse.Namespace, argv: list[str] | None) -> int:
     the mean NEES per 3-dof group in the outage (worst flight; 3 is consistent)."""
     plans = args.plans.split(",")
     only = set(args.groups.split(",")) if args.groups else None
+    variants = tuple(VARIANT_PREFIX + v for v in args.variants.split(",")) if args.variants else ()
+    methods = (*ROW_METHODS, *variants)
+    from hil.pipeline import filter_config
+    from sim import presets
+
+    try:  # a malformed variant: one line before any flight
+        for v in variants:
+            variant_config(filter_config("industrial-mems", presets.gnss_preset("modern")),
+                           v.removeprefix(VARIANT_PREFIX))
+    except (ValueError, TypeError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     tasks = []
     for air, max_wind, turb, pitot, imus, factor in AIR_ROWS:
         if only is not None and air not in only:
@@ -467,7 +520,7 @@ def run_air_rows(args: argparse.Namespace, argv: list[str] | None) -> int:
                     "seed": args.seed_base + i, "imu": imu, "pitot": pitot,
                     "outage_start_s": args.outage_start, "outage_s": args.outage,
                     "max_wind_mps": max_wind, "turbulence": turb, "methods": ROW_METHODS,
-                    "sensor_factor": factor,
+                    "variants": variants, "sensor_factor": factor,
                 })  # fmt: skip
     t0 = time.perf_counter()
     rows = _fly_all(tasks, args.jobs)
@@ -476,7 +529,7 @@ def run_air_rows(args: argparse.Namespace, argv: list[str] | None) -> int:
     groups: dict[str, Any] = {}
     for g in dict.fromkeys(t["group"] for t in tasks):
         rs = [r for r in rows if r["group"] == g]
-        groups[g] = {m: _row_summary(rs, m) for m in ROW_METHODS}
+        groups[g] = {m: _row_summary(rs, m) for m in methods}
     result = {
         "bench": "air_data_rows",
         "command": "python bench/air_data.py " + " ".join(argv or sys.argv[1:]),

@@ -3,7 +3,8 @@ come from, taken apart against the simulator's truth.
 
 ``--what outage`` (default): steady wind (drawn as in ``bench/air_data.py --air-rows``), no
 turbulence, GNSS off from 240 s for 300 s. Per flight and filter variant: the heading error
-with GNSS on (mean, rms, the filter's sigma) and in the outage, the mean-wind error at the
+with GNSS on (mean, rms, the filter's sigma) and in the outage (the same, and rms(error / sigma)
+in both: whether the filter's heading sigma covers its error), the mean-wind error at the
 outage start and its mean in the outage, the velocity error along and across the air-relative
 track in the outage, the true sideslip (mean, rms), and the horizontal outage RMSE.
 
@@ -149,6 +150,9 @@ def outage_row(items: list[Any], truth: np.ndarray, imu: str, variant: str) -> d
         "heading_sigma_gnss_on_deg": float(np.mean(E[on, 6])),
         "heading_err_outage_mean_deg": float(np.mean(dyaw[out])),
         "heading_err_outage_rms_deg": float(np.sqrt(np.mean(dyaw[out] ** 2))),
+        "heading_sigma_outage_deg": float(np.mean(E[out, 6])),
+        "heading_rms_z_gnss_on": float(np.sqrt(np.mean((dyaw[on] / E[on, 6]) ** 2))),
+        "heading_rms_z_outage": float(np.sqrt(np.mean((dyaw[out] / E[out, 6]) ** 2))),
         "wind_err_outage_start_mps": float(werr[out][0]),
         "wind_err_outage_mean_mps": float(np.nanmean(werr[out])),
         "vel_err_along_mean_mps": float(np.mean(along[out])),

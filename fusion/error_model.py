@@ -430,18 +430,22 @@ class ErrorModel:
         return phi
 
     def air_process_noise(
-        self, dt_s: float, climb_rate_mps: float, level: float = 1.0
-    ) -> tuple[float, float]:
+        self, dt_s: float, climb_rate_mps: float, level: float = 1.0, climb: float = 1.0,
+        scale: float = 1.0,
+    ) -> tuple[float, float]:  # fmt: skip
         """Discrete process noise of the air-data block over ``dt_s`` (layouts with it, once
         active): ``(q_wind per axis, q_scale)``, m^2/s^2 and dimensionless.
 
-        ``q_wind = (nsd (level + scaler |climb rate|))^2 T`` (PX4 EKF2's wind random walk),
-        ``q_scale = level^2 nsd_k^2 T``; ``level`` scales the level-flight part (1 with GNSS;
-        the outage hold of :class:`fusion.config.AirspeedTuning` lowers it without).
+        ``q_wind = (nsd (level + climb scaler |climb rate|))^2 T`` (PX4 EKF2's wind random
+        walk), ``q_scale = scale^2 nsd_k^2 T``; ``level``, ``climb`` and ``scale`` are factors
+        on the level-flight and the climb-driven wind noise and on the scale noise (1 in
+        turbulence; still air and the outage hold of :class:`fusion.config.AirspeedTuning`
+        lower them, :meth:`fusion.aiding.airspeed.AirspeedAiding.noise_factors`).
         """
         nz = self.noise
-        w = nz.wind_noise_mps2_rthz * (level + nz.wind_climb_scaler_spm * abs(climb_rate_mps))
-        k = level * nz.airspeed_scale_noise_rthz
+        w = nz.wind_noise_mps2_rthz * (
+            level + climb * nz.wind_climb_scaler_spm * abs(climb_rate_mps))
+        k = scale * nz.airspeed_scale_noise_rthz
         return w * w * dt_s, k * k * dt_s
 
     def gust_transition(

@@ -574,7 +574,7 @@ class NavFilter(FilterState):
         if air.state.active and self._nom is not None:
             cov.airspeed_mps = air.air_speed_mps(self._nom.ins.v_ned_mps)
         cov.gust_sigma_mps = air.turbulence.sigma_mps
-        cov.air_level_noise = air.level_noise(gnss, t)
+        cov.air_noise = air.noise_factors(gnss, t)
         link.status = air.status(t)
 
     # ------------------------------------------------------------------ GNSS

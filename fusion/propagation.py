@@ -74,9 +74,10 @@ class CovariancePropagator:
     gust_sigma_mps : float
         Gust sigma that drives the gust states (the filter's turbulence estimate, set at its
         air-data epochs), m/s.
-    air_level_noise : float
-        Factor on the level-flight wind and scale random walk (1 with GNSS; the outage hold
-        lowers it), :meth:`fusion.error_model.ErrorModel.air_process_noise`.
+    air_noise : tuple of float
+        Factors on the level-flight and the climb-driven wind random walk and on the scale
+        random walk (1 in turbulence; still air and the outage hold lower them),
+        :meth:`fusion.error_model.ErrorModel.air_process_noise`.
     thermal_dt_k : float
         Die-temperature change since the last propagation (``+therm`` layouts: the filter
         adds each accepted change), K.
@@ -106,7 +107,7 @@ class CovariancePropagator:
         self.air_offset: int | None = None
         self.airspeed_mps = 0.0
         self.gust_sigma_mps = model.noise.gust_sigma_mps
-        self.air_level_noise = 1.0
+        self.air_noise = (1.0, 1.0, 1.0)
         self.gust_decay = 1.0
         self._gust_cache: dict[tuple[float, float, float], tuple[float, float]] = {}
         self._therm = lay.has_thermal
@@ -208,7 +209,7 @@ class CovariancePropagator:
             model.add_process_noise(P, T)
         else:
             # wind random walk driven harder when climbing (the wind changes with height)
-            qw, qk = model.air_process_noise(T, vd, self.air_level_noise)
+            qw, qk = model.air_process_noise(T, vd, *self.air_noise)
             # gusts: first-order Gauss-Markov, decaying with the distance flown through the air
             # (phi and q depend on T, the airspeed and the gust sigma, which change at the
             # air-data epochs only)

@@ -383,17 +383,27 @@ class AirspeedAiding:
                              turb.source, ",".join(flags),
                              self.position_error.coefficient_per_rad)  # fmt: skip
 
-    def level_noise(self, gnss_active: bool, now_us: int) -> float:
-        """Factor on the level-flight wind and scale random walk now: the outage hold while
-        dead-reckoning on a measured airspeed in still air (turbulence estimate at most
-        ``outage_hold_max_turbulence_mps``). In turbulence the wind keeps its noise: the
-        long-wavelength part of the gusts moves the mean wind over minutes. On the synthetic
-        airspeed (no usable pitot) it keeps it too: that airspeed is a latched guess, and the
-        wind's freedom is what absorbs the real airspeed's excursions from it."""
+    def noise_factors(self, gnss_active: bool, now_us: int) -> tuple[float, float, float]:
+        """Factors on the wind's level-flight and climb-driven random walk and on the scale's
+        random walk now (:meth:`fusion.error_model.ErrorModel.air_process_noise`).
+
+        In still air on a measured airspeed (turbulence in use at most
+        ``outage_hold_max_turbulence_mps``) the wind walks at ``still_air_wind_noise_mps2_rthz``
+        instead of ``wind_noise_mps2_rthz``, and a GNSS outage holds it: the level-flight
+        wind and scale noise times ``outage_noise_factor``, the climb-driven wind noise times
+        ``outage_climb_noise_factor``. In turbulence the wind keeps its noise, with GNSS and
+        without: the long-wavelength part of the gusts moves the mean wind over minutes. On
+        the synthetic airspeed (no usable pitot) it keeps it too: that airspeed is a latched
+        guess, and the wind's freedom is what absorbs the real airspeed's excursions from it."""
         cfg = self.cfg
-        held = (cfg.outage_hold and not gnss_active and self.measured_ok(now_us)
-                and self.turbulence.sigma_mps <= cfg.outage_hold_max_turbulence_mps)
-        return cfg.outage_noise_factor if held else 1.0
+        if not (self.measured_ok(now_us)
+                and self.turbulence.sigma_mps <= cfg.outage_hold_max_turbulence_mps):
+            return 1.0, 1.0, 1.0
+        still = cfg.still_air_wind_noise_mps2_rthz / cfg.wind_noise_mps2_rthz
+        if not cfg.outage_hold or gnss_active:
+            return still, still, 1.0
+        return (still * cfg.outage_noise_factor, still * cfg.outage_climb_noise_factor,
+                cfg.outage_noise_factor)
 
     def _flag(self, name: str, now_us: int) -> None:
         self._flags_until_us[name] = now_us + _FLAG_HOLD_US

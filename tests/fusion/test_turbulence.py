@@ -8,9 +8,13 @@ import math
 import numpy as np
 import pytest
 
+from fusion.aiding.airspeed import AirspeedAiding
 from fusion.aiding.position_error import PositionErrorFit
 from fusion.aiding.turbulence import TurbulenceEstimator
 from fusion.config import AirspeedTuning
+from fusion.error_model import ErrorModel, ProcessNoise
+from fusion.estimate import HealthCounters
+from fusion.state_layout import layout_for
 
 CFG = AirspeedTuning()
 
@@ -145,3 +149,37 @@ def test_the_filter_learns_still_air_and_flags_an_implausible_pitot() -> None:
     assert last is not None and "pitot_implausible" in last.flags
     assert nav.health.airspeed_implausible > 0
     assert nav.health.wind_implausible == 0
+
+
+def _aiding(cfg: AirspeedTuning) -> AirspeedAiding:
+    lay = layout_for("ins16+air")
+    return AirspeedAiding(cfg, lay, HealthCounters(), lambda *_a: None,
+                          lambda: np.zeros((lay.n, lay.n)), lambda *_a: None)  # fmt: skip
+
+
+def test_still_air_slows_the_wind_walk_and_an_outage_holds_it_but_turbulence_does_not() -> None:
+    # GIVEN a still-air walk of 0.01 with the climb part held, a pitot fused 0.5 s ago
+    cfg = CFG.model_copy(update={"still_air_wind_noise_mps2_rthz": 0.01,
+                                 "outage_climb_noise_factor": 0.0})  # fmt: skip
+    air = _aiding(cfg)
+    air.last_measured_fused_us = 10_000_000
+    now = 10_500_000
+    # WHEN the turbulence is still the prior (1.5 m/s: not yet known to be still air)
+    # THEN the wind, its climb part and the scale walk as configured, GNSS or not
+    assert air.noise_factors(True, now) == air.noise_factors(False, now) == (1.0, 1.0, 1.0)
+    # WHEN the residuals show still air
+    feed(air.turbulence, np.zeros(600), 0.3, seed=5)
+    # THEN with GNSS the wind walks at the still-air noise (level and climb parts), the
+    # scale as before; in an outage both are held
+    still = 0.01 / cfg.wind_noise_mps2_rthz
+    assert air.noise_factors(True, now) == pytest.approx((still, still, 1.0))
+    assert air.noise_factors(False, now) == (0.0, 0.0, 0.0)
+    # AND without a usable pitot (nothing fused for longer than the timeout) nothing changes
+    assert air.noise_factors(False, now + 5_000_000) == (1.0, 1.0, 1.0)
+    # AND the error model takes the factors: the climb part scales, the scale walk apart
+    model = ErrorModel(layout_for("ins16+air"), ProcessNoise(
+        gyro_noise=1e-4, accel_noise=1e-3, gyro_bias_sigma=1e-5, gyro_bias_tau_s=600.0,
+        accel_bias_sigma=1e-3, accel_bias_tau_s=600.0, baro_bias_sigma=5.0,
+        baro_bias_tau_s=1000.0))  # fmt: skip
+    qw, qk = model.air_process_noise(1.0, -4.0, 0.2, 0.0, 0.5)
+    assert qw == pytest.approx((0.05 * 0.2) ** 2) and qk == pytest.approx((0.5e-4) ** 2)
