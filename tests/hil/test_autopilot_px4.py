@@ -8,6 +8,7 @@ import math
 import socket
 import struct
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -149,6 +150,10 @@ def test_paced_flight_flies_the_newest_controls() -> None:
     with Px4Backend("tcpin:127.0.0.1:0") as backend:
         with Px4Peer(f"tcp:127.0.0.1:{backend.local_address[1]}", outputs="legacy") as peer:
             flown = fly_with_autopilot(setup, backend, speed=10.0, stall_timeout_s=20.0)
+            # the peer's thread reads the last frame on its own time: let it before it stops
+            deadline = time.monotonic() + 10.0
+            while peer.counters["sensors"] < flown.steps and time.monotonic() < deadline:
+                time.sleep(0.01)
     assert peer.errors == [] and flown.stalled is None and flown.ended is None
     assert flown.steps == 250 == peer.counters["sensors"]
     # paced: a step does not wait for controls, so some steps fly the previous ones
