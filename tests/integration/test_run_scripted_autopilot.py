@@ -67,15 +67,21 @@ def _arduplane_run(tmp_path: Path, side: CommandSide, script: str,
     peer = ArduPilotPeer(telemetry_url=f"udpout:127.0.0.1:{tport}", home=(47.0, 8.0, 0.0),
                          trim=trimmed_controls(sim_setup(scn)), frame_rate_hz=50,
                          commands=side)
+    return _fly(scn, peer, port, tmp_path / "out"), peer
+
+
+def _fly(scn: Any, peer: ArduPilotPeer, port: int, out: Path) -> dict[str, Any]:
+    """Fly ``scn`` against ``peer`` (started on the simulator's UDP ``port`` once hilnav
+    listens, stopped at the end); the run's summary."""
     starter = threading.Timer(0.3, lambda: peer.start(f"udp:127.0.0.1:{port}"))
     starter.start()
     try:
-        result = run_scenario(scn, tmp_path / "out", reports=False, tlog=False)
+        result = run_scenario(scn, out, reports=False, tlog=False)
     finally:
         starter.cancel()
         peer.stop()
     assert peer.error is None
-    return result.summary, peer
+    return result.summary
 
 
 def _arduplane_side(**kwargs: Any) -> CommandSide:
@@ -218,14 +224,7 @@ events:
 """, duration_s=110.0)
     scn = load_scenario(path)
     peer.trim = list(trimmed_controls(sim_setup(scn)))
-    starter = threading.Timer(0.3, lambda: peer.start(f"udp:127.0.0.1:{port}"))
-    starter.start()
-    try:
-        summary = run_scenario(scn, tmp_path / "out", reports=False, tlog=False).summary
-    finally:
-        starter.cancel()
-        peer.stop()
-    assert peer.error is None
+    summary = _fly(scn, peer, port, tmp_path / "out")
     assert "failures" not in summary, summary.get("failures")
     ap = summary["autopilot"]
     # the parameters for it were set by the script's parameter step
@@ -287,14 +286,7 @@ def test_the_library_arduplane_mission_script_runs_against_the_peer(tmp_path: Pa
     path.write_text(yaml.safe_dump(data))
     scn = load_scenario(path)
     peer.trim = list(trimmed_controls(sim_setup(scn)))
-    starter = threading.Timer(0.3, lambda: peer.start(f"udp:127.0.0.1:{port}"))
-    starter.start()
-    try:
-        summary = run_scenario(scn, tmp_path / "out", reports=False, tlog=False).summary
-    finally:
-        starter.cancel()
-        peer.stop()
-    assert peer.error is None
+    summary = _fly(scn, peer, port, tmp_path / "out")
     assert "failures" not in summary, summary.get("failures")
     script = summary["autopilot"]["script"]
     assert [s["status"] for s in script["steps"]] == ["done"] * 5
