@@ -37,7 +37,7 @@ import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -137,6 +137,52 @@ class Regressor(Protocol):
     def predict(self, X: FloatArray) -> FloatArray: ...
 
 
+class TrainingWindow:
+    """The training pairs of an online learner: kept at most ``train_rate_hz`` per second
+    over the last ``window_s`` (time going backwards is a new flight: the window starts
+    afresh), and whether a refit is due (``refit_interval_s`` after the last, once
+    ``min_samples`` pairs are held; never fewer than 8).
+
+    Raises
+    ------
+    ValueError
+        A rate, window or refit interval that is not > 0.
+    """
+
+    def __init__(self, train_rate_hz: float, window_s: float, refit_interval_s: float,
+                 min_samples: int) -> None:
+        if not (train_rate_hz > 0 and window_s > 0 and refit_interval_s > 0):
+            raise ValueError("train_rate_hz, window_s and refit_interval_s must be > 0")
+        self._period_us = int(1e6 / train_rate_hz)
+        self._window_us = int(window_s * 1e6)
+        self._refit_us = int(refit_interval_s * 1e6)
+        self._min = max(int(min_samples), 8)
+        self.pairs: deque[tuple[Any, ...]] = deque()
+        """The pairs held, oldest first; each starts with its time (us)."""
+        self._last_kept_us: int | None = None
+        self._last_fit_us: int | None = None
+
+    def add(self, time_us: int, pair: tuple[Any, ...]) -> bool:
+        """Keep ``pair`` (whose first item is ``time_us``) when one is due; returns whether a
+        refit is due now."""
+        last = self._last_kept_us
+        if last is not None and time_us - last < self._period_us:
+            if time_us >= last:
+                return False
+            self.pairs.clear()  # time went backwards: a new flight
+        self._last_kept_us = time_us
+        self.pairs.append(pair)
+        start = time_us - self._window_us
+        while self.pairs and self.pairs[0][0] < start:
+            self.pairs.popleft()
+        due = self._last_fit_us is None or time_us - self._last_fit_us >= self._refit_us
+        return due and len(self.pairs) >= self._min
+
+    def fitted(self, time_us: int) -> None:
+        """A refit was tried at ``time_us`` (the next is due ``refit_interval_s`` later)."""
+        self._last_fit_us = time_us
+
+
 class OnlineAirspeedModel:
     """Learns true airspeed from :class:`AirspeedInputs` on a sliding window (module docstring).
 
@@ -181,24 +227,16 @@ class OnlineAirspeedModel:
         describe: Callable[[Regressor], str] | None = None,
         non_negative: bool = True,
     ) -> None:
-        if not (train_rate_hz > 0 and window_s > 0 and refit_interval_s > 0):
-            raise ValueError("train_rate_hz, window_s and refit_interval_s must be > 0")
+        self._window = TrainingWindow(train_rate_hz, window_s, refit_interval_s, min_samples)
         if not 0.0 < validation_fraction < 1.0:
             raise ValueError(f"validation_fraction must be in (0, 1) (got {validation_fraction})")
         self._make = make_regressor
         self._describe = describe
         self._non_negative = non_negative
         self.method = method
-        self._period_us = int(1e6 / train_rate_hz)
-        self._window_us = int(window_s * 1e6)
-        self._refit_us = int(refit_interval_s * 1e6)
-        self._min = max(int(min_samples), 8)
         self._val_fraction = validation_fraction
         self._sigma_scale = sigma_scale
         self._sigma_floor = sigma_floor_mps
-        self._pairs: deque[tuple[int, tuple[float, ...], float]] = deque()
-        self._last_kept_us: int | None = None
-        self._last_fit_us: int | None = None
         self._model: Regressor | None = None
         self._lo: FloatArray | None = None
         self._hi: FloatArray | None = None
@@ -222,24 +260,14 @@ class OnlineAirspeedModel:
         x = inputs.as_tuple()
         if not (math.isfinite(tas_mps) and all(math.isfinite(v) for v in x)):
             return
-        last = self._last_kept_us
-        if last is not None and time_us - last < self._period_us:
-            if time_us >= last:
-                return
-            self._pairs.clear()  # time went backwards: a new flight
-        self._last_kept_us = time_us
-        self._pairs.append((time_us, x, tas_mps))
-        start = time_us - self._window_us
-        while self._pairs and self._pairs[0][0] < start:
-            self._pairs.popleft()
-        due = self._last_fit_us is None or time_us - self._last_fit_us >= self._refit_us
-        if due and len(self._pairs) >= self._min:
+        if self._window.add(time_us, (time_us, x, tas_mps)):
             self._refit(time_us)
 
     def _refit(self, time_us: int) -> None:
-        self._last_fit_us = time_us
-        X = np.array([p[1] for p in self._pairs], dtype=np.float64)
-        y = np.array([p[2] for p in self._pairs], dtype=np.float64)
+        self._window.fitted(time_us)
+        pairs = self._window.pairs
+        X = np.array([p[1] for p in pairs], dtype=np.float64)
+        y = np.array([p[2] for p in pairs], dtype=np.float64)
         n_val = max(round(self._val_fraction * len(y)), 4)
         n_fit = len(y) - n_val
         model = self._make()
@@ -298,7 +326,7 @@ class OnlineAirspeedModel:
         return AirspeedModelStatus(
             method=self.method,
             state=state,
-            samples=len(self._pairs),
+            samples=len(self._window.pairs),
             refits=self._refits,
             validation_rmse_mps=self._val_rmse,
             polynomial=poly,

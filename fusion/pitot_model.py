@@ -51,14 +51,13 @@ Pure: no I/O, no clocks; time comes from the samples.
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.airspeed_model import AirspeedModelStatus, Regressor
+from fusion.airspeed_model import AirspeedModelStatus, Regressor, TrainingWindow
 
 FloatArray = NDArray[np.float64]
 
@@ -130,24 +129,16 @@ class OnlinePitotErrorModel:
         reference_s: float = 600.0,
         describe: Callable[[Regressor], str] | None = None,
     ) -> None:
-        if not (train_rate_hz > 0 and window_s > 0 and refit_interval_s > 0):
-            raise ValueError("train_rate_hz, window_s and refit_interval_s must be > 0")
+        # pairs: (time, inputs, target TAS - |a|, the filter's own prediction of it k |a|)
+        self._window = TrainingWindow(train_rate_hz, window_s, refit_interval_s, min_samples)
         if not 0.0 < validation_fraction < 1.0:
             raise ValueError(f"validation_fraction must be in (0, 1) (got {validation_fraction})")
         self.method = method
         self._make = make_regressor
         self._describe = describe
-        self._period_us = int(1e6 / train_rate_hz)
-        self._window_us = int(window_s * 1e6)
-        self._refit_us = int(refit_interval_s * 1e6)
-        self._min = max(int(min_samples), 8)
         self._val_fraction = validation_fraction
         self._skill = skill_ratio
         self._margin = range_margin
-        # (time, inputs, target TAS - |a|, the filter's own prediction of it k |a|)
-        self._pairs: deque[tuple[int, tuple[float, ...], float, float]] = deque()
-        self._last_kept_us: int | None = None
-        self._last_fit_us: int | None = None
         self._model: Regressor | None = None
         self._lo: tuple[float, ...] = ()
         self._hi: tuple[float, ...] = ()
@@ -173,18 +164,7 @@ class OnlinePitotErrorModel:
         if not (math.isfinite(error_mps) and math.isfinite(filter_error_mps)
                 and all(math.isfinite(v) for v in x)):  # fmt: skip
             return
-        last = self._last_kept_us
-        if last is not None and time_us - last < self._period_us:
-            if time_us >= last:
-                return
-            self._pairs.clear()  # time went backwards: a new flight
-        self._last_kept_us = time_us
-        self._pairs.append((time_us, x, error_mps, filter_error_mps))
-        start = time_us - self._window_us
-        while self._pairs and self._pairs[0][0] < start:
-            self._pairs.popleft()
-        due = self._last_fit_us is None or time_us - self._last_fit_us >= self._refit_us
-        if due and len(self._pairs) >= self._min:
+        if self._window.add(time_us, (time_us, x, error_mps, filter_error_mps)):
             self._refit(time_us)
 
     def _reference(self, model: Regressor, t_us: NDArray[np.int64], X: FloatArray) -> float:
@@ -194,11 +174,12 @@ class OnlinePitotErrorModel:
         return float(np.mean(model.predict(X[recent])))
 
     def _refit(self, time_us: int) -> None:
-        self._last_fit_us = time_us
-        t = np.array([p[0] for p in self._pairs], dtype=np.int64)
-        X = np.array([p[1] for p in self._pairs], dtype=np.float64)
-        y = np.array([p[2] for p in self._pairs], dtype=np.float64)
-        k = np.array([p[3] for p in self._pairs], dtype=np.float64)
+        self._window.fitted(time_us)
+        pairs = self._window.pairs
+        t = np.array([p[0] for p in pairs], dtype=np.int64)
+        X = np.array([p[1] for p in pairs], dtype=np.float64)
+        y = np.array([p[2] for p in pairs], dtype=np.float64)
+        k = np.array([p[3] for p in pairs], dtype=np.float64)
         n_val = max(round(self._val_fraction * len(y)), 4)
         n_fit = len(y) - n_val
         model = self._make()
@@ -260,7 +241,7 @@ class OnlinePitotErrorModel:
         ``constant_rmse_mps``) and the selected polynomial."""
         if self._model is not None:
             state = "trained"
-        elif self._pairs:
+        elif self._window.pairs:
             state = "untrained"
         else:
             state = "no inputs"
@@ -268,7 +249,7 @@ class OnlinePitotErrorModel:
         if self._model is not None and self._describe is not None:
             poly = self._describe(self._model)
         return AirspeedModelStatus(
-            method=self.method, state=state, samples=len(self._pairs), refits=self._refits,
+            method=self.method, state=state, samples=len(self._window.pairs), refits=self._refits,
             validation_rmse_mps=self._val_rmse, polynomial=poly,
             constant_rmse_mps=self._filter_rmse,
         )  # fmt: skip
