@@ -78,7 +78,13 @@ FloatArray = NDArray[np.float64]
 Vec3 = tuple[float, float, float]
 _MIN_MODEL_SPEED_MPS = 1.0  # below this the direction of the air-relative velocity is noise
 _FLAG_HOLD_US = 10_000_000  # a flag stays in the status this long after its last occurrence
-_RESIDUAL_MAX_WIND_SIGMA_MPS = 1.0  # the turbulence estimate needs a converged mean wind
+# The residual against the mean wind (turbulence estimate, position-error fit, learned pitot
+# error) needs the airspeed the mean wind and scale predict known to this 1-sigma, m/s. Across
+# the air-relative track the wind enters the airspeed only to second order (sigma^2 / 2V:
+# 0.1 m/s at 3 m/s and 45 m/s, a bias the estimates' moving means absorb), so on straight
+# flight, where only turns tell the crosswind from a heading error, it is bounded apart.
+_RESIDUAL_MAX_SIGMA_MPS = 1.0
+_RESIDUAL_MAX_CROSSWIND_SIGMA_MPS = 3.0
 
 
 def tas_model(
@@ -674,8 +680,7 @@ class AirspeedAiding:
         """With GNSS good and the wind converged: feed the turbulence estimate the residual
         against the mean wind (:mod:`fusion.aiding.turbulence`) and the position-error fit the
         raw airspeed ratio (:mod:`fusion.aiding.position_error`)."""
-        P, w = self._covariance(), self.layout.WIND
-        if max(float(P[w, w]), float(P[w + 1, w + 1])) > _RESIDUAL_MAX_WIND_SIGMA_MPS**2:
+        if not self._residual_ready(v_ned_mps):
             return
         st, turb = self.state, self.turbulence
         was = turb.saturated
@@ -688,14 +693,34 @@ class AirspeedAiding:
         if turb.saturated and not was:
             self._c.turbulence_saturated += 1
 
+    def _residual_ready(self, v_ned_mps: Vec3) -> bool:
+        """The airspeed the mean wind and scale predict is known well enough for a residual
+        against it: its 1-sigma along the air-relative track (wind and scale) at most
+        ``_RESIDUAL_MAX_SIGMA_MPS``, the crosswind's at most
+        ``_RESIDUAL_MAX_CROSSWIND_SIGMA_MPS``."""
+        st, lay = self.state, self.layout
+        an = v_ned_mps[0] - st.mean_wind_ne_mps[0]
+        ae = v_ned_mps[1] - st.mean_wind_ne_mps[1]
+        va = math.hypot(an, ae)
+        if va < _MIN_MODEL_SPEED_MPS:
+            return False
+        P = self._covariance()
+        i = [lay.WIND, lay.WIND + 1, lay.ASPD_SCALE]
+        g = 1.0 + st.scale
+        h = np.array([-g * an / va, -g * ae / va, va])
+        along = float(h @ P[np.ix_(i, i)] @ h)
+        c = np.array([-ae / va, an / va])
+        across = float(c @ P[np.ix_(i[:2], i[:2])] @ c)
+        return (along <= _RESIDUAL_MAX_SIGMA_MPS**2
+                and across <= _RESIDUAL_MAX_CROSSWIND_SIGMA_MPS**2)  # fmt: skip
+
     def _learn_pitot(self, t_us: int, at: InsState, tas_mps: float) -> None:
         """With GNSS good and the wind converged: one pair of the learned pitot error, the
         measured TAS minus ``|v - w_mean|``, with the filter's own prediction of it,
         ``k |v - w_mean|`` (:mod:`fusion.pitot_model`)."""
         model, st = self.pitot_model, self.state
         assert model is not None
-        P, w = self._covariance(), self.layout.WIND
-        if max(float(P[w, w]), float(P[w + 1, w + 1])) > _RESIDUAL_MAX_WIND_SIGMA_MPS**2:
+        if not self._residual_ready(at.v_ned_mps):
             return
         va = _air_speed(at.v_ned_mps, st.mean_wind_ne_mps)
         if va > _MIN_MODEL_SPEED_MPS:

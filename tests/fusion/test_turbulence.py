@@ -183,3 +183,38 @@ def test_still_air_slows_the_wind_walk_and_an_outage_holds_it_but_turbulence_doe
         baro_bias_tau_s=1000.0))  # fmt: skip
     qw, qk = model.air_process_noise(1.0, -4.0, 0.2, 0.0, 0.5)
     assert qw == pytest.approx((0.05 * 0.2) ** 2) and qk == pytest.approx((0.5e-4) ** 2)
+
+
+def test_straight_flight_starts_the_estimate_on_the_along_track_wind_alone() -> None:
+    # GIVEN straight flight North at 45 m/s through a steady wind, with GNSS: the wind along
+    # the air-relative track known to 0.3 m/s, across it only to 2.5 m/s (a weakly observed
+    # heading: nothing but turns tells the crosswind from a heading error)
+    lay = layout_for("ins16+air")
+    P = np.zeros((lay.n, lay.n))
+    w = lay.WIND
+    P[w, w], P[w + 1, w + 1] = 0.3**2, 2.5**2
+    air = AirspeedAiding(CFG, lay, HealthCounters(), lambda *_a: None, lambda: P,
+                         lambda *_a: None)  # fmt: skip
+    air.state.active = True
+    air.state.mean_wind_ne_mps = (3.0, 2.0)
+    # WHEN the pitot's residuals come in (the airspeed the mean wind predicts, with the
+    # pitot's own noise)
+    rng = np.random.default_rng(3)
+    va = math.hypot(45.0 - 3.0, -2.0)
+    noise_mps = air._sensor_sigma(va, 101_325.0, 288.15)
+    for _ in range(CFG.turbulence_min_residuals + 50):
+        tas = va + noise_mps * float(rng.standard_normal())
+        air._learn_air((45.0, 0.0, 0.0), tas, tas, 0.05, 101_325.0, 288.15, 1)
+    # THEN the estimate starts (still air: at its floor), since the crosswind enters the
+    # airspeed only to second order
+    assert air.turbulence.source == "estimated"
+    assert air.turbulence.sigma_mps == pytest.approx(CFG.gust_sigma_min_mps)
+    # AND a wind unknown along the track keeps it waiting
+    P[w, w], P[w + 1, w + 1] = 2.5**2, 0.3**2
+    waiting = AirspeedAiding(CFG, lay, HealthCounters(), lambda *_a: None, lambda: P,
+                             lambda *_a: None)  # fmt: skip
+    waiting.state.active = True
+    waiting.state.mean_wind_ne_mps = (3.0, 2.0)
+    for _ in range(CFG.turbulence_min_residuals + 50):
+        waiting._learn_air((45.0, 0.0, 0.0), va, va, 0.05, 101_325.0, 288.15, 1)
+    assert waiting.turbulence.count == 0 and waiting.turbulence.source == "default"
