@@ -278,6 +278,13 @@ class AirspeedTuning(_Frozen):
     wind_init_sigma_mps: PositiveFloat = 3.0
     """Wind sigma per axis when the wind states start from ``v - TAS * heading`` (added in
     quadrature to ``TAS * yaw sigma`` and the TAS sigma), m/s."""
+    wind_start_max_heading_sigma_deg: PositiveFloat = 3.0
+    """The wind states start from ``v - TAS * heading`` only once the heading's sigma is at
+    most this, deg. The wind so computed carries the heading's error (``TAS * dpsi``: 2 m/s
+    for 3 deg at 40 m/s) without its correlation: started earlier, while the heading is still
+    aligning (no magnetometer, before the first turn), the sideslip and airspeed updates
+    take the two as independent, give the heading information it does not have, and leave
+    a wind wrong by many of its sigmas."""
     wind_init_sigma_no_pitot_mps: PositiveFloat = 10.0
     """Wind sigma per axis when a fixed-wing without a pitot starts its wind states (at zero)
     to learn them from sideslip and GNSS for synthetic airspeed, m/s."""

@@ -620,6 +620,8 @@ class AirspeedAiding:
                 return ins
             P = self._covariance()
             yaw_var = float(P[self.layout.ATT + 2, self.layout.ATT + 2])
+            if yaw_var > math.radians(cfg.wind_start_max_heading_sigma_deg) ** 2:
+                return ins
             sigma = self._sigma(tas, static_pa, temp_k, n)
             tas_h = math.sqrt(max(0.0, tas * tas - at.v_ned_mps[2] ** 2))
             var_w = cfg.wind_init_sigma_mps**2 + sigma * sigma + tas_h * tas_h * yaw_var
