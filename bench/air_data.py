@@ -233,6 +233,7 @@ def run_flight(task: dict[str, Any]) -> dict[str, Any]:
             "nees_group_outage": _group_nees(err, inside),
             "wind": _wind_consistency(wind_track, wind, turbulence, start_s, end_s),
             "turbulence_mps": air.turbulence_mps, "turbulence_source": air.turbulence_source,
+            "turbulence_estimate_mps": air.turbulence_estimate_mps,
             "position_error_per_rad": air.position_error_per_rad, "air_flags": air.flags,
             "mode_at_end": modes[min(k, len(modes) - 1)] if modes else None,
             "curve_m": curve,

@@ -501,11 +501,12 @@ class AirDataStatus:
         Gust (turbulence) estimate North, East, on top of the mean wind (NaN while dormant),
         m/s.
     turbulence_mps : float
-        Gust sigma per axis the filter uses (the turbulence intensity), m/s.
+        Gust sigma per axis the filter uses, m/s.
     turbulence_source : str
         ``default`` (``AirspeedTuning.gust_sigma_mps``: not estimated, or too few residuals
-        yet), ``estimated`` (from the air-data residuals while GNSS was good; held in an
-        outage) or ``saturated`` (the estimate hit its ceiling: the ceiling is used).
+        yet), ``estimated`` (the estimate: still air), ``turbulent`` (the estimate is above
+        still air: ``gust_sigma_mps`` is used) or ``saturated`` (the estimate hit its
+        ceiling: the ceiling is used).
     flags : str
         Comma-separated bad-input flags of the last 10 s: ``pitot_implausible`` (an airspeed
         further from the ground speed than any plausible wind: not fused),
@@ -514,6 +515,9 @@ class AirDataStatus:
     position_error_per_rad : float
         Fitted slope of the pitot-static position error against the angle of attack
         (``TAS_measured / |a| - 1`` per rad; 0 until fitted), 1/rad.
+    turbulence_estimate_mps : float
+        The turbulence intensity estimated from the air-data residuals while GNSS was good
+        (held in an outage), within its floor and ceiling, m/s; NaN until estimated.
     """
 
     state: str = "off"
@@ -527,6 +531,7 @@ class AirDataStatus:
     turbulence_source: str = ""
     flags: str = ""
     position_error_per_rad: float = 0.0
+    turbulence_estimate_mps: float = math.nan
 
 
 @dataclass(frozen=True, slots=True)

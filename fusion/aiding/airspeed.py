@@ -387,7 +387,8 @@ class AirspeedAiding:
                              st.scale, self.last_tas_mps, self.monitor.fault,
                              st.gust_ne_mps if st.active else nan2, turb.sigma_mps,
                              turb.source, ",".join(flags),
-                             self.position_error.coefficient_per_rad)  # fmt: skip
+                             self.position_error.coefficient_per_rad,
+                             turb.estimate_mps)  # fmt: skip
 
     def noise_factors(self, gnss_active: bool, now_us: int) -> tuple[float, float, float]:
         """Factors on the wind's level-flight and climb-driven random walk and on the scale's

@@ -16,9 +16,11 @@ gust variance along track; MIL-F-8785C's low-altitude model has the same sigma a
 The filter uses the conservative prior (``AirspeedTuning.gust_sigma_mps``) until
 ``turbulence_min_residuals`` residuals have been seen; the estimate itself is the residuals'
 alone (a running variance, then the window), so the prior does not linger in calm air. It is
-bounded by a floor (still air is
-never taken as perfectly still) and a ceiling: a scatter above the ceiling is not plausible
-air but a pitot or model fault, flagged and answered with the ceiling. In an outage nothing
+bounded by a floor (still air is never taken as perfectly still) and a ceiling: a scatter
+above the ceiling is not plausible air but a pitot or model fault, flagged and answered with
+the ceiling. The estimate sets the gust sigma in still air (at most
+``outage_hold_max_turbulence_mps``); above it the filter keeps the prior unless
+``gust_sigma_estimated_above_still_air`` (the config field says why). In an outage nothing
 is added: the turbulence does not change because GNSS went away, so the last estimate holds.
 """
 
@@ -72,20 +74,33 @@ class TurbulenceEstimator:
         return math.sqrt(max(self._var, 0.0))
 
     @property
-    def sigma_mps(self) -> float:
-        """The gust sigma the filter uses, m/s: the prior when not adaptive or before enough
-        residuals, the ceiling when saturated, else the estimate within its bounds."""
+    def estimate_mps(self) -> float:
+        """The estimate within its floor and ceiling, m/s (NaN before enough residuals)."""
         cfg = self._cfg
-        if not cfg.adaptive_turbulence or self.count < cfg.turbulence_min_residuals:
-            return cfg.gust_sigma_mps
-        if self.saturated:
-            return cfg.gust_sigma_max_mps
+        if self.count < cfg.turbulence_min_residuals:
+            return math.nan
         return min(cfg.gust_sigma_max_mps, max(cfg.gust_sigma_min_mps, self.raw_sigma_mps))
 
     @property
+    def sigma_mps(self) -> float:
+        """The gust sigma the filter uses, m/s (module docstring and :attr:`source`)."""
+        cfg, source = self._cfg, self.source
+        if source == "saturated":
+            return cfg.gust_sigma_max_mps
+        return self.estimate_mps if source == "estimated" else cfg.gust_sigma_mps
+
+    @property
     def source(self) -> str:
-        """``default`` (the prior in use), ``estimated`` or ``saturated``."""
+        """Where the gust sigma in use comes from: ``default`` (the prior: not adaptive, or
+        too few residuals yet), ``estimated`` (the estimate: still air, or any air with
+        ``gust_sigma_estimated_above_still_air``), ``turbulent`` (the estimate is above
+        still air: the prior) or ``saturated`` (the ceiling)."""
         cfg = self._cfg
         if not cfg.adaptive_turbulence or self.count < cfg.turbulence_min_residuals:
             return "default"
-        return "saturated" if self.saturated else "estimated"
+        if self.saturated:
+            return "saturated"
+        if (self.estimate_mps <= cfg.outage_hold_max_turbulence_mps
+                or cfg.gust_sigma_estimated_above_still_air):  # fmt: skip
+            return "estimated"
+        return "turbulent"

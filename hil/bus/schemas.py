@@ -217,8 +217,8 @@ SCHEMAS: Final[Mapping[Topic, dict[str, Any]]] = {
                 "air data: state (off | waiting | fusing | blocked | synthetic | stale), mean "
                 "wind N/E m/s, airspeed scale, last TAS m/s, pitot fault, gust N/E m/s, "
                 "turbulence_mps (gust sigma in use), turbulence_source (default | estimated | "
-                "saturated), flags (comma-separated: pitot_implausible, wind_implausible, "
-                "turbulence_saturated)",
+                "turbulent | saturated), turbulence_estimate_mps, flags (comma-separated: "
+                "pitot_implausible, wind_implausible, turbulence_saturated)",
             ),
             "alignment": _d(
                 {"type": ["object", "null"]},

@@ -43,8 +43,13 @@ def test_the_estimate_finds_the_gust_sigma_under_the_sensor_noise(sigma: float) 
     feed(est, gust_residuals(sigma, 1200, seed=3), 0.5, seed=3)
     # THEN the estimate is the gust's, the sensor's share removed (a 120 s window of a process
     # correlated over 6 s holds ~10 independent values: 25 % is about 2.5 of its sigmas)
-    assert est.source == "estimated"
-    assert est.sigma_mps == pytest.approx(sigma, rel=0.25)
+    assert est.estimate_mps == pytest.approx(sigma, rel=0.25)
+    # AND above still air the gust states keep the prior, unless told to take the estimate
+    assert est.source == "turbulent" and est.sigma_mps == CFG.gust_sigma_mps
+    cfg = CFG.model_copy(update={"gust_sigma_estimated_above_still_air": True})
+    taking = TurbulenceEstimator(cfg)
+    feed(taking, gust_residuals(sigma, 1200, seed=3), 0.5, seed=3)
+    assert taking.source == "estimated" and taking.sigma_mps == est.estimate_mps
 
 
 def test_calm_air_reaches_the_floor_and_an_outage_holds_the_estimate() -> None:
@@ -52,7 +57,8 @@ def test_calm_air_reaches_the_floor_and_an_outage_holds_the_estimate() -> None:
     est = TurbulenceEstimator(CFG)
     feed(est, np.zeros(600), 0.3, seed=5)
     # THEN the gust sigma is the floor, far below the fixed default
-    assert est.sigma_mps == CFG.gust_sigma_min_mps < CFG.gust_sigma_mps
+    assert est.source == "estimated"
+    assert est.sigma_mps == est.estimate_mps == CFG.gust_sigma_min_mps < CFG.gust_sigma_mps
     # AND nothing added (an outage) changes nothing
     assert est.sigma_mps == est.sigma_mps and est.count == 600
 
@@ -61,6 +67,7 @@ def test_the_prior_is_used_until_enough_residuals_and_when_not_adaptive() -> Non
     est = TurbulenceEstimator(CFG)
     feed(est, np.zeros(CFG.turbulence_min_residuals - 1), 0.3, seed=1)
     assert est.source == "default" and est.sigma_mps == CFG.gust_sigma_mps
+    assert math.isnan(est.estimate_mps)
     fixed = TurbulenceEstimator(CFG.model_copy(update={"adaptive_turbulence": False}))
     feed(fixed, np.zeros(600), 0.3, seed=1)
     assert fixed.source == "default" and fixed.sigma_mps == CFG.gust_sigma_mps
