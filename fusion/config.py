@@ -400,20 +400,21 @@ class AirspeedTuning(_Frozen):
     """Level-flight wind and scale noise in an outage over their GNSS-aided values (see
     ``outage_hold``; 0 and 0.1 alike on the tuning flights, seeds 1-3 of manoeuvre and
     cruise)."""
-    still_air_wind_noise_mps2_rthz: PositiveFloat = 0.05
+    still_air_wind_noise_mps2_rthz: PositiveFloat = 0.01
     """Wind random walk in still air (the turbulence in use at most
     ``outage_hold_max_turbulence_mps``, on a measured airspeed), m/s^2/sqrt(Hz); the climb
     part scales with it. The mean wind's random walk sets its sigma when GNSS is lost (about
     ``(nsd^2 sigma_TAS^2 / f)^(1/4)`` against 1 Hz airspeed batches): a sigma kept above the
     wind's real error hands the first airspeed residuals of an outage, the INS's own drift,
-    to the wind. 0.01 (0.6 m/s of wind change in an hour of level flight) was the best of
-    0.05, 0.02 and 0.01 on the JSBSim tuning flights in steady wind and 0.22x free inertial
-    on the held-out ones (0.35x at 0.05), but on the synthetic flight of the filter's tests
-    (no magnetometer, 100 s of GNSS: a weakly observed heading) it made one seed's outage
-    error 256 m against 77 m and the outage NEES 16 (chi-square band 4.9-14.4): a slower
-    walk takes away the process noise that hides the linearised filter's spurious heading
-    information. The default stays EKF2's value until the slower walk is conditioned on a
-    well-observed heading."""
+    to the wind. 0.01 (0.6 m/s of wind change in an hour of level flight) against EKF2's
+    0.05 (``wind_noise_mps2_rthz``, kept in turbulence) on the JSBSim tuning flights in
+    steady wind (seeds 1-3 of manoeuvre and cruise): summed outage RMSE 47 against 62 m
+    industrial, 28 against 51 m consumer; 0.02 gave 53 / 35 m, 0.005 44 / 26 m (within
+    6 %, at half the rate a change of weather is followed). A slower walk is safe only on
+    a wind that is not already wrong by many of its sigmas, which is why the wind waits
+    for the heading (``wind_start_max_heading_sigma_deg``): started at once, on the
+    synthetic flight of the filter's tests, the walk at 0.01 left one seed 256 m off at the
+    end of the outage and the NEES at 16."""
     outage_climb_noise_factor: NonNegativeFloat = 0.0
     """Climb-driven wind noise (``wind_climb_scaler_spm``) in an outage hold over its
     GNSS-aided value. The climb part models flying through the wind's change with height;
