@@ -284,7 +284,16 @@ class AirspeedTuning(_Frozen):
     for 3 deg at 40 m/s) without its correlation: started earlier, while the heading is still
     aligning (no magnetometer, before the first turn), the sideslip and airspeed updates
     take the two as independent, give the heading information it does not have, and leave
-    a wind wrong by many of its sigmas."""
+    a wind wrong by many of its sigmas. The wait lasts at most ``wind_start_max_wait_s``."""
+    wind_start_max_wait_s: PositiveFloat = 60.0
+    """Longest wait for the heading (``wind_start_max_heading_sigma_deg``), s of airspeed
+    readings: a heading that stays unknown (no magnetometer, or a weak one, and no turns)
+    would otherwise leave the aircraft without air data for the whole flight. A wind
+    started against a wrong heading still predicts the velocity while the course holds
+    (``v = TAS (cos psi, sin psi) + w`` with the same heading error in both terms); a
+    consumer MEMS IMU with the magnetometer fused at 0.1 Hz on a straight cruise (tuning
+    flight ``cruise`` seed 2) never got its heading within 3 deg and, waiting, flew its
+    outage free inertial."""
     wind_init_sigma_no_pitot_mps: PositiveFloat = 10.0
     """Wind sigma per axis when a fixed-wing without a pitot starts its wind states (at zero)
     to learn them from sideslip and GNSS for synthetic airspeed, m/s."""
@@ -409,8 +418,8 @@ class AirspeedTuning(_Frozen):
     to the wind. 0.01 (0.6 m/s of wind change in an hour of level flight) against EKF2's
     0.05 (``wind_noise_mps2_rthz``, kept in turbulence) on the JSBSim tuning flights in
     steady wind (seeds 1-3 of manoeuvre and cruise): summed outage RMSE 47 against 62 m
-    industrial, 28 against 51 m consumer; 0.02 gave 53 / 35 m, 0.005 44 / 26 m (within
-    6 %, at half the rate a change of weather is followed). A slower walk is safe only on
+    industrial, 27 against 51 m consumer; 0.02 gave 53 / 35 m, 0.005 44 / 25 m (5-9 %
+    better, at half the rate a change of weather is followed). A slower walk is safe only on
     a wind that is not already wrong by many of its sigmas, which is why the wind waits
     for the heading (``wind_start_max_heading_sigma_deg``): started at once, on the
     synthetic flight of the filter's tests, the walk at 0.01 left one seed 256 m off at the

@@ -315,6 +315,7 @@ class AirspeedAiding:
         self._tas_period_us = round(1e6 / cfg.fuse_rate_hz)
         self._tas_slack_us = round(0.5e6 / tick_hz)  # half an epoch: IMU-step jitter
         self._next_tas_us = -(1 << 62)
+        self._heading_wait_since_us: int | None = None  # the wind waiting for the heading
 
     # --------------------------------------------------------------- samples
     def add_sample(self, s: AirspeedSample, time_us: int) -> None:
@@ -622,7 +623,12 @@ class AirspeedAiding:
             P = self._covariance()
             yaw_var = float(P[self.layout.ATT + 2, self.layout.ATT + 2])
             if yaw_var > math.radians(cfg.wind_start_max_heading_sigma_deg) ** 2:
-                return ins
+                since = self._heading_wait_since_us
+                if since is None or now_us < since:
+                    self._heading_wait_since_us = since = now_us
+                if now_us - since < cfg.wind_start_max_wait_s * 1e6:
+                    return ins
+            self._heading_wait_since_us = None
             sigma = self._sigma(tas, static_pa, temp_k, n)
             tas_h = math.sqrt(max(0.0, tas * tas - at.v_ned_mps[2] ** 2))
             var_w = cfg.wind_init_sigma_mps**2 + sigma * sigma + tas_h * tas_h * yaw_var

@@ -225,3 +225,50 @@ def test_straight_flight_starts_the_estimate_on_the_along_track_wind_alone() -> 
     for _ in range(CFG.turbulence_min_residuals + 50):
         waiting._learn_air((45.0, 0.0, 0.0), va, va, 0.05, 101_325.0, 288.15, 1)
     assert waiting.turbulence.count == 0 and waiting.turbulence.source == "default"
+
+
+def test_the_wind_waits_for_the_heading_but_not_for_ever() -> None:
+    # GIVEN a pitot read at 20 Hz on a straight leg at 40 m/s with GNSS, and a heading known
+    # only to 10 deg (no magnetometer, no turn), then to 2 deg
+    from types import SimpleNamespace
+
+    from fusion.strapdown import InsState
+    from physconst.airdata import impact_pressure_pa
+    from sim.samples import AirspeedSample
+
+    lay = layout_for("ins16+air")
+    P = np.zeros((lay.n, lay.n))
+    P[lay.ATT + 2, lay.ATT + 2] = math.radians(10.0) ** 2
+    started: list[int] = []
+    accepted = SimpleNamespace(test_ratio=0.0)  # every update taken (the filter's part)
+    air = AirspeedAiding(CFG, lay, HealthCounters(), lambda *_a: accepted, lambda: P,
+                         lambda *_a: started.append(now))  # fmt: skip
+    ins = InsState(0.8, 0.2, 500.0, (40.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
+    qc = impact_pressure_pa(40.0, 95_000.0, 283.0)
+
+    def fly(t0_s: float, t1_s: float) -> None:
+        nonlocal now
+        for k in range(round(t0_s * 20), round(t1_s * 20)):
+            now = k * 50_000
+            air.add_sample(AirspeedSample(now, qc, 283.0), now)
+            air.tick(now, ins, lambda _t: ins, 95_000.0, 283.0, True)
+
+    now = 0
+    # WHEN it flies for less than the longest wait
+    fly(0.0, CFG.wind_start_max_wait_s - 5.0)
+    # THEN the wind has not started (a wind computed against that heading would be wrong by
+    # 7 m/s across track with no correlation to the heading)
+    assert not started and air.status(now).state == "waiting"
+    # AND once the wait is over it starts all the same: air data for a heading that stays
+    # unknown, right on the course flown
+    fly(CFG.wind_start_max_wait_s - 5.0, CFG.wind_start_max_wait_s + 5.0)
+    assert len(started) == 1
+    assert CFG.wind_start_max_wait_s * 1e6 <= started[0] < (CFG.wind_start_max_wait_s + 2.0) * 1e6
+    # AND a heading known to 2 deg starts it at the first airspeed
+    P[lay.ATT + 2, lay.ATT + 2] = math.radians(2.0) ** 2
+    started.clear()
+    accepted = SimpleNamespace(test_ratio=0.0)  # every update taken (the filter's part)
+    air = AirspeedAiding(CFG, lay, HealthCounters(), lambda *_a: accepted, lambda: P,
+                         lambda *_a: started.append(now))  # fmt: skip
+    fly(100.0, 103.0)
+    assert len(started) == 1 and started[0] < 101_100_000
