@@ -37,11 +37,12 @@ are held-out seeds 100.. on ``survey``, ``climb-descent`` and ``racetrack``. The
 turbulence estimate and the outage hold (``AirspeedTuning.gust_sigma_min_mps``,
 ``outage_noise_factor``, ``outage_hold_max_turbulence_mps``) were chosen on seeds 1-3 of
 ``manoeuvre`` and ``cruise`` in steady wind and turbulence; ``--air-rows`` reports held-out
-seeds 100-102, one flight per plan. The still-air wind random walk and the outage hold's
-factor on its climb-driven part (``AirspeedTuning.still_air_wind_noise_mps2_rthz``,
-``outage_climb_noise_factor``) were chosen on ``manoeuvre`` seeds 1 and 3 and ``cruise`` seed 2
-(``--air-rows --groups steady,turbulent --seeds 3 --seed-base 1 --plans manoeuvre,cruise``),
-before any held-out flight was flown with them.
+seeds 100-102, one flight per plan. The still-air wind random walk, the outage hold's
+factor on its climb-driven part and where the turbulence estimate sets the gust sigma
+(``AirspeedTuning.still_air_wind_noise_mps2_rthz``, ``outage_climb_noise_factor``,
+``gust_sigma_estimated_above_still_air``) were chosen on ``manoeuvre`` seeds 1 and 3 and
+``cruise`` seed 2 (``--air-rows --groups steady,turbulent --seeds 3 --seed-base 1 --plans
+manoeuvre,cruise``), before any held-out flight was flown with them.
 
 ``--variants 'SECTION.FIELD=VALUE[;...],...'`` (``--air-rows``) adds the air-data filter
 with those configuration fields set as methods named ``air-data:...``, on the same samples:

@@ -186,8 +186,8 @@ def test_the_wind_waits_for_the_heading_and_is_not_left_wrong_by_its_alignment(
     assert waiting and waiting[-1].time_us < started.time_us
     assert math.sqrt(float(started.P_diag[lay.ATT + 2])) <= max_sd * 1.01
     assert max(math.sqrt(float(e.P_diag[lay.ATT + 2])) for e in waiting) > max_sd
-    # AND after the turn the wind is right within 3 of its sigmas (started at 2 s, it was
-    # 1.7 m/s off with a sigma of 0.35 m/s here: the sideslip and airspeed updates had taken
+    # AND after the turn the wind is right within 3 of its sigmas (started at once, at 2 s,
+    # it is 1.7 m/s off with a sigma of 0.35 m/s here: the sideslip and airspeed updates take
     # the heading's error for information)
     last = est[-1]
     assert last.air_data is not None
