@@ -667,7 +667,7 @@ class AirspeedAiding:
             c.airspeed_blockages += 1
             c.airspeed_blocked += n
             return ins
-        if gnss_active:
+        if gnss_active and self._residual_ready(at.v_ned_mps):
             self._learn_air(at.v_ned_mps, tas, tas_raw, alpha, static_pa, temp_k, n)
             if self.pitot_model is not None:
                 self._learn_pitot(t_mean, at, tas)
@@ -686,11 +686,9 @@ class AirspeedAiding:
         self, v_ned_mps: Vec3, tas_mps: float, tas_raw_mps: float, alpha_rad: float,
         static_pa: float, temp_k: float, n: int,
     ) -> None:  # fmt: skip
-        """With GNSS good and the wind converged: feed the turbulence estimate the residual
-        against the mean wind (:mod:`fusion.aiding.turbulence`) and the position-error fit the
-        raw airspeed ratio (:mod:`fusion.aiding.position_error`)."""
-        if not self._residual_ready(v_ned_mps):
-            return
+        """With GNSS good and the residual ready (:meth:`_residual_ready`): feed the turbulence
+        estimate the residual against the mean wind (:mod:`fusion.aiding.turbulence`) and the
+        position-error fit the raw airspeed ratio (:mod:`fusion.aiding.position_error`)."""
         st, turb = self.state, self.turbulence
         was = turb.saturated
         va = _air_speed(v_ned_mps, st.mean_wind_ne_mps)
@@ -724,13 +722,11 @@ class AirspeedAiding:
                 and across <= _RESIDUAL_MAX_CROSSWIND_SIGMA_MPS**2)  # fmt: skip
 
     def _learn_pitot(self, t_us: int, at: InsState, tas_mps: float) -> None:
-        """With GNSS good and the wind converged: one pair of the learned pitot error, the
-        measured TAS minus ``|v - w_mean|``, with the filter's own prediction of it,
-        ``k |v - w_mean|`` (:mod:`fusion.pitot_model`)."""
+        """With GNSS good and the residual ready (:meth:`_residual_ready`): one pair of the
+        learned pitot error, the measured TAS minus ``|v - w_mean|``, with the filter's own
+        prediction of it, ``k |v - w_mean|`` (:mod:`fusion.pitot_model`)."""
         model, st = self.pitot_model, self.state
         assert model is not None
-        if not self._residual_ready(at.v_ned_mps):
-            return
         va = _air_speed(at.v_ned_mps, st.mean_wind_ne_mps)
         if va > _MIN_MODEL_SPEED_MPS:
             model.observe(t_us, _pitot_inputs(at, st.mean_wind_ne_mps, tas_mps), tas_mps - va,

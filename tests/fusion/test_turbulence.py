@@ -196,34 +196,46 @@ def test_straight_flight_starts_the_estimate_on_the_along_track_wind_alone() -> 
     # GIVEN straight flight North at 45 m/s through a steady wind, with GNSS: the wind along
     # the air-relative track known to 0.3 m/s, across it only to 2.5 m/s (a weakly observed
     # heading: nothing but turns tells the crosswind from a heading error)
+    from types import SimpleNamespace
+
+    from fusion.strapdown import InsState
+    from physconst.airdata import impact_pressure_pa
+    from sim.samples import AirspeedSample
+
     lay = layout_for("ins16+air")
     P = np.zeros((lay.n, lay.n))
     w = lay.WIND
-    P[w, w], P[w + 1, w + 1] = 0.3**2, 2.5**2
-    air = AirspeedAiding(CFG, lay, HealthCounters(), lambda *_a: None, lambda: P,
-                         lambda *_a: None)  # fmt: skip
-    air.state.active = True
-    air.state.mean_wind_ne_mps = (3.0, 2.0)
-    # WHEN the pitot's residuals come in (the airspeed the mean wind predicts, with the
-    # pitot's own noise)
-    rng = np.random.default_rng(3)
+    ins = InsState(0.8, 0.2, 500.0, (45.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
     va = math.hypot(45.0 - 3.0, -2.0)
-    noise_mps = air._sensor_sigma(va, 101_325.0, 288.15)
-    for _ in range(CFG.turbulence_min_residuals + 50):
-        tas = va + noise_mps * float(rng.standard_normal())
-        air._learn_air((45.0, 0.0, 0.0), tas, tas, 0.05, 101_325.0, 288.15, 1)
+    accepted = SimpleNamespace(test_ratio=0.0)  # every update taken (the filter's part)
+
+    def fly(along_sigma_mps: float, across_sigma_mps: float) -> AirspeedAiding:
+        """A pitot read at 20 Hz for the residuals the estimate needs and 50 s more, with the
+        wind (3, 2) m/s started and known to these sigmas North (along) and East (across)."""
+        P[w, w], P[w + 1, w + 1] = along_sigma_mps**2, across_sigma_mps**2
+        air = AirspeedAiding(CFG, lay, HealthCounters(), lambda *_a: accepted, lambda: P,
+                             lambda *_a: None)  # fmt: skip
+        air.state.active = True
+        air.state.start((3.0, 2.0))
+        # the pitot's own noise on the airspeed the mean wind predicts
+        rng = np.random.default_rng(3)
+        noise_mps = air._sensor_sigma(va, 101_325.0, 288.15)
+        for k in range(20 * (CFG.turbulence_min_residuals + 50)):
+            now = 1_000_000 + k * 50_000
+            tas = va + noise_mps * float(rng.standard_normal())
+            air.add_sample(AirspeedSample(now, impact_pressure_pa(tas, 101_325.0, 288.15),
+                                          288.15), now)
+            air.tick(now, ins, lambda _t: ins, 101_325.0, 288.15, True)
+        return air
+
+    # WHEN the pitot's residuals come in
+    air = fly(0.3, 2.5)
     # THEN the estimate starts (still air: at its floor), since the crosswind enters the
     # airspeed only to second order
     assert air.turbulence.source == "estimated"
     assert air.turbulence.sigma_mps == pytest.approx(CFG.gust_sigma_min_mps)
     # AND a wind unknown along the track keeps it waiting
-    P[w, w], P[w + 1, w + 1] = 2.5**2, 0.3**2
-    waiting = AirspeedAiding(CFG, lay, HealthCounters(), lambda *_a: None, lambda: P,
-                             lambda *_a: None)  # fmt: skip
-    waiting.state.active = True
-    waiting.state.mean_wind_ne_mps = (3.0, 2.0)
-    for _ in range(CFG.turbulence_min_residuals + 50):
-        waiting._learn_air((45.0, 0.0, 0.0), va, va, 0.05, 101_325.0, 288.15, 1)
+    waiting = fly(2.5, 0.3)
     assert waiting.turbulence.count == 0 and waiting.turbulence.source == "default"
 
 
